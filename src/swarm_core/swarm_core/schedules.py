@@ -1,0 +1,208 @@
+"""λ schedules, leader steering programs and leader choice rules (no ROS).
+
+The commander's logic lives here (`CommandPlan`) so that the batch engine and the ROS
+commander node compute the same λ(t), the same leaders and the same steering values s_k.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+RAMP_SHAPES = ('smoothstep', 'linear', 'step', 'tanh')
+
+
+def ramp_shape(x, shape: str):
+    """Normalised ramp profile on x ∈ [0, 1] → [0, 1] (C¹ 'smoothstep' 3x² − 2x³ by default)."""
+    x = np.clip(x, 0.0, 1.0)
+    if shape == 'smoothstep':
+        return x * x * (3.0 - 2.0 * x)
+    if shape == 'linear':
+        return x
+    if shape == 'step':
+        return np.where(x > 0.0, 1.0, 0.0)
+    if shape == 'tanh':  # tanh profile rescaled to hit 0 and 1 exactly at the ends
+        return 0.5 * (np.tanh(6.0 * (x - 0.5)) / math.tanh(3.0) + 1.0)
+    raise ValueError(f'ramp shape must be one of {RAMP_SHAPES}, got {shape!r}')
+
+
+class LambdaSchedule:
+    """λ(t) ∈ [0, 1]; subclasses implement `value`."""
+
+    def value(self, t: float) -> float:  # pragma: no cover - interface
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class ConstantLambda(LambdaSchedule):
+    level: float = 0.0
+
+    def value(self, t):
+        return self.level
+
+
+@dataclass(frozen=True)
+class TanhWindow(LambdaSchedule):
+    """λ(t) = low + (high − low)·½[tanh((t − rise_at)/τ) − tanh((t − fall_at)/τ)]: smooth,
+    up near t = rise_at, down near t = fall_at (MODEL.md: τ = 30 gives a clean split)."""
+
+    rise_at: float = 400.0
+    fall_at: float = 600.0
+    tau: float = 30.0
+    low: float = 0.0
+    high: float = 1.0
+
+    def value(self, t):
+        bump = 0.5 * (math.tanh((t - self.rise_at) / self.tau) - math.tanh((t - self.fall_at) / self.tau))
+        return self.low + (self.high - self.low) * bump
+
+
+@dataclass(frozen=True)
+class Ramp:
+    """From whatever λ is at ``start``, go to ``to`` over ``duration`` with ``shape``."""
+
+    start: float
+    to: float
+    duration: float = 20.0
+    shape: str = 'smoothstep'
+
+
+@dataclass
+class RampSchedule(LambdaSchedule):
+    """Piecewise ramps from an initial level; a ramp that starts before the previous one has
+    finished starts from the value reached then (so live set-points chain smoothly)."""
+
+    initial: float = 0.0
+    ramps: list = field(default_factory=list)
+
+    def then(self, start: float, to: float, duration: float = 20.0, shape: str = 'smoothstep'):
+        """Append a ramp (the commander's live set-point) and return self."""
+        ramp_shape(0.0, shape)  # validates the shape name
+        self.ramps.append(Ramp(float(start), float(to), float(duration), shape))
+        self.ramps.sort(key=lambda r: r.start)
+        return self
+
+    def value(self, t):
+        level = self.initial
+        for i, r in enumerate(self.ramps):
+            if t < r.start:
+                break
+            nxt = self.ramps[i + 1].start if i + 1 < len(self.ramps) else math.inf
+            upto = min(t, nxt)
+            x = 1.0 if r.duration <= 0 else (upto - r.start) / r.duration
+            level = level + (r.to - level) * float(ramp_shape(x, r.shape))
+        return level
+
+
+# ---------------------------------------------------------------- steering programs s_k
+
+class SteeringProgram:
+    """A leader's explicit steering program s_k (eq. 9, 12): curvature as a function of
+    time and of the leader's own state."""
+
+    def value(self, t: float, pos, heading: float) -> float:  # pragma: no cover - interface
+        """s_k at time t for a leader at ``pos`` with ``heading`` = atan2(sin θ, cos θ)."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class ConstantSteering(SteeringProgram):
+    """Constant curvature, e.g. the paper's s1 = 0.01, s2 = −0.01."""
+
+    curvature: float = 0.0
+
+    def value(self, t, pos=None, heading=None):
+        return self.curvature
+
+
+@dataclass(frozen=True)
+class SinusoidSteering(SteeringProgram):
+    """s(t) = offset + amplitude · sin(2π t / period + phase)."""
+
+    amplitude: float = 0.01
+    period: float = 200.0
+    phase: float = 0.0
+    offset: float = 0.0
+
+    def value(self, t, pos=None, heading=None):
+        return self.offset + self.amplitude * math.sin(2.0 * math.pi * t / self.period + self.phase)
+
+
+@dataclass(frozen=True)
+class WaypointSteering(SteeringProgram):
+    """Pursuit of a point: s = clip(gain · bearing error, ±max_curvature), the bearing error
+    being the angle from the heading x_k to the direction of the waypoint."""
+
+    point: tuple = (0.0, 0.0)
+    gain: float = 0.05
+    max_curvature: float = 0.05
+
+    def value(self, t, pos, heading):
+        bearing = math.atan2(self.point[1] - pos[1], self.point[0] - pos[0])
+        err = math.remainder(bearing - heading, 2.0 * math.pi)
+        return max(-self.max_curvature, min(self.max_curvature, self.gain * err))
+
+
+# ---------------------------------------------------------------- leaders
+
+LEADER_RULES = ('lateral_extremes',)
+
+
+def lateral_extremes(pos, cos_t, sin_t):
+    """Indices (left, right) of the agents at the lateral extremes of the swarm, relative to
+    its mean heading: left = largest offset along the mean heading rotated by +90°."""
+    pos = np.asarray(pos, dtype=float)
+    hx, hy = float(np.mean(cos_t)), float(np.mean(sin_t))
+    norm = math.hypot(hx, hy)
+    hx, hy = (1.0, 0.0) if norm == 0.0 else (hx / norm, hy / norm)
+    rel = pos - pos.mean(axis=0)
+    lateral = -rel[:, 0] * hy + rel[:, 1] * hx
+    return int(np.argmax(lateral)), int(np.argmin(lateral))
+
+
+@dataclass
+class CommandPlan:
+    """What the commander decides each step: λ, the leaders and their steering values.
+
+    Leaders are either fixed (``fixed_leaders``: agent index → program) or chosen by
+    ``rule`` at the first step with t ≥ ``choose_at`` (the left extreme gets programs[0],
+    the right one programs[1]).  Before the choice there are no leaders.
+    """
+
+    schedule: LambdaSchedule = field(default_factory=ConstantLambda)
+    fixed_leaders: dict = field(default_factory=dict)
+    rule: str | None = None
+    choose_at: float = 0.0
+    rule_programs: Sequence[SteeringProgram] = ()
+    leaders: dict = field(default_factory=dict)   # current: agent index → program
+
+    def __post_init__(self):
+        if not self.leaders:
+            self.leaders = dict(self.fixed_leaders)
+        if self.rule is not None and self.rule not in LEADER_RULES:
+            raise ValueError(f'leader rule must be one of {LEADER_RULES}, got {self.rule!r}')
+
+    @property
+    def pending_choice(self) -> bool:
+        return self.rule is not None and not self.leaders
+
+    def update(self, t: float, pos, cos_t, sin_t):
+        """Advance to time t with the swarm's states; returns (λ, leader indices, steering).
+
+        pos (N, 2) and the frames (cos θ, sin θ) are what the agents publish, so the batch
+        engine and the ROS commander get the same answer.  steering is an array (N,) with
+        s_k for leaders and 0 elsewhere."""
+        if self.pending_choice and t >= self.choose_at:
+            left, right = lateral_extremes(pos, cos_t, sin_t)
+            progs = list(self.rule_programs)
+            self.leaders = {left: progs[0]}
+            if right != left and len(progs) > 1:
+                self.leaders[right] = progs[1]
+        lam = float(self.schedule.value(t))
+        steering = np.zeros(len(cos_t))
+        for idx, prog in self.leaders.items():
+            heading = math.atan2(float(sin_t[idx]), float(cos_t[idx]))
+            steering[idx] = prog.value(t, pos[idx], heading)
+        return lam, sorted(self.leaders), steering

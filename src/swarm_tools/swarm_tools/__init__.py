@@ -1,0 +1,1 @@
+"""Launcher, MCAP recorder, replay and reports for homotopy-swarm."""

@@ -1,0 +1,1 @@
+"""WorldNode: sim clock and lockstep, target, barrier, swarm view and live metrics."""
