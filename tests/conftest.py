@@ -1,0 +1,106 @@
+"""Shared fixtures.
+
+DDS isolation: every test that touches ROS gets its own ROS_DOMAIN_ID (``ros_domain``),
+discovery stays on localhost, and every process a test starts is ended by the test
+(``processes``), also when it fails.
+"""
+from __future__ import annotations
+
+import itertools
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+VENV_BIN = Path(sys.executable).parent
+
+# Domain ids 1..100 are safe on Linux (ports below the ephemeral range).  Spread the start by
+# pid so that two pytest runs on one machine are unlikely to share ids, and walk from there.
+_domains = itertools.count((os.getpid() * 7) % 100)
+
+
+def _next_domain() -> int:
+    return 1 + next(_domains) % 100
+
+
+@pytest.fixture
+def ros_domain(monkeypatch):
+    """A fresh ROS_DOMAIN_ID for this test, localhost-only discovery; returns the id.
+
+    Set in os.environ (restored afterwards) so child processes inherit it too."""
+    dom = _next_domain()
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(dom))
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    monkeypatch.delenv('ROS_STATIC_PEERS', raising=False)
+    monkeypatch.setenv('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+    return dom
+
+
+@pytest.fixture
+def rclpy_context(ros_domain):
+    """An initialised rclpy Context of its own on the test's domain; shut down afterwards."""
+    import rclpy
+    from rclpy.context import Context
+
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=ros_domain)
+    try:
+        yield ctx
+    finally:
+        if ctx.ok():
+            rclpy.shutdown(context=ctx)
+
+
+class ProcessGroup:
+    """Starts child processes in their own process groups and ends them all at teardown."""
+
+    def __init__(self):
+        self.procs: list[subprocess.Popen] = []
+
+    def start(self, args, **kw) -> subprocess.Popen:
+        kw.setdefault('start_new_session', True)
+        kw.setdefault('env', os.environ.copy())
+        p = subprocess.Popen([str(a) for a in args], **kw)
+        self.procs.append(p)
+        return p
+
+    def stop_all(self, grace: float = 5.0):
+        for p in self.procs:
+            if p.poll() is None:
+                try:
+                    os.killpg(p.pid, signal.SIGINT)
+                except ProcessLookupError:
+                    pass
+        deadline = time.monotonic() + grace
+        for p in self.procs:
+            try:
+                p.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+        for p in self.procs:
+            if p.poll() is None:
+                try:
+                    os.killpg(p.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                p.wait(timeout=5)
+
+
+@pytest.fixture
+def processes():
+    group = ProcessGroup()
+    try:
+        yield group
+    finally:
+        group.stop_all()
+
+
+@pytest.fixture
+def swarm_cmd():
+    """Path of the installed ``swarm`` command (the venv's console script)."""
+    return str(VENV_BIN / 'swarm')
