@@ -156,21 +156,29 @@ def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int 
     lead_rec = np.zeros((n_rec, n), dtype=bool)
     wall = time.perf_counter()
     report_every = max(1, steps // 100)
-    for i in range(steps + 1):
-        t, lam, is_leader, steering = stepper.inputs()
-        u = stepper.control(t, stepper.pos, stepper.theta, lam, is_leader, steering)
-        if i % record_every == 0:
-            s = i // record_every
-            t_rec[s], r_rec[s], th_rec[s], u_rec[s] = t, stepper.pos, stepper.theta, u
-            lam_rec[s], lead_rec[s] = lam, is_leader
-        if i == steps:
-            break
-        stepper.advance(t, u, lam, is_leader, steering)
-        if progress is not None and i % report_every == 0:
-            progress(i, steps)
-    if progress is not None:
+    recorded = 0
+    interrupted = False
+    try:
+        for i in range(steps + 1):
+            t, lam, is_leader, steering = stepper.inputs()
+            u = stepper.control(t, stepper.pos, stepper.theta, lam, is_leader, steering)
+            if i % record_every == 0:
+                s = i // record_every
+                t_rec[s], r_rec[s], th_rec[s], u_rec[s] = t, stepper.pos, stepper.theta, u
+                lam_rec[s], lead_rec[s] = lam, is_leader
+                recorded = s + 1
+            if i == steps:
+                break
+            stepper.advance(t, u, lam, is_leader, steering)
+            if progress is not None and i % report_every == 0:
+                progress(i, steps)
+    except KeyboardInterrupt:      # keep what was computed: the caller saves a partial run
+        interrupted = True
+    if progress is not None and not interrupted:
         progress(steps, steps)
     meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration,
                 integrator=stepper.integrator, steps=steps, record_every=record_every,
-                wall_seconds=time.perf_counter() - wall, neighbour_search=stepper.neighbour_search)
-    return Trajectory(scn.names, t_rec, r_rec, th_rec, u_rec, lam_rec, lead_rec, meta)
+                wall_seconds=time.perf_counter() - wall, neighbour_search=stepper.neighbour_search,
+                interrupted=interrupted)
+    return Trajectory(scn.names, t_rec[:recorded], r_rec[:recorded], th_rec[:recorded],
+                      u_rec[:recorded], lam_rec[:recorded], lead_rec[:recorded], meta)

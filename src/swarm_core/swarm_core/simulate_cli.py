@@ -1,0 +1,242 @@
+"""``swarm simulate``, ``swarm sweep`` and ``swarm scenarios`` (batch engine, no ROS)."""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from . import engine, metrics, outcomes, scenario
+
+
+def analyse(scn, traj, every_time: float = 1.0):
+    """Metric time series (sampled every ``every_time`` units) and the scenario's checks."""
+    rec_dt = scn.dt * traj.meta.get('record_every', 1)
+    every = max(1, int(round(every_time / rec_dt)))
+    series = metrics.time_series(traj.t, traj.r, traj.theta, traj.leader, scn.law.cutoff_radius,
+                                 target=scn.target, barrier_points=scn.barrier, every=every)
+    checks = outcomes.evaluate(scn.spec.expect, series) if len(traj.t) else {}
+    return series, checks
+
+
+def _jsonable(x):
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return x.item()
+    raise TypeError(type(x))
+
+
+def summary_of(scn, traj, series, checks) -> dict:
+    c = series['clusters']
+    changes = [(float(series['t'][0]), int(c[0]))]
+    for i in range(1, len(c)):
+        if c[i] != c[i - 1]:
+            changes.append((float(series['t'][i]), int(c[i])))
+    out = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, steps=len(traj.t) - 1,
+               t_end=float(traj.t[-1]) if len(traj.t) else 0.0,
+               agents=len(scn.names), law=scn.law.kind,
+               final_clusters=int(c[-1]), max_clusters=int(c.max()),
+               min_distance=float(np.min(series['min_distance'])),
+               final_polarisation=float(series['polarisation'][-1]),
+               cluster_changes=changes, checks=checks,
+               behaviour_ok=all(v['passed'] for v in checks.values()) if checks else None,
+               interrupted=bool(traj.meta.get('interrupted', False)),
+               wall_seconds=round(traj.meta.get('wall_seconds', 0.0), 3))
+    if 'intrusions_total' in series:
+        out['intrusions_total'] = series['intrusions_total']
+        out['barrier_clearance'] = series['barrier_clearance']
+    if 'centroid_target_distance' in series:
+        out['closest_centroid_target_distance'] = float(series['centroid_target_distance'].min())
+    return out
+
+
+def write_outputs(out_dir, scn, traj, series, checks, figure=True):
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    traj.save(out / 'trajectory.npz')
+    summary = summary_of(scn, traj, series, checks)
+    doc = dict(summary=summary, series={k: v for k, v in series.items()},
+               parameters=scn.spec.model_dump(mode='json', by_alias=True))
+    (out / 'metrics.json').write_text(json.dumps(doc, default=_jsonable, indent=1))
+    if figure and len(traj.t) > 1:
+        from .plots import plot_run
+        plot_run(traj, series, out / f'{scn.name}.png',
+                 title=f'{scn.name}, seed {scn.seed}: {scn.law.kind} law, n = {len(scn.names)}',
+                 w=scn.law.cutoff_radius, target=scn.target, barrier=scn.barrier)
+    return summary
+
+
+class _Progress:
+    """A progress bar on stderr when it is a terminal; plain lines every 10% otherwise."""
+
+    def __init__(self, label, enabled=True):
+        self.label, self.enabled = label, enabled
+        self.tty = sys.stderr.isatty()
+        self.last = -1
+        self.start = time.perf_counter()
+
+    def __call__(self, step, steps):
+        if not self.enabled:
+            return
+        pct = int(100 * step / max(1, steps))
+        if self.tty:
+            bar = '#' * (pct // 4)
+            sys.stderr.write(f'\r{self.label} [{bar:<25}] {pct:3d}%  step {step}/{steps}')
+            if step >= steps:
+                sys.stderr.write(f'  {time.perf_counter() - self.start:.1f}s\n')
+            sys.stderr.flush()
+        elif pct // 10 != self.last // 10 or step >= steps:
+            sys.stderr.write(f'{self.label}: {pct}% (step {step}/{steps})\n')
+        self.last = pct
+
+
+def _load_or_exit(name, **over):
+    try:
+        return scenario.load(name, **over)
+    except scenario.ScenarioError as err:
+        print(f'swarm: {err}', file=sys.stderr)
+        raise SystemExit(2)
+
+
+def simulate_main(argv) -> int:
+    p = argparse.ArgumentParser(prog='swarm simulate', description=(
+        'Run a scenario in the batch engine (pure numpy, no ROS) and write trajectory.npz, '
+        'metrics.json and a figure into --out.'))
+    p.add_argument('scenario', help='a shipped scenario name (see `swarm scenarios`) or a YAML file')
+    p.add_argument('--seed', type=int, help='random seed (initial headings, noise); default: the file\'s')
+    p.add_argument('--duration', type=float, help='simulated time to run (default: the file\'s)')
+    p.add_argument('--dt', type=float, help='control/integration step (default: the file\'s)')
+    p.add_argument('--integrator', choices=['zoh', 'rk4'], help='zero-order-hold exact arc (default) or RK4 reference')
+    p.add_argument('--out', default=None, help='output directory (default: runs/SCENARIO-seedN)')
+    p.add_argument('--record-every', type=int, default=1, metavar='K', help='keep every K-th step (default 1)')
+    p.add_argument('--no-figure', action='store_true', help='skip the PNG figure')
+    p.add_argument('--quiet', action='store_true', help='no progress output')
+    a = p.parse_args(argv)
+    if a.record_every < 1:
+        p.error('--record-every must be ≥ 1')
+    over = dict(seed=a.seed, duration=a.duration, dt=a.dt)
+    if a.integrator:
+        over['integrator'] = a.integrator
+    scn = _load_or_exit(a.scenario, **over)
+    out = a.out or os.path.join('runs', f'{scn.name}-seed{scn.seed}')
+    if not a.quiet:
+        print(f'swarm simulate: {scn.name} ({scn.source}), {len(scn.names)} agents, law {scn.law.kind}, '
+              f'dt {scn.dt}, t = 0..{scn.duration:g} ({scn.steps} steps), seed {scn.seed}', file=sys.stderr)
+    traj = engine.simulate(scn, record_every=a.record_every,
+                           progress=_Progress(f'{scn.name} seed {scn.seed}', not a.quiet))
+    series, checks = analyse(scn, traj)
+    summary = write_outputs(out, scn, traj, series, checks, figure=not a.no_figure)
+    interrupted = summary['interrupted']
+    changes = ', '.join(f't={t:g}: {c}' for t, c in summary['cluster_changes'][:12])
+    print(f'{scn.name} seed {scn.seed}: t_end {summary["t_end"]:g}, final clusters {summary["final_clusters"]}, '
+          f'polarisation {summary["final_polarisation"]:.3f}, min distance {summary["min_distance"]:.3g}, '
+          f'compute {summary["wall_seconds"]:.2f}s' + (' (INTERRUPTED: partial run saved)' if interrupted else ''))
+    print(f'  clusters over time: {changes}')
+    for name, res in checks.items():
+        det = ', '.join(f'{k}={v}' for k, v in res.items() if k != 'passed')
+        print(f'  {"PASS" if res["passed"] else "FAIL"} {name}: {det}')
+    print(f'  wrote {out}/trajectory.npz, metrics.json' + ('' if a.no_figure else f', {scn.name}.png'))
+    return 130 if interrupted else 0
+
+
+def _sweep_one(args):
+    name, seed, over = args
+    scn = scenario.load(name, seed=seed, **over)
+    traj = engine.simulate(scn)
+    series, checks = analyse(scn, traj)
+    s = summary_of(scn, traj, series, checks)
+    return dict(seed=seed, ok=s['behaviour_ok'], checks=checks, final_clusters=s['final_clusters'],
+                wall=s['wall_seconds'])
+
+
+def sweep(name, seeds, jobs=1, progress=True, **over):
+    """Run seeds 0..seeds−1 (or the given list) and return the per-seed results."""
+    seed_list = list(range(seeds)) if isinstance(seeds, int) else list(seeds)
+    work = [(name, s, over) for s in seed_list]
+    results = []
+    if jobs > 1:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            for r in pool.map(_sweep_one, work):
+                results.append(r)
+                if progress:
+                    print(f'  {name} seed {r["seed"]}: {"ok" if r["ok"] else "FAILED"}', file=sys.stderr)
+    else:
+        for w in work:
+            r = _sweep_one(w)
+            results.append(r)
+            if progress:
+                print(f'  {name} seed {r["seed"]}: {"ok" if r["ok"] else "FAILED"}', file=sys.stderr)
+    return results
+
+
+def _median(vals):
+    vals = [v for v in vals if v is not None]
+    return None if not vals else float(np.median(vals))
+
+
+def sweep_table(name, results) -> str:
+    n = len(results)
+    names = list(results[0]['checks']) if results else []
+    lines = [f'### {name} ({n} seeds: {results[0]["seed"]}..{results[-1]["seed"]})' if results else f'### {name}',
+             '', '| check | passed | median detail |', '|---|---|---|']
+    for c in names:
+        passed = sum(r['checks'][c]['passed'] for r in results)
+        keys = [k for k in results[0]['checks'][c] if k != 'passed']
+        det = []
+        for k in keys:
+            vals = [r['checks'][c][k] for r in results]
+            if all(isinstance(v, (int, float)) or v is None for v in vals):
+                med = _median(vals)
+                det.append(f'{k} {med:.4g}' if med is not None else f'{k} n/a')
+        lines.append(f'| {c} | {passed}/{n} | {", ".join(det)} |')
+    ok = sum(bool(r['ok']) for r in results)
+    lines.append(f'| **all checks** | **{ok}/{n}** | failing seeds: {[r["seed"] for r in results if not r["ok"]]} |')
+    return '\n'.join(lines)
+
+
+def sweep_main(argv) -> int:
+    p = argparse.ArgumentParser(prog='swarm sweep', description=(
+        "Run scenarios over many seeds and count how often the paper's behaviour happens "
+        "(the scenario's `expect` checks)."))
+    p.add_argument('scenarios', nargs='+', help='shipped scenario names or YAML files')
+    p.add_argument('--seeds', type=int, default=20, help='seeds 0..N-1 (default 20)')
+    p.add_argument('--first-seed', type=int, default=0)
+    p.add_argument('--jobs', type=int, default=os.cpu_count() or 1, help='parallel processes')
+    p.add_argument('--dt', type=float, help='override dt')
+    p.add_argument('--integrator', choices=['zoh', 'rk4'])
+    p.add_argument('--out', help='also write the tables (Markdown) and per-seed results (JSON next to it)')
+    a = p.parse_args(argv)
+    if a.seeds < 1:
+        p.error('--seeds must be ≥ 1')
+    over = {k: v for k, v in dict(dt=a.dt, integrator=a.integrator).items() if v is not None}
+    tables, everything = [], {}
+    for name in a.scenarios:
+        _load_or_exit(name, **over)      # validate before spending time
+        seeds = range(a.first_seed, a.first_seed + a.seeds)
+        t0 = time.perf_counter()
+        res = sweep(name, seeds, jobs=a.jobs, **over)
+        table = sweep_table(name, res)
+        print(table + f'\n\n({time.perf_counter() - t0:.1f}s wall, {a.jobs} jobs)\n')
+        tables.append(table)
+        everything[name] = res
+    if a.out:
+        Path(a.out).write_text('\n\n'.join(tables) + '\n')
+        Path(a.out).with_suffix('.json').write_text(json.dumps(everything, indent=1, default=_jsonable))
+    return 0
+
+
+def scenarios_main(argv) -> int:
+    p = argparse.ArgumentParser(prog='swarm scenarios', description='List the shipped scenarios.')
+    p.parse_args(argv)
+    for name in scenario.shipped_scenarios():
+        scn = scenario.load(name)
+        desc = ' '.join(scn.spec.description.split())
+        print(f'{name:<18} {len(scn.names)} agents, {scn.law.kind} law, t = {scn.duration:g}: {desc}')
+    return 0
