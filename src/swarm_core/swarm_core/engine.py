@@ -98,25 +98,26 @@ class SwarmStepper:
             return self._all_pairs
         return neighbour_pairs(pos, self.law.cutoff_radius)
 
-    def control(self, t, pos, theta, lam, is_leader, steering):
-        cos_t, sin_t = heading_frame(theta)
+    def control(self, t, pos, theta, lam, is_leader, steering, frame=None):
+        cos_t, sin_t = heading_frame(theta) if frame is None else frame
         return swarm_control(pos, cos_t, sin_t, self.receivers, self.law, lambda_=lam,
                              is_leader=is_leader, steering=steering, target=self.target,
                              barrier=self.barrier, pairs=self._pairs(pos, lam))
 
     def inputs(self):
-        """λ, leader flags (n,) and steering (n,) for the current step (commander's job)."""
+        """t, λ, leader flags (n,), steering (n,) for the current step (the commander's job),
+        and the frames (cos θ, sin θ) they were computed from."""
         t = self.step_index * self.dt
-        cos_t, sin_t = heading_frame(self.theta)
-        lam, leaders, steering = self.plan.update(t, self.pos, cos_t, sin_t)
+        frame = heading_frame(self.theta)
+        lam, leaders, steering = self.plan.update(t, self.pos, *frame)
         is_leader = np.zeros(self.n, dtype=bool)
         is_leader[leaders] = True
-        return t, lam, is_leader, steering
+        return t, lam, is_leader, steering, frame
 
     def step(self):
         """Advance one dt; returns (t, λ, leader flags, u) of the step just taken."""
-        t, lam, is_leader, steering = self.inputs()
-        u = self.control(t, self.pos, self.theta, lam, is_leader, steering)
+        t, lam, is_leader, steering, frame = self.inputs()
+        u = self.control(t, self.pos, self.theta, lam, is_leader, steering, frame)
         self.advance(t, u, lam, is_leader, steering)
         return t, lam, is_leader, u
 
@@ -160,8 +161,8 @@ def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int 
     interrupted = False
     try:
         for i in range(steps + 1):
-            t, lam, is_leader, steering = stepper.inputs()
-            u = stepper.control(t, stepper.pos, stepper.theta, lam, is_leader, steering)
+            t, lam, is_leader, steering, frame = stepper.inputs()
+            u = stepper.control(t, stepper.pos, stepper.theta, lam, is_leader, steering, frame)
             if i % record_every == 0:
                 s = i // record_every
                 t_rec[s], r_rec[s], th_rec[s], u_rec[s] = t, stepper.pos, stepper.theta, u

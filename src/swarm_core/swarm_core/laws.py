@@ -90,11 +90,12 @@ def nearest_leader(pos, receivers, leader_rows):
     """l(k): the table row of the leader nearest (Euclidean) to each receiver; −1 if none.
 
     Ties go to the lower row (the lower agent index)."""
-    if len(leader_rows) == 0:
+    leader_rows = np.asarray(leader_rows, dtype=np.intp)
+    if leader_rows.size == 0:
         return np.full(len(receivers), -1, dtype=np.intp)
-    d = pos[receivers, None, :] - pos[None, leader_rows, :]
-    d2 = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]
-    return np.asarray(leader_rows, dtype=np.intp)[np.argmin(d2, axis=1)]
+    ax = pos[receivers, 0][:, None] - pos[leader_rows, 0]
+    ay = pos[receivers, 1][:, None] - pos[leader_rows, 1]
+    return leader_rows[np.argmin(ax * ax + ay * ay, axis=1)]
 
 
 def target_term(pos_k, cos_k, sin_k, target, law: LawConfig):
@@ -178,10 +179,13 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
         else:
             recv_leader = leaders[receivers]
             l_of_k = nearest_leader(pos, receivers, np.flatnonzero(leaders))
-            far = np.where(recv_leader[k], q0, q0 * (1.0 - lam))
-            boost = np.where((j == l_of_k[k]) & ~recv_leader[k],
+            # follower pairs: c(ρ, q0(1 − λ), w), times (ℓc − 1)λ + 1 for the pair with l(k);
+            # leader pairs: c(ρ, q0, w)  (eq. 11, 12)
+            pair_leader = recv_leader[k]
+            far = np.where(pair_leader, q0, q0 * (1.0 - lam))
+            boost = np.where(j == np.where(recv_leader, -1, l_of_k)[k],
                              (law.leader_gain - 1.0) * lam + 1.0, 1.0)
-            weight = np.where(within, 1.0, far) * boost
+            weight = np.where(within, boost, far * boost)
             sums = np.bincount(k, weights=weight * u_pair, minlength=n_recv)
             s = np.zeros(n_recv) if steering is None else np.asarray(steering, dtype=float)
             u = np.where(recv_leader, (1.0 - lam) * sums + lam * s, sums)

@@ -1,0 +1,247 @@
+"""Pure tests of the model and the control laws (no ROS)."""
+import math
+
+import numpy as np
+import pytest
+
+from swarm_core import laws, model
+from swarm_core.laws import LawConfig, swarm_control
+from swarm_core.model import PairGains, heading_frame
+
+
+# ------------------------------------------------------------------ pair term by hand
+
+def test_pair_terms_hand_computed():
+    # k at the origin heading +x (x_k = (1,0), y_k = (0,1)); j at (-1,-1) heading +y.
+    # r_jk = r_k - r_j = (1, 1): rho = sqrt(2), r̂·x_k = r̂·y_k = 1/sqrt(2), x_j·y_k = 1.
+    g = PairGains(alpha=0.2, eta=0.3, mu=0.5, r0=1.5)
+    ck, sk = heading_frame(0.0)
+    cj, sj = heading_frame(math.pi / 2)
+    base, spacing, align = model.pair_terms(1.0, 1.0, ck, sk, cj, sj, g)
+    assert base == pytest.approx(-0.3 * 0.5, abs=1e-15)
+    assert spacing == pytest.approx(-0.2 * (1 - 1.5 ** 2 / 2) / math.sqrt(2), abs=1e-15)
+    assert align == pytest.approx(0.5, abs=1e-15)
+    u = model.pair_control(1.0, 1.0, ck, sk, cj, sj, g)
+    assert u == pytest.approx(-0.15 + 0.025 / math.sqrt(2) + 0.5, abs=1e-15)
+
+
+def test_pair_term_signs_follow_the_paper():
+    g = PairGains(alpha=1.0, eta=0.0, mu=0.0, r0=1.0)
+    ck, sk = heading_frame(0.0)
+    # j straight to the left of k (r_jk = (0, -2), beyond r0): attraction turns k left (u > 0)
+    assert model.pair_control(0.0, -2.0, ck, sk, ck, sk, g) > 0
+    # inside r0 it repels: turn right
+    assert model.pair_control(0.0, -0.5, ck, sk, ck, sk, g) < 0
+    # alignment alone: j heading at +30° turns k anticlockwise
+    g = PairGains(alpha=0.0, eta=0.0, mu=1.0, r0=1.0)
+    cj, sj = heading_frame(math.radians(30))
+    assert model.pair_control(0.0, -2.0, ck, sk, cj, sj, g) == pytest.approx(0.5)
+
+
+def test_coincident_agents_contribute_zero_not_nan():
+    g = PairGains()
+    c, s = heading_frame(np.array([0.3, 2.0]))
+    assert model.pair_control(0.0, 0.0, c[0], s[0], c[1], s[1], g) == 0.0
+    assert model.avoidance_control(0.0, 0.0, c[0], s[0], g) == 0.0
+    pos = np.zeros((4, 2))
+    cos_t, sin_t = heading_frame(np.array([0.0, 1.0, 2.0, 3.0]))
+    for kind in laws.LAW_KINDS:
+        law = LawConfig(kind=kind, target_gain=0.05, barrier_gain=5.0)
+        u = swarm_control(pos, cos_t, sin_t, np.arange(4), law, lambda_=0.5,
+                          is_leader=np.array([1, 0, 0, 1], bool), steering=np.full(4, 0.01),
+                          target=np.zeros(2), barrier=np.zeros((3, 2)))
+        assert np.all(np.isfinite(u)), kind
+
+
+def test_cutoff_function():
+    assert list(model.cutoff(np.array([0.0, 3.99, 4.0, 10.0]), 0.25, 4.0)) == [1.0, 1.0, 0.25, 0.25]
+
+
+def test_frame_from_quaternion_is_orthonormal_and_matches_heading():
+    th = np.linspace(-50, 50, 1001)
+    c, s = heading_frame(th)
+    assert np.allclose(c, np.cos(th), atol=1e-12) and np.allclose(s, np.sin(th), atol=1e-12)
+    assert np.allclose(c * c + s * s, 1.0, atol=1e-15)
+
+
+# ------------------------------------------------------------------ vectorised == per-pair loop
+
+def _u_pair_loop(rk, thk, rj, thj, g):
+    """eq. 4-5 written out with math, straight from MODEL.md."""
+    dx, dy = rk[0] - rj[0], rk[1] - rj[1]
+    rho = math.hypot(dx, dy)
+    if rho == 0.0:
+        return 0.0
+    rx, ry = dx / rho, dy / rho
+    xk = (math.cos(thk), math.sin(thk))
+    yk = (-math.sin(thk), math.cos(thk))
+    xj = (math.cos(thj), math.sin(thj))
+    rdotx, rdoty = rx * xk[0] + ry * xk[1], rx * yk[0] + ry * yk[1]
+    f = g.alpha * (1 - (g.r0 / rho) ** 2)
+    return -g.eta * rdotx * rdoty - f * rdoty + g.mu * (xj[0] * yk[0] + xj[1] * yk[1])
+
+
+def _law_loop(pos, th, law, lam, leaders, steering, target, barrier):
+    """Every law of MODEL.md as a plain double loop over agent pairs."""
+    n = len(th)
+    g = law.gains
+    w = law.cutoff_radius
+    c = lambda rho, q: 1.0 if rho < w else q  # noqa: E731  (eq. 6)
+    lam_e, q0 = law.effective_lambda_q0(lam)
+    out = np.zeros(n)
+    lead_idx = [i for i in range(n) if leaders[i]] if law.uses_leaders else []
+    for k in range(n):
+        yk = (-math.sin(th[k]), math.cos(th[k]))
+        xk = (math.cos(th[k]), math.sin(th[k]))
+        total = 0.0
+        if law.kind == 'target':
+            for j in range(n):
+                if j == k:
+                    continue
+                dx, dy = pos[k][0] - pos[j][0], pos[k][1] - pos[j][1]
+                rho = math.hypot(dx, dy)
+                if rho == 0:
+                    continue
+                dot = dx * yk[0] + dy * yk[1]
+                if law.target_normalised:
+                    dot /= rho
+                total += c(rho, 0.0) * (-g.alpha * (1 - (g.r0 / rho) ** 2) * dot)
+        elif lead_idx and k in lead_idx:
+            s = sum(c(math.dist(pos[k], pos[j]), q0) * _u_pair_loop(pos[k], th[k], pos[j], th[j], g)
+                    for j in range(n) if j != k)
+            total = (1 - lam_e) * s + lam_e * steering[k]
+        else:
+            lk = None
+            if lead_idx:
+                lk = min(lead_idx, key=lambda i: (math.dist(pos[k], pos[i]), i))
+            q = q0 * (1 - lam_e)
+            for j in range(n):
+                if j == k:
+                    continue
+                weight = c(math.dist(pos[k], pos[j]), q)
+                if j == lk:
+                    weight *= (law.leader_gain - 1) * lam_e + 1
+                total += weight * _u_pair_loop(pos[k], th[k], pos[j], th[j], g)
+        if target is not None and law.target_gain:
+            tx, ty = target[0] - pos[k][0], target[1] - pos[k][1]
+            d = math.hypot(tx, ty)
+            dot = tx * yk[0] + ty * yk[1]
+            if law.target_normalised:
+                dot /= d
+            total += law.target_gain * g.alpha * (1 - (g.r0 / d) ** 2) * dot
+        if barrier is not None and law.barrier_gain:
+            vx = vy = 0.0
+            for b in barrier:
+                if math.dist(b, pos[k]) < w:
+                    vx += b[0] - pos[k][0]
+                    vy += b[1] - pos[k][1]
+            norm = math.hypot(vx, vy)
+            if norm > 0:
+                vx, vy = vx / norm, vy / norm
+                ahead = vx * xk[0] + vy * xk[1]
+                side = vx * yk[0] + vy * yk[1]
+                gate = (1.0 if ahead > 0 else 0.0) if law.barrier_mode == 'ahead' else float(np.sign(ahead))
+                total += -law.barrier_gain * gate * side
+        out[k] = total
+    return out
+
+
+@pytest.mark.parametrize('kind', laws.LAW_KINDS)
+@pytest.mark.parametrize('seed', range(4))
+def test_vectorised_law_equals_pair_loop(kind, seed):
+    rng = np.random.default_rng(seed)
+    n = 9
+    pos = rng.uniform(-6, 6, size=(n, 2))
+    th = rng.uniform(-math.pi, math.pi, size=n)
+    leaders = np.zeros(n, bool)
+    leaders[rng.choice(n, 2, replace=False)] = True
+    law = LawConfig(kind=kind, gains=PairGains(*rng.uniform(0.01, 0.5, 3), r0=rng.uniform(0.5, 2)),
+                    cutoff_radius=4.0, leader_gain=rng.uniform(5, 50), q0=float(rng.choice([0, 1, 0.05])),
+                    target_gain=0.05, target_normalised=bool(seed % 2), barrier_gain=3.0,
+                    barrier_mode=('ahead', 'literal')[seed % 2])
+    lam = float(rng.uniform())
+    steering = rng.uniform(-0.02, 0.02, n)
+    target = rng.uniform(-20, 20, 2)
+    barrier = pos[0] + rng.uniform(-2, 2, size=(6, 2))
+    cos_t, sin_t = heading_frame(th)
+    u = swarm_control(pos, cos_t, sin_t, np.arange(n), law, lambda_=lam, is_leader=leaders,
+                      steering=steering, target=target, barrier=barrier)
+    ref = _law_loop(pos, th, law, lam, leaders, steering, target, barrier)
+    np.testing.assert_allclose(u, ref, rtol=0, atol=1e-12)
+
+
+def test_one_agent_view_equals_batch_bit_for_bit():
+    """What an agent node computes (itself as the only receiver) is the batch value exactly."""
+    rng = np.random.default_rng(3)
+    n = 12
+    pos = rng.uniform(-5, 5, (n, 2))
+    th = rng.uniform(-3, 3, n)
+    leaders = np.zeros(n, bool)
+    leaders[[1, 7]] = True
+    steer = np.where(leaders, 0.01, 0.0)
+    law = LawConfig(kind='homotopy', q0=1.0, barrier_gain=5.0, target_gain=0.05)
+    c, s = heading_frame(th)
+    kw = dict(lambda_=0.37, is_leader=leaders, target=(30.0, 4.0), barrier=pos[:3] + 1.0)
+    batch = swarm_control(pos, c, s, np.arange(n), law, steering=steer, **kw)
+    for k in range(n):
+        # an agent sees neighbours' frames through the message quaternion
+        qz, qw = model.quaternion_from_heading(th)
+        ck, sk = model.frame_from_quaternion(qz.copy(), qw.copy())
+        one = swarm_control(pos.copy(), ck, sk, np.array([k]), law, steering=steer[[k]], **kw)
+        assert one[0] == batch[k]
+
+
+def test_homotopy_limits():
+    rng = np.random.default_rng(11)
+    n = 8
+    pos = rng.uniform(-6, 6, (n, 2))
+    c, s = heading_frame(rng.uniform(-3, 3, n))
+    leaders = np.zeros(n, bool)
+    leaders[[0, 5]] = True
+    steer = np.where(leaders, [0.01 if i == 0 else -0.01 for i in range(n)], 0.0)
+    recv = np.arange(n)
+
+    def u(kind, lam=0.0, q0=1.0):
+        return swarm_control(pos, c, s, recv, LawConfig(kind=kind, q0=q0, leader_gain=25.0), lambda_=lam,
+                             is_leader=leaders, steering=steer)
+    # λ = 0, q0 = 1: the global, group-averaged law (eq. 3), leaders and all
+    np.testing.assert_array_equal(u('homotopy', 0.0, 1.0), u('global'))
+    # λ = 0, q0 = 0: the local law (eq. 7)
+    np.testing.assert_array_equal(u('homotopy', 0.0, 0.0), u('local'))
+    # λ = 1: leader following with local coupling (eq. 8, 9), whatever q0
+    for q0 in (0.0, 0.3, 1.0):
+        np.testing.assert_array_equal(u('homotopy', 1.0, q0), u('leader_following'))
+    np.testing.assert_array_equal(u('leader_following')[leaders], steer[leaders])
+    # and it varies smoothly in between
+    lams = np.linspace(0, 1, 101)
+    vals = np.array([u('homotopy', lam, 1.0) for lam in lams])
+    assert np.max(np.abs(np.diff(vals, axis=0))) < 0.1 * np.max(np.abs(vals)) + 1e-12
+
+
+def test_follower_couples_to_its_nearest_leader():
+    # one follower between two leaders, closer to leader 2
+    pos = np.array([[0.0, 0.0], [-3.0, 0.0], [1.0, 0.0]])
+    c, s = heading_frame(np.array([0.0, 0.5, -0.5]))
+    leaders = np.array([False, True, True])
+    law = LawConfig(kind='leader_following', leader_gain=40.0)
+    u = swarm_control(pos, c, s, np.array([0]), law, is_leader=leaders)
+    g = law.gains
+    by_hand = 40.0 * model.pair_control(-1.0, 0.0, c[0], s[0], c[2], s[2], g) \
+        + model.pair_control(3.0, 0.0, c[0], s[0], c[1], s[1], g)
+    assert u[0] == pytest.approx(by_hand, abs=1e-15)
+    assert laws.nearest_leader(pos, np.array([0]), np.array([1, 2]))[0] == 2
+
+
+def test_barrier_term_turns_away_only_while_ahead():
+    law = LawConfig(kind='target', barrier_gain=5.0, barrier_mode='ahead')
+    c, s = heading_frame(np.array([0.0]))
+    pos = np.array([[0.0, 0.0]])
+    ahead_left = np.array([[2.0, 1.0]])
+    behind_left = np.array([[-2.0, 1.0]])
+    u_ahead = laws.barrier_term(pos, c, s, ahead_left, law)[0]
+    assert u_ahead < 0                                          # turn right, away from it
+    assert laws.barrier_term(pos, c, s, behind_left, law)[0] == 0.0
+    literal = LawConfig(kind='target', barrier_gain=5.0, barrier_mode='literal')
+    assert laws.barrier_term(pos, c, s, behind_left, literal)[0] > 0   # the literal reading turns back
+    far = np.array([[10.0, 0.0]])
+    assert laws.barrier_term(pos, c, s, far, law)[0] == 0.0      # not sensed beyond w
