@@ -19,5 +19,9 @@ setup(
     maintainer_email='dev@homotopy-swarm.invalid',
     description='Launcher, MCAP recorder, replay and reports for homotopy-swarm.',
     license='Apache-2.0',
-    entry_points={'console_scripts': []},
+    entry_points={'console_scripts': [
+        'swarm_record = swarm_tools.record:main',
+        'swarm_report = swarm_tools.report:main',
+        'swarm_play = swarm_tools.play:main',
+    ]},
 )

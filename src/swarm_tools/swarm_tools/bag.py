@@ -1,0 +1,470 @@
+"""MCAP bags in the form rosbag2 writes them (no rclpy import here).
+
+What `ros2 bag record -s mcap` (rosbag2_storage_mcap, Jazzy) writes and this module copies:
+
+* header profile ``ros2``; chunked, zstd-compressed, with message indexes and a summary;
+* one schema per message type: name ``pkg/msg/Type``, encoding ``ros2msg``, data = the full
+  definition: the type's ``.msg`` text, then for each dependency (sorted, depth first, each once)
+  ``"\\n" + "=" * 80 + "\\n" + "MSG: pkg/Type\\n"`` and its text (`message_definition`);
+* one channel per topic: message encoding ``cdr``, metadata ``offered_qos_profiles`` (a YAML
+  list of the publishers' QoS, rosbag2 metadata version 9 spelling, `qos_yaml`) and
+  ``topic_type_hash`` (left empty, as rosbag2 does when the hash is unknown);
+* messages: log time = receive time, publish time = send time.  Here the publish time is the
+  message's own stamp (``header.stamp``, or the ``builtin_interfaces/Time`` that opens the
+  message, e.g. ``rosgraph_msgs/Clock``) where it has one, else the receive time;
+* a metadata record ``rosbag2`` with ``serialized_metadata`` at the end.
+
+Crash safety: chunks are small and `BagWriter.maybe_flush` closes the open chunk every
+``flush_interval`` seconds, so a writer killed with SIGKILL leaves every finished chunk readable
+by a streaming reader (`iter_records_tolerant`); `BagWriter.close` writes the summary and index.
+"""
+from __future__ import annotations
+
+import os
+import re
+import struct
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+from mcap.exceptions import McapError
+from mcap.records import Channel, Chunk, Message, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.writer import CompressionType, Writer
+
+PROFILE = 'ros2'
+SCHEMA_ENCODING = 'ros2msg'
+MESSAGE_ENCODING = 'cdr'
+LIBRARY = 'homotopy-swarm swarm_tools (rosbag2_storage_mcap layout)'
+SEPARATOR = '=' * 80
+
+PRIMITIVES = {'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16',
+              'int32', 'uint32', 'int64', 'uint64', 'string', 'wstring'}
+# as rosbag2_storage_mcap's MSG_FIELD_TYPE_REGEX: a field type at the start of a line
+_FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
+_TYPE_NAME = re.compile(r'^([a-zA-Z][a-zA-Z0-9_]*)/((?:msg|srv)/)?([a-zA-Z][a-zA-Z0-9_]*)$')
+
+
+class DefinitionNotFound(LookupError):
+    pass
+
+
+# --------------------------------------------------------------------------- definitions
+def share_dirs() -> list[Path]:
+    """Install prefixes' ``share`` directories: $AMENT_PREFIX_PATH, then this interpreter's
+    prefix (the venv, where the ROS wheels put their ``share/<pkg>/msg``)."""
+    prefixes = [p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
+    prefixes += [sys.prefix, str(Path(sys.executable).resolve().parent.parent)]
+    out = []
+    for p in prefixes:
+        d = Path(p) / 'share'
+        if d.is_dir() and d not in out:
+            out.append(d)
+    return out
+
+
+def _msg_file(type_name: str) -> tuple[str, Path]:
+    m = _TYPE_NAME.match(type_name)
+    if not m:
+        raise DefinitionNotFound(f'{type_name}: not a pkg/Type or pkg/msg/Type name')
+    pkg, ns, name = m.group(1), (m.group(2) or 'msg/').rstrip('/'), m.group(3)
+    for share in share_dirs():
+        f = share / pkg / ns / f'{name}.msg'
+        if f.is_file():
+            return pkg, f
+    raise DefinitionNotFound(f'{type_name}: no {pkg}/{ns}/{name}.msg under {", ".join(map(str, share_dirs()))}')
+
+
+def msg_dependencies(text: str, package: str) -> list[str]:
+    """Non-primitive field types of a .msg text, as rosbag2 finds them (sorted, unique)."""
+    deps = set()
+    for m in _FIELD_TYPE.finditer(text):
+        t = m.group(1)
+        if t in PRIMITIVES:
+            continue
+        deps.add(t if '/' in t else f'{package}/{t}')
+    return sorted(deps)
+
+
+def message_definition(type_name: str) -> str:
+    """The full ``ros2msg`` definition of ``type_name`` as rosbag2_storage_mcap builds it."""
+    seen: set[str] = set()
+
+    def text_of(name: str, depth: int) -> str:
+        if depth <= 0:
+            raise DefinitionNotFound(f'{type_name}: definition nests too deep')
+        pkg, path = _msg_file(name)
+        text = path.read_text()
+        out = text
+        for dep in msg_dependencies(text, pkg):
+            if dep not in seen:
+                seen.add(dep)
+                out += f'\n{SEPARATOR}\nMSG: {dep}\n' + text_of(dep, depth - 1)
+        return out
+
+    return text_of(type_name, 50)
+
+
+def split_definition(full: str) -> dict[str, str]:
+    """Inverse of `message_definition`: {'' (the top type) or 'pkg/Type': text}."""
+    parts = full.split(f'\n{SEPARATOR}\n')
+    out = {'': parts[0]}
+    for p in parts[1:]:
+        head, _, body = p.partition('\n')
+        out[head.removeprefix('MSG: ').strip()] = body
+    return out
+
+
+def _first_field_type(text: str, package: str) -> str | None:
+    for line in text.splitlines():
+        line = line.split('#', 1)[0].strip()
+        if not line:
+            continue
+        ftype, _, rest = line.partition(' ')
+        if '=' in rest:          # a constant, not a field
+            continue
+        if ftype in PRIMITIVES or ftype.startswith('string<'):
+            return ftype
+        base = ftype.split('[', 1)[0]
+        if base == 'Header':
+            return 'std_msgs/Header'
+        return base if '/' in base else f'{package}/{base}'
+    return None
+
+
+def has_leading_stamp(full_definition: str, type_name: str) -> bool:
+    """True if the message opens with a time stamp: a ``std_msgs/Header`` or a
+    ``builtin_interfaces/Time`` first field (then the CDR bytes 4..12 are sec, nanosec)."""
+    m = _TYPE_NAME.match(type_name)
+    if not m:
+        return False
+    top = split_definition(full_definition)['']
+    first = _first_field_type(top, m.group(1))
+    return first in ('std_msgs/Header', 'std_msgs/msg/Header', 'builtin_interfaces/Time',
+                     'builtin_interfaces/msg/Time')
+
+
+def leading_stamp_ns(data: bytes) -> int | None:
+    """sec·1e9 + nanosec of the stamp that opens a CDR message (see `has_leading_stamp`)."""
+    if len(data) < 12:
+        return None
+    little = data[1] & 1
+    sec, nsec = struct.unpack_from('<iI' if little else '>iI', data, 4)
+    return sec * 1_000_000_000 + nsec
+
+
+# --------------------------------------------------------------------------- QoS metadata
+_HISTORY = {0: 'system_default', 1: 'keep_last', 2: 'keep_all', 3: 'unknown'}
+_RELIABILITY = {0: 'system_default', 1: 'reliable', 2: 'best_effort', 3: 'unknown',
+                4: 'best_available'}
+_DURABILITY = {0: 'system_default', 1: 'transient_local', 2: 'volatile', 3: 'unknown',
+               4: 'best_available'}
+_LIVELINESS = {0: 'system_default', 1: 'automatic', 2: 'manual_by_node', 3: 'manual_by_topic',
+               4: 'unknown', 5: 'best_available'}
+INFINITE_NS = 2 ** 63 - 1
+
+
+def _duration(ns: int) -> dict:
+    ns = int(ns)
+    return {'sec': ns // 1_000_000_000, 'nsec': ns % 1_000_000_000}
+
+
+def qos_dict(*, history=3, depth=0, reliability=1, durability=2, deadline_ns=INFINITE_NS,
+             lifespan_ns=INFINITE_NS, liveliness=1, liveliness_lease_ns=INFINITE_NS,
+             avoid_ros_namespace_conventions=False) -> dict:
+    """One offered QoS profile in rosbag2's (metadata version 9) form; policies as the rmw
+    enum values (ints) or their names."""
+    def name(table, v):
+        return v if isinstance(v, str) else table.get(int(v), 'unknown')
+    return {'history': name(_HISTORY, history), 'depth': int(depth),
+            'reliability': name(_RELIABILITY, reliability),
+            'durability': name(_DURABILITY, durability),
+            'deadline': _duration(deadline_ns), 'lifespan': _duration(lifespan_ns),
+            'liveliness': name(_LIVELINESS, liveliness),
+            'liveliness_lease_duration': _duration(liveliness_lease_ns),
+            'avoid_ros_namespace_conventions': bool(avoid_ros_namespace_conventions)}
+
+
+def qos_yaml(profiles: list[dict]) -> str:
+    """The ``offered_qos_profiles`` string, laid out as yaml-cpp's ``YAML::Dump`` does."""
+    if not profiles:
+        return ''
+    lines = []
+    for p in profiles:
+        first = True
+        for key in ('history', 'depth', 'reliability', 'durability', 'deadline', 'lifespan',
+                    'liveliness', 'liveliness_lease_duration', 'avoid_ros_namespace_conventions'):
+            v = p[key]
+            lead = '- ' if first else '  '
+            first = False
+            if isinstance(v, dict):
+                lines.append(f'{lead}{key}:')
+                lines.append(f'    sec: {v["sec"]}')
+                lines.append(f'    nsec: {v["nsec"]}')
+            elif isinstance(v, bool):
+                lines.append(f'{lead}{key}: {"true" if v else "false"}')
+            else:
+                lines.append(f'{lead}{key}: {v}')
+    return '\n'.join(lines)
+
+
+def parse_qos_yaml(text: str) -> list[dict]:
+    if not text:
+        return []
+    data = yaml.safe_load(text)
+    return list(data) if isinstance(data, list) else []
+
+
+def replay_qos(profiles: list[dict]) -> dict:
+    """The QoS to offer on replay, as rosbag2 adapts it: the recorded one if all publishers
+    agreed on reliability/durability (keeping the recorded depth for latched topics), else
+    reliable + volatile.  Returns {'reliability', 'durability', 'depth'}."""
+    rel = {p.get('reliability') for p in profiles}
+    dur = {p.get('durability') for p in profiles}
+    out = {'reliability': 'reliable', 'durability': 'volatile', 'depth': 10}
+    if len(rel) == 1 and len(dur) == 1:
+        r, d = rel.pop(), dur.pop()
+        out['reliability'] = r if r in ('reliable', 'best_effort') else 'reliable'
+        out['durability'] = d if d in ('volatile', 'transient_local') else 'volatile'
+    if out['durability'] == 'transient_local':
+        out['depth'] = max([1] + [int(p.get('depth') or 0) for p in profiles])
+    return out
+
+
+# --------------------------------------------------------------------------- writer
+@dataclass
+class TopicInfo:
+    name: str
+    type: str
+    channel_id: int
+    stamped: bool
+    qos: list = field(default_factory=list)
+    written: int = 0
+
+
+class BagWriter:
+    """Writes one MCAP file in rosbag2's layout; not thread safe (one writer thread)."""
+
+    def __init__(self, path, *, chunk_size: int = 64 * 1024, flush_interval: float = 0.5,
+                 compression: str = 'zstd'):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh = open(self.path, 'wb')
+        comp = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
+                'none': CompressionType.NONE}[compression]
+        self._w = Writer(self._fh, chunk_size=chunk_size, compression=comp)
+        self._w.start(profile=PROFILE, library=LIBRARY)
+        self._schemas: dict[str, int] = {}
+        self._defs: dict[str, str] = {}
+        self.topics: dict[str, TopicInfo] = {}
+        self.flush_interval = flush_interval
+        self._last_flush = time.monotonic()
+        self._seq = 0
+        self.start_ns: int | None = None
+        self.end_ns: int | None = None
+        self.closed = False
+
+    def definition(self, type_name: str) -> str:
+        if type_name not in self._defs:
+            self._defs[type_name] = message_definition(type_name)
+        return self._defs[type_name]
+
+    def add_topic(self, topic: str, type_name: str, qos_profiles: list[dict] = (),
+                  definition: str | None = None) -> TopicInfo:
+        """Register a topic (schema once per type, channel once per topic)."""
+        if topic in self.topics:
+            return self.topics[topic]
+        text = definition if definition is not None else self.definition(type_name)
+        if type_name not in self._schemas:
+            self._schemas[type_name] = self._w.register_schema(
+                name=type_name, encoding=SCHEMA_ENCODING, data=text.encode())
+        cid = self._w.register_channel(
+            topic=topic, message_encoding=MESSAGE_ENCODING, schema_id=self._schemas[type_name],
+            metadata={'offered_qos_profiles': qos_yaml(list(qos_profiles)),
+                      'topic_type_hash': ''})
+        info = TopicInfo(topic, type_name, cid, has_leading_stamp(text, type_name),
+                         list(qos_profiles))
+        self.topics[topic] = info
+        return info
+
+    def write(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None):
+        """Write one serialized message; publish time defaults to the message's own stamp
+        (if its type has one) else the log time."""
+        info = self.topics[topic]
+        if publish_time_ns is None:
+            publish_time_ns = leading_stamp_ns(data) if info.stamped else None
+            if publish_time_ns is None or publish_time_ns < 0:
+                publish_time_ns = log_time_ns
+        self._w.add_message(channel_id=info.channel_id, log_time=int(log_time_ns),
+                            data=bytes(data), publish_time=int(publish_time_ns),
+                            sequence=self._seq & 0xFFFFFFFF)
+        self._seq += 1
+        info.written += 1
+        self.start_ns = log_time_ns if self.start_ns is None else min(self.start_ns, log_time_ns)
+        self.end_ns = log_time_ns if self.end_ns is None else max(self.end_ns, log_time_ns)
+        self.maybe_flush()
+
+    def maybe_flush(self, force: bool = False):
+        """Close the open chunk and push it to the file if ``flush_interval`` has passed."""
+        now = time.monotonic()
+        if force or now - self._last_flush >= self.flush_interval:
+            self._w.flush()
+            self._last_flush = now
+
+    def rosbag2_metadata(self) -> str:
+        """rosbag2's ``metadata.yaml`` content for this file (version 9)."""
+        start = self.start_ns or 0
+        dur = (self.end_ns - start) if self.end_ns is not None else 0
+        topics = []
+        for t in self.topics.values():
+            topics.append({'topic_metadata': {
+                'name': t.name, 'type': t.type, 'serialization_format': MESSAGE_ENCODING,
+                'offered_qos_profiles': qos_yaml(t.qos), 'type_description_hash': ''},
+                'message_count': t.written})
+        meta = {'rosbag2_bagfile_information': {
+            'version': 9, 'storage_identifier': 'mcap',
+            'duration': {'nanoseconds': dur}, 'starting_time': {'nanoseconds_since_epoch': start},
+            'message_count': sum(t.written for t in self.topics.values()),
+            'topics_with_message_count': topics, 'compression_format': '',
+            'compression_mode': '', 'relative_file_paths': [self.path.name],
+            'files': [{'path': self.path.name, 'starting_time': {'nanoseconds_since_epoch': start},
+                       'duration': {'nanoseconds': dur},
+                       'message_count': sum(t.written for t in self.topics.values())}],
+            'custom_data': {}, 'ros_distro': 'jazzy'}}
+        return yaml.safe_dump(meta, sort_keys=False)
+
+    def close(self):
+        if self.closed:
+            return
+        self.closed = True
+        self._w.add_metadata('rosbag2', {'serialized_metadata': self.rosbag2_metadata()})
+        self._w.finish()
+        self._fh.flush()
+        os.fsync(self._fh.fileno())
+        self._fh.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+# --------------------------------------------------------------------------- reading
+@dataclass
+class BagMessage:
+    topic: str
+    type: str
+    data: bytes
+    log_time: int
+    publish_time: int
+    channel: Channel
+    schema: Schema | None
+
+
+def iter_records_tolerant(path, stats: dict | None = None):
+    """Every record of an MCAP file read front to back, chunks decompressed; a file cut short
+    (writer killed) ends quietly at the last complete record.  ``stats['truncated']`` tells."""
+    if stats is not None:
+        stats['truncated'] = False
+    with open(path, 'rb') as f:
+        reader = StreamReader(f, skip_magic=False, emit_chunks=True)
+        it = reader.records
+        while True:
+            try:
+                rec = next(it)
+            except StopIteration:
+                return
+            except (McapError, EOFError, struct.error, ValueError) as err:
+                if stats is not None:
+                    stats['truncated'] = True
+                    stats['error'] = f'{type(err).__name__}: {err}'
+                return
+            if isinstance(rec, Chunk):
+                try:
+                    inner = breakup_chunk(rec, validate_crc=True)
+                except Exception as err:   # a damaged chunk: stop, as for a cut file
+                    if stats is not None:
+                        stats['truncated'] = True
+                        stats['error'] = f'bad chunk: {err}'
+                    return
+                yield from inner
+            else:
+                yield rec
+
+
+def iter_messages(path, topics=None, stats: dict | None = None):
+    """BagMessage per message in file order, from complete or cut-short files alike."""
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    wanted = set(topics) if topics else None
+    for rec in iter_records_tolerant(path, stats):
+        if isinstance(rec, Schema):
+            schemas[rec.id] = rec
+        elif isinstance(rec, Channel):
+            channels[rec.id] = rec
+        elif isinstance(rec, Message):
+            ch = channels.get(rec.channel_id)
+            if ch is None or (wanted is not None and ch.topic not in wanted):
+                continue
+            sc = schemas.get(ch.schema_id)
+            yield BagMessage(ch.topic, sc.name if sc else '', rec.data, rec.log_time,
+                             rec.publish_time, ch, sc)
+
+
+def bag_topics(path) -> dict[str, dict]:
+    """{topic: {type, definition, qos (list of dicts), count}} of a bag (tolerant reader)."""
+    out: dict[str, dict] = {}
+    schemas: dict[int, Schema] = {}
+    chans: dict[int, Channel] = {}
+    for rec in iter_records_tolerant(path):
+        if isinstance(rec, Schema):
+            schemas[rec.id] = rec
+        elif isinstance(rec, Channel):
+            chans[rec.id] = rec
+            sc = schemas.get(rec.schema_id)
+            out.setdefault(rec.topic, {
+                'type': sc.name if sc else '', 'definition': sc.data.decode() if sc else '',
+                'qos': parse_qos_yaml(rec.metadata.get('offered_qos_profiles', '')),
+                'count': 0})
+        elif isinstance(rec, Message):
+            ch = chans.get(rec.channel_id)
+            if ch is not None:
+                out[ch.topic]['count'] += 1
+    return out
+
+
+# --------------------------------------------------------------------------- CDR helpers
+def _align(off: int, n: int) -> int:
+    # CDR alignment counts from the end of the 4-byte encapsulation header
+    return 4 + ((off - 4 + n - 1) // n) * n
+
+
+def _string(data: bytes, off: int, endian: str) -> tuple[str, int]:
+    off = _align(off, 4)
+    (n,) = struct.unpack_from(endian + 'I', data, off)
+    off += 4
+    s = data[off:off + max(0, n - 1)].decode('utf-8', 'replace')
+    return s, off + n
+
+
+def parse_odometry(data: bytes) -> dict:
+    """The fields of a CDR ``nav_msgs/msg/Odometry`` the report needs, without a ROS decoder:
+    stamp_ns, frame_id, child_frame_id, x, y, qz, qw, vx, wz."""
+    e = '<' if data[1] & 1 else '>'
+    sec, nsec = struct.unpack_from(e + 'iI', data, 4)
+    frame, off = _string(data, 12, e)
+    child, off = _string(data, off, e)
+    off = _align(off, 8)
+    x, y, z, qx, qy, qz, qw = struct.unpack_from(e + '7d', data, off)
+    off += 7 * 8 + 36 * 8
+    vx, vy, vz, wx, wy, wz = struct.unpack_from(e + '6d', data, off)
+    return dict(stamp_ns=sec * 1_000_000_000 + nsec, frame_id=frame, child_frame_id=child,
+                x=x, y=y, qz=qz, qw=qw, vx=vx, wz=wz)
+
+
+def parse_float64(data: bytes) -> float:
+    """``std_msgs/msg/Float64`` (CDR)."""
+    return struct.unpack_from(('<' if data[1] & 1 else '>') + 'd', data, 4)[0]

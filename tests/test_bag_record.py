@@ -1,0 +1,315 @@
+"""The recorder (`swarm record`) against small publisher nodes of the test's own.
+
+A known sequence of Odometry states (several agents, lockstep-like: every agent's state of a
+step, then the next step), λ values, a /clock and latched target / barrier messages are
+published; the recorder, a separate process, is stopped with SIGINT (or SIGKILL) and the bag
+is read back with two independent readers.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.ros
+
+N_AGENTS = 4
+STEPS = 60
+
+
+def _wait(pred, timeout, spin=None):
+    t_end = time.monotonic() + timeout
+    while time.monotonic() < t_end:
+        if pred():
+            return True
+        if spin is not None:
+            spin()
+        else:
+            time.sleep(0.05)
+    return pred()
+
+
+class Publishers:
+    """The test's publishers: states, λ, clock (volatile) and target, barrier (latched)."""
+
+    def __init__(self, ctx):
+        import rclpy
+        from geometry_msgs.msg import Point32, PointStamped, PolygonStamped
+        from nav_msgs.msg import Odometry
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from rosgraph_msgs.msg import Clock
+        from std_msgs.msg import Float64
+
+        self.node = rclpy.create_node('bag_test_pub', context=ctx)
+        self.ex = SingleThreadedExecutor(context=ctx)
+        self.ex.add_node(self.node)
+        deep = QoSProfile(depth=2000, reliability=ReliabilityPolicy.RELIABLE)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.states = self.node.create_publisher(Odometry, '/swarm/states', deep)
+        self.lam = self.node.create_publisher(Float64, '/swarm/lambda', deep)
+        self.clock = self.node.create_publisher(Clock, '/clock', deep)
+        self.target = self.node.create_publisher(PointStamped, '/world/target', latched)
+        self.barrier = self.node.create_publisher(PolygonStamped, '/world/barrier', latched)
+        self.Odometry, self.Float64, self.Clock = Odometry, Float64, Clock
+        # latched messages go out before any recorder exists
+        t = PointStamped()
+        t.header.frame_id = 'world'
+        t.point.x, t.point.y = 12.5, -3.25
+        self.target.publish(t)
+        b = PolygonStamped()
+        b.header.frame_id = 'world'
+        b.polygon.points = [Point32(x=float(x), y=float(y)) for x, y in [(5, 5), (6, 5), (6, 6)]]
+        self.barrier.publish(b)
+        self.volatile = [self.states, self.lam, self.clock]
+
+    def spin(self):
+        self.ex.spin_once(timeout_sec=0.02)
+
+    def matched(self):
+        return all(p.get_subscription_count() >= 1 for p in self.volatile)
+
+    def state(self, k, i, dt=0.05):
+        m = self.Odometry()
+        t_ns = int(round(k * dt * 1e9))
+        m.header.stamp.sec, m.header.stamp.nanosec = divmod(t_ns, 1_000_000_000)
+        m.header.frame_id = 'world'
+        m.child_frame_id = f'agent_{i}'
+        th = 0.1 * i + 0.01 * k
+        m.pose.pose.position.x = float(i + 0.5 * k)
+        m.pose.pose.position.y = float(np.sin(0.1 * k + i))
+        m.pose.pose.orientation.z = float(np.sin(th / 2))
+        m.pose.pose.orientation.w = float(np.cos(th / 2))
+        m.twist.twist.linear.x = 1.0
+        m.twist.twist.angular.z = float(0.001 * k - 0.01 * i)
+        return m
+
+    def publish_run(self, steps, pace=0.0):
+        for k in range(steps):
+            c = self.Clock()
+            t_ns = int(round(k * 0.05 * 1e9))
+            c.clock.sec, c.clock.nanosec = divmod(t_ns, 1_000_000_000)
+            self.clock.publish(c)
+            self.lam.publish(self.Float64(data=k / steps))
+            for i in range(N_AGENTS):
+                self.states.publish(self.state(k, i))
+            self.spin()
+            if pace:
+                time.sleep(pace)
+
+    def close(self):
+        self.ex.shutdown()
+        self.node.destroy_node()
+
+
+def _start_recorder(processes, swarm_cmd, out, *extra):
+    return processes.start([swarm_cmd, 'record', '--out', out, *extra],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _record(rclpy_context, processes, swarm_cmd, out, steps, *, stop_signal=signal.SIGINT,
+            pace=0.0, extra=()):
+    pubs = Publishers(rclpy_context)
+    try:
+        rec = _start_recorder(processes, swarm_cmd, out, *extra)
+        assert _wait(pubs.matched, 30, pubs.spin), 'recorder never subscribed'
+        # the recorder has subscribed to the volatile topics: the run starts
+        pubs.publish_run(steps, pace)
+        _wait(lambda: False, 1.0, pubs.spin)      # let the last messages arrive
+        os.killpg(rec.pid, stop_signal)
+        out_text, err_text = rec.communicate(timeout=30)
+        return rec.returncode, out_text, err_text, pubs
+    finally:
+        pubs.close()
+
+
+def _expected_states(pubs, steps):
+    return [pubs.state(k, i) for k in range(steps) for i in range(N_AGENTS)]
+
+
+def test_recorded_run_reads_back_with_two_readers(rclpy_context, processes, swarm_cmd, tmp_path):
+    from mcap_ros2.reader import read_ros2_messages
+    from rclpy.serialization import serialize_message
+    from rosbags.highlevel import AnyReader
+
+    from swarm_tools.bag import parse_odometry
+
+    out = tmp_path / 'run.mcap'
+    rc, stdout, stderr, pubs = _record(rclpy_context, processes, swarm_cmd, out, STEPS)
+    assert rc == 0, stderr + stdout
+    assert 'lost: 0' in stdout, stdout
+    expected = _expected_states(pubs, STEPS)
+    counts = {'/swarm/states': STEPS * N_AGENTS, '/swarm/lambda': STEPS, '/clock': STEPS,
+              '/world/target': 1, '/world/barrier': 1}
+
+    # reader 1: rosbags (its own CDR deserializer, from the bag's message definitions)
+    with AnyReader([out]) as reader:
+        got = {}
+        states = []
+        for conn, _t, raw in reader.messages():
+            msg = reader.deserialize(raw, conn.msgtype)
+            got[conn.topic] = got.get(conn.topic, 0) + 1
+            if conn.topic == '/swarm/states':
+                states.append(msg)
+            if conn.topic == '/world/target':
+                assert (msg.point.x, msg.point.y) == (12.5, -3.25)
+        for topic, n in counts.items():
+            assert got.get(topic) == n, (topic, got)
+        assert len(states) == len(expected)
+        for m, e in zip(states, expected):
+            assert m.child_frame_id == e.child_frame_id
+            assert (m.header.stamp.sec, m.header.stamp.nanosec) == (e.header.stamp.sec,
+                                                                    e.header.stamp.nanosec)
+            assert m.pose.pose.position.x == e.pose.pose.position.x
+            assert m.pose.pose.position.y == e.pose.pose.position.y
+            assert m.pose.pose.orientation.z == e.pose.pose.orientation.z
+            assert m.twist.twist.angular.z == e.twist.twist.angular.z
+
+    # reader 2: mcap_ros2's decoder; raw bytes equal the publisher's serialization too
+    got2 = {}
+    odo = []
+    for m in read_ros2_messages(str(out)):
+        got2[m.channel.topic] = got2.get(m.channel.topic, 0) + 1
+        assert m.channel.message_encoding == 'cdr'
+        assert m.schema.encoding == 'ros2msg'
+        if m.channel.topic == '/swarm/states':
+            odo.append(m)
+            # publish time = the header stamp (sim time); log time = receive time (wall)
+            st = m.ros_msg.header.stamp
+            assert m.publish_time_ns == st.sec * 1_000_000_000 + st.nanosec
+            assert m.log_time_ns > 1_000_000_000 * 1_000_000_000
+        if m.channel.topic == '/swarm/lambda':
+            assert m.publish_time_ns == m.log_time_ns       # no stamp: receive time
+    assert {t: got2.get(t) for t in counts} == counts
+    for m, e in zip(odo, expected):
+        assert m.ros_msg.child_frame_id == e.child_frame_id
+        assert m.ros_msg.pose.pose.position.x == e.pose.pose.position.x
+        assert m.ros_msg.twist.twist.angular.z == e.twist.twist.angular.z
+
+    # the raw CDR equals what the publisher serialised; the report's own parser agrees
+    from mcap.reader import make_reader
+    with open(out, 'rb') as f:
+        raws = [msg.data for _s, ch, msg in make_reader(f).iter_messages(topics=['/swarm/states'])]
+    assert raws == [serialize_message(e) for e in expected]
+    p = parse_odometry(raws[5])
+    assert (p['child_frame_id'], p['x'], p['wz']) == (expected[5].child_frame_id,
+                                                      expected[5].pose.pose.position.x,
+                                                      expected[5].twist.twist.angular.z)
+
+
+def test_bag_metadata_as_rosbag2_writes_it(rclpy_context, processes, swarm_cmd, tmp_path):
+    from mcap.reader import make_reader
+
+    from swarm_tools.bag import SEPARATOR, parse_qos_yaml
+
+    out = tmp_path / 'meta.mcap'
+    rc, stdout, stderr, _ = _record(rclpy_context, processes, swarm_cmd, out, 5,
+                                    extra=('--exclude', '/rosout', '/parameter_events'))
+    assert rc == 0, stderr
+    with open(out, 'rb') as f:
+        reader = make_reader(f)
+        header = reader.get_header()
+        summary = reader.get_summary()
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert header.profile == 'ros2'
+    assert summary is not None and summary.chunk_indexes, 'no chunk index: not a finished file'
+    assert all(ci.compression == 'zstd' for ci in summary.chunk_indexes)
+    topics = {ch.topic: ch for ch in summary.channels.values()}
+    assert '/rosout' not in topics and '/parameter_events' not in topics
+    schemas = {s.name: s for s in summary.schemas.values()}
+    odo = schemas['nav_msgs/msg/Odometry']
+    text = odo.data.decode()
+    # top-level text first, then each dependency once, depth first
+    assert text.startswith(Path(_share('nav_msgs', 'Odometry')).read_text())
+    heads = [line for line in text.splitlines() if line.startswith('MSG: ')]
+    assert len(heads) == len(set(heads))
+    assert {'MSG: std_msgs/Header', 'MSG: builtin_interfaces/Time', 'MSG: geometry_msgs/Pose',
+            'MSG: geometry_msgs/Vector3'} <= set(heads)
+    assert f'\n{SEPARATOR}\nMSG: std_msgs/Header\n' in text
+    # depth first: Header's own dependency (Time) comes right after Header
+    assert heads.index('MSG: builtin_interfaces/Time') == heads.index('MSG: std_msgs/Header') + 1
+    # offered QoS: latched topics recorded as transient_local, the others volatile
+    target_qos = parse_qos_yaml(topics['/world/target'].metadata['offered_qos_profiles'])
+    states_qos = parse_qos_yaml(topics['/swarm/states'].metadata['offered_qos_profiles'])
+    assert [q['durability'] for q in target_qos] == ['transient_local']
+    assert [q['durability'] for q in states_qos] == ['volatile']
+    assert states_qos[0]['reliability'] == 'reliable'
+    assert set(states_qos[0]) >= {'history', 'depth', 'deadline', 'lifespan', 'liveliness',
+                                  'liveliness_lease_duration', 'avoid_ros_namespace_conventions'}
+    assert 'serialized_metadata' in metadata.get('rosbag2', {})
+
+
+def _share(pkg, name):
+    from swarm_tools.bag import share_dirs
+    for d in share_dirs():
+        f = d / pkg / 'msg' / f'{name}.msg'
+        if f.is_file():
+            return f
+    raise FileNotFoundError(name)
+
+
+def test_sigkill_leaves_finished_chunks(rclpy_context, processes, swarm_cmd, tmp_path):
+    """A recorder killed with SIGKILL: no summary, but every chunk it finished reads."""
+    from swarm_tools.bag import iter_messages
+
+    out = tmp_path / 'killed.mcap'
+    steps = 40
+    rc, _stdout, _stderr, pubs = _record(rclpy_context, processes, swarm_cmd, out, steps,
+                                         stop_signal=signal.SIGKILL, pace=0.02)
+    assert rc == -signal.SIGKILL
+    assert out.stat().st_size > 0
+    data = out.read_bytes()              # no footer / summary: not a finished file
+    assert not data.endswith(b'\x89MCAP0\r\n')
+    stats = {}
+    states = [m for m in iter_messages(out, stats=stats) if m.topic == '/swarm/states']
+    # the run ended ≥ 1 s before the kill and chunks are closed every 0.5 s: all of it is there
+    assert len(states) == steps * N_AGENTS, stats
+    from rclpy.serialization import serialize_message
+    assert [m.data for m in states] == [serialize_message(e) for e in _expected_states(pubs, steps)]
+
+
+def test_sigint_mid_run_gives_complete_indexed_file(rclpy_context, processes, swarm_cmd,
+                                                    tmp_path):
+    """SIGINT while messages are still flowing: a complete, indexed file both readers open,
+    and what was received was written."""
+    import threading
+
+    from mcap.reader import make_reader
+    from rosbags.rosbag2 import Reader
+
+    out = tmp_path / 'interrupted.mcap'
+    pubs = Publishers(rclpy_context)
+    try:
+        rec = _start_recorder(processes, swarm_cmd, out)
+        assert _wait(pubs.matched, 30, pubs.spin)
+        done = threading.Event()
+
+        def stop_soon():
+            time.sleep(1.0)
+            os.killpg(rec.pid, signal.SIGINT)
+            done.set()
+        threading.Thread(target=stop_soon, daemon=True).start()
+        pubs.publish_run(400, pace=0.01)     # ~4 s of publishing; SIGINT lands in the middle
+        stdout, stderr = rec.communicate(timeout=30)
+        assert done.is_set()
+    finally:
+        pubs.close()
+    assert rec.returncode == 0, stderr
+    assert 'lost: 0' in stdout
+    with open(out, 'rb') as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        n_states = sum(1 for _ in reader.iter_messages(topics=['/swarm/states']))
+    assert summary is not None and summary.statistics.message_count > 0
+    assert 0 < n_states < 400 * N_AGENTS
+    with Reader(out) as r:
+        counts = {c.topic: c.msgcount for c in r.connections}
+    assert counts['/swarm/states'] == n_states
+    line = next(s for s in stdout.splitlines() if s.strip().startswith('/swarm/states'))
+    assert line.split()[1:] == [str(n_states), str(n_states)]
