@@ -1,0 +1,179 @@
+"""Scenario files, the paper's behaviours on the shipped scenarios, and the CLI (no ROS)."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import yaml
+
+from swarm_core import engine, scenario
+from swarm_core.metrics import Barrier
+from swarm_core.simulate_cli import analyse
+
+SHIPPED = ['global_alignment', 'homotopy_global', 'homotopy_local', 'target_barrier']
+
+
+def test_shipped_scenarios_are_listed():
+    assert set(SHIPPED) <= set(scenario.shipped_scenarios())
+
+
+@pytest.fixture(scope='module')
+def runs():
+    """Each shipped scenario run once with its own seed."""
+    out = {}
+    for name in SHIPPED:
+        scn = scenario.load(name)
+        traj = engine.simulate(scn)
+        out[name] = (scn, traj) + analyse(scn, traj)
+    return out
+
+
+@pytest.mark.parametrize('name', SHIPPED)
+def test_shipped_scenario_shows_the_papers_behaviour(runs, name):
+    scn, traj, series, checks = runs[name]
+    assert checks, 'every shipped scenario states what it expects'
+    failed = {k: v for k, v in checks.items() if not v['passed']}
+    assert not failed, failed
+
+
+def test_fig3_cluster_history(runs):
+    scn, traj, series, checks = runs['homotopy_global']
+    t, c = series['t'], series['clusters']
+    assert np.all(c[t < 400] == 1)                          # one swarm under global coupling
+    mid = (t > 480) & (t < 580)
+    assert np.all(c[mid] == 2) and np.all(series['one_leader_per_cluster'][mid])
+    assert c[-1] == 1                                       # reformed after λ → 0
+    assert traj.lam[np.argmin(abs(traj.t - 500))] > 0.99
+
+
+def test_fig4_stays_split(runs):
+    scn, traj, series, checks = runs['homotopy_local']
+    t, c = series['t'], series['clusters']
+    assert np.all(c[(t >= 300) & (t <= 310)] == 1)
+    assert np.all(c[t >= 600] >= 2)
+    assert np.max(c) <= 3
+
+
+def test_fig5_barrier_never_entered_and_target_reached(runs):
+    scn, traj, series, checks = runs['target_barrier']
+    hull = Barrier(scn.barrier)
+    inside = hull.inside(traj.r.reshape(-1, 2))
+    assert not inside.any()
+    assert series['barrier_clearance'] > 1.0
+    assert series['centroid_target_distance'].min() < 10.0
+    x = series['centroid'][:, 0]
+    assert series['clusters'][(x > 190) & (x < 215)].max() >= 2      # split around the barrier
+
+
+def test_literal_barrier_reading_is_available():
+    scn = scenario.load('target_barrier', duration=260)
+    data = scn.spec.model_dump(by_alias=True)
+    data['barrier']['mode'] = 'literal'
+    lit = scenario.parse(data, duration=260)
+    assert lit.law.barrier_mode == 'literal'
+    tr = engine.simulate(lit, record_every=10)
+    assert np.all(np.isfinite(tr.r))
+
+
+def test_partial_run_is_kept_on_interrupt():
+    scn = scenario.load('global_alignment', duration=50)
+    calls = []
+
+    def progress(step, steps):
+        calls.append(step)
+        if step > 300:
+            raise KeyboardInterrupt
+    tr = engine.simulate(scn, progress=progress)
+    assert tr.meta['interrupted'] and 300 < len(tr.t) < scn.steps
+    assert np.all(np.isfinite(tr.r))
+
+
+# ------------------------------------------------------------------ bad scenario files
+
+def _base():
+    return yaml.safe_load(scenario.resolve('homotopy_global')[0])
+
+
+@pytest.mark.parametrize('mutate,field', [
+    (lambda d: d['law'].update(alpha=-1), 'law.alpha'),
+    (lambda d: d['law'].update(kind='magic'), 'law.kind'),
+    (lambda d: d['law'].update(aplha=0.1), 'law.aplha'),
+    (lambda d: d.update(dt=0), 'dt'),
+    (lambda d: d.update(duration='long'), 'duration'),
+    (lambda d: d['agents'].update(positions=[[0, 0], [1]]), 'agents.positions'),
+    (lambda d: d['agents'].update(headings=[0.0, 1.0]), 'agents'),
+    (lambda d: d.update({'lambda': {'kind': 'constant', 'value': 1.5}}), 'lambda.constant.value'),
+    (lambda d: d['leaders'].update(fixed={'agent_9': {'kind': 'constant', 'curvature': 0.01}}), 'leaders'),
+    (lambda d: d['leaders']['programs'][0].update(curvature=float('nan')), 'leaders.programs.0'),
+    (lambda d: d.pop('agents'), 'agents'),
+])
+def test_bad_scenario_gives_one_clear_error_naming_the_field(mutate, field):
+    data = _base()
+    mutate(data)
+    with pytest.raises(scenario.ScenarioError) as err:
+        scenario.parse(data, 'bad.yaml')
+    msg = str(err.value)
+    assert msg.startswith('bad.yaml: ') and field in msg and '\n' not in msg, msg
+
+
+def test_bad_files(tmp_path):
+    with pytest.raises(scenario.ScenarioError, match='not a shipped scenario'):
+        scenario.load('no_such_scenario')
+    with pytest.raises(scenario.ScenarioError, match='no such scenario file'):
+        scenario.load(str(tmp_path / 'missing.yaml'))
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('name: [unclosed\n')
+    with pytest.raises(scenario.ScenarioError, match='not valid YAML'):
+        scenario.load(str(bad))
+    bad.write_text('- just\n- a list\n')
+    with pytest.raises(scenario.ScenarioError, match='mapping'):
+        scenario.load(str(bad))
+
+
+# ------------------------------------------------------------------ CLI
+
+def _swarm(*args, **kw):
+    return subprocess.run([sys.executable, '-m', 'swarm_core.cli', *args], capture_output=True, text=True,
+                          timeout=300, **kw)
+
+
+def test_cli_simulate_writes_outputs(tmp_path):
+    r = _swarm('simulate', 'homotopy_global', '--duration', '120', '--seed', '4', '--out', str(tmp_path), '--quiet')
+    assert r.returncode == 0, r.stderr
+    z = np.load(tmp_path / 'trajectory.npz')
+    assert z['r'].shape == (2401, 6, 2) and z['t'].shape == (2401,) and z['theta'].shape == (2401, 6)
+    assert z['u'].shape == (2401, 6) and z['lam'].shape == (2401,) and list(z['names'])[0] == 'agent_0'
+    doc = json.loads((tmp_path / 'metrics.json').read_text())
+    assert doc['summary']['seed'] == 4 and doc['summary']['final_clusters'] == 1
+    assert len(doc['series']['clusters']) == len(doc['series']['t'])
+    assert (tmp_path / 'homotopy_global.png').stat().st_size > 10_000
+    # the same seed gives the same run
+    r2 = _swarm('simulate', 'homotopy_global', '--duration', '120', '--seed', '4', '--out', str(tmp_path / 'b'),
+                '--quiet', '--no-figure')
+    assert r2.returncode == 0
+    np.testing.assert_array_equal(np.load(tmp_path / 'b' / 'trajectory.npz')['r'], z['r'])
+
+
+def test_cli_errors_and_help(tmp_path):
+    r = _swarm('simulate', 'nope')
+    assert r.returncode == 2 and 'not a shipped scenario' in r.stderr
+    bad = tmp_path / 'b.yaml'
+    bad.write_text('name: x\nagents: {count: 3}\nlaw: {kind: global, r0: -2}\n')
+    r = _swarm('simulate', str(bad))
+    assert r.returncode == 2 and 'law.r0' in r.stderr
+    for verb in ('simulate', 'sweep', 'scenarios'):
+        r = _swarm(verb, '--help')
+        assert r.returncode == 0 and 'usage: swarm ' + verb in r.stdout
+    r = _swarm('frobnicate')
+    assert r.returncode == 2 and 'unknown verb' in r.stderr
+    assert _swarm('--help').returncode == 0
+
+
+def test_cli_sweep_counts_behaviour(tmp_path):
+    out = tmp_path / 'sweep.md'
+    r = _swarm('sweep', 'global_alignment', '--seeds', '2', '--jobs', '1', '--out', str(out))
+    assert r.returncode == 0, r.stderr
+    assert '| **all checks** | **2/2** |' in out.read_text()
+    res = json.loads(out.with_suffix('.json').read_text())
+    assert [x['seed'] for x in res['global_alignment']] == [0, 1]
