@@ -1,0 +1,360 @@
+"""``swarm report BAG.mcap``: metrics and figures from a recorded run, from the bag alone.
+
+The trajectory is rebuilt from ``/swarm/states`` (``nav_msgs/Odometry``: ``child_frame_id`` =
+agent, stamp = sim time, pose = position + planar quaternion, ``twist.angular.z`` = u), λ from
+``/swarm/lambda`` and the leaders from ``/swarm/leaders`` where the bag has them (each applies
+from the first step whose states were received after it), the target and barrier from
+``/world/target`` / ``/world/barrier``.  Writes ``trajectory.npz`` (as `Trajectory.save`),
+``metrics.json`` (time series + summary), a figure like the paper's and, with ``--animate``, a
+GIF.  Bags cut short (a killed recorder) are read up to their last complete chunk.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .bag import iter_messages, parse_float64, parse_odometry
+
+STATES = '/swarm/states'
+LAMBDA = '/swarm/lambda'
+LEADERS = '/swarm/leaders'
+TARGET = '/world/target'
+BARRIER = '/world/barrier'
+METRICS = '/world/metrics'
+
+
+def natural_key(name: str):
+    return [int(p) if p.isdigit() else p for p in re.split(r'(\d+)', name)]
+
+
+class _Decoder:
+    """mcap_ros2's dynamic CDR decoder, one per schema (for the few non-state messages)."""
+
+    def __init__(self):
+        from mcap_ros2.decoder import DecoderFactory
+        self._factory = DecoderFactory()
+        self._cache = {}
+
+    def __call__(self, m):
+        key = m.schema.id
+        if key not in self._cache:
+            self._cache[key] = self._factory.decoder_for('cdr', m.schema)
+        return self._cache[key](m.data)
+
+
+def _strings(obj, depth=0):
+    """Every string inside a decoded message (depth-limited walk)."""
+    if depth > 6:
+        return
+    if isinstance(obj, str):
+        yield obj
+    elif isinstance(obj, (list, tuple)):
+        for v in obj:
+            yield from _strings(v, depth + 1)
+    elif hasattr(obj, '__slots__') or hasattr(obj, '__dict__'):
+        names = getattr(obj, '__slots__', None) or list(vars(obj))
+        for n in names:
+            yield from _strings(getattr(obj, n, None), depth + 1)
+
+
+def leader_names(msg, known) -> list[str]:
+    """Agent names mentioned in a leaders message, whatever standard type carries them
+    (``std_msgs/String`` "agent_0,agent_5" or JSON, a string array, diagnostics, …)."""
+    found = []
+    for s in _strings(msg):
+        for tok in re.findall(r'[A-Za-z_][A-Za-z0-9_]*', s):
+            if tok in known and tok not in found:
+                found.append(tok)
+    return found
+
+
+def read_run(path, *, cutoff_radius=None) -> dict:
+    """Everything the report needs from a bag: per-agent state lists, λ / leader events,
+    target, barrier, and whether the file was cut short."""
+    per_agent: dict[str, list] = {}
+    lam_events, leader_msgs = [], []
+    target = barrier = None
+    w_from_bag = None
+    decode = _Decoder()
+    stats: dict = {}
+    for m in iter_messages(path, stats=stats):
+        if m.topic == STATES:
+            s = parse_odometry(m.data)
+            per_agent.setdefault(s['child_frame_id'], []).append(
+                (s['stamp_ns'], m.log_time, s['x'], s['y'], s['qz'], s['qw'], s['wz']))
+        elif m.topic == LAMBDA:
+            lam_events.append((m.log_time, parse_float64(m.data)))
+        elif m.topic == LEADERS:
+            leader_msgs.append((m.log_time, decode(m)))
+        elif m.topic == TARGET:
+            p = decode(m).point
+            target = (float(p.x), float(p.y))
+        elif m.topic == BARRIER:
+            pts = [(float(p.x), float(p.y)) for p in decode(m).polygon.points]
+            barrier = pts or None
+        elif m.topic == METRICS and w_from_bag is None and cutoff_radius is None:
+            try:
+                for st in decode(m).status:
+                    for kv in st.values:
+                        if kv.key in ('cutoff_radius', 'w'):
+                            w_from_bag = float(kv.value)
+            except (AttributeError, ValueError):
+                pass
+    return dict(per_agent=per_agent, lam_events=lam_events, leader_msgs=leader_msgs,
+                target=target, barrier=barrier, truncated=stats.get('truncated', False),
+                w=cutoff_radius if cutoff_radius is not None else w_from_bag)
+
+
+def rebuild_trajectory(run: dict):
+    """A `swarm_core.engine.Trajectory` from the states in a bag.
+
+    Lockstep runs (every agent has a state at every stamp) are taken as they are; otherwise
+    each agent's newest state at each stamp is used (forward fill) from the first stamp at
+    which every agent has reported."""
+    from swarm_core.engine import Trajectory
+    from swarm_core.model import yaw_from_quaternion
+
+    names = sorted(run['per_agent'], key=natural_key)
+    if not names:
+        raise ValueError(f'no {STATES} messages in the bag')
+    n = len(names)
+    arrays = {}
+    for name in names:
+        rows = run['per_agent'][name]
+        stamps = np.array([row[0] for row in rows], dtype=np.int64)
+        logs = np.array([row[1] for row in rows], dtype=np.int64)
+        vals = np.array([row[2:] for row in rows], dtype=np.float64)   # x, y, qz, qw, u
+        order = np.argsort(stamps, kind='stable')
+        stamps, logs, vals = stamps[order], logs[order], vals[order]
+        keep = np.ones(len(stamps), dtype=bool)
+        keep[:-1] = stamps[1:] != stamps[:-1]       # a repeated stamp: the later one counts
+        arrays[name] = (stamps[keep], logs[keep], vals[keep])
+    all_stamps = np.unique(np.concatenate([v[0] for v in arrays.values()]))
+    common = all_stamps
+    for v in arrays.values():
+        common = np.intersect1d(common, v[0], assume_unique=True)
+    if len(common) >= 0.9 * len(all_stamps):
+        grid, mode = common, 'lockstep'
+    else:
+        start = max(v[0][0] for v in arrays.values())
+        grid, mode = all_stamps[all_stamps >= start], 'forward_filled'
+    T = len(grid)
+    r = np.empty((T, n, 2))
+    theta = np.empty((T, n))
+    u = np.empty((T, n))
+    log_first = np.full(T, np.iinfo(np.int64).max, dtype=np.int64)
+    for k, name in enumerate(names):
+        s, logs, vals = arrays[name]
+        idx = np.searchsorted(s, grid, side='right') - 1
+        rows = vals[idx]
+        r[:, k, 0], r[:, k, 1] = rows[:, 0], rows[:, 1]
+        theta[:, k] = yaw_from_quaternion(rows[:, 2], rows[:, 3])
+        u[:, k] = rows[:, 4]
+        log_first = np.minimum(log_first, logs[idx])
+    t = grid.astype(np.float64) * 1e-9
+    # λ and leaders: each message applies from the first step received after it
+    lam = np.full(T, np.nan)
+    if run['lam_events']:
+        ev = sorted(run['lam_events'])
+        ev_t = np.array([e[0] for e in ev], dtype=np.int64)
+        ev_v = np.array([e[1] for e in ev])
+        j = np.searchsorted(ev_t, log_first, side='right') - 1
+        lam = np.where(j >= 0, ev_v[np.clip(j, 0, None)], np.nan)
+    leader = np.zeros((T, n), dtype=bool)
+    if run['leader_msgs']:
+        ev = sorted(run['leader_msgs'], key=lambda e: e[0])
+        ev_t = np.array([e[0] for e in ev], dtype=np.int64)
+        sets = []
+        for _, msg in ev:
+            who = leader_names(msg, set(names))
+            sets.append(np.isin(names, who))
+        j = np.searchsorted(ev_t, log_first, side='right') - 1
+        for i in range(T):
+            if j[i] >= 0:
+                leader[i] = sets[j[i]]
+    meta = dict(source='bag', alignment=mode, steps=T - 1,
+                dt=float(np.median(np.diff(t))) if T > 1 else 0.0,
+                states=sum(len(v) for v in run['per_agent'].values()),
+                truncated_bag=bool(run['truncated']),
+                has_lambda=bool(run['lam_events']), has_leaders=bool(run['leader_msgs']))
+    return Trajectory(names, t, r, theta, u, lam, leader, meta)
+
+
+def _jsonable(x):
+    if isinstance(x, np.ndarray):
+        return [None if isinstance(v, float) and not np.isfinite(v) else v for v in x.tolist()] \
+            if x.dtype.kind == 'f' else x.tolist()
+    if isinstance(x, (np.floating,)):
+        v = float(x)
+        return v if np.isfinite(v) else None
+    if isinstance(x, (np.integer, np.bool_)):
+        return x.item()
+    raise TypeError(type(x))
+
+
+def cluster_history(series) -> list[tuple[float, int]]:
+    """[(t, clusters)] at t0 and at every change."""
+    c, t = series['clusters'], series['t']
+    out = [(float(t[0]), int(c[0]))]
+    for i in range(1, len(c)):
+        if c[i] != c[i - 1]:
+            out.append((float(t[i]), int(c[i])))
+    return out
+
+
+def analyse(traj, w, *, target=None, barrier=None, every_time=1.0):
+    from swarm_core import metrics
+    dt = traj.meta.get('dt') or 1.0
+    every = max(1, int(round(every_time / dt))) if dt > 0 else 1
+    series = metrics.time_series(traj.t, traj.r, traj.theta, traj.leader, w, target=target,
+                                 barrier_points=barrier, every=every)
+    c = series['clusters']
+    summary = dict(agents=len(traj.names), names=list(traj.names), steps=len(traj.t) - 1,
+                   t_start=float(traj.t[0]), t_end=float(traj.t[-1]), dt=dt, cutoff_radius=w,
+                   final_clusters=int(c[-1]), max_clusters=int(c.max()),
+                   min_distance=float(np.min(series['min_distance'])),
+                   final_polarisation=float(series['polarisation'][-1]),
+                   cluster_changes=cluster_history(series),
+                   one_leader_per_cluster_fraction=float(np.mean(series['one_leader_per_cluster']))
+                   if traj.leader.any() else None,
+                   leaders_seen=[traj.names[k] for k in np.flatnonzero(traj.leader.any(axis=0))],
+                   **{k: traj.meta[k] for k in ('alignment', 'truncated_bag', 'has_lambda',
+                                                'has_leaders')})
+    if 'intrusions_total' in series:
+        summary['intrusions_total'] = series['intrusions_total']
+        summary['barrier_clearance'] = series['barrier_clearance']
+    if 'centroid_target_distance' in series:
+        summary['closest_centroid_target_distance'] = float(series['centroid_target_distance'].min())
+    return series, summary
+
+
+def plot(traj, series, path, *, title, w, target, barrier):
+    """The run's figure (the lead's `swarm_core.plots.plot_run`)."""
+    from swarm_core.plots import plot_run
+    return plot_run(traj, series, path, title=title, w=w, target=target, barrier=barrier)
+
+
+def animate(traj, path, *, w, target=None, barrier=None, frames=100, fps=12):
+    """A GIF of the swarm (agents coloured by cluster, leaders as stars, short trails), the
+    view following the swarm's centroid; None without pillow."""
+    try:
+        import PIL  # noqa: F401
+    except ImportError:
+        return None
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    from swarm_core.metrics import cluster_labels
+
+    T = len(traj.t)
+    idx = np.unique(np.linspace(0, T - 1, min(frames, T)).astype(int))
+    fig, ax = plt.subplots(figsize=(5, 5), dpi=70)
+    centre = traj.r.mean(axis=1)                                   # (T, 2)
+    spread = np.abs(traj.r - centre[:, None, :]).max()
+    half = 1.2 * spread + 2.0 * w
+    ax.set_aspect('equal')
+    if target is not None:
+        ax.plot(*target, 'rx', ms=10, mew=2)
+    if barrier is not None:
+        ax.fill(*np.asarray(barrier).T, color='0.3', alpha=0.7)
+    cmap = plt.get_cmap('tab10')
+    trails = [ax.plot([], [], lw=0.6, color='0.6')[0] for _ in traj.names]
+    dots = ax.scatter(traj.r[0, :, 0], traj.r[0, :, 1], s=25, zorder=3)
+    stars = ax.scatter([], [], marker='*', s=120, c='k', zorder=4)
+    label = ax.set_title('')
+    trail_len = max(1, T // 20)
+
+    def draw(i):
+        ax.set_xlim(centre[i, 0] - half, centre[i, 0] + half)
+        ax.set_ylim(centre[i, 1] - half, centre[i, 1] + half)
+        _, lab = cluster_labels(traj.r[i], w)
+        dots.set_offsets(traj.r[i])
+        dots.set_color([cmap(v % 10) for v in lab])
+        lead = traj.leader[i]
+        stars.set_offsets(traj.r[i][lead] if lead.any() else np.empty((0, 2)))
+        for k, line in enumerate(trails):
+            seg = traj.r[max(0, i - trail_len):i + 1, k]
+            line.set_data(seg[:, 0], seg[:, 1])
+        lam = traj.lam[i]
+        label.set_text(f't = {traj.t[i]:.1f}' + (f', λ = {lam:.2f}' if np.isfinite(lam) else '')
+                       + f', clusters = {lab.max() + 1}')
+        return [dots, stars, label, *trails]
+
+    anim = FuncAnimation(fig, draw, frames=idx, blit=False)
+    anim.save(str(path), writer=PillowWriter(fps=fps))
+    plt.close(fig)
+    return path
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(
+        prog='swarm report',
+        description='Metrics (metrics.json), trajectory (trajectory.npz) and a figure like the '
+                    "paper's from a recorded MCAP bag, from the bag alone.")
+    p.add_argument('bag', help='an .mcap file written by swarm record / swarm run --record')
+    p.add_argument('--out', default=None, help='output directory (default: BAG without .mcap + _report)')
+    p.add_argument('--cutoff-radius', '-w', type=float, default=None,
+                   help='cluster radius w: agents closer than w are connected (default: from '
+                        '/world/metrics if it says, else 4.0)')
+    p.add_argument('--every', type=float, default=1.0,
+                   help='metric sampling interval in sim time units (default 1.0)')
+    p.add_argument('--animate', action='store_true', help='also write an animation (GIF)')
+    p.add_argument('--no-figure', action='store_true', help='skip the PNG figure')
+    a = p.parse_args(argv)
+    if a.cutoff_radius is not None and not a.cutoff_radius > 0:
+        p.error('--cutoff-radius must be > 0')
+    if not a.every > 0:
+        p.error('--every must be > 0')
+    return a
+
+
+def main(argv=None) -> int:
+    a = parse_args(sys.argv[1:] if argv is None else argv)
+    bag = Path(a.bag)
+    if not bag.is_file():
+        print(f'swarm report: {bag}: no such file', file=sys.stderr)
+        return 2
+    out = Path(a.out) if a.out else bag.with_name(bag.stem + '_report')
+    try:
+        run = read_run(bag, cutoff_radius=a.cutoff_radius)
+        traj = rebuild_trajectory(run)
+    except ValueError as err:
+        print(f'swarm report: {bag}: {err}', file=sys.stderr)
+        return 2
+    w = run['w'] if run['w'] is not None else 4.0
+    series, summary = analyse(traj, w, target=run['target'], barrier=run['barrier'],
+                              every_time=a.every)
+    summary['bag'] = str(bag)
+    out.mkdir(parents=True, exist_ok=True)
+    traj.save(out / 'trajectory.npz')
+    doc = dict(summary=summary, series=series)
+    (out / 'metrics.json').write_text(json.dumps(doc, default=_jsonable, indent=1))
+    wrote = ['trajectory.npz', 'metrics.json']
+    if not a.no_figure and len(traj.t) > 1:
+        plot(traj, series, out / 'report.png', w=w, target=run['target'], barrier=run['barrier'],
+             title=f'{bag.name}: {len(traj.names)} agents, t = {traj.t[0]:g}..{traj.t[-1]:g}')
+        wrote.append('report.png')
+    if a.animate:
+        if animate(traj, out / 'swarm.gif', w=w, target=run['target'], barrier=run['barrier']):
+            wrote.append('swarm.gif')
+        else:
+            print('swarm report: pillow is not installed: no animation', file=sys.stderr)
+    changes = ', '.join(f't={t:g}: {c}' for t, c in summary['cluster_changes'][:12])
+    print(f'{bag.name}: {summary["agents"]} agents, {summary["steps"]} steps '
+          f'({summary["alignment"]}), t = {summary["t_start"]:g}..{summary["t_end"]:g}, '
+          f'final clusters {summary["final_clusters"]}, min distance {summary["min_distance"]:.3g}'
+          + (' [bag cut short: read to its last complete chunk]' if summary['truncated_bag'] else ''))
+    print(f'  clusters over time (w = {w:g}): {changes}')
+    print(f'  wrote {out}/' + ', '.join(wrote))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
