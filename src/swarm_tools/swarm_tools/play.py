@@ -1,0 +1,160 @@
+"""``swarm play BAG.mcap``: republish a recorded run with its ``/clock``.
+
+Every topic is republished with the QoS it was recorded with (``offered_qos_profiles``:
+latched topics are offered transient-local again, so a late RViz / Foxglove still gets the
+target and the barrier).  The time base is the run's sim time: the stamps of the stamped
+messages (``header.stamp``, ``rosgraph_msgs/Clock``) in the order they were received.  Play is
+paced so that sim time advances ``--rate`` times as fast as wall time, and ``/clock`` follows:
+the bag's own ``/clock`` messages if it has them, otherwise a ``/clock`` published at every
+advance of the stamps of the bag's busiest stamped topic (``/swarm/states`` in a swarm run).  Nodes watching with ``use_sim_time`` see the run as it happened.
+"""
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import time
+
+from .bag import bag_topics, has_leading_stamp, iter_messages, leading_stamp_ns, replay_qos
+from .record import message_class
+
+CLOCK = '/clock'
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(
+        prog='swarm play',
+        description='Republish an MCAP bag (recorded QoS, latched as latched) with /clock '
+                    'driven from the bag\'s sim time, paced by --rate.')
+    p.add_argument('bag', help='an .mcap file')
+    p.add_argument('--rate', '-r', type=float, default=1.0,
+                   help='sim seconds per wall second (default 1; e.g. 20 to watch a long run)')
+    p.add_argument('--loop', '-l', action='store_true', help='start again at the end')
+    p.add_argument('--topics', nargs='+', metavar='TOPIC', help='republish only these topics')
+    p.add_argument('--delay', type=float, default=0.5,
+                   help='wall seconds to wait after creating the publishers (discovery)')
+    p.add_argument('--wait-for-subscribers', type=float, default=0.0, metavar='SECONDS',
+                   help='wait up to this long until every non-latched topic has a subscriber')
+    p.add_argument('--quiet', '-q', action='store_true')
+    a = p.parse_args(argv)
+    if not (a.rate > 0) or a.rate == float('inf'):
+        p.error('--rate must be a positive number')
+    if a.delay < 0 or a.wait_for_subscribers < 0:
+        p.error('--delay / --wait-for-subscribers must be ≥ 0')
+    return a
+
+
+def make_qos(spec: dict):
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=max(1, int(spec['depth'])),
+        reliability=(ReliabilityPolicy.RELIABLE if spec['reliability'] == 'reliable'
+                     else ReliabilityPolicy.BEST_EFFORT),
+        durability=(DurabilityPolicy.TRANSIENT_LOCAL if spec['durability'] == 'transient_local'
+                    else DurabilityPolicy.VOLATILE))
+
+
+def main(argv=None) -> int:
+    a = parse_args(sys.argv[1:] if argv is None else argv)
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    try:
+        topics = bag_topics(a.bag)
+    except OSError as err:
+        print(f'swarm play: {err}', file=sys.stderr)
+        return 2
+    if a.topics:
+        topics = {t: v for t, v in topics.items() if t in set(a.topics)}
+    if not topics:
+        print(f'swarm play: {a.bag}: no topics to play', file=sys.stderr)
+        return 2
+
+    stop = {'why': None}
+
+    def on_signal(signum, _frame):
+        stop['why'] = signal.Signals(signum).name
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    rclpy.init(args=None, signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node('swarm_player', enable_rosout=False, start_parameter_services=False)
+    pubs, stamped, specs = {}, {}, {}
+    try:
+        for topic, info in topics.items():
+            try:
+                cls = message_class(info['type'])
+            except (ImportError, AttributeError, ValueError) as err:
+                print(f'swarm play: skipping {topic} ({info["type"]}): {err}', file=sys.stderr)
+                continue
+            specs[topic] = replay_qos(info['qos'])
+            pubs[topic] = node.create_publisher(cls, topic, make_qos(specs[topic]))
+            stamped[topic] = has_leading_stamp(info['definition'], info['type'])
+        # the time base: the bag's /clock, else its busiest stamped topic
+        base = [t for t in pubs if t == CLOCK] or sorted(
+            (t for t in pubs if stamped[t]), key=lambda t: -topics[t]['count'])[:1]
+        for t in stamped:
+            stamped[t] = bool(base) and t == base[0]
+        clock_pub = None
+        if CLOCK not in topics:
+            from rosgraph_msgs.msg import Clock
+            clock_pub = node.create_publisher(Clock, CLOCK, 10)
+        volatile = [p for t, p in pubs.items() if specs[t]['durability'] != 'transient_local']
+        if clock_pub is not None:
+            volatile.append(clock_pub)
+        t_wait = time.monotonic() + a.wait_for_subscribers
+        while (stop['why'] is None and time.monotonic() < t_wait
+               and not all(p.get_subscription_count() > 0 for p in volatile)):
+            time.sleep(0.05)
+        t_delay = time.monotonic() + a.delay
+        while stop['why'] is None and time.monotonic() < t_delay:
+            time.sleep(0.02)
+        counts = {t: 0 for t in pubs}
+        loops = 0
+        while stop['why'] is None:
+            _play_once(a, pubs, stamped, clock_pub, counts, stop)
+            loops += 1
+            if not a.loop:
+                break
+    finally:
+        node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    if not a.quiet:
+        print(f'swarm play: {a.bag}: {loops} pass(es)' +
+              (f', stopped ({stop["why"]})' if stop['why'] else ''))
+        for t in sorted(counts):
+            print(f'  {t}: {counts[t]} messages')
+    return 0
+
+
+def _play_once(a, pubs, stamped, clock_pub, counts, stop):
+    clock_msg = None
+    if clock_pub is not None:
+        from rosgraph_msgs.msg import Clock
+        clock_msg = Clock()
+    sim0 = None
+    sim_now = None
+    wall0 = None
+    for m in iter_messages(a.bag, topics=list(pubs)):
+        if stop['why'] is not None:
+            return
+        stamp = leading_stamp_ns(m.data) if stamped[m.topic] else None
+        if stamp is not None and (sim_now is None or stamp > sim_now):
+            sim_now = stamp
+            if sim0 is None:
+                sim0, wall0 = sim_now, time.monotonic()
+            due = wall0 + (sim_now - sim0) * 1e-9 / a.rate
+            while stop['why'] is None:
+                left = due - time.monotonic()
+                if left <= 0:
+                    break
+                time.sleep(min(left, 0.05))
+            if clock_msg is not None:
+                clock_msg.clock.sec, clock_msg.clock.nanosec = divmod(sim_now, 1_000_000_000)
+                clock_pub.publish(clock_msg)
+        pubs[m.topic].publish(bytes(m.data))
+        counts[m.topic] += 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
