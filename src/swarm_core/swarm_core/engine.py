@@ -15,12 +15,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .integrate import rk4_step, zoh_step
-from .laws import all_pairs, swarm_control
+from .laws import DENSE_LIMIT, sparse_coupling, swarm_control
 from .model import heading_frame
 from .scenario import Scenario
 
-#: above this many agents the local laws use a KD-tree neighbour search instead of all pairs
-DENSE_LIMIT = 64
 
 
 @dataclass
@@ -81,10 +79,9 @@ class SwarmStepper:
         self.receivers = np.arange(self.n)
         self.target = scn.target
         self.barrier = scn.barrier
-        if neighbour_search == 'auto':
-            neighbour_search = 'kdtree' if self.n > DENSE_LIMIT else 'all'
+        if neighbour_search not in ('auto', 'all', 'kdtree'):
+            raise ValueError(f'neighbour_search must be auto, all or kdtree, got {neighbour_search!r}')
         self.neighbour_search = neighbour_search
-        self._all_pairs = all_pairs(self.receivers, self.n) if neighbour_search == 'all' else None
         noise = scn.spec.noise
         self.noise_scale = np.array([noise.position, noise.position, noise.heading])
         self.noisy = bool(np.any(self.noise_scale > 0))
@@ -92,10 +89,11 @@ class SwarmStepper:
         self.step_index = 0
 
     def _pairs(self, pos, lam):
+        """None (all pairs, dense) or the KD-tree pairs within w where only those carry weight."""
         if self.neighbour_search == 'all' or self.law.couples_globally(lam):
-            if self._all_pairs is None:
-                self._all_pairs = all_pairs(self.receivers, self.n)
-            return self._all_pairs
+            return None
+        if self.neighbour_search == 'auto' and not sparse_coupling(self.n, self.law, lam):
+            return None
         return neighbour_pairs(pos, self.law.cutoff_radius)
 
     def control(self, t, pos, theta, lam, is_leader, steering, frame=None):

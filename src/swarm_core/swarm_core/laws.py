@@ -136,6 +136,63 @@ def barrier_term(pos_k, cos_k, sin_k, barrier, law: LawConfig):
     return -law.barrier_gain * gate * side
 
 
+#: above this many agents, laws that couple only within w sum over a neighbour list
+DENSE_LIMIT = 64
+
+
+def sparse_coupling(n: int, law: LawConfig, lambda_: float) -> bool:
+    """Whether u is summed over neighbours within w (np.bincount) rather than densely over the
+    whole table.  The batch engine and the agent node both decide with this function, so
+    they add the same terms in the same order."""
+    return n > DENSE_LIMIT and not law.couples_globally(lambda_)
+
+
+def own_neighbour_pairs(pos, row: int, radius: float):
+    """Pairs (0, j) of one receiver with every other row within ``radius``, j ascending: what
+    `engine.neighbour_pairs` gives for that receiver (up to pairs of weight 0)."""
+    d = pos - pos[row]
+    j = np.flatnonzero((d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) <= radius * radius)
+    j = j[j != row]
+    return np.zeros(j.size, dtype=np.intp), j
+
+
+#: row block of the dense path: about this many pair entries per block (fits in cache)
+DENSE_BLOCK = 32768
+
+
+def _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k):
+    """Σ_j weight_jk·u_jk for each receiver over the whole table, in blocks of receiver rows
+    (no Python loop over pairs).  The self pair has ρ = 0 and contributes exactly 0; each row is
+    reduced by numpy's row sum, whose result does not depend on how many rows a block holds."""
+    n = pos.shape[0]
+    out = np.empty(receivers.size)
+    block = max(1, DENSE_BLOCK // max(1, n))
+    w2 = law.cutoff_radius * law.cutoff_radius
+    for a in range(0, receivers.size, block):
+        rows = receivers[a:a + block]
+        dx = pos[rows, 0][:, None] - pos[:, 0]
+        dy = pos[rows, 1][:, None] - pos[:, 1]
+        ck, sk = cos_t[rows][:, None], sin_t[rows][:, None]
+        if law.kind == 'target':
+            u = avoidance_control(dx, dy, ck, sk, law.gains, law.target_normalised)
+            u = u * ((dx * dx + dy * dy) < w2)
+        else:
+            u = pair_control(dx, dy, ck, sk, cos_t, sin_t, law.gains)
+            if leaders is None:
+                far = q0 * (1.0 - lam)
+                if far != 1.0:
+                    u = u * np.where((dx * dx + dy * dy) < w2, 1.0, far)
+            else:
+                recv_leader = leaders[rows]
+                far = np.where(recv_leader, q0, q0 * (1.0 - lam))[:, None]
+                weight = np.where((dx * dx + dy * dy) < w2, 1.0, far)
+                follower = np.flatnonzero(~recv_leader)
+                weight[follower, l_of_k[a:a + block][follower]] *= (law.leader_gain - 1.0) * lam + 1.0
+                u = u * weight
+        out[a:a + block] = u.sum(axis=1)
+    return out
+
+
 def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
                   is_leader=None, steering=None, target=None, barrier=None, pairs=None):
     """Curvature controls u_k of the receivers (eq. 3, 7, 8-12, 13, 14).
@@ -147,49 +204,51 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
     is_leader (N,) bool: leader flags (used by 'leader_following' and 'homotopy').
     steering (K,): s_k of each receiver (read where the receiver is a leader).
     target (2,), barrier (m, 2): world geometry, or None.
-    pairs: (receiver position, sender row) arrays, e.g. from a neighbour search within w;
-    default: all pairs.  Pairs beyond w may be left out only where they carry weight 0.
+    pairs: None (default) sums over the whole table, densely in blocks of rows; or
+    (receiver position, sender row) arrays from a neighbour search within w, summed in that
+    order with np.bincount.  Pairs beyond w may be left out only where they carry weight 0.
+    The same inputs in the same mode give bit-identical results whatever K is, which is what
+    makes an agent node's u equal the batch engine's.
     """
     pos = np.asarray(pos, dtype=float)
     receivers = np.asarray(receivers, dtype=np.intp)
     n_recv = receivers.size
-    if pairs is None:
-        pairs = all_pairs(receivers, pos.shape[0])
-    k, j = pairs
-    rk = receivers[k]
-    dx = pos[rk, 0] - pos[j, 0]
-    dy = pos[rk, 1] - pos[j, 1]
     cos_k, sin_k = cos_t[receivers], sin_t[receivers]
-    ck, sk = cos_t[rk], sin_t[rk]
-    w2 = law.cutoff_radius * law.cutoff_radius
-    within = (dx * dx + dy * dy) < w2
+    lam, q0 = law.effective_lambda_q0(lambda_) if law.kind != 'target' else (0.0, 0.0)
+    leaders = None
+    if law.uses_leaders and is_leader is not None and np.any(is_leader):
+        leaders = np.asarray(is_leader, dtype=bool)
+    l_of_k = nearest_leader(pos, receivers, np.flatnonzero(leaders)) if leaders is not None else None
 
-    if law.kind == 'target':
-        u_pair = avoidance_control(dx, dy, ck, sk, law.gains, law.target_normalised)
-        u = np.bincount(k, weights=u_pair * within, minlength=n_recv)
+    if pairs is None:
+        sums = _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k)
     else:
-        lam, q0 = law.effective_lambda_q0(lambda_)
-        u_pair = pair_control(dx, dy, ck, sk, cos_t[j], sin_t[j], law.gains)
-        leaders = None
-        if law.uses_leaders and is_leader is not None and np.any(is_leader):
-            leaders = np.asarray(is_leader, dtype=bool)
-        if leaders is None:
-            weight = np.where(within, 1.0, q0 * (1.0 - lam))
-            u = np.bincount(k, weights=weight * u_pair, minlength=n_recv)
+        k, j = pairs
+        rk = receivers[k]
+        dx = pos[rk, 0] - pos[j, 0]
+        dy = pos[rk, 1] - pos[j, 1]
+        ck, sk = cos_t[rk], sin_t[rk]
+        within = (dx * dx + dy * dy) < law.cutoff_radius * law.cutoff_radius
+        if law.kind == 'target':
+            u_pair = avoidance_control(dx, dy, ck, sk, law.gains, law.target_normalised) * within
         else:
-            recv_leader = leaders[receivers]
-            l_of_k = nearest_leader(pos, receivers, np.flatnonzero(leaders))
-            # follower pairs: c(ρ, q0(1 − λ), w), times (ℓc − 1)λ + 1 for the pair with l(k);
-            # leader pairs: c(ρ, q0, w)  (eq. 11, 12)
-            pair_leader = recv_leader[k]
-            far = np.where(pair_leader, q0, q0 * (1.0 - lam))
-            boost = np.where(j == np.where(recv_leader, -1, l_of_k)[k],
-                             (law.leader_gain - 1.0) * lam + 1.0, 1.0)
-            weight = np.where(within, boost, far * boost)
-            sums = np.bincount(k, weights=weight * u_pair, minlength=n_recv)
-            s = np.zeros(n_recv) if steering is None else np.asarray(steering, dtype=float)
-            u = np.where(recv_leader, (1.0 - lam) * sums + lam * s, sums)
+            u_pair = pair_control(dx, dy, ck, sk, cos_t[j], sin_t[j], law.gains)
+            if leaders is None:
+                u_pair = u_pair * np.where(within, 1.0, q0 * (1.0 - lam))
+            else:
+                # follower pairs: c(ρ, q0(1 − λ), w), times (ℓc − 1)λ + 1 for the pair with
+                # l(k); leader pairs: c(ρ, q0, w)  (eq. 11, 12)
+                pair_leader = leaders[rk]
+                far = np.where(pair_leader, q0, q0 * (1.0 - lam))
+                boost = np.where((j == l_of_k[k]) & ~pair_leader, (law.leader_gain - 1.0) * lam + 1.0, 1.0)
+                u_pair = u_pair * (np.where(within, 1.0, far) * boost)
+        sums = np.bincount(k, weights=u_pair, minlength=n_recv)
 
+    if leaders is not None:
+        s = np.zeros(n_recv) if steering is None else np.asarray(steering, dtype=float)
+        u = np.where(leaders[receivers], (1.0 - lam) * sums + lam * s, sums)
+    else:
+        u = sums
     if target is not None and law.target_gain != 0.0:
         u = u + target_term(pos[receivers], cos_k, sin_k, np.asarray(target, float), law)
     if barrier is not None and law.barrier_gain != 0.0 and len(barrier):
