@@ -1,0 +1,238 @@
+"""CommanderNode: the λ schedule, the leaders and their steering programs, live set-points.
+
+Runs the scenario's `swarm_core.schedules.CommandPlan` (the batch engine runs the same):
+- lockstep: on each ``/lockstep/states`` (the states of step n) it decides λ, leaders and
+  s_k for step n and answers on ``/lockstep/decision``;
+- realtime: a timer at 1/dt (sim time) decides from the newest ``/swarm/states``.
+It publishes ``/swarm/lambda``, ``/<leader>/steering`` and ``/swarm/leaders`` (latched).
+
+Live changes:
+- ``/commander/lambda_setpoint`` (std_msgs/Float64MultiArray ``[value, ramp_seconds]``, what
+  ``swarm lambda`` sends): ramp smoothly from the current λ to ``value``;
+- a ``/swarm/lambda`` message from anyone else (e.g. ``ros2 topic pub --once /swarm/lambda
+  std_msgs/msg/Float64 "{data: 1.0}"``): the same, with the ``default_ramp`` duration;
+- a ``/<agent>/steering`` message from anyone else (``swarm steer agent_0 0.01``): that
+  agent's program becomes the constant curvature (the agent becomes a leader if it was not).
+λ outside [0, 1] or not finite, a non-finite steering value, an unknown agent: rejected with
+one log line, nothing changes.
+"""
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+import rclpy
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from std_msgs.msg import Float64, Float64MultiArray, String
+
+from swarm_core.model import frame_from_quaternion
+from swarm_core.scenario import ScenarioError, load
+from swarm_core.schedules import ConstantSteering
+from swarm_world import protocol as P
+from swarm_world.rosutil import ParameterError, RejectLog, declare, make_executor, spin_until
+
+from .live import LiveSchedule
+
+SETPOINT = '/commander/lambda_setpoint'
+
+
+class CommanderNode(Node):
+    def __init__(self, node_name='commander', *, namespace=None, context=None, parameter_overrides=None,
+                 cli_args=None):
+        super().__init__(node_name, namespace=namespace, context=context, cli_args=cli_args,
+                         parameter_overrides=parameter_overrides)
+        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
+        scenario = d('scenario', 'homotopy_global', 'scenario name or YAML path (λ schedule, leaders)')
+        seed = d('seed', -1, "seed (-1: the scenario's)", lo=-1, hi=2**31 - 1)
+        dt = d('dt', 0.0, "step (0: the scenario's)", lo=0.0, hi=10.0)
+        self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=('lockstep', 'realtime'))
+        self.default_ramp = d('default_ramp', 20.0, 'ramp duration (sim s) for a bare /swarm/lambda set-point',
+                              lo=0.0, hi=1e6)
+        self.ramp_shape = d('ramp_shape', 'smoothstep', 'shape of set-point ramps',
+                            choices=('smoothstep', 'linear', 'tanh', 'step'))
+        self.publish_every = d('publish_every', 10, 'lockstep: publish /swarm/lambda every this many steps',
+                               lo=1, hi=10**9)
+        try:
+            self.scn = load(scenario, seed=None if seed < 0 else seed, dt=dt or None)
+        except ScenarioError as err:
+            raise ParameterError(f'parameter scenario: {err}') from None
+        self.names = list(self.scn.names)
+        self.n = len(self.names)
+        self.row = {nm: i for i, nm in enumerate(self.names)}
+        self.dt = self.scn.dt
+        self.plan = self.scn.command_plan()
+        self.schedule = LiveSchedule(self.plan.schedule)
+        self.plan.schedule = self.schedule
+        self.reject = RejectLog(self.get_logger())
+        self.t = 0.0
+        self.lam = float(self.schedule.value(0.0))
+        self.leaders_sent = None
+        self.steer_sent = {}
+        self.pending = []            # live changes to apply at the next decision
+        self.decisions = 0
+
+        self.pub_lambda = self.create_publisher(Float64, P.LAMBDA, P.qos_reliable())
+        self.pub_leaders = self.create_publisher(String, P.LEADERS, P.qos_latched())
+        self.pub_steer = {nm: self.create_publisher(Float64, P.steering_topic(nm), P.qos_reliable())
+                          for nm in self.names}
+        # rclpy's message info carries no publisher id here, so the commander recognises its own
+        # publications by value: its own messages come back in order (one FIFO per topic)
+        self.own_sent = {}
+        self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
+        self.create_subscription(Float64MultiArray, SETPOINT, self._on_setpoint, P.qos_reliable())
+        for nm in self.names:
+            self.create_subscription(Float64, P.steering_topic(nm),
+                                     lambda msg, nm=nm: self._on_steering(nm, msg), P.qos_reliable())
+        if self.mode == 'lockstep':
+            self.pub_decision = self.create_publisher(Float64MultiArray, P.LOCK_DECISION, P.qos_latched())
+            self.create_subscription(Float64MultiArray, P.LOCK_STATES, self._on_states, P.qos_latched(), raw=True)
+            self.last_decision = None
+        else:
+            self.pos = self.scn.pos0.copy()
+            c, s = np.cos(self.scn.theta0), np.sin(self.scn.theta0)
+            self.cos, self.sin = c, s
+            self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_reliable(100))
+            self.timer = self.create_timer(self.dt, self._on_tick)
+        self.publish_leaders([])
+
+    def _send(self, topic, pub, value):
+        fifo = self.own_sent.setdefault(topic, [])
+        fifo.append(value)
+        if len(fifo) > 1000:
+            del fifo[:500]
+        pub.publish(Float64(data=value))
+
+    def _from_self(self, topic, value):
+        fifo = self.own_sent.get(topic)
+        if fifo and value in fifo:
+            del fifo[:fifo.index(value) + 1]
+            return True
+        return False
+
+    # ------------------------------------------------------------ live inputs
+    def _on_lambda(self, msg):
+        if self._from_self(P.LAMBDA, msg.data):
+            return
+        self.set_lambda(msg.data, self.default_ramp, P.LAMBDA)
+
+    def _on_setpoint(self, msg):
+        if len(msg.data) not in (1, 2):
+            self.reject(('setpoint', len(msg.data)), f'{SETPOINT} with {len(msg.data)} values (want [λ, ramp])')
+            return
+        ramp = msg.data[1] if len(msg.data) == 2 else self.default_ramp
+        if not (math.isfinite(ramp) and ramp >= 0):
+            self.reject(('ramp', repr(ramp)), f'ramp duration {ramp!r}: must be finite and ≥ 0')
+            return
+        self.set_lambda(msg.data[0], ramp, SETPOINT)
+
+    def set_lambda(self, value, ramp, source):
+        if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+            self.reject(('lambda', repr(value)), f'λ={value!r} from {source}: must be finite and in [0, 1]')
+            return
+        self.pending.append(('lambda', float(value), float(ramp)))
+        self.get_logger().info(f'λ set-point {value:g} over {ramp:g} s (from {source})')
+
+    def _on_steering(self, name, msg):
+        if self._from_self(name, msg.data):
+            return
+        v = msg.data
+        if not math.isfinite(v):
+            self.reject(('steer', name, repr(v)), f'steering s={v!r} for {name}: not finite')
+            return
+        self.pending.append(('steer', name, float(v)))
+        self.get_logger().info(f'steering of {name} set to {v:g}')
+
+    def apply_pending(self, t):
+        for item in self.pending:
+            if item[0] == 'lambda':
+                self.schedule.set_point(t, item[1], item[2], self.ramp_shape)
+            else:
+                _, name, v = item
+                idx = self.row[name]
+                if idx not in self.plan.leaders:
+                    self.get_logger().info(f'{name} becomes a leader')
+                self.plan.leaders[idx] = ConstantSteering(v)
+        self.pending.clear()
+
+    # ------------------------------------------------------------ deciding
+    def decide(self, t, pos, cos_t, sin_t):
+        self.apply_pending(t)
+        lam, leaders, steering = self.plan.update(t, pos, cos_t, sin_t)
+        flags = np.zeros(self.n, bool)
+        flags[leaders] = True
+        self.t, self.lam = t, lam
+        self.decisions += 1
+        return lam, flags, steering
+
+    def publish_outputs(self, lam, flags, steering, force=False):
+        if force:
+            self._send(P.LAMBDA, self.pub_lambda, float(lam))
+        leaders = [self.names[i] for i in np.flatnonzero(flags)]
+        if leaders != self.leaders_sent:
+            self.publish_leaders(leaders)
+        for i in np.flatnonzero(flags):
+            nm = self.names[i]
+            if force or self.steer_sent.get(nm) != steering[i]:
+                self.steer_sent[nm] = steering[i]
+                self._send(nm, self.pub_steer[nm], float(steering[i]))
+
+    def publish_leaders(self, leaders):
+        self.leaders_sent = list(leaders)
+        self.pub_leaders.publish(String(data=','.join(leaders)))
+        if leaders:
+            self.get_logger().info(f'leaders: {", ".join(leaders)}')
+
+    def _on_states(self, raw):
+        n, t, x, y, qz, qw = P.unpack_states(P.cdr_to_float64_array(raw))
+        if self.last_decision is not None and n == self.last_decision[0]:
+            self.pub_decision.publish(self.last_decision[1])     # a repeat: answer again
+            return
+        if len(x) != self.n:
+            self.reject('states-n', f'/lockstep/states with {len(x)} agents (scenario has {self.n})')
+            return
+        cos_t, sin_t = frame_from_quaternion(qz, qw)
+        pos = np.stack([x, y], axis=1)
+        lam, flags, steering = self.decide(t, pos, cos_t, sin_t)
+        raw_out = P.float64_array_to_cdr(P.pack_decision(n, t, lam, flags, steering))
+        self.pub_decision.publish(raw_out)
+        self.last_decision = (n, raw_out)
+        self.publish_outputs(lam, flags, steering, force=(n % self.publish_every == 0))
+
+    def _on_state(self, msg):
+        i = self.row.get(msg.child_frame_id)
+        p = msg.pose.pose
+        vals = (p.position.x, p.position.y, p.orientation.z, p.orientation.w)
+        if i is None or not all(math.isfinite(v) for v in vals):
+            return        # agents and the world log these
+        self.pos[i] = vals[:2]
+        c, s = frame_from_quaternion(vals[2], vals[3])
+        self.cos[i], self.sin[i] = c, s
+
+    def _on_tick(self):
+        t = self.get_clock().now().nanoseconds * 1e-9
+        lam, flags, steering = self.decide(t, self.pos, self.cos, self.sin)
+        self.publish_outputs(lam, flags, steering, force=True)
+
+
+def main(argv=None):
+    args = sys.argv if argv is None else argv
+    rclpy.init(args=args)
+    ctx = rclpy.get_default_context()
+    try:
+        node = CommanderNode()
+    except ParameterError as err:
+        rclpy.logging.get_logger('homotopy_commander').error(str(err))
+        rclpy.try_shutdown()
+        return 2
+    ex = make_executor(ctx)
+    ex.add_node(node)
+    spin_until(ex, ctx, lambda: False)
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

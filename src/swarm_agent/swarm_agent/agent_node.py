@@ -1,0 +1,264 @@
+"""AgentNode: one agent of the swarm; integrates its own Frenet frame (see swarm_world.protocol).
+
+Lockstep: reads one packed ``/lockstep/step`` message per step (states of all agents, λ,
+leader flags, s_k, target, barrier of that step), computes u with the core law, integrates,
+publishes its next state on ``/swarm/states``.
+Realtime: a timer at the control rate (1/dt in sim time) uses the newest states on
+``/swarm/states`` of agents within w (all agents when the law couples globally), the newest
+``/swarm/lambda``, ``/swarm/leaders``, its ``steering`` topic, ``/world/target`` and
+``/world/barrier``.
+Bad inputs are rejected with one log line naming them; no NaN ever enters the state.
+"""
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import PointStamped, PolygonStamped
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from std_msgs.msg import Float64, Float64MultiArray, String
+
+from swarm_core.laws import BARRIER_MODES, LAW_KINDS, LawConfig
+from swarm_core.model import PairGains, frame_from_quaternion
+from swarm_world import protocol as P
+from swarm_world.checks import check_state
+from swarm_world.rosutil import ParameterError, RejectLog, declare, make_executor, spin_until
+
+from .core import AgentCore
+
+MODES = ('lockstep', 'realtime')
+
+
+class AgentNode(Node):
+    def __init__(self, node_name='agent', *, namespace=None, context=None, parameter_overrides=None,
+                 cli_args=None):
+        super().__init__(node_name, namespace=namespace, context=context, cli_args=cli_args,
+                         parameter_overrides=parameter_overrides)
+        ns = self.get_namespace().strip('/')
+        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
+        self.agent_name = d('agent_name', ns or 'agent_0', 'agent name (child_frame_id of its states)')
+        self.roster = list(d('agent_names', [''], 'names of all agents in agent-index order (the table order)'))
+        self.index = d('agent_index', -1, "this agent's row in agent_names (-1: look the name up)", lo=-1, hi=100000)
+        leader = d('leader', False, 'leader (true) or follower until /swarm/leaders says otherwise')
+        x = d('x', 0.0, 'initial x position')
+        y = d('y', 0.0, 'initial y position')
+        theta = d('theta', 0.0, 'initial heading θ (rad)')
+        kind = d('law', 'homotopy', 'control law', choices=LAW_KINDS)
+        gains = PairGains(d('alpha', 0.02, 'spacing gain α', lo=0.0, hi=1e6),
+                          d('eta', 0.02, 'baseline gain η', lo=0.0, hi=1e6),
+                          d('mu', 0.02, 'alignment gain μ', lo=0.0, hi=1e6),
+                          d('r0', 1.5, 'preferred spacing r0', lo=1e-9, hi=1e6))
+        w = d('w', 4.0, 'cutoff (communication) radius w', lo=1e-9, hi=1e9)
+        self.law = LawConfig(kind=kind, gains=gains, cutoff_radius=w,
+                             leader_gain=d('leader_gain', 30.0, 'leader coupling ℓc', lo=1.0, hi=1e6),
+                             q0=d('q0', 1.0, 'far-coupling weight at λ = 0', lo=0.0, hi=1.0),
+                             target_gain=d('target_gain', 0.0, 'target gain γ', lo=0.0, hi=1e6),
+                             target_normalised=d('target_normalised', False, 'normalised target term'),
+                             barrier_gain=d('barrier_gain', 0.0, 'barrier gain s_b', lo=0.0, hi=1e6),
+                             barrier_mode=d('barrier_mode', 'ahead', 'barrier term reading', choices=BARRIER_MODES))
+        self.dt = d('dt', 0.05, 'control period / integration step (sim s)', lo=1e-6, hi=10.0)
+        self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=MODES)
+        noise = (d('noise_position', 0.0, 'uniform noise half-width on x, y per step', lo=0.0, hi=1e6),
+                 d('noise_heading', 0.0, 'uniform noise half-width on θ per step', lo=0.0, hi=1e6))
+        seed = d('seed', 0, 'scenario seed (noise stream)', lo=0, hi=2**31 - 1)
+        self.stale_after = d('stale_after', 2.0, 'realtime: ignore neighbour states older than this (sim s)',
+                             lo=0.0, hi=1e9)
+        if self.roster == ['']:
+            self.roster = [self.agent_name]
+        if len(set(self.roster)) != len(self.roster):
+            raise ParameterError('parameter agent_names: names must be unique')
+        if self.agent_name not in self.roster:
+            raise ParameterError(f'parameter agent_name: {self.agent_name!r} is not in agent_names')
+        if self.index < 0:
+            self.index = self.roster.index(self.agent_name)
+        elif self.index >= len(self.roster) or self.roster[self.index] != self.agent_name:
+            raise ParameterError(f'parameter agent_index: {self.index} does not name {self.agent_name!r} in agent_names')
+        self.n = len(self.roster)
+        self.row = {nm: i for i, nm in enumerate(self.roster)}
+        rng = np.random.default_rng([seed, 7919, self.index])
+        self.core = AgentCore(self.index, self.n, x, y, theta, self.law, self.dt, noise, rng)
+        self.reject = RejectLog(self.get_logger())
+
+        # live inputs (realtime; kept in lockstep for inspection)
+        self.lam = 0.0
+        self.steering = 0.0
+        self.leaders = {self.agent_name} if leader else set()
+        self.target = None
+        self.barrier = None
+        self.neigh = {}          # name -> (t, x, y, qz, qw)
+        self.step = 0            # lockstep: the step whose state we hold
+        self.t = 0.0
+        self.u_history = []      # (step, u) for tests (bounded)
+
+        self.pub = self.create_publisher(Odometry, P.STATES, P.qos_latched())
+        self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
+        self.create_subscription(Float64, 'steering', self._on_steering, P.qos_reliable())
+        self.create_subscription(String, P.LEADERS, self._on_leaders, P.qos_latched())
+        self.create_subscription(PointStamped, P.TARGET, self._on_target, P.qos_latched())
+        self.create_subscription(PolygonStamped, P.BARRIER, self._on_barrier, P.qos_latched())
+        self.odom = Odometry()
+        self.odom.header.frame_id = 'world'
+        self.odom.child_frame_id = self.agent_name
+        self.odom.twist.twist.linear.x = 1.0
+        if self.mode == 'lockstep':
+            self.create_subscription(Float64MultiArray, P.LOCK_STEP, self._on_step, P.qos_latched(), raw=True)
+        else:
+            self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_reliable(50))
+            self.timer = self.create_timer(self.dt, self._on_tick)
+            self._last_tick = None
+        self.publish_state()
+
+    # ------------------------------------------------------------ output
+    def publish_state(self):
+        o = self.odom
+        o.header.stamp.sec, o.header.stamp.nanosec = P.time_to_stamp(self.t)
+        p = o.pose.pose
+        p.position.x, p.position.y = float(self.core.pos[0, 0]), float(self.core.pos[0, 1])
+        p.orientation.z, p.orientation.w = self.core.quaternion
+        o.twist.twist.angular.z = float(self.core.u_last)
+        self.pub.publish(o)
+
+    def _apply(self, u):
+        u = self.core.advance(u)
+        self.u_history.append((self.step, u))
+        if len(self.u_history) > 10000:
+            del self.u_history[:5000]
+
+    # ------------------------------------------------------------ lockstep
+    def _on_step(self, raw):
+        try:
+            s = P.Step(P.cdr_to_float64_array(raw))
+        except Exception as err:
+            self.reject('step-decode', f'/lockstep/step message: {err}')
+            return
+        if s.n == self.step - 1:       # a repeat (stall recovery): say our answer again
+            self.publish_state()
+            return
+        if s.n != self.step:
+            self.reject(('step', s.n), f'/lockstep/step for step {s.n} (this agent is at step {self.step})')
+            return
+        if len(s.x) != self.n:
+            self.reject('step-n', f'/lockstep/step with {len(s.x)} agents (roster has {self.n})')
+            return
+        self.lam = s.lam
+        u = self.core.control(s.x, s.y, s.qz, s.qw, s.lam, s.flags, s.steering[self.index],
+                              s.target, s.barrier)
+        if not math.isfinite(u):
+            self.reject('u-nan', f'non-finite control u={u} at step {s.n}; holding u=0')
+            u = 0.0
+        self._apply(u)
+        self.step = s.n + 1
+        self.t = self.step * self.dt
+        self.publish_state()
+
+    # ------------------------------------------------------------ realtime inputs
+    def _on_lambda(self, msg):
+        v = msg.data
+        if not (math.isfinite(v) and 0.0 <= v <= 1.0):
+            self.reject(('lambda', repr(v)), f'λ={v!r} on {P.LAMBDA}: must be finite and in [0, 1]')
+            return
+        self.lam = v
+
+    def _on_steering(self, msg):
+        v = msg.data
+        if not math.isfinite(v):
+            self.reject(('steer', repr(v)), f'steering s={v!r} for {self.agent_name}: not finite')
+            return
+        self.steering = v
+
+    def _on_leaders(self, msg):
+        names = [s.strip() for s in msg.data.split(',') if s.strip()]
+        unknown = [s for s in names if s not in self.row]
+        if unknown:
+            self.reject(('leaders', msg.data), f'{P.LEADERS} {msg.data!r}: unknown agent {unknown[0]!r}')
+            return
+        self.leaders = set(names)
+
+    def _on_target(self, msg):
+        p = (msg.point.x, msg.point.y)
+        if not all(math.isfinite(v) for v in p):
+            self.reject(('target', repr(p)), f'{P.TARGET} {p}: not finite')
+            return
+        self.target = np.array(p)
+
+    def _on_barrier(self, msg):
+        pts = [(q.x, q.y) for q in msg.polygon.points]
+        if not all(math.isfinite(v) for q in pts for v in q):
+            self.reject(('barrier', repr(pts)), f'{P.BARRIER}: a point is not finite')
+            return
+        self.barrier = np.array(pts, float) if pts else None
+
+    def _on_state(self, msg):
+        name = msg.child_frame_id
+        if name == self.agent_name:
+            own = self.odom.pose.pose
+            p = msg.pose.pose
+            if (p.position.x, p.position.y, p.orientation.z) != (own.position.x, own.position.y, own.orientation.z) \
+                    and msg.header.stamp == self.odom.header.stamp:
+                self.reject(('dup', name), f'state claiming to be {name!r} (this agent): duplicate agent name')
+            return
+        reason = check_state(msg, self.row, self.neigh)
+        if reason is not None:
+            if reason != 'repeat':
+                self.reject((name, reason.split(':')[0]), reason)
+            return
+        p = msg.pose.pose
+        self.neigh[name] = (P.stamp_to_time(msg.header.stamp), p.position.x, p.position.y,
+                            p.orientation.z, p.orientation.w)
+
+    # ------------------------------------------------------------ realtime control
+    def table(self, now):
+        """(x, y, qz, qw, flags) over the agents known at time ``now`` plus self; own row."""
+        names = [nm for nm in self.roster if nm == self.agent_name or
+                 (nm in self.neigh and now - self.neigh[nm][0] <= self.stale_after)]
+        rows = np.array([self.neigh[nm][1:] if nm != self.agent_name else
+                         (self.core.pos[0, 0], self.core.pos[0, 1], *self.core.quaternion) for nm in names])
+        flags = np.array([nm in self.leaders for nm in names])
+        return names.index(self.agent_name), rows, flags
+
+    def _on_tick(self):
+        now = self.get_clock().now().nanoseconds * 1e-9
+        if self._last_tick is None:
+            self._last_tick = now
+            return
+        self._last_tick = now
+        own, rows, flags = self.table(now)
+        saved = self.core.index
+        self.core.index = own
+        try:
+            u = self.core.control(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], self.lam, flags,
+                                  self.steering, self.target, self.barrier)
+        finally:
+            self.core.index = saved
+        if not math.isfinite(u):
+            self.reject('u-nan', f'non-finite control u={u}; holding u=0')
+            u = 0.0
+        self._apply(u)
+        self.step += 1
+        self.t = now
+        self.publish_state()
+
+
+def main(argv=None):
+    args = sys.argv if argv is None else argv
+    rclpy.init(args=args)
+    ctx = rclpy.get_default_context()
+    try:
+        node = AgentNode()
+    except ParameterError as err:
+        rclpy.logging.get_logger('swarm_agent').error(str(err))
+        rclpy.try_shutdown()
+        return 2
+    ex = make_executor(ctx)
+    ex.add_node(node)
+    spin_until(ex, ctx, lambda: False)
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

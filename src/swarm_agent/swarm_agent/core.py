@@ -1,0 +1,72 @@
+"""One agent's arithmetic, without ROS (used by `AgentNode`, tested on its own).
+
+`AgentCore` keeps the agent's own state (position float64, heading θ unwrapped float64) and
+advances it by one zero-order-hold step from a table of ALL agents' states in agent-index
+order, exactly as `swarm_core.engine.SwarmStepper` does for the whole swarm:
+
+1. table rows: positions as received (exact float64), frames from the received quaternions
+   (`frame_from_quaternion`); the agent's own row from its own θ via `quaternion_from_heading`;
+2. u = `swarm_control(..., receivers=[own_row])` with λ, leader flags and s_k of that step;
+3. `zoh_step` on 1-element arrays, then the agent's own seeded noise (if any).
+
+Because `swarm_control` sums pairs in table order with `np.bincount` and every other
+operation is elementwise, the agent's u equals the batch engine's bit for bit.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from swarm_core.integrate import zoh_step
+from swarm_core.laws import LawConfig, swarm_control
+from swarm_core.model import frame_from_quaternion, quaternion_from_heading
+
+
+class AgentCore:
+    def __init__(self, index: int, n_agents: int, x: float, y: float, theta: float,
+                 law: LawConfig, dt: float, noise=(0.0, 0.0), noise_rng=None):
+        self.index = int(index)
+        self.n = int(n_agents)
+        self.pos = np.array([[float(x), float(y)]])
+        self.theta = np.array([float(theta)])
+        self.law = law
+        self.dt = float(dt)
+        self.noise_scale = np.array([noise[0], noise[0], noise[1]], dtype=float)
+        self.noisy = bool(np.any(self.noise_scale > 0))
+        self.rng = noise_rng
+        self.u_last = 0.0
+
+    # -- what the agent publishes
+    @property
+    def quaternion(self):
+        qz, qw = quaternion_from_heading(self.theta)
+        return float(qz[0]), float(qw[0])
+
+    def control(self, x, y, qz, qw, lam, is_leader, steering_own, target=None, barrier=None):
+        """u of this agent from the table (arrays of length N in agent-index order)."""
+        pos = np.stack([np.asarray(x, float), np.asarray(y, float)], axis=1)
+        cos_t, sin_t = frame_from_quaternion(np.asarray(qz, float), np.asarray(qw, float))
+        k = self.index
+        pos[k] = self.pos[0]
+        oz, ow = quaternion_from_heading(self.theta)
+        c, s = frame_from_quaternion(oz, ow)
+        cos_t = np.array(cos_t)
+        sin_t = np.array(sin_t)
+        cos_t[k], sin_t[k] = c[0], s[0]
+        u = swarm_control(pos, cos_t, sin_t, np.array([k]), self.law, lambda_=float(lam),
+                          is_leader=np.asarray(is_leader, bool), steering=np.array([float(steering_own)]),
+                          target=target, barrier=barrier)
+        return float(u[0])
+
+    def advance(self, u: float):
+        """One ZOH step with the held control u (a non-finite u is replaced by 0)."""
+        if not math.isfinite(u):
+            u = 0.0
+        self.pos, self.theta = zoh_step(self.pos, self.theta, np.array([u]), self.dt)
+        if self.noisy:
+            draw = self.rng.uniform(-1.0, 1.0, size=3) * self.noise_scale
+            self.pos = self.pos + draw[None, :2]
+            self.theta = self.theta + draw[2:3]
+        self.u_last = u
+        return u

@@ -1,0 +1,286 @@
+"""``swarm run``: a scenario as ROS 2 nodes — every agent, the world and the commander as
+separate OS processes (default) or all in one process and one executor (``--in-process``).
+
+The launcher writes one parameter file for all nodes (agents get their name, roster, initial
+state, law and gains, w, dt; world and commander get the scenario reference), starts the
+processes in one process group of their own, prints the world's progress, stops everything on
+Ctrl-C / SIGTERM (SIGINT to the group, then SIGKILL after a grace period) and, at the end,
+writes what ``swarm simulate`` writes (trajectory.npz from what was published, metrics.json,
+a figure) to ``--out``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+from swarm_core.scenario import ScenarioError, load
+
+from . import dds
+
+STOP_GRACE = 4.0
+
+
+def agent_parameters(scn, i: int, mode: str) -> dict:
+    law = scn.law
+    g = law.gains
+    noise = scn.spec.noise
+    return dict(agent_name=scn.names[i], agent_index=i, agent_names=list(scn.names), leader=False,
+                x=float(scn.pos0[i, 0]), y=float(scn.pos0[i, 1]), theta=float(scn.theta0[i]),
+                law=law.kind, alpha=g.alpha, eta=g.eta, mu=g.mu, r0=g.r0, w=law.cutoff_radius,
+                leader_gain=law.leader_gain, q0=law.q0, target_gain=law.target_gain,
+                target_normalised=law.target_normalised, barrier_gain=law.barrier_gain,
+                barrier_mode=law.barrier_mode, dt=scn.dt, mode=mode,
+                noise_position=float(noise.position), noise_heading=float(noise.heading),
+                seed=int(scn.seed), use_sim_time=True)
+
+
+def node_parameters(scn, scenario_ref: str, mode: str, rtf: float = 1.0, output_dir: str = '',
+                    duration: float = 0.0, extra_world=None) -> dict:
+    """{fully qualified node name: parameters} for every node of a run."""
+    common = dict(scenario=str(scenario_ref), seed=int(scn.seed), dt=float(scn.dt), mode=mode)
+    world = dict(common, duration=float(duration or scn.duration), rtf=float(rtf), output_dir=str(output_dir),
+                 use_sim_time=False, **(extra_world or {}))
+    out = {'/world': world, '/commander': dict(common, use_sim_time=True)}
+    for i, nm in enumerate(scn.names):
+        out[f'/{nm}/agent'] = agent_parameters(scn, i, mode)
+    return out
+
+
+def write_params_file(params: dict, path: Path) -> Path:
+    doc = {fqn: {'ros__parameters': p} for fqn, p in params.items()}
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+# ---------------------------------------------------------------- in-process
+
+def build_nodes(params: dict, context, log=print):
+    """World, commander and agent nodes (in that order) from `node_parameters`' output."""
+    from rclpy.parameter import Parameter
+
+    from homotopy_commander.commander_node import CommanderNode
+    from swarm_agent.agent_node import AgentNode
+    from swarm_world.world_node import WorldNode
+
+    def ov(p):
+        return [Parameter(k, value=v) for k, v in p.items()]
+    world = WorldNode(context=context, parameter_overrides=ov(params['/world']), log=log)
+    commander = CommanderNode(context=context, parameter_overrides=ov(params['/commander']))
+    agents = [AgentNode('agent', namespace=fqn.split('/')[1], context=context, parameter_overrides=ov(p))
+              for fqn, p in params.items() if fqn.endswith('/agent')]
+    return world, commander, agents
+
+
+def run_in_process(params: dict, domain_id=None) -> int:
+    import rclpy
+    from rclpy.context import Context
+
+    from swarm_world.rosutil import ParameterError, make_executor, spin_until
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    try:
+        try:
+            world, commander, agents = build_nodes(params, ctx)
+        except ParameterError as err:
+            print(f'swarm run: {err}', file=sys.stderr)
+            return 2
+        ex = make_executor(ctx)
+        for nd in [world, commander, *agents]:
+            ex.add_node(nd)
+        spin_until(ex, ctx, lambda: world.done)
+        code = 0 if world.done and world.failed is None else (1 if world.failed else 130)
+        for nd in [world, commander, *agents]:
+            nd.destroy_node()
+        return code
+    finally:
+        if ctx.ok():
+            rclpy.shutdown(context=ctx)
+
+
+# ---------------------------------------------------------------- processes
+
+class Supervisor:
+    """Child processes in one process group of their own; ended together."""
+
+    def __init__(self):
+        self.procs = {}
+        self.pgid = None
+
+    def start(self, label, args, env, **kw):
+        kw['process_group'] = 0 if self.pgid is None else self.pgid
+        p = subprocess.Popen(args, env=env, **kw)
+        if self.pgid is None:
+            self.pgid = p.pid
+        self.procs[label] = p
+        return p
+
+    def alive(self):
+        return {k: p for k, p in self.procs.items() if p.poll() is None}
+
+    def signal_all(self, sig):
+        for p in self.alive().values():
+            try:
+                p.send_signal(sig)
+            except ProcessLookupError:
+                pass
+
+    def stop(self, grace=STOP_GRACE, first=()):
+        """SIGINT to ``first`` (e.g. the recorder, so it can finish its file) and everyone else,
+        wait, then SIGKILL the process group."""
+        for label in first:
+            p = self.procs.get(label)
+            if p is not None and p.poll() is None:
+                p.send_signal(signal.SIGINT)
+        self.signal_all(signal.SIGINT)
+        deadline = time.monotonic() + grace
+        while self.alive() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        if self.alive():
+            self.signal_all(signal.SIGKILL)
+            if self.pgid is not None:
+                try:
+                    os.killpg(self.pgid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+        for p in self.procs.values():
+            try:
+                p.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                pass
+
+
+def _exe(name):
+    here = Path(sys.executable).parent
+    cand = here / name
+    return str(cand) if cand.exists() else (shutil.which(name) or name)
+
+
+def run_processes(params: dict, params_file: Path, names, env, record=None, out_dir=None) -> int:
+    sup = Supervisor()
+    stopping = {'sig': None}
+
+    def on_signal(signum, frame):
+        stopping['sig'] = signum
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    ros = ['--ros-args', '--params-file', str(params_file)]
+    code = 1
+    try:
+        if record:
+            sup.start('record', [_exe('swarm'), 'record', '--out', str(record)], env)
+        world = sup.start('world', [_exe('swarm_world')] + ros + ['-r', '__node:=world'], env)
+        sup.start('commander', [_exe('homotopy_commander')] + ros + ['-r', '__node:=commander'], env)
+        for nm in names:
+            sup.start(nm, [_exe('swarm_agent')] + ros + ['-r', '__node:=agent', '-r', f'__ns:=/{nm}'], env)
+        while True:
+            if stopping['sig'] is not None:
+                print(f'swarm run: {signal.Signals(stopping["sig"]).name}: stopping {len(sup.alive())} processes',
+                      file=sys.stderr, flush=True)
+                code = 130
+                break
+            rc = world.poll()
+            if rc is not None:
+                code = rc
+                break
+            dead = [k for k, p in sup.procs.items() if p.poll() is not None and k != 'world']
+            if dead:
+                k = dead[0]
+                print(f'swarm run: {k} exited with code {sup.procs[k].returncode}; stopping the run',
+                      file=sys.stderr, flush=True)
+                code = 1
+                break
+            time.sleep(0.05)
+    finally:
+        sup.stop(first=('record',))
+        for s, h in old.items():
+            signal.signal(s, h)
+    return code
+
+
+# ---------------------------------------------------------------- CLI
+
+def _parser():
+    p = argparse.ArgumentParser(prog='swarm run', description=(
+        'Run a scenario as ROS 2 nodes: every agent, the world and the commander as separate '
+        'processes (default) or in one process. Lockstep equals `swarm simulate` to rounding.'))
+    p.add_argument('scenario', help='shipped scenario name or YAML file')
+    g = p.add_mutually_exclusive_group()
+    g.add_argument('--processes', dest='in_process', action='store_false', default=False,
+                   help='one OS process per node (default)')
+    g.add_argument('--in-process', dest='in_process', action='store_true', help='all nodes in one executor')
+    p.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep')
+    p.add_argument('--rtf', type=float, default=1.0, help='realtime: sim seconds per wall second (default 1)')
+    p.add_argument('--record', metavar='BAG.mcap', help='also record the run (swarm record)')
+    p.add_argument('--duration', type=float, help="sim seconds (default: the scenario's)")
+    p.add_argument('--seed', type=int, help="seed (default: the scenario's)")
+    p.add_argument('--dt', type=float, help="step (default: the scenario's)")
+    p.add_argument('--out', help='output directory (default: runs/SCENARIO-seedN-ros)')
+    p.add_argument('--no-figure', action='store_true', help='no figure at the end')
+    p.add_argument('--progress-every', type=float, default=50.0, help='progress line every this many sim s')
+    return p
+
+
+def main(argv=None) -> int:
+    a = _parser().parse_args(argv)
+    if a.rtf is not None and not (a.rtf > 0 and a.rtf < 1e4):
+        print(f'swarm run: --rtf {a.rtf}: must be in (0, 1e4)', file=sys.stderr)
+        return 2
+    try:
+        scn = load(a.scenario, seed=a.seed, duration=a.duration, dt=a.dt)
+    except ScenarioError as err:
+        print(f'swarm run: {err}', file=sys.stderr)
+        return 2
+    ref = a.scenario
+    if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
+        ref = str(Path(a.scenario).resolve())
+    out = Path(a.out or os.path.join('runs', f'{scn.name}-seed{scn.seed}-ros')).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    traj_file = out / 'trajectory.npz'
+    if traj_file.exists():
+        traj_file.unlink()
+    params = node_parameters(scn, ref, a.mode, a.rtf, str(out), scn.duration,
+                             extra_world=dict(progress_every=float(a.progress_every)))
+    n_proc = len(scn.names) + 2 + (1 if a.record else 0)
+    print(f'swarm run: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '
+          f'{"one process" if a.in_process else f"{n_proc} processes"}, t = {scn.duration:g}, dt = {scn.dt:g}',
+          flush=True)
+    t0 = time.monotonic()
+    if a.in_process:
+        if a.record:
+            print('swarm run: --record needs --processes (the recorder is a process); ignored', file=sys.stderr)
+        code = run_in_process(params)
+    else:
+        with tempfile.TemporaryDirectory(prefix='swarm_run_') as tmp:
+            pfile = write_params_file(params, Path(tmp) / 'params.yaml')
+            env = dds.environment(n_proc, Path(tmp))
+            code = run_processes(params, pfile, scn.names, env, record=a.record, out_dir=out)
+    wall = time.monotonic() - t0
+    if code == 0 and traj_file.exists():
+        try:
+            from swarm_core.engine import Trajectory
+            from swarm_core.simulate_cli import analyse, write_outputs
+            traj = Trajectory.load(traj_file)
+            traj.meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration, source='ros',
+                             mode=a.mode, wall_seconds=wall)
+            series, checks = analyse(scn, traj)
+            summary = write_outputs(out, scn, traj, series, checks, figure=not a.no_figure)
+            print(f'swarm run: done in {wall:.1f} s; final clusters {summary.get("final_clusters", "?")}; '
+                  f'wrote {out}/trajectory.npz, metrics.json' + ('' if a.no_figure else f', {scn.name}.png'),
+                  flush=True)
+        except Exception as err:  # the trajectory is there; the extras are a bonus
+            print(f'swarm run: wrote {traj_file} (metrics/figure failed: {err})', flush=True)
+    elif code != 0:
+        print(f'swarm run: stopped (code {code}) after {wall:.1f} s', file=sys.stderr, flush=True)
+    (out / 'run.json').write_text(json.dumps(dict(exit_code=code, wall_seconds=wall, mode=a.mode,
+                                                  processes=not a.in_process, agents=len(scn.names))))
+    return code

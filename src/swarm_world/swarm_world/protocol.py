@@ -1,0 +1,177 @@
+"""The lockstep protocol of the ROS 2 swarm: topics, QoS, packed message layouts.
+
+Fixed, user-facing topics (DESIGN.md)
+-------------------------------------
+``/swarm/states``  nav_msgs/Odometry, every agent. header.stamp = sim time t of the state,
+    header.frame_id = ``world``, child_frame_id = agent name, pose = (x, y, 0) and the planar
+    quaternion (0, 0, sin θ/2, cos θ/2), twist.linear.x = 1 (unit speed),
+    twist.angular.z = u, **the curvature held over the step that ended at this stamp**
+    (u_{n−1} for the state of t_n; 0 for the initial state).  In lockstep the u an agent
+    applies from t_n on is decided only after every agent's state of t_n is known, so it is
+    carried by the agent's next message (t_{n+1}); realtime agents use the same convention.
+    QoS: reliable, transient-local, depth 1 (a late joiner gets each agent's newest state).
+``/swarm/lambda``  std_msgs/Float64, commander (or a user): λ ∈ [0, 1].
+``/<agent>/steering``  std_msgs/Float64, commander (or a user): leader steering value s_k.
+``/swarm/leaders``  std_msgs/String, transient-local: comma-separated leader names ('' = none).
+``/clock``  rosgraph_msgs/Clock, world: t_n in lockstep, wall time × rtf in realtime.
+``/world/target``  geometry_msgs/PointStamped, transient-local.
+``/world/barrier``  geometry_msgs/PolygonStamped, transient-local (no points = no barrier).
+``/world/markers``  visualization_msgs/MarkerArray; ``/world/metrics`` diagnostic_msgs/DiagnosticArray.
+
+Lockstep (deterministic; equal to ``swarm simulate`` to rounding)
+-----------------------------------------------------------------
+Every input is paired with the step it belongs to.  For step n (t_n = n·dt):
+
+1. every agent has published its state of t_n on ``/swarm/states``;
+2. the world, once it holds all N states of t_n (rows in agent-index order = the scenario's
+   roster), publishes ``/clock`` = t_n and the packed states on ``/lockstep/states``;
+3. the commander runs its `CommandPlan` (λ schedule, leader rule, steering programs, live
+   set-points) on exactly those states and answers on ``/lockstep/decision``; it also
+   publishes ``/swarm/lambda``, ``/<agent>/steering`` (on change) and ``/swarm/leaders``;
+4. the world relays ONE packed message ``/lockstep/step`` (states + decision + world
+   geometry) — each agent reads one message per step (O(N) deliveries, not N²);
+5. each agent computes u_n with `swarm_core.laws.swarm_control` from that table (its own
+   row from its own θ), integrates with `zoh_step`, adds its seeded noise and publishes its
+   state of t_{n+1} with twist.angular.z = u_n.
+The world relays step ``steps`` too (so the last u is known) and then finishes.  All
+lockstep topics are reliable + transient-local depth 1, so a reader that matches late still
+gets the last message; every node answers a repeated message for a step it already handled by
+re-publishing its answer (stall recovery: the world repeats its last message after
+``stall_timeout`` seconds without progress).
+
+Packed layouts (std_msgs/Float64MultiArray, empty ``layout``, ``data`` as below; N agents)
+``/lockstep/states``    [n, t_n, N,  x(N), y(N), qz(N), qw(N)]
+``/lockstep/decision``  [n, t_n, N,  λ, leader flags(N) (0/1), s(N)]
+``/lockstep/step``      [n, t_n, N,  λ, leader flags(N), s(N), x(N), y(N), qz(N), qw(N),
+                         has_target, target_x, target_y, M, barrier x(M), barrier y(M)]
+"""
+from __future__ import annotations
+
+import math
+import struct
+
+import numpy as np
+
+STATES = '/swarm/states'
+LAMBDA = '/swarm/lambda'
+LEADERS = '/swarm/leaders'
+CLOCK = '/clock'
+TARGET = '/world/target'
+BARRIER = '/world/barrier'
+MARKERS = '/world/markers'
+METRICS = '/world/metrics'
+LOCK_STATES = '/lockstep/states'
+LOCK_DECISION = '/lockstep/decision'
+LOCK_STEP = '/lockstep/step'
+
+
+def steering_topic(agent: str) -> str:
+    return f'/{agent}/steering'
+
+
+def qos_latched(depth: int = 1):
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+def qos_reliable(depth: int = 10):
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def step_of(t: float, dt: float) -> int:
+    return int(round(t / dt))
+
+
+def time_to_stamp(t: float):
+    """(sec, nanosec) of a sim time t ≥ 0."""
+    sec = math.floor(t)
+    nsec = int(round((t - sec) * 1e9))
+    if nsec >= 1_000_000_000:
+        sec, nsec = sec + 1, nsec - 1_000_000_000
+    return int(sec), nsec
+
+
+def stamp_to_time(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+# ------------------------------------------------------------------ packing
+
+def pack_states(n: int, t: float, x, y, qz, qw) -> np.ndarray:
+    return np.concatenate([[n, t, len(x)], x, y, qz, qw]).astype(float)
+
+
+def unpack_states(d):
+    d = np.asarray(d, dtype=float)
+    n, t, N = int(d[0]), float(d[1]), int(d[2])
+    body = d[3:3 + 4 * N].reshape(4, N)
+    return n, t, body[0], body[1], body[2], body[3]
+
+
+def pack_decision(n: int, t: float, lam: float, flags, steering) -> np.ndarray:
+    return np.concatenate([[n, t, len(flags), lam], np.asarray(flags, float), steering]).astype(float)
+
+
+def unpack_decision(d):
+    d = np.asarray(d, dtype=float)
+    n, t, N, lam = int(d[0]), float(d[1]), int(d[2]), float(d[3])
+    return n, t, lam, d[4:4 + N] > 0.5, d[4 + N:4 + 2 * N]
+
+
+def pack_step(n, t, lam, flags, steering, x, y, qz, qw, target=None, barrier=None) -> np.ndarray:
+    geo = [1.0, float(target[0]), float(target[1])] if target is not None else [0.0, 0.0, 0.0]
+    b = np.zeros((0, 2)) if barrier is None else np.asarray(barrier, float).reshape(-1, 2)
+    return np.concatenate([[n, t, len(x), lam], np.asarray(flags, float), steering, x, y, qz, qw,
+                           geo, [len(b)], b[:, 0], b[:, 1]]).astype(float)
+
+
+class Step:
+    """A decoded ``/lockstep/step`` message."""
+    __slots__ = ('n', 't', 'lam', 'flags', 'steering', 'x', 'y', 'qz', 'qw', 'target', 'barrier')
+
+    def __init__(self, d):
+        d = np.asarray(d, dtype=float)
+        self.n, self.t, N, self.lam = int(d[0]), float(d[1]), int(d[2]), float(d[3])
+        o = 4
+        self.flags = d[o:o + N] > 0.5
+        self.steering = d[o + N:o + 2 * N]
+        self.x, self.y, self.qz, self.qw = d[o + 2 * N:o + 6 * N].reshape(4, N)
+        o += 6 * N
+        self.target = d[o + 1:o + 3].copy() if d[o] > 0.5 else None
+        m = int(d[o + 3])
+        self.barrier = np.stack([d[o + 4:o + 4 + m], d[o + 4 + m:o + 4 + 2 * m]], axis=1) if m else None
+
+
+# ------------------------------------------------------------------ raw CDR of Float64MultiArray
+
+_HEADER = b'\x00\x01\x00\x00'   # CDR little endian
+
+
+def float64_array_to_cdr(data: np.ndarray) -> bytes:
+    """Serialized std_msgs/Float64MultiArray with an empty layout (what publish() accepts)."""
+    data = np.ascontiguousarray(data, dtype='<f8')
+    return _HEADER + struct.pack('<IIII', 0, 0, data.size, 0) + data.tobytes()
+
+
+def cdr_to_float64_array(raw: bytes) -> np.ndarray:
+    """``data`` of a serialized std_msgs/Float64MultiArray (any layout)."""
+    little = raw[1] == 1
+    end = '<' if little else '>'
+    o = 4
+    ndim, = struct.unpack_from(end + 'I', raw, o)
+    o += 4
+    for _ in range(ndim):
+        ln, = struct.unpack_from(end + 'I', raw, o)
+        o += 4 + ln
+        o = (o - 4 + 3) // 4 * 4 + 4
+        o += 8
+    o += 4                                        # data_offset
+    size, = struct.unpack_from(end + 'I', raw, o)
+    o += 4
+    o = (o - 4 + 7) // 8 * 8 + 4
+    return np.frombuffer(raw, dtype=end + 'f8', count=size, offset=o)

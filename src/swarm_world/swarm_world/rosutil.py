@@ -1,0 +1,95 @@
+"""Small rclpy helpers shared by the swarm's nodes: parameter declaration with descriptions
+and ranges, one-line rejection logs, the spin loop, message-info publisher ids."""
+from __future__ import annotations
+
+import math
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+
+
+class ParameterError(ValueError):
+    """A bad start-up parameter; the message is one line naming it."""
+
+
+def declare(node, name, default, description, lo=None, hi=None, choices=None, finite=True):
+    """Declare a parameter with a description (and a range); return its validated value."""
+    desc = ParameterDescriptor(description=description)
+    if isinstance(default, bool):
+        pass
+    elif isinstance(default, int) and (lo is not None or hi is not None):
+        desc.integer_range = [IntegerRange(from_value=int(-2**31 if lo is None else lo),
+                                           to_value=int(2**31 - 1 if hi is None else hi), step=1)]
+    elif isinstance(default, float) and (lo is not None or hi is not None):
+        desc.floating_point_range = [FloatingPointRange(
+            from_value=float(-1e300 if lo is None else lo), to_value=float(1e300 if hi is None else hi), step=0.0)]
+    if choices:
+        desc.additional_constraints = 'one of: ' + ', '.join(choices)
+    from rclpy.exceptions import ParameterException
+    try:
+        value = node.declare_parameter(name, default, desc).value
+    except ParameterException as err:
+        raise ParameterError(f'parameter {name}: {str(err).splitlines()[0]}') from None
+    except Exception as err:  # type mismatch and the like
+        raise ParameterError(f'parameter {name}: {type(err).__name__}: {str(err).splitlines()[0]}') from None
+    if isinstance(value, float):
+        if finite and not math.isfinite(value):
+            raise ParameterError(f'parameter {name}: must be finite, got {value!r}')
+        if (lo is not None and value < lo) or (hi is not None and value > hi):
+            raise ParameterError(f'parameter {name}: {value!r} outside [{lo}, {hi}]')
+    if choices and value not in choices:
+        raise ParameterError(f'parameter {name}: {value!r} is not one of {", ".join(choices)}')
+    return value
+
+
+class RejectLog:
+    """Logs each kind of rejected input once per key (one line naming it), counts them all."""
+
+    def __init__(self, logger):
+        self.logger = logger
+        self.seen = set()
+        self.count = 0
+
+    def __call__(self, key, text):
+        self.count += 1
+        if key not in self.seen:
+            self.seen.add(key)
+            self.logger.warning(f'rejected {text}')
+
+
+def gid_key(gid) -> bytes:
+    """Comparable bytes of a publisher gid (from message info or endpoint info)."""
+    if isinstance(gid, dict):
+        gid = gid.get('data', gid)
+    return bytes(bytearray(gid))[:16]
+
+
+def make_executor(context, events=None):
+    """The EventsExecutor when available (fast), else the SingleThreadedExecutor.
+
+    ``SWARM_EXECUTOR=single`` in the environment forces the SingleThreadedExecutor."""
+    import os
+    if events is None:
+        events = os.environ.get('SWARM_EXECUTOR', 'events') != 'single'
+    try:
+        if not events:
+            raise ImportError
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor(context=context)
+    except Exception:  # pragma: no cover - older rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        return SingleThreadedExecutor(context=context)
+
+
+def spin_until(executor, context, done, timeout=0.1):
+    """spin_once loop (EventsExecutor.spin() burns CPU and ignores signals) until done()."""
+    from rclpy.executors import ExternalShutdownException
+    try:
+        while context.ok() and not done():
+            executor.spin_once(timeout_sec=timeout)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+
+
+def steady_clock():
+    from rclpy.clock import Clock, ClockType
+    return Clock(clock_type=ClockType.STEADY_TIME)

@@ -1,0 +1,458 @@
+"""WorldNode: sim time, the lockstep barrier, target and barrier, swarm view and metrics.
+
+See `swarm_world.protocol` for the message flow.  The world loads the same scenario as the
+other nodes (for the roster, duration, target and barrier), records what the agents publish
+and, at the end, writes ``trajectory.npz`` (the batch engine's format) to ``output_dir``.
+Target and barrier can be moved during a run: ``ros2 param set /world target "400,0"``,
+``ros2 param set /world barrier "x,y;x,y;…"`` (empty string: none).
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Point, Point32, PointStamped, PolygonStamped
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64MultiArray
+from visualization_msgs.msg import Marker, MarkerArray
+
+from swarm_core import metrics as M
+from swarm_core.engine import Trajectory
+from swarm_core.model import yaw_from_quaternion
+from swarm_core.scenario import ScenarioError, load
+
+from . import protocol as P
+from .checks import check_state
+from .rosutil import ParameterError, RejectLog, declare, make_executor, spin_until, steady_clock
+
+
+def parse_point(text):
+    text = text.strip()
+    if not text:
+        return None
+    vals = [float(v) for v in text.split(',')]
+    if len(vals) != 2 or not all(math.isfinite(v) for v in vals):
+        raise ValueError(f'{text!r} is not "x,y" with finite numbers')
+    return np.array(vals)
+
+
+def parse_points(text):
+    text = text.strip()
+    if not text:
+        return None
+    pts = [parse_point(p) for p in text.split(';') if p.strip()]
+    return np.array(pts) if pts else None
+
+
+def format_points(pts):
+    return '' if pts is None else ';'.join(f'{x!r},{y!r}' for x, y in np.atleast_2d(pts))
+
+
+class WorldNode(Node):
+    def __init__(self, node_name='world', *, namespace=None, context=None, parameter_overrides=None,
+                 cli_args=None, log=print):
+        super().__init__(node_name, namespace=namespace, context=context, cli_args=cli_args,
+                         parameter_overrides=parameter_overrides)
+        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
+        self.log = log
+        scenario = d('scenario', 'homotopy_global', 'scenario name or YAML path')
+        seed = d('seed', -1, "seed (-1: the scenario's)", lo=-1, hi=2**31 - 1)
+        duration = d('duration', 0.0, "run length in sim s (0: the scenario's)", lo=0.0, hi=1e9)
+        dt = d('dt', 0.0, "step (0: the scenario's)", lo=0.0, hi=10.0)
+        self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=('lockstep', 'realtime'))
+        self.rtf = d('rtf', 1.0, 'realtime: sim seconds per wall second', lo=1e-3, hi=1e4)
+        self.output_dir = d('output_dir', '', 'where to write trajectory.npz at the end ("": nowhere)')
+        self.progress_every = d('progress_every', 50.0, 'progress line every this many sim s (0: none)', lo=0.0, hi=1e9)
+        self.view_every = d('view_every', 20, 'markers and metrics every this many steps (0: never)', lo=0, hi=10**9)
+        self.stall_timeout = d('stall_timeout', 2.0, 'lockstep: repeat the last message after this many wall s', lo=0.1, hi=1e6)
+        self.start_timeout = d('start_timeout', 180.0, 'give up if not everyone is discovered in this many wall s', lo=1.0, hi=1e6)
+        self.collision_distance = d('collision_distance', 0.01, 'pairs closer than this count as a collision', lo=0.0, hi=1e6)
+        self.trail_length = d('trail_length', 200, 'trail points per agent in the markers', lo=0, hi=100000)
+        try:
+            self.scn = load(scenario, seed=None if seed < 0 else seed,
+                            duration=duration or None, dt=dt or None)
+        except ScenarioError as err:
+            raise ParameterError(f'parameter scenario: {err}') from None
+        self.names = list(self.scn.names)
+        self.n = len(self.names)
+        self.row = {nm: i for i, nm in enumerate(self.names)}
+        self.dt = self.scn.dt
+        self.steps = self.scn.steps
+        self.w = self.scn.law.cutoff_radius
+        self.target = self.scn.target
+        self.barrier = self.scn.barrier
+        self.target = parse_point(d('target', format_points(self.target), 'target "x,y" ("" = none); movable'))
+        self.barrier = parse_points(d('barrier', format_points(self.barrier), 'barrier hull "x,y;x,y;..." ("" = none); movable'))
+        self.barrier_geom = M.Barrier(self.barrier) if self.barrier is not None else None
+        self.add_on_set_parameters_callback(self._on_params)
+        self.reject = RejectLog(self.get_logger())
+
+        self.pub_clock = self.create_publisher(Clock, P.CLOCK, 10)
+        self.pub_target = self.create_publisher(PointStamped, P.TARGET, P.qos_latched())
+        self.pub_barrier = self.create_publisher(PolygonStamped, P.BARRIER, P.qos_latched())
+        self.pub_markers = self.create_publisher(MarkerArray, P.MARKERS, 5)
+        self.pub_metrics = self.create_publisher(DiagnosticArray, P.METRICS, 10)
+        self.sub_states = self.create_subscription(Odometry, P.STATES, self._on_state,
+                                                   P.qos_latched(max(100, 4 * self.n)) if self.mode == "lockstep" else P.qos_reliable(max(100, 4 * self.n)))
+        if self.mode == 'lockstep':
+            self.pub_lock_states = self.create_publisher(Float64MultiArray, P.LOCK_STATES, P.qos_latched())
+            self.pub_step = self.create_publisher(Float64MultiArray, P.LOCK_STEP, P.qos_latched())
+            self.sub_decision = self.create_subscription(Float64MultiArray, P.LOCK_DECISION, self._on_decision,
+                                                         P.qos_latched(), raw=True)
+
+        # recording
+        T = self.steps + 1
+        self.rec_r = np.full((T, self.n, 2), np.nan)
+        self.rec_theta = np.full((T, self.n), np.nan)
+        self.rec_u = np.zeros((T, self.n))
+        self.rec_lam = np.zeros(T)
+        self.rec_leader = np.zeros((T, self.n), bool)
+        self.gids = {}
+        self.newest = {}         # name -> (t, x, y, qz, qw) newest accepted
+        # lockstep bookkeeping: states of step `cur` (and u_{cur-1} they carry)
+        self.cur = 0
+        self.buf = np.zeros((4, self.n))
+        self.buf_u = np.zeros(self.n)
+        self.have = np.zeros(self.n, bool)
+        self.states_out = False
+        self.decision = None
+        self.last_msg = None
+        self.last_progress = time.monotonic()
+        self.started = False
+        self.done = False
+        self.failed = None
+        self.wall_start = time.monotonic()
+        self.run_wall = None
+        self.intrusions = 0
+        self.collisions = 0
+        self.trails = [[] for _ in range(self.n)]
+        self.sim_t = 0.0
+        self.lam_now = 0.0
+        self.leaders_now = np.zeros(self.n, bool)
+        self.next_progress = 0.0
+        self.publish_geometry()
+        self.timer = self.create_timer(0.05 if self.mode == 'lockstep' else 0.01, self._on_timer,
+                                       clock=steady_clock())
+
+    # ------------------------------------------------------------ geometry
+    def _on_params(self, params):
+        try:
+            new_t, new_b = self.target, self.barrier
+            for p in params:
+                if p.name == 'target':
+                    new_t = parse_point(p.value)
+                elif p.name == 'barrier':
+                    new_b = parse_points(p.value)
+        except (ValueError, TypeError) as err:
+            self.get_logger().warning(f'rejected parameter: {err}')
+            return SetParametersResult(successful=False, reason=str(err))
+        if any(p.name in ('target', 'barrier') for p in params):
+            self.target, self.barrier = new_t, new_b
+            self.barrier_geom = M.Barrier(self.barrier) if self.barrier is not None and len(self.barrier) >= 3 else None
+            self.publish_geometry()
+            self.get_logger().info(f'world geometry: target={self.target}, barrier={format_points(self.barrier) or None}')
+        return SetParametersResult(successful=True)
+
+    def _stamp(self, t):
+        s = Time()
+        s.sec, s.nanosec = P.time_to_stamp(t)
+        return s
+
+    def publish_geometry(self):
+        ts = PointStamped()
+        ts.header.frame_id = 'world'
+        ts.header.stamp = self._stamp(self.sim_t if hasattr(self, 'sim_t') else 0.0)
+        if self.target is not None:
+            ts.point.x, ts.point.y = float(self.target[0]), float(self.target[1])
+            self.pub_target.publish(ts)
+        bs = PolygonStamped()
+        bs.header = ts.header
+        if self.barrier is not None:
+            bs.polygon.points = [Point32(x=float(x), y=float(y)) for x, y in self.barrier]
+        self.pub_barrier.publish(bs)
+
+    # ------------------------------------------------------------ inputs
+    def _on_state(self, msg):
+        reason = check_state(msg, self.row, self.newest)
+        if reason is not None:
+            if reason != 'repeat':
+                self.reject((msg.child_frame_id, reason.split(':')[0]), reason)
+            return
+        name = msg.child_frame_id
+        i = self.row[name]
+        p = msg.pose.pose
+        t = P.stamp_to_time(msg.header.stamp)
+        vals = (p.position.x, p.position.y, p.orientation.z, p.orientation.w)
+        if self.mode == 'realtime':
+            self.newest[name] = (t, *vals)
+            self.rt_record(i, t, vals, msg.twist.twist.angular.z)
+            return
+        k = P.step_of(t, self.dt)
+        if k != self.cur:
+            self.reject((name, 'step'), f'state of {name!r} for step {k} while the world is at step {self.cur}')
+            return
+        self.newest[name] = (t, *vals)
+        self.buf[:, i] = vals
+        self.buf_u[i] = msg.twist.twist.angular.z
+        self.have[i] = True
+        self.last_progress = time.monotonic()
+        self.advance()
+
+    def _on_decision(self, raw):
+        n, t, lam, flags, steering = P.unpack_decision(P.cdr_to_float64_array(raw))
+        if n != self.cur or self.decision is not None:
+            return
+        if not (math.isfinite(lam) and 0.0 <= lam <= 1.0) or not np.all(np.isfinite(steering)) \
+                or len(flags) != self.n:
+            self.reject('decision', f'commander decision for step {n}: λ={lam}, non-finite or wrong size')
+            return
+        self.decision = (lam, flags.copy(), steering.copy())
+        self.last_progress = time.monotonic()
+        self.advance()
+
+    # ------------------------------------------------------------ lockstep
+    def ready(self):
+        """Everyone matched: agents' states of step 0 held, relay and commander matched."""
+        return (self.have.all() and self.pub_step.get_subscription_count() >= self.n
+                and self.pub_lock_states.get_subscription_count() >= 1
+                and self.sub_decision.handle.get_publisher_count() >= 1)
+
+    def advance(self):
+        if not self.started or self.done:
+            return
+        if self.have.all() and not self.states_out:
+            k = self.cur
+            if k > self.steps:                         # the final u_{steps}
+                self.rec_u[self.steps] = self.buf_u
+                self.finish()
+                return
+            x, y, qz, qw = self.buf
+            self.rec_r[k, :, 0], self.rec_r[k, :, 1] = x, y
+            self.rec_theta[k] = yaw_from_quaternion(qz, qw)
+            if k > 0:
+                self.rec_u[k - 1] = self.buf_u
+            self.sim_t = k * self.dt
+            self.pub_clock.publish(Clock(clock=self._stamp(self.sim_t)))
+            msg = Float64MultiArray()
+            msg.data = P.pack_states(k, self.sim_t, x, y, qz, qw).tolist()
+            self.pub_lock_states.publish(msg)
+            self.last_msg = (self.pub_lock_states, msg)
+            self.states_out = True
+            self.observe(k)
+        if self.states_out and self.decision is not None:
+            k = self.cur
+            lam, flags, steering = self.decision
+            self.rec_lam[k], self.rec_leader[k] = lam, flags
+            self.lam_now, self.leaders_now = lam, flags
+            x, y, qz, qw = self.buf
+            data = P.pack_step(k, k * self.dt, lam, flags, steering, x, y, qz, qw, self.target, self.barrier)
+            self.pub_step.publish(P.float64_array_to_cdr(data))
+            self.last_msg = (self.pub_step, P.float64_array_to_cdr(data))
+            self.cur += 1
+            self.have[:] = False
+            self.states_out = False
+            self.decision = None
+
+    def observe(self, k):
+        """Per-step checks (collisions, intrusions), progress, metrics and markers."""
+        pos = self.rec_r[k]
+        md = M.min_distance(pos)
+        if md < self.collision_distance:
+            self.collisions += 1
+            self.reject(('collision', k // 2000), f'nothing: collision at t={k * self.dt:.2f} (min distance {md:.4f})')
+        if self.barrier_geom is not None:
+            inside = self.barrier_geom.inside(pos)
+            if inside.any():
+                self.intrusions += int(inside.sum())
+                self.reject(('intrusion', k // 2000), f'nothing: barrier intrusion at t={k * self.dt:.2f} by '
+                            + ', '.join(self.names[i] for i in np.flatnonzero(inside)))
+        t = k * self.dt
+        if self.progress_every > 0 and t >= self.next_progress:
+            self.next_progress = t + self.progress_every
+            c, _ = M.cluster_labels(pos, self.w)
+            el = time.monotonic() - (self.run_wall or self.wall_start)
+            self.log(f'[world] t={t:8.2f}  clusters={c}  λ={self.lam_now:.3f}  min_dist={md:.3f}  '
+                     f'({k / el if el > 0 else 0:.0f} steps/s)', flush=True)
+        if self.view_every and k % self.view_every == 0:
+            self.publish_view(t, pos, self.rec_theta[k], md)
+
+    def publish_view(self, t, pos, theta, md):
+        c, labels = M.cluster_labels(pos, self.w)
+        st = DiagnosticStatus(name='swarm', hardware_id='world', level=DiagnosticStatus.OK,
+                              message=f'{c} cluster(s)')
+        vals = dict(t=t, clusters=c, polarisation=M.polarisation(theta), min_distance=md, **{'lambda': self.lam_now},
+                    leaders=','.join(self.names[i] for i in np.flatnonzero(self.leaders_now)),
+                    intrusions=self.intrusions, collisions=self.collisions)
+        if self.target is not None:
+            vals['centroid_target_distance'] = float(np.hypot(*(pos.mean(0) - self.target)))
+        st.values = [KeyValue(key=k_, value=str(v)) for k_, v in vals.items()]
+        arr = DiagnosticArray(status=[st])
+        arr.header.stamp = self._stamp(t)
+        self.pub_metrics.publish(arr)
+        if self.pub_markers.get_subscription_count() == 0:
+            return
+        ma = MarkerArray()
+        stamp = self._stamp(t)
+        palette = [(0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16),
+                   (0.58, 0.4, 0.74), (0.55, 0.34, 0.29)]
+        for i in range(self.n):
+            tr = self.trails[i]
+            tr.append((pos[i, 0], pos[i, 1]))
+            if len(tr) > self.trail_length:
+                del tr[0]
+            m = Marker(ns='agents', id=i, type=Marker.ARROW, action=Marker.ADD)
+            m.header.frame_id, m.header.stamp = 'world', stamp
+            m.pose.position.x, m.pose.position.y = float(pos[i, 0]), float(pos[i, 1])
+            m.pose.orientation.z, m.pose.orientation.w = math.sin(theta[i] / 2), math.cos(theta[i] / 2)
+            m.scale.x, m.scale.y, m.scale.z = 0.8, 0.25, 0.25
+            r, g, b = palette[labels[i] % len(palette)]
+            m.color.r, m.color.g, m.color.b, m.color.a = (1.0, 0.84, 0.0, 1.0) if self.leaders_now[i] else (r, g, b, 1.0)
+            ma.markers.append(m)
+            tm = Marker(ns='trails', id=i, type=Marker.LINE_STRIP, action=Marker.ADD)
+            tm.header = m.header
+            tm.scale.x = 0.05
+            tm.color.r, tm.color.g, tm.color.b, tm.color.a = r, g, b, 0.6
+            tm.points = [Point(x=float(a), y=float(b_)) for a, b_ in tr]
+            ma.markers.append(tm)
+        if self.target is not None:
+            m = Marker(ns='target', id=0, type=Marker.SPHERE, action=Marker.ADD)
+            m.header.frame_id, m.header.stamp = 'world', stamp
+            m.pose.position.x, m.pose.position.y = float(self.target[0]), float(self.target[1])
+            m.pose.orientation.w = 1.0
+            m.scale.x = m.scale.y = m.scale.z = 1.0
+            m.color.g, m.color.a = 1.0, 1.0
+            ma.markers.append(m)
+        if self.barrier is not None:
+            m = Marker(ns='barrier', id=0, type=Marker.LINE_STRIP, action=Marker.ADD)
+            m.header.frame_id, m.header.stamp = 'world', stamp
+            m.scale.x = 0.1
+            m.color.r, m.color.a = 1.0, 1.0
+            m.points = [Point(x=float(x), y=float(y)) for x, y in list(self.barrier) + [self.barrier[0]]]
+            ma.markers.append(m)
+        self.pub_markers.publish(ma)
+
+    # ------------------------------------------------------------ realtime
+    def rt_record(self, i, t, vals, u):
+        k = P.step_of(t, self.dt)
+        if 0 <= k <= self.steps:
+            self.rec_r[k, i] = vals[:2]
+            self.rec_theta[k, i] = yaw_from_quaternion(vals[2], vals[3])
+            if k > 0:
+                self.rec_u[k - 1, i] = u
+
+    def rt_tick(self):
+        now = time.monotonic()
+        if not self.started:
+            if len(self.newest) == self.n:
+                self.started, self.run_wall = True, now
+                self.log(f'[world] realtime: {self.n} agents discovered in {now - self.wall_start:.1f} s; '
+                         f'clock at rtf {self.rtf}', flush=True)
+            else:
+                return
+        self.sim_t = (now - self.run_wall) * self.rtf
+        self.pub_clock.publish(Clock(clock=self._stamp(self.sim_t)))
+        k = P.step_of(self.sim_t, self.dt)
+        if self.view_every and (k // self.view_every) != getattr(self, '_rt_view', -1):
+            self._rt_view = k // self.view_every
+            have = [nm for nm in self.names if nm in self.newest]
+            pos = np.array([self.newest[nm][1:3] for nm in have])
+            th = np.array([yaw_from_quaternion(*self.newest[nm][3:5]) for nm in have])
+            self.observe_rt(k, pos, th)
+        if self.sim_t >= self.scn.duration:
+            self.finish()
+
+    def observe_rt(self, k, pos, theta):
+        t = k * self.dt
+        md = M.min_distance(pos)
+        if self.progress_every > 0 and t >= self.next_progress:
+            self.next_progress = t + self.progress_every
+            c, _ = M.cluster_labels(pos, self.w)
+            self.log(f'[world] t={t:8.2f}  clusters={c}  λ={self.lam_now:.3f}  min_dist={md:.3f}', flush=True)
+        self.publish_view(t, pos, theta, md)
+
+    # ------------------------------------------------------------ timer, end
+    def _on_timer(self):
+        if self.done:
+            return
+        if self.mode == 'realtime':
+            self.rt_tick()
+            return
+        now = time.monotonic()
+        if not self.started:
+            if self.ready():
+                self.started = True
+                self.run_wall = now
+                self.log(f'[world] lockstep: {self.n} agents and the commander discovered in '
+                         f'{now - self.wall_start:.1f} s; {self.steps} steps of dt={self.dt}', flush=True)
+                self.advance()
+            elif now - self.wall_start > self.start_timeout:
+                self.failed = (f'discovery timed out after {self.start_timeout:.0f} s: have states of '
+                               f'{int(self.have.sum())}/{self.n} agents, relay readers {self.pub_step.get_subscription_count()}, '
+                               f'commander {"yes" if self.pub_lock_states.get_subscription_count() else "no"}')
+                self.get_logger().error(self.failed)
+                self.done = True
+            return
+        if self.last_msg is not None and now - self.last_progress > self.stall_timeout:
+            pub, msg = self.last_msg
+            self.get_logger().warning(f'stalled at step {self.cur}: repeating the last message')
+            pub.publish(msg)
+            self.last_progress = now
+
+    def trajectory(self) -> Trajectory:
+        T = self.steps + 1
+        theta = self.rec_theta.copy()
+        # headings travel as quaternions (θ mod 2π): unwrap in time, start at the scenario's θ0
+        good = np.all(np.isfinite(theta), axis=1)
+        if good.all():
+            theta = np.unwrap(theta, axis=0)
+            theta += np.round((self.scn.theta0 - theta[0]) / (2 * np.pi)) * 2 * np.pi
+        tr = Trajectory(list(self.names), np.arange(T) * self.dt, self.rec_r.copy(), theta, self.rec_u.copy(),
+                        self.rec_lam.copy(), self.rec_leader.copy(),
+                        meta=dict(scenario=self.scn.name, seed=self.scn.seed, dt=self.dt, duration=self.scn.duration,
+                                  steps=self.steps, source='ros', mode=self.mode,
+                                  wall_seconds=time.monotonic() - (self.run_wall or self.wall_start)))
+        return tr
+
+    def finish(self):
+        self.done = True
+        wall = time.monotonic() - (self.run_wall or self.wall_start)
+        self.log(f'[world] finished t={self.scn.duration:g} ({self.steps} steps) in {wall:.1f} s '
+                 f'({self.steps / wall if wall > 0 else 0:.0f} steps/s); collisions={self.collisions} '
+                 f'intrusions={self.intrusions}', flush=True)
+        if self.output_dir:
+            out = Path(self.output_dir)
+            out.mkdir(parents=True, exist_ok=True)
+            self.trajectory().save(out / 'trajectory.npz')
+
+
+def main(argv=None):
+    args = sys.argv if argv is None else argv
+    rclpy.init(args=args)
+    ctx = rclpy.get_default_context()
+    try:
+        node = WorldNode()
+    except ParameterError as err:
+        rclpy.logging.get_logger('swarm_world').error(str(err))
+        rclpy.try_shutdown()
+        return 2
+    ex = make_executor(ctx)
+    ex.add_node(node)
+    spin_until(ex, ctx, lambda: node.done)
+    code = 0 if (node.done and node.failed is None) else (1 if node.failed else 130)
+    # let the last messages go out before leaving
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())
