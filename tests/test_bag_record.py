@@ -295,7 +295,7 @@ def test_sigint_mid_run_gives_complete_indexed_file(rclpy_context, processes, sw
             os.killpg(rec.pid, signal.SIGINT)
             done.set()
         threading.Thread(target=stop_soon, daemon=True).start()
-        pubs.publish_run(400, pace=0.01)     # ~4 s of publishing; SIGINT lands in the middle
+        pubs.publish_run(150, pace=0.01)     # ≥ 3 s of publishing; SIGINT lands in the middle
         stdout, stderr = rec.communicate(timeout=30)
         assert done.is_set()
     finally:
@@ -307,9 +307,67 @@ def test_sigint_mid_run_gives_complete_indexed_file(rclpy_context, processes, sw
         summary = reader.get_summary()
         n_states = sum(1 for _ in reader.iter_messages(topics=['/swarm/states']))
     assert summary is not None and summary.statistics.message_count > 0
-    assert 0 < n_states < 400 * N_AGENTS
+    assert 0 < n_states < 150 * N_AGENTS
     with Reader(out) as r:
         counts = {c.topic: c.msgcount for c in r.connections}
     assert counts['/swarm/states'] == n_states
     line = next(s for s in stdout.splitlines() if s.strip().startswith('/swarm/states'))
     assert line.split()[1:] == [str(n_states), str(n_states)]
+
+
+def test_recorder_started_before_the_run(rclpy_context, processes, swarm_cmd, tmp_path):
+    """The recorder first (as `swarm run --record` starts it), the publishers after: the
+    swarm's volatile topics are subscribed ahead, a best-effort publisher (incompatible with
+    the ahead-of-time reliable subscription) gets a subscription made again, and nothing
+    published after matching is missed."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rosbags.highlevel import AnyReader
+    from std_msgs.msg import Float64
+
+    from swarm_tools.bag import parse_qos_yaml
+
+    out = tmp_path / 'first.mcap'
+    rec = _start_recorder(processes, swarm_cmd, out)
+    assert 'ready' in rec.stderr.readline()
+    node = rclpy.create_node('late_pub', context=rclpy_context)
+    ex = SingleThreadedExecutor(context=rclpy_context)
+    ex.add_node(node)
+    try:
+        lam = node.create_publisher(Float64, '/swarm/lambda',
+                                    QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT))
+        pubs = Publishers(rclpy_context)
+        assert _wait(lambda: pubs.matched() and lam.get_subscription_count() >= 1, 30,
+                     lambda: (pubs.spin(), ex.spin_once(timeout_sec=0.02)))
+        for k in range(10):
+            lam.publish(Float64(data=k * 0.1))
+            pubs.states.publish(pubs.state(k, 0))
+            ex.spin_once(timeout_sec=0.01)
+        _wait(lambda: False, 1.0, pubs.spin)
+        os.killpg(rec.pid, signal.SIGINT)
+        stdout, stderr = rec.communicate(timeout=30)
+        pubs.close()
+    finally:
+        ex.shutdown()
+        node.destroy_node()
+    assert rec.returncode == 0, stderr
+    with AnyReader([out]) as reader:
+        conns = {c.topic: c for c in reader.connections}
+        lam_vals = [reader.deserialize(raw, c.msgtype).data for c, _, raw in
+                    reader.messages(connections=[conns['/swarm/lambda']])]
+        n_states = sum(1 for _ in reader.messages(connections=[conns['/swarm/states']]))
+    assert lam_vals == [k * 0.1 for k in range(10)]
+    assert n_states == 10
+    # both offers on /swarm/lambda are kept: this test's best-effort one, Publishers' reliable one
+    qos = parse_qos_yaml(_channel_qos(out, '/swarm/lambda'))
+    assert sorted(q['reliability'] for q in qos) == ['best_effort', 'reliable']
+
+
+def _channel_qos(path, topic):
+    from mcap.reader import make_reader
+    with open(path, 'rb') as f:
+        for ch in make_reader(f).get_summary().channels.values():
+            if ch.topic == topic:
+                return ch.metadata['offered_qos_profiles']
+    return ''

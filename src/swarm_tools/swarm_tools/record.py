@@ -68,10 +68,31 @@ class TopicFilter:
         return not any(p.fullmatch(topic) or p.pattern == topic for p in self.exclude)
 
 
-class Recorder:
-    """Subscribes to the selected topics as they appear and writes what arrives."""
+#: the project's fixed volatile topics (DESIGN.md): subscribed at start-up, before any
+#: publisher exists, so that step 0 of a run is not missed while the graph is polled.  If the
+#: publishers turn out to offer other QoS or another type, the subscription is re-made.
+#: (Latched topics need no head start: a late transient-local subscription gets them.)
+SWARM_TOPICS = {
+    '/swarm/states': 'nav_msgs/msg/Odometry',
+    '/swarm/lambda': 'std_msgs/msg/Float64',
+    '/clock': 'rosgraph_msgs/msg/Clock',
+    '/world/markers': 'visualization_msgs/msg/MarkerArray',
+    '/world/metrics': 'diagnostic_msgs/msg/DiagnosticArray',
+}
 
-    def __init__(self, node, writer: BagWriter, wanted: TopicFilter, log=print):
+
+def _qos_key(q):
+    return (int(q.reliability), int(q.durability))
+
+
+class Recorder:
+    """Subscribes to the selected topics as they appear and writes what arrives.
+
+    A topic's channel is registered with the publishers' offered QoS when the first publisher
+    is seen (or when the first message arrives, whichever comes first)."""
+
+    def __init__(self, node, writer: BagWriter, wanted: TopicFilter, log=print,
+                 presubscribe: dict | None = None):
         self.node = node
         self.writer = writer
         self.wanted = wanted
@@ -79,35 +100,82 @@ class Recorder:
         self.received: dict[str, int] = {}
         self.failed: dict[str, int] = {}
         self.subs = {}
+        self.sub_type: dict[str, str] = {}
         self.skipped: set[str] = set()
+        for topic, type_name in (presubscribe or {}).items():
+            if wanted(topic):
+                self._subscribe(topic, type_name, request_qos([qos_dict(reliability=1)]))
         self.timer = node.create_timer(POLL_PERIOD, self.poll)
 
+    def _publishers(self, topic):
+        infos = self.node.get_publishers_info_by_topic(topic)
+        return [i for i in infos if i.node_name != self.node.get_name()
+                or i.node_namespace != self.node.get_namespace()]
+
+    def _subscribe(self, topic, type_name, qos):
+        try:
+            cls = message_class(type_name)
+            self.writer.definition(type_name)
+        except (ImportError, AttributeError, ValueError, DefinitionNotFound) as err:
+            self.log(f'swarm record: skipping {topic} ({type_name}): {err}')
+            self.skipped.add(topic)
+            return
+        old = self.subs.pop(topic, None)
+        if old is not None:
+            self.node.destroy_subscription(old)
+        self.received.setdefault(topic, 0)
+        self.failed.setdefault(topic, 0)
+        self.sub_type[topic] = type_name
+        self.subs[topic] = self.node.create_subscription(
+            cls, topic, self._callback(topic), qos, raw=True)
+
+    def _register(self, topic, infos=None):
+        """Create the bag channel (once) with the offers known now."""
+        if topic in self.writer.topics:
+            return
+        type_name = self.sub_type[topic]
+        if infos is None:
+            infos = self._publishers(topic)
+        profiles = offered_profiles([i for i in infos if i.topic_type == type_name])
+        self.writer.add_topic(topic, type_name, profiles)
+
     def poll(self):
+        self._polls = getattr(self, '_polls', 0) + 1
+        recheck = self._polls % 5 == 0          # about once a second
         try:
             names = self.node.get_topic_names_and_types()
         except Exception:       # the context is going down
             return
         for topic, types in names:
-            if topic in self.subs or topic in self.skipped or not self.wanted(topic):
+            if topic in self.skipped or not self.wanted(topic):
                 continue
-            infos = self.node.get_publishers_info_by_topic(topic)
-            infos = [i for i in infos if i.node_name != self.node.get_name()
-                     or i.node_namespace != self.node.get_namespace()]
+            settled = topic in self.subs and topic in self.writer.topics
+            if settled and not recheck:
+                continue
+            infos = self._publishers(topic)
             if not infos:
                 continue        # only subscribers so far: wait for a publisher's offer
-            type_name = infos[0].topic_type if infos[0].topic_type else types[0]
-            try:
-                cls = message_class(type_name)
-                profiles = offered_profiles([i for i in infos if i.topic_type == type_name])
-                self.writer.add_topic(topic, type_name, profiles)
-            except (ImportError, AttributeError, ValueError, DefinitionNotFound) as err:
-                self.log(f'swarm record: skipping {topic} ({type_name}): {err}')
-                self.skipped.add(topic)
+            type_name = infos[0].topic_type or types[0]
+            same = [i for i in infos if i.topic_type == type_name]
+            want = request_qos(offered_profiles(same))
+            if settled:
+                # a publisher that joined later with an offer the subscription cannot match
+                # (best effort, or volatile on a latched topic): subscribe again, as it asks
+                have = _qos_key(self.subs[topic].qos_profile)
+                if type_name == self.sub_type[topic] and have != _qos_key(want):
+                    self.log(f'swarm record: {topic}: mixed QoS offers, subscribing again '
+                             'as best effort / volatile')
+                    self._subscribe(topic, type_name, want)
                 continue
-            self.received[topic] = 0
-            self.failed[topic] = 0
-            self.subs[topic] = self.node.create_subscription(
-                cls, topic, self._callback(topic), request_qos(profiles), raw=True)
+            if topic not in self.subs:
+                self._subscribe(topic, type_name, want)
+            elif topic not in self.writer.topics and (
+                    self.sub_type[topic] != type_name
+                    or _qos_key(self.subs[topic].qos_profile) != _qos_key(want)):
+                # a pre-subscription that does not match the offers: make it again
+                self._subscribe(topic, type_name, want)
+            if topic in self.subs:
+                self._register(topic, infos)
 
     def _callback(self, topic):
         writer = self.writer
@@ -117,6 +185,8 @@ class Recorder:
             now = time.time_ns()
             received[topic] += 1
             try:
+                if topic not in writer.topics:
+                    self._register(topic)
                 writer.write(topic, data, now)
             except Exception as err:   # keep recording the rest; counted as lost
                 self.failed[topic] += 1
@@ -125,7 +195,9 @@ class Recorder:
         return on_message
 
     def summary(self) -> list[tuple[str, int, int]]:
-        return [(t, self.received[t], self.writer.topics[t].written) for t in sorted(self.received)]
+        return [(t, self.received[t],
+                 self.writer.topics[t].written if t in self.writer.topics else 0)
+                for t in sorted(self.received) if t in self.writer.topics or self.received[t]]
 
 
 def parse_args(argv):
@@ -145,6 +217,8 @@ def parse_args(argv):
                    help='MCAP chunk size in bytes (default 64 KiB; small chunks survive a crash)')
     p.add_argument('--flush-interval', type=float, default=0.5,
                    help='close the open chunk at least this often, in seconds (default 0.5)')
+    p.add_argument('--no-presubscribe', action='store_true',
+                   help="do not subscribe to the swarm's fixed topics before they have publishers")
     p.add_argument('--quiet', '-q', action='store_true', help='no per-topic summary')
     a = p.parse_args(argv)
     if a.duration is not None and not a.duration > 0:
@@ -172,10 +246,11 @@ def main(argv=None) -> int:
                              start_parameter_services=False)
     writer = BagWriter(args.out, chunk_size=args.chunk_size, flush_interval=args.flush_interval)
     rec = Recorder(node, writer, TopicFilter(args.topics, args.exclude),
-                   log=lambda s: print(s, file=sys.stderr, flush=True))
+                   log=lambda s: print(s, file=sys.stderr, flush=True),
+                   presubscribe=None if args.no_presubscribe else SWARM_TOPICS)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    print(f'swarm record: recording to {args.out}', file=sys.stderr, flush=True)
+    print(f'swarm record: ready, recording to {args.out}', file=sys.stderr, flush=True)
     t_end = time.monotonic() + args.duration if args.duration else None
     try:
         rec.poll()
