@@ -48,12 +48,16 @@ class RejectLog:
         self.logger = logger
         self.seen = set()
         self.count = 0
+        self.lines = []          # the lines logged (bounded), for tests and summaries
 
     def __call__(self, key, text):
         self.count += 1
         if key not in self.seen:
             self.seen.add(key)
-            self.logger.warning(f'rejected {text}')
+            line = f'rejected {text}'
+            if len(self.lines) < 1000:
+                self.lines.append(line)
+            self.logger.warning(line)
 
 
 def gid_key(gid) -> bytes:

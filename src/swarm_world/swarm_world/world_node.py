@@ -22,7 +22,7 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64, Float64MultiArray
 from visualization_msgs.msg import Marker, MarkerArray
 
 from swarm_core import metrics as M
@@ -54,7 +54,7 @@ def parse_points(text):
 
 
 def format_points(pts):
-    return '' if pts is None else ';'.join(f'{x!r},{y!r}' for x, y in np.atleast_2d(pts))
+    return '' if pts is None else ';'.join(f'{float(x)!r},{float(y)!r}' for x, y in np.atleast_2d(pts))
 
 
 class WorldNode(Node):
@@ -90,8 +90,12 @@ class WorldNode(Node):
         self.w = self.scn.law.cutoff_radius
         self.target = self.scn.target
         self.barrier = self.scn.barrier
-        self.target = parse_point(d('target', format_points(self.target), 'target "x,y" ("" = none); movable'))
-        self.barrier = parse_points(d('barrier', format_points(self.barrier), 'barrier hull "x,y;x,y;..." ("" = none); movable'))
+        try:
+            self.target = parse_point(d('target', format_points(self.target), 'target "x,y" ("" = none); movable'))
+            self.barrier = parse_points(d('barrier', format_points(self.barrier),
+                                          'barrier hull "x,y;x,y;..." ("" = none); movable'))
+        except ValueError as err:
+            raise ParameterError(f'parameter target/barrier: {err}') from None
         self.barrier_geom = M.Barrier(self.barrier) if self.barrier is not None else None
         self.add_on_set_parameters_callback(self._on_params)
         self.reject = RejectLog(self.get_logger())
@@ -103,6 +107,8 @@ class WorldNode(Node):
         self.pub_metrics = self.create_publisher(DiagnosticArray, P.METRICS, 10)
         self.sub_states = self.create_subscription(Odometry, P.STATES, self._on_state,
                                                    P.qos_latched(max(100, 4 * self.n)) if self.mode == "lockstep" else P.qos_reliable(max(100, 4 * self.n)))
+        if self.mode == 'realtime':
+            self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
         if self.mode == 'lockstep':
             self.pub_lock_states = self.create_publisher(Float64MultiArray, P.LOCK_STATES, P.qos_latched())
             self.pub_step = self.create_publisher(Float64MultiArray, P.LOCK_STEP, P.qos_latched())
@@ -341,9 +347,14 @@ class WorldNode(Node):
         self.pub_markers.publish(ma)
 
     # ------------------------------------------------------------ realtime
+    def _on_lambda(self, msg):
+        if math.isfinite(msg.data) and 0.0 <= msg.data <= 1.0:
+            self.lam_now = msg.data
+
     def rt_record(self, i, t, vals, u):
         k = P.step_of(t, self.dt)
         if 0 <= k <= self.steps:
+            self.rec_lam[k] = self.lam_now
             self.rec_r[k, i] = vals[:2]
             self.rec_theta[k, i] = yaw_from_quaternion(vals[2], vals[3])
             if k > 0:
@@ -410,13 +421,18 @@ class WorldNode(Node):
     def trajectory(self) -> Trajectory:
         T = self.steps + 1
         theta = self.rec_theta.copy()
+        r, lam = self.rec_r.copy(), self.rec_lam.copy()
+        if self.mode == 'realtime':        # hold each agent's last published state between its stamps
+            for k in range(1, T):
+                miss = ~np.isfinite(theta[k])
+                r[k, miss], theta[k, miss] = r[k - 1, miss], theta[k - 1, miss]
         # headings travel as quaternions (θ mod 2π): unwrap in time, start at the scenario's θ0
         good = np.all(np.isfinite(theta), axis=1)
         if good.all():
             theta = np.unwrap(theta, axis=0)
             theta += np.round((self.scn.theta0 - theta[0]) / (2 * np.pi)) * 2 * np.pi
-        tr = Trajectory(list(self.names), np.arange(T) * self.dt, self.rec_r.copy(), theta, self.rec_u.copy(),
-                        self.rec_lam.copy(), self.rec_leader.copy(),
+        tr = Trajectory(list(self.names), np.arange(T) * self.dt, r, theta, self.rec_u.copy(),
+                        lam, self.rec_leader.copy(),
                         meta=dict(scenario=self.scn.name, seed=self.scn.seed, dt=self.dt, duration=self.scn.duration,
                                   steps=self.steps, source='ros', mode=self.mode,
                                   wall_seconds=time.monotonic() - (self.run_wall or self.wall_start)))

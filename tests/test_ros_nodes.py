@@ -1,0 +1,325 @@
+"""Node tests with rclpy executors: several nodes in one executor, each test on its own
+ROS_DOMAIN_ID and rclpy Context (fixtures in conftest.py)."""
+import math
+import time
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.ros
+
+rclpy = pytest.importorskip('rclpy')
+from rclpy.parameter import Parameter  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from std_msgs.msg import Float64, Float64MultiArray, String  # noqa: E402
+from nav_msgs.msg import Odometry  # noqa: E402
+
+from swarm_agent.agent_node import AgentNode  # noqa: E402
+from swarm_core.engine import Trajectory, simulate  # noqa: E402
+from swarm_core.laws import swarm_control  # noqa: E402
+from swarm_core.model import frame_from_quaternion, quaternion_from_heading  # noqa: E402
+from swarm_core.scenario import load  # noqa: E402
+from swarm_tools.launch import agent_parameters, build_nodes, node_parameters, run_in_process  # noqa: E402
+from swarm_world import protocol as P  # noqa: E402
+from swarm_world.rosutil import ParameterError, make_executor  # noqa: E402
+from swarm_world.world_node import WorldNode  # noqa: E402
+
+SHORT = """
+name: homotopy_short
+seed: {seed}
+dt: 0.05
+duration: {duration}
+agents:
+  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
+  headings: {{rule: cone, half_width: 0.7853981633974483}}
+law: {{kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0, leader_gain: 30.0, q0: 1.0}}
+lambda: {{kind: tanh_window, rise_at: {rise}, fall_at: {fall}, tau: {tau}}}
+leaders:
+  rule: lateral_extremes
+  at: {at}
+  programs:
+    - {{kind: constant, curvature: 0.01}}
+    - {{kind: constant, curvature: -0.01}}
+"""
+
+
+def short_scenario(tmp_path, seed=0, duration=40.0, rise=10.0, fall=30.0, tau=3.0, at=5.0):
+    """homotopy_global's law and agents with the λ window and leader choice brought forward."""
+    p = tmp_path / 'homotopy_short.yaml'
+    p.write_text(SHORT.format(seed=seed, duration=duration, rise=rise, fall=fall, tau=tau, at=at))
+    return str(p)
+
+
+def overrides(d):
+    return [Parameter(k, value=v) for k, v in d.items()]
+
+
+def spin_for(ex, cond, timeout=10.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():
+            return True
+        ex.spin_once(timeout_sec=0.05)
+    return cond()
+
+
+def step_message(scn, pos, theta, lam, flags, steering, target=None, barrier=None, n=0):
+    qz, qw = quaternion_from_heading(theta)
+    return P.float64_array_to_cdr(P.pack_step(n, n * scn.dt, lam, flags, steering, pos[:, 0], pos[:, 1],
+                                              qz, qw, target, barrier))
+
+
+def test_agent_u_equals_core_law_in_lockstep(rclpy_context):
+    """An agent given a step's table answers with the u of swarm_control on the same inputs;
+    λ, leader flags, steering, target and barrier each change that u."""
+    scn = load('target_barrier')
+    scn6 = load('homotopy_global')
+    n = 6
+    rng = np.random.default_rng(3)
+    pos = rng.uniform(-3, 3, size=(n, 2))
+    theta = rng.uniform(-np.pi, np.pi, size=n)
+    cases = {
+        'a0': dict(lam=0.0, flags=np.zeros(n, bool), steer=np.zeros(n), target=None, barrier=None, law=scn6.law),
+        'a1': dict(lam=1.0, flags=np.eye(n, dtype=bool)[2] | np.eye(n, dtype=bool)[0], steer=np.full(n, 0.05),
+                   target=None, barrier=None, law=scn6.law),
+        'a2': dict(lam=0.4, flags=np.eye(n, dtype=bool)[5], steer=np.full(n, -0.02), target=None, barrier=None,
+                   law=scn6.law),
+        'a3': dict(lam=0.0, flags=np.zeros(n, bool), steer=np.zeros(n), target=np.array([30.0, -4.0]),
+                   barrier=pos[[1, 3, 4]] + 0.5, law=scn.law),
+    }
+    ctx = rclpy_context
+    ex = make_executor(ctx)
+    agents = {}
+    for name, c in cases.items():
+        s = scn6 if c['law'] is scn6.law else scn
+        prm = agent_parameters(s, 0, 'lockstep')
+        prm.update(agent_name='agent_0', agent_names=[f'agent_{i}' for i in range(n)], agent_index=0,
+                   x=float(pos[0, 0]), y=float(pos[0, 1]), theta=float(theta[0]), use_sim_time=False)
+        node = AgentNode('agent', namespace=name, context=ctx, parameter_overrides=overrides(prm))
+        # the agent publishes on /swarm/states and reads /lockstep/step: give each its own
+        # step topic by remapping in the test is not needed, we publish raw to the node directly
+        agents[name] = node
+        ex.add_node(node)
+    expected = {}
+    for name, c in cases.items():
+        cos_t, sin_t = frame_from_quaternion(*quaternion_from_heading(theta))
+        expected[name] = float(swarm_control(pos, cos_t, sin_t, [0], c['law'], lambda_=c['lam'],
+                                             is_leader=c['flags'], steering=c['steer'][:1],
+                                             target=c['target'], barrier=c['barrier'])[0])
+        node = agents[name]
+        node._on_step(step_message(scn6, pos, theta, c['lam'], c['flags'], c['steer'], c['target'], c['barrier']))
+        assert node.step == 1
+        assert node.u_history[-1] == (0, expected[name])
+        assert node.odom.twist.twist.angular.z == expected[name]      # what it publishes next
+    assert len({round(v, 12) for v in expected.values()}) == 4       # every input mattered
+    # λ = 1 and a leader: u is exactly the steering program
+    assert expected['a1'] == 0.05
+    # a repeated step message is answered again, not applied twice
+    node = agents['a0']
+    node._on_step(step_message(scn6, pos, theta, 0.0, np.zeros(n, bool), np.zeros(n)))
+    assert node.step == 1 and len(node.u_history) == 1
+
+
+def test_lockstep_reaches_agents_over_dds(rclpy_context):
+    """The same through DDS: a test node publishes /lockstep/step, the agent answers on /swarm/states."""
+    scn = load('homotopy_global')
+    ctx = rclpy_context
+    ex = make_executor(ctx)
+    agent = AgentNode('agent', namespace='agent_2', context=ctx,
+                      parameter_overrides=overrides(dict(agent_parameters(scn, 2, 'lockstep'), use_sim_time=False)))
+    probe = rclpy.create_node('probe', context=ctx)
+    got = []
+    probe.create_subscription(Odometry, P.STATES, got.append, P.qos_latched(50))
+    pub = probe.create_publisher(Float64MultiArray, P.LOCK_STEP, P.qos_latched())
+    ex.add_node(agent)
+    ex.add_node(probe)
+    assert spin_for(ex, lambda: pub.get_subscription_count() >= 1 and got)
+    assert got[0].child_frame_id == 'agent_2' and got[0].header.stamp.sec == 0
+    lam, flags, steer = 0.7, np.array([0, 0, 1, 0, 0, 0], bool), np.full(6, 0.03)
+    pub.publish(step_message(scn, scn.pos0, scn.theta0, lam, flags, steer))
+    assert spin_for(ex, lambda: any(m.header.stamp.nanosec == 50_000_000 for m in got))
+    m = [m for m in got if m.header.stamp.nanosec == 50_000_000][0]
+    cos_t, sin_t = frame_from_quaternion(*quaternion_from_heading(scn.theta0))
+    u = swarm_control(scn.pos0, cos_t, sin_t, [2], scn.law, lambda_=lam, is_leader=flags, steering=[0.03])[0]
+    assert m.twist.twist.angular.z == u
+    assert u == pytest.approx(0.3 * float(swarm_control(scn.pos0, cos_t, sin_t, [2], scn.law, lambda_=0.0,
+                                                         is_leader=flags, steering=[0.0])[0]) + 0.7 * 0.03)
+    probe.destroy_node()
+
+
+def test_realtime_lambda_and_steering_change_what_an_agent_does(rclpy_context):
+    """A realtime leader agent: with λ = 1 from /swarm/lambda its u is its /agent_0/steering
+    value; λ = 0 gives the pair law; bad λ and steering values are rejected (logged)."""
+    scn = load('homotopy_global')
+    ctx = rclpy_context
+    ex = make_executor(ctx)
+    prm = dict(agent_parameters(scn, 0, 'realtime'), leader=True)
+    agent = AgentNode('agent', namespace='agent_0', context=ctx, parameter_overrides=overrides(prm))
+    probe = rclpy.create_node('probe', context=ctx)
+    clock = probe.create_publisher(Clock, '/clock', 10)
+    lam = probe.create_publisher(Float64, '/swarm/lambda', 10)
+    steer = probe.create_publisher(Float64, '/agent_0/steering', 10)
+    for nd in (agent, probe):
+        ex.add_node(nd)
+    assert spin_for(ex, lambda: lam.get_subscription_count() and steer.get_subscription_count()
+                    and clock.get_subscription_count())
+    t = [0.0]
+
+    def tick(k=3):
+        n0 = len(agent.u_history)
+        for _ in range(k * 4):
+            t[0] += scn.dt
+            sec, ns = P.time_to_stamp(t[0])
+            c = Clock()
+            c.clock.sec, c.clock.nanosec = sec, ns
+            clock.publish(c)
+            spin_for(ex, lambda: False, 0.05)
+            if len(agent.u_history) >= n0 + k:
+                break
+        return [u for _, u in agent.u_history[n0:]]
+
+    lam.publish(Float64(data=1.0))
+    steer.publish(Float64(data=0.042))
+    assert spin_for(ex, lambda: agent.lam == 1.0 and agent.steering == 0.042)
+    us = tick()
+    assert us and us[-1] == 0.042
+    for bad in (float('nan'), 1.5, -0.1, float('inf')):
+        lam.publish(Float64(data=bad))
+    steer.publish(Float64(data=float('inf')))
+    spin_for(ex, lambda: len(agent.reject.lines) >= 5, 5.0)
+    assert agent.lam == 1.0 and agent.steering == 0.042
+    assert sum('λ=' in ln for ln in agent.reject.lines) == 4
+    assert any('steering' in ln and 'agent_0' in ln for ln in agent.reject.lines)
+    lam.publish(Float64(data=0.0))
+    assert spin_for(ex, lambda: agent.lam == 0.0)
+    us = tick()
+    assert us and us[-1] != 0.042 and all(math.isfinite(u) for u in us)
+    assert np.all(np.isfinite(agent.core.pos)) and np.isfinite(agent.core.theta).all()
+    probe.destroy_node()
+
+
+def test_target_and_barrier_updates_reach_agents(rclpy_context):
+    scn = load('target_barrier')
+    ctx = rclpy_context
+    ex = make_executor(ctx)
+    world = WorldNode(context=ctx, parameter_overrides=overrides(dict(scenario='target_barrier', duration=1.0)),
+                      log=lambda *a, **k: None)
+    agent = AgentNode('agent', namespace='agent_1', context=ctx,
+                      parameter_overrides=overrides(agent_parameters(scn, 1, 'realtime')))
+    ex.add_node(world)
+    ex.add_node(agent)
+    assert spin_for(ex, lambda: agent.target is not None and agent.barrier is not None)
+    assert np.array_equal(agent.target, scn.target) and np.array_equal(agent.barrier, scn.barrier)
+    res = world.set_parameters([Parameter('target', value='12.5,-3'),
+                                Parameter('barrier', value='5,1;6,0;5,-1')])
+    assert all(r.successful for r in res)
+    assert spin_for(ex, lambda: agent.target is not None and agent.target[0] == 12.5)
+    assert spin_for(ex, lambda: agent.barrier is not None and len(agent.barrier) == 3)
+    assert np.array_equal(agent.barrier, [[5, 1], [6, 0], [5, -1]])
+    # a bad target is refused and changes nothing
+    res = world.set_parameters([Parameter('target', value='nan,1')])
+    assert not res[0].successful
+    assert np.array_equal(world.target, [12.5, -3.0])
+
+
+def test_lockstep_in_process_equals_simulate(tmp_path, ros_domain):
+    """World, commander and six agents in ONE executor equal `swarm simulate` to 1e-9 over a
+    run with the leader choice and a full λ window (800 steps)."""
+    path = short_scenario(tmp_path)
+    scn = load(path)
+    out = tmp_path / 'run'
+    params = node_parameters(scn, path, 'lockstep', output_dir=str(out))
+    assert run_in_process(params, domain_id=ros_domain) == 0
+    got = Trajectory.load(out / 'trajectory.npz')
+    ref = simulate(scn)
+    assert ref.leader.any() and ref.lam.max() > 0.99
+    assert np.abs(got.r - ref.r).max() <= 1e-9
+    assert np.abs(got.theta - ref.theta).max() <= 1e-9
+    assert np.abs(got.u - ref.u).max() <= 1e-9
+    assert np.array_equal(got.lam, ref.lam) and np.array_equal(got.leader, ref.leader)
+
+
+def test_bad_startup_parameters_are_named(rclpy_context):
+    scn = load('homotopy_global')
+    cases = {'w': -1.0, 'dt': 0.0, 'law': 'nonsense', 'x': float('nan'), 'q0': 2.0,
+             'agent_name': 'ghost', 'leader_gain': 0.5}
+    for name, value in cases.items():
+        prm = agent_parameters(scn, 0, 'lockstep')
+        prm[name] = value
+        with pytest.raises(ParameterError) as err:
+            AgentNode('agent', namespace=f'bad_{name}', context=rclpy_context, parameter_overrides=overrides(prm))
+        assert str(err.value).startswith(f'parameter {name}') and '\n' not in str(err.value)
+    with pytest.raises(ParameterError, match='parameter scenario'):
+        WorldNode(context=rclpy_context, parameter_overrides=overrides(dict(scenario='no_such_scenario')))
+
+
+def test_bad_states_are_rejected_by_the_world(rclpy_context):
+    """Unknown name, NaN pose, a stamp from the past, a duplicate name: one log line each; the
+    world's record holds no NaN and the valid state is kept."""
+    ctx = rclpy_context
+    ex = make_executor(ctx)
+    world = WorldNode(context=ctx, parameter_overrides=overrides(dict(scenario='homotopy_global', duration=1.0)),
+                      log=lambda *a, **k: None)
+    probe = rclpy.create_node('probe', context=ctx)
+    pub = probe.create_publisher(Odometry, P.STATES, P.qos_latched())
+    ex.add_node(world)
+    ex.add_node(probe)
+    assert spin_for(ex, lambda: pub.get_subscription_count() >= 1)
+
+    def odom(name, x, y, theta, t):
+        m = Odometry()
+        m.header.frame_id, m.child_frame_id = 'world', name
+        m.header.stamp.sec, m.header.stamp.nanosec = P.time_to_stamp(t)
+        m.pose.pose.position.x, m.pose.pose.position.y = x, y
+        qz, qw = quaternion_from_heading(theta)
+        m.pose.pose.orientation.z, m.pose.pose.orientation.w = float(qz), float(qw)
+        return m
+
+    sent = [odom('agent_3', 1.0, 2.0, 0.5, 0.0),            # valid
+            odom('intruder', 0.0, 0.0, 0.0, 0.0),           # unknown name
+            odom('agent_4', float('nan'), 0.0, 0.0, 0.0),   # NaN pose
+            odom('agent_3', 5.0, 5.0, 0.1, 0.0)]            # same agent, same stamp, other state
+    for m in sent:
+        pub.publish(m)
+        spin_for(ex, lambda: False, 0.2)
+    world.newest['agent_5'] = (3.0, 0.0, 0.0, 0.0, 1.0)
+    pub.publish(odom('agent_5', 0.0, 0.0, 0.0, 1.0))          # older than agent_5's newest
+    assert spin_for(ex, lambda: len(world.reject.lines) >= 4)
+    lines = world.reject.lines
+    assert any("unknown agent 'intruder'" in ln for ln in lines)
+    assert any("'agent_4'" in ln and 'non-finite' in ln for ln in lines)
+    assert any("'agent_3'" in ln and 'duplicate agent name' in ln for ln in lines)
+    assert any("'agent_5'" in ln and 'stamp from the past' in ln for ln in lines)
+    assert world.have.tolist() == [False, False, False, True, False, False]
+    assert np.all(np.isfinite(world.buf))
+    assert world.buf[0, 3] == 1.0 and world.buf[1, 3] == 2.0
+    probe.destroy_node()
+
+
+def test_commander_rejects_bad_lambda_and_takes_setpoints(rclpy_context):
+    from homotopy_commander.commander_node import CommanderNode
+    ctx = rclpy_context
+    ex = make_executor(ctx)
+    cmd = CommanderNode(context=ctx, parameter_overrides=overrides(dict(scenario='homotopy_global', mode='lockstep')))
+    probe = rclpy.create_node('probe', context=ctx)
+    lam = probe.create_publisher(Float64, '/swarm/lambda', 10)
+    steer = probe.create_publisher(Float64, '/agent_4/steering', 10)
+    ex.add_node(cmd)
+    ex.add_node(probe)
+    assert spin_for(ex, lambda: lam.get_subscription_count() >= 1 and steer.get_subscription_count() >= 1)
+    for bad in (float('nan'), 2.0, -1.0, float('-inf')):
+        lam.publish(Float64(data=bad))
+    steer.publish(Float64(data=float('nan')))
+    assert spin_for(ex, lambda: len(cmd.reject.lines) >= 5)
+    assert not cmd.pending
+    lam.publish(Float64(data=1.0))
+    steer.publish(Float64(data=0.02))
+    assert spin_for(ex, lambda: len(cmd.pending) == 2)
+    scn = load('homotopy_global')
+    c, s = np.cos(scn.theta0), np.sin(scn.theta0)
+    lam0, flags, steering = cmd.decide(100.0, scn.pos0, c, s)
+    assert lam0 == pytest.approx(0.0, abs=1e-4) and flags[4] and steering[4] == 0.02
+    lam_mid, _, _ = cmd.decide(110.0, scn.pos0, c, s)          # ramping to 1 over default_ramp = 20
+    lam_end, _, _ = cmd.decide(125.0, scn.pos0, c, s)
+    assert 0.2 < lam_mid < 0.8 and lam_end == 1.0
+    probe.destroy_node()
