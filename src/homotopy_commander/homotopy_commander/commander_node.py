@@ -93,7 +93,7 @@ class CommanderNode(Node):
             self.pos = self.scn.pos0.copy()
             c, s = np.cos(self.scn.theta0), np.sin(self.scn.theta0)
             self.cos, self.sin = c, s
-            self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_reliable(100))
+            self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)))
             self.timer = self.create_timer(self.dt, self._on_tick)
         self.publish_leaders([])
 

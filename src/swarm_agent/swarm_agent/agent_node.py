@@ -106,7 +106,7 @@ class AgentNode(Node):
         if self.mode == 'lockstep':
             self.create_subscription(Float64MultiArray, P.LOCK_STEP, self._on_step, P.qos_latched(), raw=True)
         else:
-            self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_reliable(50))
+            self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(50, 4 * self.n)))
             self.timer = self.create_timer(self.dt, self._on_tick)
             self._last_tick = None
         self.publish_state()

@@ -106,7 +106,7 @@ class WorldNode(Node):
         self.pub_markers = self.create_publisher(MarkerArray, P.MARKERS, 5)
         self.pub_metrics = self.create_publisher(DiagnosticArray, P.METRICS, 10)
         self.sub_states = self.create_subscription(Odometry, P.STATES, self._on_state,
-                                                   P.qos_latched(max(100, 4 * self.n)) if self.mode == "lockstep" else P.qos_reliable(max(100, 4 * self.n)))
+                                                   P.qos_latched(max(100, 4 * self.n)))
         if self.mode == 'realtime':
             self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
         if self.mode == 'lockstep':

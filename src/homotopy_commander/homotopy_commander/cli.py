@@ -1,0 +1,91 @@
+"""``swarm lambda`` and ``swarm steer``: set λ or a leader's steering in a running swarm.
+
+``swarm lambda 1.0 --ramp 20`` publishes ``[1.0, 20]`` on ``/commander/lambda_setpoint``: the
+commander ramps λ smoothly from its current value to 1.0 over 20 sim seconds.  Without a
+commander (none subscribed within --wait seconds) it publishes the value on ``/swarm/lambda``
+directly, which is what a raw ``ros2 topic pub --once /swarm/lambda std_msgs/msg/Float64
+"{data: 1.0}"`` does: agents apply it at once; a running commander takes it as a set-point
+and ramps to it over its ``default_ramp`` (20 s).
+``swarm steer agent_0 0.01`` publishes 0.01 on ``/agent_0/steering`` (as ``ros2 topic pub``
+would): the commander makes it that leader's constant steering program (the agent becomes a
+leader if it was not); a realtime agent applies it at once.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+SETPOINT = '/commander/lambda_setpoint'
+
+
+def _publish_once(msg_type, topic, msg, wait, qos_depth=10):
+    """Publish one message once a subscriber has matched (up to ``wait`` s); True if matched."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.duration import Duration
+    ctx = Context()
+    rclpy.init(context=ctx)
+    try:
+        node = rclpy.create_node('swarm_cli', context=ctx, start_parameter_services=False)
+        pub = node.create_publisher(msg_type, topic, qos_depth)
+        end = time.monotonic() + wait
+        while pub.get_subscription_count() == 0 and time.monotonic() < end:
+            time.sleep(0.05)
+        if pub.get_subscription_count() == 0:
+            return False
+        time.sleep(0.2)              # let the subscribers' side of the match settle
+        pub.publish(msg)
+        pub.wait_for_all_acked(Duration(seconds=2.0))
+        node.destroy_node()
+        return True
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+def lambda_main(argv) -> int:
+    p = argparse.ArgumentParser(prog='swarm lambda', description=(
+        'Set the homotopy parameter λ of a running swarm: the commander ramps smoothly to it.'))
+    p.add_argument('value', type=float, help='λ in [0, 1]')
+    p.add_argument('--ramp', type=float, default=20.0, help='ramp duration in sim seconds (default 20; 0 = jump)')
+    p.add_argument('--wait', type=float, default=10.0, help='seconds to wait for the swarm to be found')
+    a = p.parse_args(argv)
+    if not (math.isfinite(a.value) and 0.0 <= a.value <= 1.0):
+        print(f'swarm lambda: λ={a.value!r} rejected: must be finite and in [0, 1]', file=sys.stderr)
+        return 2
+    if not (math.isfinite(a.ramp) and a.ramp >= 0.0):
+        print(f'swarm lambda: --ramp {a.ramp!r} rejected: must be finite and ≥ 0', file=sys.stderr)
+        return 2
+    from std_msgs.msg import Float64, Float64MultiArray
+    if _publish_once(Float64MultiArray, SETPOINT, Float64MultiArray(data=[a.value, a.ramp]), a.wait):
+        print(f'swarm lambda: set-point λ={a.value:g}, ramp {a.ramp:g} s (sent to the commander)')
+        return 0
+    if _publish_once(Float64, '/swarm/lambda', Float64(data=a.value), 1.0):
+        print(f'swarm lambda: no commander found; published λ={a.value:g} on /swarm/lambda')
+        return 0
+    print('swarm lambda: no running swarm found (nothing subscribes /swarm/lambda); '
+          'is ROS_DOMAIN_ID the same as the run\'s?', file=sys.stderr)
+    return 1
+
+
+def steer_main(argv) -> int:
+    p = argparse.ArgumentParser(prog='swarm steer', description=(
+        "Set a leader's steering program (a constant curvature s_k) in a running swarm."))
+    p.add_argument('agent', help='agent name, e.g. agent_0')
+    p.add_argument('value', type=float, help='curvature s_k (finite; + turns anticlockwise)')
+    p.add_argument('--wait', type=float, default=10.0, help='seconds to wait for the agent to be found')
+    a = p.parse_args(argv)
+    if not math.isfinite(a.value):
+        print(f'swarm steer: steering {a.value!r} rejected: not finite', file=sys.stderr)
+        return 2
+    name = a.agent.strip('/')
+    if not name or '/' in name or not name.replace('_', 'a').isalnum():
+        print(f'swarm steer: {a.agent!r} is not an agent name', file=sys.stderr)
+        return 2
+    from std_msgs.msg import Float64
+    if _publish_once(Float64, f'/{name}/steering', Float64(data=a.value), a.wait):
+        print(f'swarm steer: {name} steering {a.value:g}')
+        return 0
+    print(f'swarm steer: unknown agent {name!r}: nothing subscribes /{name}/steering', file=sys.stderr)
+    return 1

@@ -1,0 +1,178 @@
+"""End-to-end: `swarm run` with every agent, the world and the commander as OS processes."""
+import os
+import signal
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from swarm_core.engine import Trajectory, simulate
+from swarm_core.metrics import cluster_labels
+from swarm_core.scenario import load
+
+pytestmark = pytest.mark.ros
+
+# homotopy_global's law, agents and start, with the λ window brought forward so that the split
+# and the reform fit in t = 420 (8400 steps) instead of t = 1000 (20000 steps): measured with
+# the batch engine, seeds 0-5 are one swarm until t ≈ 150, two until t ≈ 390-410, then one.
+SHORT = """
+name: homotopy_short
+seed: 0
+dt: 0.05
+duration: {duration}
+agents:
+  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
+  headings: {{rule: cone, half_width: 0.7853981633974483}}
+law: {{kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0, leader_gain: 30.0, q0: 1.0}}
+lambda: {lam}
+leaders:
+  rule: lateral_extremes
+  at: {at}
+  programs:
+    - {{kind: constant, curvature: 0.01}}
+    - {{kind: constant, curvature: -0.01}}
+"""
+
+
+class Lines:
+    """Collects a child's stdout lines in a thread."""
+
+    def __init__(self, proc):
+        self.lines = []
+        self.t = threading.Thread(target=self._read, args=(proc,), daemon=True)
+        self.t.start()
+
+    def _read(self, proc):
+        for line in proc.stdout:
+            self.lines.append(line)
+
+    def wait_for(self, text, timeout):
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if any(text in ln for ln in self.lines):
+                return True
+            time.sleep(0.1)
+        return False
+
+
+def children_of(pid):
+    out = subprocess.run(['ps', '-eo', 'pid,ppid'], capture_output=True, text=True).stdout.split('\n')[1:]
+    return [int(a) for a, b in (ln.split() for ln in out if ln.strip()) if int(b) == pid]
+
+
+def alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f'/proc/{pid}/stat') as f:
+        return f.read().split(')')[1].split()[0] != 'Z'
+
+
+def test_processes_lockstep_split_reform_equals_simulate(tmp_path, ros_domain, processes, swarm_cmd):
+    path = tmp_path / 'homotopy_short.yaml'
+    path.write_text(SHORT.format(duration=420, lam='{kind: tanh_window, rise_at: 120, fall_at: 240, tau: 15}',
+                                 at=75))
+    out = tmp_path / 'run'
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--progress-every', '100'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert p.wait(timeout=400) == 0, ''.join(lines.lines[-30:])
+    got = Trajectory.load(out / 'trajectory.npz')
+    scn = load(str(path))
+    ref = simulate(scn)
+    assert np.abs(got.r - ref.r).max() <= 1e-9
+    assert np.abs(got.theta - ref.theta).max() <= 1e-9
+    assert np.abs(got.u - ref.u).max() <= 1e-9
+    assert np.array_equal(got.lam, ref.lam) and np.array_equal(got.leader, ref.leader)
+    # the behaviour, from what was published
+    def clusters(t):
+        return cluster_labels(got.r[int(round(t / scn.dt))], 4.0)
+
+    assert clusters(100)[0] == 1
+    c, labels = clusters(200)
+    assert c == 2
+    leaders = np.flatnonzero(got.leader[int(round(200 / scn.dt))])
+    assert len(leaders) == 2 and labels[leaders[0]] != labels[leaders[1]]
+    assert clusters(420)[0] == 1
+    assert any('[world] finished' in ln for ln in lines.lines)
+
+
+def test_sigint_stops_every_process(tmp_path, ros_domain, processes, swarm_cmd):
+    p = processes.start([swarm_cmd, 'run', 'homotopy_global', '--out', tmp_path / 'run', '--no-figure',
+                         '--progress-every', '5'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait_for('[world] t=', 120), ''.join(lines.lines)
+    kids = children_of(p.pid)
+    assert len(kids) == 8                                # world, commander, 6 agents
+    os.kill(p.pid, signal.SIGINT)                        # what Ctrl-C does to the launcher
+    assert p.wait(timeout=15) == 130
+    end = time.monotonic() + 5
+    while time.monotonic() < end and any(alive(k) for k in kids):
+        time.sleep(0.1)
+    assert not [k for k in kids if alive(k)]
+
+
+def test_sigterm_stops_every_process(tmp_path, ros_domain, processes, swarm_cmd):
+    p = processes.start([swarm_cmd, 'run', 'homotopy_global', '--out', tmp_path / 'run', '--no-figure',
+                         '--progress-every', '5'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait_for('[world] t=', 120), ''.join(lines.lines)
+    kids = children_of(p.pid)
+    os.kill(p.pid, signal.SIGTERM)
+    assert p.wait(timeout=15) == 130
+    end = time.monotonic() + 5
+    while time.monotonic() < end and any(alive(k) for k in kids):
+        time.sleep(0.1)
+    assert not [k for k in kids if alive(k)]
+
+
+def test_realtime_lambda_from_the_cli_splits_the_swarm(tmp_path, ros_domain, processes, swarm_cmd):
+    """λ = 0 throughout in the scenario; leaders chosen at t = 5; `swarm lambda 1.0` mid-run
+    must change the published λ and split the swarm."""
+    path = tmp_path / 'homotopy_rt.yaml'
+    path.write_text(SHORT.format(duration=240, lam='{kind: constant, value: 0.0}', at=5))
+    out = tmp_path / 'run'
+    p = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--rtf', '10', '--dt', '0.1',
+                         '--out', out, '--no-figure', '--progress-every', '10'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait_for('[world] t=   20', 120), ''.join(lines.lines)
+    cli = subprocess.run([swarm_cmd, 'lambda', '1.0', '--ramp', '5'], capture_output=True, text=True, timeout=60)
+    assert cli.returncode == 0, cli.stderr
+    assert p.wait(timeout=180) == 0, ''.join(lines.lines[-30:])
+    got = Trajectory.load(out / 'trajectory.npz')
+    t_cli = got.t[np.argmax(got.lam > 0.0)]
+    assert got.lam[got.t < 19].max() == 0.0
+    assert 19 <= t_cli <= 60 and got.lam[-1] == 1.0
+    assert np.all(np.isfinite(got.r)) and np.all(np.isfinite(got.theta))
+    c_before = cluster_labels(got.r[np.searchsorted(got.t, t_cli) - 1], 4.0)[0]
+    c_end = cluster_labels(got.r[-1], 4.0)[0]
+    assert c_before == 1 and c_end >= 2, (c_before, c_end)
+
+
+def test_swarm_run_rejects_a_bad_scenario(tmp_path, swarm_cmd):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('name: x\nagents: {count: 3}\nlaw: {alpha: -1}\n')
+    r = subprocess.run([swarm_cmd, 'run', bad, '--out', tmp_path / 'o'], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and 'law.alpha' in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_cli_rejects_bad_lambda_and_steering(swarm_cmd):
+    for args, word in ((['lambda', 'nan'], 'λ=nan'), (['lambda', '1.5'], 'λ=1.5'), (['lambda', '--', '-0.5'], 'λ=-0.5'),
+                       (['steer', 'agent_0', 'inf'], 'not finite')):
+        r = subprocess.run([swarm_cmd, *args], capture_output=True, text=True, timeout=60)
+        assert r.returncode == 2 and word in r.stderr, (args, r.stderr)
+
+
+def test_agent_process_rejects_a_bad_parameter(ros_domain, processes):
+    import sys
+    exe = os.path.join(os.path.dirname(sys.executable), 'swarm_agent')
+    p = processes.start([exe, '--ros-args', '-p', 'w:=-1.0', '-r', '__ns:=/agent_0'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    out, _ = p.communicate(timeout=60)
+    assert p.returncode == 2
+    errs = [ln for ln in out.splitlines() if 'parameter w' in ln]
+    assert len(errs) == 1 and 'Traceback' not in out
