@@ -46,12 +46,6 @@ def write_bag(traj, path, *, leaders=True, lam=True, cut_after=None):
     qz, qw = quaternion_from_heading(traj.theta)
     for s in range(len(traj.t)):
         log = base + s * 1_000_000
-        if lam:
-            w.write('/swarm/lambda', serialize_message(Float64(data=float(traj.lam[s]))), log - 2000)
-        who = tuple(np.array(traj.names)[traj.leader[s]])
-        if leaders and who != last_leaders:
-            w.write('/swarm/leaders', serialize_message(String(data=','.join(who))), log - 1000)
-            last_leaders = who
         t_ns = int(round(traj.t[s] * 1e9))
         for k, name in enumerate(traj.names):
             m = Odometry()
@@ -65,6 +59,13 @@ def write_bag(traj, path, *, leaders=True, lam=True, cut_after=None):
             m.twist.twist.linear.x = 1.0
             m.twist.twist.angular.z = float(traj.u[s, k])
             w.write('/swarm/states', serialize_message(m), log + k)
+        # as the lockstep commander does: step s's inputs are decided from step s's states
+        if lam:
+            w.write('/swarm/lambda', serialize_message(Float64(data=float(traj.lam[s]))), log + 1000)
+        who = tuple(np.array(traj.names)[traj.leader[s]])
+        if leaders and who != last_leaders:
+            w.write('/swarm/leaders', serialize_message(String(data=','.join(who))), log + 2000)
+            last_leaders = who
         if cut_after is not None and s == cut_after:
             w.maybe_flush(force=True)
             w._fh.flush()

@@ -1,9 +1,10 @@
 """``swarm report BAG.mcap``: metrics and figures from a recorded run, from the bag alone.
 
 The trajectory is rebuilt from ``/swarm/states`` (``nav_msgs/Odometry``: ``child_frame_id`` =
-agent, stamp = sim time, pose = position + planar quaternion, ``twist.angular.z`` = u), λ from
-``/swarm/lambda`` and the leaders from ``/swarm/leaders`` where the bag has them (each applies
-from the first step whose states were received after it), the target and barrier from
+agent, stamp = sim time, pose = position + planar quaternion, ``twist.angular.z`` read as
+DESIGN.md defines it: the u applied from that state on), λ from ``/swarm/lambda`` and the
+leaders from ``/swarm/leaders`` where the bag has them (each message belongs to the newest step
+whose states were received before it, and holds until the next), the target and barrier from
 ``/world/target`` / ``/world/barrier``.  Writes ``trajectory.npz`` (as `Trajectory.save`),
 ``metrics.json`` (time series + summary), a figure like the paper's and, with ``--animate``, a
 GIF.  Bags cut short (a killed recorder) are read up to their last complete chunk.
@@ -157,23 +158,23 @@ def rebuild_trajectory(run: dict):
         u[:, k] = rows[:, 4]
         log_first = np.minimum(log_first, logs[idx])
     t = grid.astype(np.float64) * 1e-9
-    # λ and leaders: each message applies from the first step received after it
+    # λ and leaders: a message belongs to the newest step whose states came before it (in
+    # lockstep the commander decides step n's inputs from step n's states), and holds until
+    # the next one; before the first message: the first one (λ), none (leaders)
+    next_first = np.append(log_first[1:], np.iinfo(np.int64).max)
     lam = np.full(T, np.nan)
     if run['lam_events']:
         ev = sorted(run['lam_events'])
         ev_t = np.array([e[0] for e in ev], dtype=np.int64)
         ev_v = np.array([e[1] for e in ev])
-        j = np.searchsorted(ev_t, log_first, side='right') - 1
-        lam = np.where(j >= 0, ev_v[np.clip(j, 0, None)], np.nan)
+        j = np.searchsorted(ev_t, next_first, side='left') - 1
+        lam = ev_v[np.clip(j, 0, None)]
     leader = np.zeros((T, n), dtype=bool)
     if run['leader_msgs']:
         ev = sorted(run['leader_msgs'], key=lambda e: e[0])
         ev_t = np.array([e[0] for e in ev], dtype=np.int64)
-        sets = []
-        for _, msg in ev:
-            who = leader_names(msg, set(names))
-            sets.append(np.isin(names, who))
-        j = np.searchsorted(ev_t, log_first, side='right') - 1
+        sets = [np.isin(names, leader_names(msg, set(names))) for _, msg in ev]
+        j = np.searchsorted(ev_t, next_first, side='left') - 1
         for i in range(T):
             if j[i] >= 0:
                 leader[i] = sets[j[i]]
