@@ -144,6 +144,8 @@ def test_recorded_run_reads_back_with_two_readers(rclpy_context, processes, swar
     rc, stdout, stderr, pubs = _record(rclpy_context, processes, swarm_cmd, out, STEPS)
     assert rc == 0, stderr + stdout
     assert 'lost: 0' in stdout, stdout
+    assert f'/swarm/states: {N_AGENTS} agents, {STEPS}..{STEPS} states each, missing between ' \
+           'first and last: 0' in stdout, stdout
     expected = _expected_states(pubs, STEPS)
     counts = {'/swarm/states': STEPS * N_AGENTS, '/swarm/lambda': STEPS, '/clock': STEPS,
               '/world/target': 1, '/world/barrier': 1}
@@ -242,7 +244,17 @@ def test_bag_metadata_as_rosbag2_writes_it(rclpy_context, processes, swarm_cmd, 
     assert states_qos[0]['reliability'] == 'reliable'
     assert set(states_qos[0]) >= {'history', 'depth', 'deadline', 'lifespan', 'liveliness',
                                   'liveliness_lease_duration', 'avoid_ros_namespace_conventions'}
-    assert 'serialized_metadata' in metadata.get('rosbag2', {})
+    # rosbag2's own metadata record (version 9): topics, types, counts, QoS as a list
+    import yaml
+    info = yaml.safe_load(metadata['rosbag2']['serialized_metadata'])['rosbag2_bagfile_information']
+    assert info['version'] == 9 and info['storage_identifier'] == 'mcap'
+    meta_topics = {t['topic_metadata']['name']: t for t in info['topics_with_message_count']}
+    counts = summary.statistics.channel_message_counts
+    for cid, ch in summary.channels.items():
+        assert meta_topics[ch.topic]['message_count'] == counts.get(cid, 0)
+        assert meta_topics[ch.topic]['topic_metadata']['type'] == summary.schemas[ch.schema_id].name
+    assert meta_topics['/world/target']['topic_metadata']['offered_qos_profiles'] == target_qos
+    assert info['message_count'] == summary.statistics.message_count
 
 
 def _share(pkg, name):
@@ -371,3 +383,14 @@ def _channel_qos(path, topic):
             if ch.topic == topic:
                 return ch.metadata['offered_qos_profiles']
     return ''
+
+
+def test_state_gap_count():
+    """The recorder's count of states DDS never delivered (no ROS needed)."""
+    from swarm_tools.record import Recorder
+
+    rec = Recorder.__new__(Recorder)
+    dt = 50_000_000
+    rec.states = {'agent_0': {k * dt for k in range(10)},
+                  'agent_1': {k * dt for k in range(10) if k not in (3, 7)}}
+    assert rec.state_gaps() == {'agent_0': (10, 0), 'agent_1': (8, 2)}

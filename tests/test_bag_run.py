@@ -59,6 +59,7 @@ def test_recorded_lockstep_run(recorded_run, swarm_cmd, tmp_path):
 
     bag, live_dir, text = recorded_run
     assert 'lost: 0' in text, text
+    assert 'missing between first and last: 0' in text, text
     live = Trajectory.load(live_dir / 'trajectory.npz')
     steps = len(live.t) - 1
     assert steps == 600

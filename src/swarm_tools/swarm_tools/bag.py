@@ -321,7 +321,7 @@ class BagWriter:
         for t in self.topics.values():
             topics.append({'topic_metadata': {
                 'name': t.name, 'type': t.type, 'serialization_format': MESSAGE_ENCODING,
-                'offered_qos_profiles': qos_yaml(t.qos), 'type_description_hash': ''},
+                'offered_qos_profiles': list(t.qos), 'type_description_hash': ''},
                 'message_count': t.written})
         meta = {'rosbag2_bagfile_information': {
             'version': 9, 'storage_identifier': 'mcap',

@@ -16,7 +16,7 @@ import signal
 import sys
 import time
 
-from .bag import BagWriter, DefinitionNotFound, qos_dict
+from .bag import BagWriter, DefinitionNotFound, parse_odometry, qos_dict
 
 #: the graph is polled this often for new topics and publishers (seconds)
 POLL_PERIOD = 0.2
@@ -116,6 +116,7 @@ class Recorder:
         self.subs = {}
         self.sub_type: dict[str, str] = {}
         self.skipped: set[str] = set()
+        self.states: dict[str, set] = {}
         for topic, type_name in (presubscribe or {}).items():
             if wanted(topic):
                 self._subscribe(topic, type_name, request_qos([qos_dict(reliability=1)]))
@@ -195,10 +196,13 @@ class Recorder:
     def _callback(self, topic):
         writer = self.writer
         received = self.received
+        track = topic == '/swarm/states' and self.sub_type.get(topic) == 'nav_msgs/msg/Odometry'
 
         def on_message(data):
             now = time.time_ns()
             received[topic] += 1
+            if track:
+                self._track_state(data)
             try:
                 if topic not in writer.topics:
                     self._register(topic)
@@ -208,6 +212,30 @@ class Recorder:
                 if self.failed[topic] == 1:
                     self.log(f'swarm record: write failed on {topic}: {err}')
         return on_message
+
+    def _track_state(self, data):
+        try:
+            o = parse_odometry(data)
+        except Exception:
+            return
+        self.states.setdefault(o['child_frame_id'], set()).add(o['stamp_ns'])
+
+    def state_gaps(self) -> dict:
+        """Per agent on /swarm/states: states received and states missing between its first
+        and last stamp (from the smallest stamp step seen): messages DDS never delivered."""
+        out = {}
+        steps = []
+        for st in self.states.values():
+            a = sorted(st)
+            steps += [b - c for b, c in zip(a[1:], a) if b > c]
+        if not steps:
+            return {name: (len(st), 0) for name, st in self.states.items()}
+        step = min(steps)
+        for name, st in self.states.items():
+            a = sorted(st)
+            expected = round((a[-1] - a[0]) / step) + 1
+            out[name] = (len(a), max(0, expected - len(a)))
+        return out
 
     def summary(self) -> list[tuple[str, int, int]]:
         return [(t, self.received[t],
@@ -299,6 +327,12 @@ def main(argv=None) -> int:
             print(f'  {t:<{width}}  {r:>8}  {w:>8}')
         print(f'  {"total":<{width}}  {sum(r for _, r, _ in rows):>8}  '
               f'{sum(w for _, _, w in rows):>8}   lost: {lost}', flush=True)
+        gaps = rec.state_gaps()
+        if gaps:
+            missing = sum(m for _, m in gaps.values())
+            counts = [c for c, _ in gaps.values()]
+            print(f'  /swarm/states: {len(gaps)} agents, {min(counts)}..{max(counts)} states each, '
+                  f'missing between first and last: {missing}', flush=True)
     return 0 if lost == 0 else 1
 
 
