@@ -120,7 +120,7 @@ class WorldNode(Node):
         self.rec_r = np.full((T, self.n, 2), np.nan)
         self.rec_theta = np.full((T, self.n), np.nan)
         self.rec_u = np.zeros((T, self.n))
-        self.rec_lam = np.zeros(T)
+        self.rec_lam = np.zeros(T) if self.mode == 'lockstep' else np.full(T, np.nan)
         self.rec_leader = np.zeros((T, self.n), bool)
         self.gids = {}
         self.newest = {}         # name -> (t, x, y, qz, qw) newest accepted
@@ -423,9 +423,13 @@ class WorldNode(Node):
         theta = self.rec_theta.copy()
         r, lam = self.rec_r.copy(), self.rec_lam.copy()
         if self.mode == 'realtime':        # hold each agent's last published state between its stamps
+            if not np.isfinite(lam[0]):
+                lam[0] = 0.0
             for k in range(1, T):
                 miss = ~np.isfinite(theta[k])
                 r[k, miss], theta[k, miss] = r[k - 1, miss], theta[k - 1, miss]
+                if not np.isfinite(lam[k]):
+                    lam[k] = lam[k - 1]
         # headings travel as quaternions (θ mod 2π): unwrap in time, start at the scenario's θ0
         good = np.all(np.isfinite(theta), axis=1)
         if good.all():
