@@ -220,10 +220,11 @@ def parse_qos_yaml(text: str) -> list[dict]:
 def replay_qos(profiles: list[dict]) -> dict:
     """The QoS to offer on replay, as rosbag2 adapts it: the recorded one if all publishers
     agreed on reliability/durability (keeping the recorded depth for latched topics), else
-    reliable + volatile.  Returns {'reliability', 'durability', 'depth'}."""
+    reliable + volatile.  Volatile topics get a deep queue (1000) so a busy subscriber loses
+    nothing a recorded run had.  Returns {'reliability', 'durability', 'depth'}."""
     rel = {p.get('reliability') for p in profiles}
     dur = {p.get('durability') for p in profiles}
-    out = {'reliability': 'reliable', 'durability': 'volatile', 'depth': 10}
+    out = {'reliability': 'reliable', 'durability': 'volatile', 'depth': 1000}
     if len(rel) == 1 and len(dur) == 1:
         r, d = rel.pop(), dur.pop()
         out['reliability'] = r if r in ('reliable', 'best_effort') else 'reliable'

@@ -115,6 +115,14 @@ def main(argv=None) -> int:
             loops += 1
             if not a.loop:
                 break
+        # reliable subscribers get the tail of the bag before the publishers go away
+        from rclpy.duration import Duration
+        t_acked = time.monotonic() + 2.0
+        for p in list(pubs.values()) + ([clock_pub] if clock_pub is not None else []):
+            left = t_acked - time.monotonic()
+            if left <= 0 or stop['why'] is not None:
+                break
+            p.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
     finally:
         node.destroy_node()
         if rclpy.ok():
