@@ -19,21 +19,39 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 VENV_BIN = Path(sys.executable).parent
 
-# Domain ids 1..100 are safe on Linux (ports below the ephemeral range).  Spread the start by
-# pid so that two pytest runs on one machine are unlikely to share ids, and walk from there.
-_domains = itertools.count((os.getpid() * 7) % 100)
+# Domain ids 1..100 are safe on Linux (ports below the ephemeral range).  A test holds an
+# exclusive flock on /tmp/homotopy-swarm-domains/<id>.lock for as long as it uses the id, so
+# parallel pytest runs on one machine (several clones, CI beside a developer) never share one.
+_LOCK_DIR = Path(os.environ.get('SWARM_DOMAIN_LOCK_DIR', '/tmp/homotopy-swarm-domains'))
+_start = itertools.count((os.getpid() * 7) % 100)
 
 
-def _next_domain() -> int:
-    return 1 + next(_domains) % 100
+def _claim_domain():
+    """(domain id, open lock file) of a free id; the id is ours until the file is closed."""
+    import fcntl
+    _LOCK_DIR.mkdir(parents=True, exist_ok=True)
+    first = next(_start)
+    for attempt in range(3 * 100):
+        dom = 1 + (first + attempt) % 100
+        f = open(_LOCK_DIR / f'{dom}.lock', 'a')
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            f.close()
+            if attempt % 100 == 99:
+                time.sleep(1.0)
+            continue
+        return dom, f
+    raise RuntimeError(f'no free ROS_DOMAIN_ID in 1..100 (locks in {_LOCK_DIR})')
 
 
 @pytest.fixture
-def ros_domain(monkeypatch):
+def ros_domain(monkeypatch, request):
     """A fresh ROS_DOMAIN_ID for this test, localhost-only discovery; returns the id.
 
     Set in os.environ (restored afterwards) so child processes inherit it too."""
-    dom = _next_domain()
+    dom, lock = _claim_domain()
+    request.addfinalizer(lock.close)
     monkeypatch.setenv('ROS_DOMAIN_ID', str(dom))
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     monkeypatch.delenv('ROS_STATIC_PEERS', raising=False)
