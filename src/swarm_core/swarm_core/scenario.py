@@ -186,6 +186,55 @@ class NoiseSpec(_Strict):
     heading: NonNeg = 0.0        # half-width of uniform noise on θ, per step
 
 
+# ------------------------------------------------------------------ communication (comms.py)
+
+Probability = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
+NameOrNames = Union[str, list[str]]
+
+
+class LinkSpec(_Strict):
+    """Per-agent or per-link values: links from ``sender`` to ``receiver`` (a name or a list of
+    names; omitted = every agent) get these values instead of the base ones."""
+    sender: Optional[NameOrNames] = None
+    receiver: Optional[NameOrNames] = None
+    loss: Optional[Probability] = None
+    latency: Optional[NonNeg] = None
+    jitter: Optional[NonNeg] = None
+
+
+class CommsEventSpec(_Strict):
+    """A change of the radio at sim time ``at`` (from the first step n with n·dt ≥ at)."""
+    at: NonNeg
+    loss: Optional[Probability] = None
+    latency: Optional[NonNeg] = None
+    jitter: Optional[NonNeg] = None
+    drop: Optional[Probability] = None        # burst loss on top of ``loss`` (0 ends a burst)
+    duration: Optional[Positive] = None       # of the burst (omitted: until the next drop)
+    partition: Optional[list[list[str]]] = None   # new groups; [] heals
+
+    @model_validator(mode='after')
+    def _something(self):
+        if all(getattr(self, k) is None for k in ('loss', 'latency', 'jitter', 'drop', 'partition')):
+            raise ValueError('a comms event needs one of loss, latency, jitter, drop, partition')
+        if self.duration is not None and self.drop is None:
+            raise ValueError('duration belongs to a drop (burst loss)')
+        return self
+
+
+class CommsSpec(_Strict):
+    """The communication model (see swarm_core.comms); the defaults are a perfect radio."""
+    seed: Optional[Annotated[int, Field(ge=0)]] = None     # default: the scenario's seed
+    radio_range: Optional[Positive] = None                  # None: unlimited (w still applies)
+    loss: Probability = 0.0
+    latency: NonNeg = 0.0                                   # sim s
+    jitter: NonNeg = 0.0                                    # sim s, delay = latency + U[0,1)·jitter
+    timeout: Positive = 2.0                                 # forget senders silent this long (sim s)
+    dead_reckoning: bool = True
+    links: list[LinkSpec] = Field(default_factory=list)
+    partition: list[list[str]] = Field(default_factory=list)
+    events: list[CommsEventSpec] = Field(default_factory=list)
+
+
 class ScenarioSpec(_Strict):
     name: str
     description: str = ''
@@ -200,6 +249,7 @@ class ScenarioSpec(_Strict):
     target: Optional[TargetSpec] = None
     barrier: Optional[BarrierSpec] = None
     noise: NoiseSpec = Field(default_factory=NoiseSpec)
+    comms: Optional[CommsSpec] = None
     expect: dict = Field(default_factory=dict)   # what `swarm sweep` checks (see outcomes.py)
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
 
@@ -260,6 +310,17 @@ class Scenario:
                                           for n, p in self.spec.leaders.fixed.items()},
                            rule=self.spec.leaders.rule, choose_at=self.spec.leaders.at,
                            rule_programs=[build_program(p) for p in self.spec.leaders.programs])
+
+    def comms_config(self) -> dict | None:
+        """The ``comms`` section as a plain mapping (what `comms.CommModel.from_config` and
+        the agents' ``comms`` parameter take), None without one."""
+        return None if self.spec.comms is None else self.spec.comms.model_dump(mode='json')
+
+    def comm_model(self):
+        """A fresh `comms.CommModel` of this scenario, or None if its radio is perfect."""
+        from .comms import CommModel
+        m = CommModel.from_config(self.comms_config(), self.names, self.dt, self.seed)
+        return None if m.perfect else m
 
     def noise_rng(self, index: int) -> np.random.Generator:
         """Agent ``index``'s own noise stream (the same in the batch engine and its node)."""
@@ -374,6 +435,14 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
             raise ScenarioError(f'{source}: leaders.fixed.{who}: unknown agent (agents are {", ".join(known[:8])}'
                                 f'{", ..." if len(known) > 8 else ""})')
     names, pos0, theta0 = initial_conditions(spec)
+    if spec.comms is not None:
+        from .comms import CommModel
+        try:
+            CommModel.from_config(spec.comms.model_dump(mode='json'), names, spec.dt, spec.seed)
+        except ValueError as err:
+            raise ScenarioError(f'{source}: {err}') from None
+        if spec.integrator != 'zoh' and spec.comms.model_dump() != CommsSpec().model_dump():
+            raise ScenarioError(f'{source}: comms: a communication model needs integrator zoh')
     return Scenario(spec=spec, names=names, pos0=pos0, theta0=theta0, law=law, source=source)
 
 
