@@ -8,9 +8,19 @@ Realtime: a timer at the control rate (1/dt in sim time) uses the newest states 
 ``/swarm/lambda``, ``/swarm/leaders``, its ``steering`` topic, ``/world/target`` and
 ``/world/barrier``.
 Bad inputs are rejected with one log line naming them; no NaN ever enters the state.
+
+Communication model (parameter ``comms``: the scenario's ``comms`` section as JSON, '' = a
+perfect radio; see swarm_core.comms): the agent applies it on its receive side.  Lockstep: from
+each step's table it keeps only what its radio delivers (`AgentCore.comms_control`; equal to
+the batch engine bit for bit).  Realtime: each incoming state is lost or delayed by the same
+seeded fate function (keyed by the state's step), kept in flight until its delivery time, and
+the control uses the newest delivered state of each neighbour dead-reckoned to now, leaving
+out neighbours silent for longer than the timeout.  Runtime changes (``swarm drop``,
+``swarm partition``) arrive on ``/swarm/events`` and switch the radio path on if it was off.
 """
 from __future__ import annotations
 
+import json
 import math
 import sys
 
@@ -21,6 +31,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray, String
 
+from swarm_core.comms import CommModel, dead_reckon
 from swarm_core.laws import BARRIER_MODES, LAW_KINDS, LawConfig
 from swarm_core.model import PairGains, frame_from_quaternion
 from swarm_world import protocol as P
@@ -66,6 +77,7 @@ class AgentNode(Node):
         seed = d('seed', 0, 'scenario seed (noise stream)', lo=0, hi=2**31 - 1)
         self.stale_after = d('stale_after', 2.0, 'realtime: ignore neighbour states older than this (sim s)',
                              lo=0.0, hi=1e9)
+        comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect)")
         if self.roster == ['']:
             self.roster = [self.agent_name]
         if len(set(self.roster)) != len(self.roster):
@@ -81,6 +93,19 @@ class AgentNode(Node):
         rng = np.random.default_rng([seed, 7919, self.index])
         self.core = AgentCore(self.index, self.n, x, y, theta, self.law, self.dt, noise, rng)
         self.reject = RejectLog(self.get_logger())
+        try:
+            cfg = json.loads(comms) if comms.strip() else None
+            if cfg is not None and not isinstance(cfg, dict):
+                raise ValueError('not a JSON object')
+            self.radio = CommModel.from_config(cfg, self.roster, self.dt, seed)
+        except (ValueError, TypeError, KeyError) as err:
+            raise ParameterError(f'parameter comms: {err}') from None
+        self.radio_on = not self.radio.perfect
+        if self.radio_on:
+            self.core.attach_comms(self.radio)
+        self.heard = {}          # realtime radio: name -> newest state heard (before the radio)
+        self.in_flight = []      # realtime radio: (release time, name, state) delivered later
+        self.radio_count = {nm: [0, 0] for nm in self.roster if nm != self.agent_name}  # [heard, delivered]
 
         # live inputs (realtime; kept in lockstep for inspection)
         self.lam = 0.0
@@ -99,6 +124,7 @@ class AgentNode(Node):
         self.create_subscription(String, P.LEADERS, self._on_leaders, P.qos_latched())
         self.create_subscription(PointStamped, P.TARGET, self._on_target, P.qos_latched())
         self.create_subscription(PolygonStamped, P.BARRIER, self._on_barrier, P.qos_latched())
+        self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
         self.odom = Odometry()
         self.odom.header.frame_id = 'world'
         self.odom.child_frame_id = self.agent_name
@@ -144,8 +170,12 @@ class AgentNode(Node):
             self.reject('step-n', f'/lockstep/step with {len(s.x)} agents (roster has {self.n})')
             return
         self.lam = s.lam
-        u = self.core.control(s.x, s.y, s.qz, s.qw, s.lam, s.flags, s.steering[self.index],
-                              s.target, s.barrier)
+        if self.radio_on:
+            u = self.core.comms_control(s.n, s.x, s.y, s.qz, s.qw, s.u, s.lam, s.flags,
+                                        s.steering[self.index], s.target, s.barrier)
+        else:
+            u = self.core.control(s.x, s.y, s.qz, s.qw, s.lam, s.flags, s.steering[self.index],
+                                  s.target, s.barrier)
         if not math.isfinite(u):
             self.reject('u-nan', f'non-finite control u={u} at step {s.n}; holding u=0')
             u = 0.0
@@ -191,6 +221,82 @@ class AgentNode(Node):
             return
         self.barrier = np.array(pts, float) if pts else None
 
+    # ------------------------------------------------------------ radio (communication model)
+    def _on_event(self, msg):
+        """Runtime radio changes from /swarm/events (see swarm_world.protocol)."""
+        try:
+            ev = json.loads(msg.data)
+            kind = ev.get('kind') if isinstance(ev, dict) else None
+        except ValueError:
+            self.reject(('event', msg.data[:40]), f'{P.EVENTS} {msg.data[:80]!r}: not JSON')
+            return
+        if kind not in ('drop', 'partition', 'comms') or ev.get('source') == 'scenario':
+            return                    # faults, or scheduled in the scenario (applied from our copy)
+        if kind == 'drop':
+            change = dict(drop=ev.get('loss'), duration=ev.get('duration'))
+        elif kind == 'partition':
+            change = dict(partition=ev.get('groups') or [])
+        else:
+            change = {k: ev.get(k) for k in ('loss', 'latency', 'jitter')}
+        step = self.step if self.mode == 'lockstep' else P.step_of(self._now(), self.dt)
+        try:
+            for key in ('drop', 'loss', 'latency', 'jitter'):
+                v = change.get(key)
+                if v is not None and not (math.isfinite(float(v)) and float(v) >= 0.0
+                                          and (key in ('latency', 'jitter') or float(v) <= 1.0)):
+                    raise ValueError(f'{key}={v!r} out of range')
+            if change.get('duration') is not None and not float(change['duration']) > 0.0:
+                raise ValueError(f'duration={change["duration"]!r} must be > 0')
+            self.radio.apply(change, step)
+        except (ValueError, TypeError) as err:
+            self.reject(('event', str(err)), f'{P.EVENTS} {kind} event: {err}')
+            return
+        if not self.radio_on:
+            self.radio_on = True
+            if self.mode == 'lockstep':
+                self.core.attach_comms(self.radio)
+        self.get_logger().info(f'radio: {kind} {json.dumps(change)} from step {step}')
+
+    def _now(self):
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _radio_receive(self, name, t, vals):
+        """Realtime: the radio's fate of this state (keyed by its step); in flight if delivered."""
+        j = self.row[name]
+        m = P.step_of(t, self.dt)
+        self.radio_count[name][0] += 1
+        arr = int(self.radio.decide(m, [self.index], self.core.pos, [j], [vals[:2]])[0, 0])
+        if arr < 0:
+            return
+        self.radio_count[name][1] += 1
+        self.in_flight.append((t + (arr - m) * self.dt, name, vals))
+
+    def _radio_release(self, now):
+        keep = []
+        for rel, name, vals in self.in_flight:
+            if rel <= now + 1e-9:
+                if name not in self.neigh or vals[0] > self.neigh[name][0]:
+                    self.neigh[name] = vals
+            else:
+                keep.append((rel, name, vals))
+        self.in_flight = keep
+
+    def radio_table(self, now):
+        """Like `table`, from the delivered states: neighbours heard within the timeout,
+        dead-reckoned to ``now`` if the model says so."""
+        names = [nm for nm in self.roster if nm == self.agent_name or
+                 (nm in self.neigh and now - self.neigh[nm][0] <= self.radio.timeout + 1e-9)]
+        rows = np.array([self.neigh[nm][:6] if nm != self.agent_name else
+                         (now, self.core.pos[0, 0], self.core.pos[0, 1], *self.core.quaternion, 0.0)
+                         for nm in names], dtype=float)
+        age = now - rows[:, 0]
+        if self.radio.dead_reckoning:
+            moved = (age > 0) & (np.array(names) != self.agent_name)
+            pos, qz, qw = dead_reckon(rows[:, 1:3], rows[:, 3], rows[:, 4], rows[:, 5], np.maximum(age, 0.0), moved)
+            rows[:, 1:3], rows[:, 3], rows[:, 4] = pos, qz, qw
+        flags = np.array([nm in self.leaders for nm in names])
+        return names.index(self.agent_name), rows[:, 1:5], flags
+
     def _on_state(self, msg):
         name = msg.child_frame_id
         if name == self.agent_name:
@@ -200,21 +306,26 @@ class AgentNode(Node):
                     and msg.header.stamp == self.odom.header.stamp:
                 self.reject(('dup', name), f'state claiming to be {name!r} (this agent): duplicate agent name')
             return
-        reason = check_state(msg, self.row, self.neigh)
+        reason = check_state(msg, self.row, self.heard if self.radio_on else self.neigh)
         if reason is not None:
             if reason != 'repeat':
                 self.reject((name, reason.split(':')[0]), reason)
             return
         p = msg.pose.pose
-        self.neigh[name] = (P.stamp_to_time(msg.header.stamp), p.position.x, p.position.y,
-                            p.orientation.z, p.orientation.w)
+        vals = (P.stamp_to_time(msg.header.stamp), p.position.x, p.position.y,
+                p.orientation.z, p.orientation.w, msg.twist.twist.angular.z)
+        if self.radio_on:
+            self.heard[name] = vals
+            self._radio_receive(name, vals[0], vals)
+        else:
+            self.neigh[name] = vals
 
     # ------------------------------------------------------------ realtime control
     def table(self, now):
         """(x, y, qz, qw, flags) over the agents known at time ``now`` plus self; own row."""
         names = [nm for nm in self.roster if nm == self.agent_name or
                  (nm in self.neigh and now - self.neigh[nm][0] <= self.stale_after)]
-        rows = np.array([self.neigh[nm][1:] if nm != self.agent_name else
+        rows = np.array([self.neigh[nm][1:5] if nm != self.agent_name else
                          (self.core.pos[0, 0], self.core.pos[0, 1], *self.core.quaternion) for nm in names])
         flags = np.array([nm in self.leaders for nm in names])
         return names.index(self.agent_name), rows, flags
@@ -225,7 +336,12 @@ class AgentNode(Node):
             self._last_tick = now
             return
         self._last_tick = now
-        own, rows, flags = self.table(now)
+        if self.radio_on:
+            self.radio.advance_to(P.step_of(now, self.dt))
+            self._radio_release(now)
+            own, rows, flags = self.radio_table(now)
+        else:
+            own, rows, flags = self.table(now)
         saved = self.core.index
         self.core.index = own
         try:

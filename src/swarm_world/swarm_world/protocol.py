@@ -17,6 +17,17 @@ Fixed, user-facing topics (DESIGN.md)
 ``/world/target``  geometry_msgs/PointStamped, transient-local.
 ``/world/barrier``  geometry_msgs/PolygonStamped, transient-local (no points = no barrier).
 ``/world/markers``  visualization_msgs/MarkerArray; ``/world/metrics`` diagnostic_msgs/DiagnosticArray.
+``/swarm/events``  std_msgs/String, QoS `qos_latched(100)` (reliable, transient-local, depth
+    100): every injected event as one JSON object with at least ``"t"`` (sim time, null if
+    unknown) and ``"kind"``, plus fields; recorded in the bag by ``swarm record``.  Kinds of the
+    communication model (swarm_core.comms), which agents APPLY when they read them:
+    ``{"t", "kind": "drop", "loss": P, "duration": T|null}`` (burst loss P on every link for T
+    sim s; P = 0 ends a burst; ``swarm drop``), ``{"t", "kind": "partition", "groups":
+    [[names], ...]}`` (``[]`` heals; ``swarm partition``), ``{"t", "kind": "comms", "loss",
+    "latency", "jitter"}`` (base values; any subset).  Events with ``"source": "scenario"``
+    are the scenario's own ``comms.events``, published by the world at their step for the
+    record; agents apply those from their copy of the scenario, not from the topic.  Other
+    kinds (faults) are ignored by the radio.
 
 Lockstep (deterministic; equal to ``swarm simulate`` to rounding)
 -----------------------------------------------------------------
@@ -43,7 +54,9 @@ Packed layouts (std_msgs/Float64MultiArray, empty ``layout``, ``data`` as below;
 ``/lockstep/states``    [n, t_n, N,  x(N), y(N), qz(N), qw(N)]
 ``/lockstep/decision``  [n, t_n, N,  λ, leader flags(N) (0/1), s(N)]
 ``/lockstep/step``      [n, t_n, N,  λ, leader flags(N), s(N), x(N), y(N), qz(N), qw(N),
-                         has_target, target_x, target_y, M, barrier x(M), barrier y(M)]
+                         has_target, target_x, target_y, M, barrier x(M), barrier y(M), u(N)]
+    u(N) (trailing; optional for readers, zeros if absent): the u each agent's state of t_n
+    carries (twist.angular.z, u_{n−1}); an agent with a communication model dead-reckons with it.
 """
 from __future__ import annotations
 
@@ -63,6 +76,7 @@ METRICS = '/world/metrics'
 LOCK_STATES = '/lockstep/states'
 LOCK_DECISION = '/lockstep/decision'
 LOCK_STEP = '/lockstep/step'
+EVENTS = '/swarm/events'
 
 
 def steering_topic(agent: str) -> str:
@@ -123,16 +137,17 @@ def unpack_decision(d):
     return n, t, lam, d[4:4 + N] > 0.5, d[4 + N:4 + 2 * N]
 
 
-def pack_step(n, t, lam, flags, steering, x, y, qz, qw, target=None, barrier=None) -> np.ndarray:
+def pack_step(n, t, lam, flags, steering, x, y, qz, qw, target=None, barrier=None, u=None) -> np.ndarray:
     geo = [1.0, float(target[0]), float(target[1])] if target is not None else [0.0, 0.0, 0.0]
     b = np.zeros((0, 2)) if barrier is None else np.asarray(barrier, float).reshape(-1, 2)
+    u = np.zeros(len(x)) if u is None else np.asarray(u, float)
     return np.concatenate([[n, t, len(x), lam], np.asarray(flags, float), steering, x, y, qz, qw,
-                           geo, [len(b)], b[:, 0], b[:, 1]]).astype(float)
+                           geo, [len(b)], b[:, 0], b[:, 1], u]).astype(float)
 
 
 class Step:
     """A decoded ``/lockstep/step`` message."""
-    __slots__ = ('n', 't', 'lam', 'flags', 'steering', 'x', 'y', 'qz', 'qw', 'target', 'barrier')
+    __slots__ = ('n', 't', 'lam', 'flags', 'steering', 'x', 'y', 'qz', 'qw', 'target', 'barrier', 'u')
 
     def __init__(self, d):
         d = np.asarray(d, dtype=float)
@@ -145,6 +160,14 @@ class Step:
         self.target = d[o + 1:o + 3].copy() if d[o] > 0.5 else None
         m = int(d[o + 3])
         self.barrier = np.stack([d[o + 4:o + 4 + m], d[o + 4 + m:o + 4 + 2 * m]], axis=1) if m else None
+        o += 4 + 2 * m
+        self.u = d[o:o + N].copy() if d.size >= o + N else np.zeros(N)
+
+
+def event_json(kind: str, t, **fields) -> str:
+    """The JSON text of a ``/swarm/events`` message."""
+    import json
+    return json.dumps(dict(t=None if t is None else float(t), kind=str(kind), **fields))
 
 
 # ------------------------------------------------------------------ raw CDR of Float64MultiArray

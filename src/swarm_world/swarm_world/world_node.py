@@ -22,7 +22,7 @@ from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Float64, Float64MultiArray
+from std_msgs.msg import Float64, Float64MultiArray, String
 from visualization_msgs.msg import Marker, MarkerArray
 
 from swarm_core import metrics as M
@@ -145,6 +145,13 @@ class WorldNode(Node):
         self.lam_now = 0.0
         self.leaders_now = np.zeros(self.n, bool)
         self.next_progress = 0.0
+        # the scenario's scheduled radio changes (comms.events), published on /swarm/events
+        # at their step for the record (agents apply them from their own copy)
+        from swarm_core.comms import event_step
+        self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
+        cspec = self.scn.spec.comms
+        self.comms_events = sorted(((event_step(e.at, self.dt), e.model_dump(exclude_none=True))
+                                    for e in (cspec.events if cspec else [])), key=lambda se: se[0])
         self.publish_geometry()
         self.timer = self.create_timer(0.05 if self.mode == 'lockstep' else 0.01, self._on_timer,
                                        clock=steady_clock())
@@ -260,13 +267,20 @@ class WorldNode(Node):
             self.rec_lam[k], self.rec_leader[k] = lam, flags
             self.lam_now, self.leaders_now = lam, flags
             x, y, qz, qw = self.buf
-            data = P.pack_step(k, k * self.dt, lam, flags, steering, x, y, qz, qw, self.target, self.barrier)
+            data = P.pack_step(k, k * self.dt, lam, flags, steering, x, y, qz, qw, self.target, self.barrier,
+                               self.buf_u)
+            self.publish_scheduled_events(k)
             self.pub_step.publish(P.float64_array_to_cdr(data))
             self.last_msg = (self.pub_step, P.float64_array_to_cdr(data))
             self.cur += 1
             self.have[:] = False
             self.states_out = False
             self.decision = None
+
+    def publish_scheduled_events(self, k):
+        while self.comms_events and self.comms_events[0][0] <= k:
+            _, e = self.comms_events.pop(0)
+            self.pub_events.publish(String(data=P.event_json('comms', k * self.dt, source='scenario', **e)))
 
     def observe(self, k):
         """Per-step checks (collisions, intrusions), progress, metrics and markers."""
@@ -372,6 +386,7 @@ class WorldNode(Node):
         self.sim_t = (now - self.run_wall) * self.rtf
         self.pub_clock.publish(Clock(clock=self._stamp(self.sim_t)))
         k = P.step_of(self.sim_t, self.dt)
+        self.publish_scheduled_events(k)
         if self.view_every and (k // self.view_every) != getattr(self, '_rt_view', -1):
             self._rt_view = k // self.view_every
             have = [nm for nm in self.names if nm in self.newest]
