@@ -265,7 +265,7 @@ class AgentNode(Node):
         j = self.row[name]
         m = P.step_of(t, self.dt)
         self.radio_count[name][0] += 1
-        arr = int(self.radio.decide(m, [self.index], self.core.pos, [j], [vals[:2]])[0, 0])
+        arr = int(self.radio.decide(m, [self.index], self.core.pos, [j], [vals[1:3]])[0, 0])
         if arr < 0:
             return
         self.radio_count[name][1] += 1
