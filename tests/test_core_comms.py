@@ -9,7 +9,7 @@ import pytest
 from scipy import stats
 
 from swarm_agent.core import AgentCore
-from swarm_core.comms import Beliefs, CommModel, dead_reckon, link_uniforms
+from swarm_core.comms import Beliefs, CommModel, StreamRadio, change_from_event, dead_reckon, link_uniforms
 from swarm_core.engine import SwarmStepper, simulate
 from swarm_core.integrate import zoh_step
 from swarm_core.model import frame_from_quaternion, quaternion_from_heading
@@ -256,3 +256,54 @@ def test_bad_comms_sections_give_one_line_errors(comms, msg):
 def test_rk4_with_a_radio_is_refused():
     with pytest.raises(ScenarioError, match='needs integrator zoh'):
         scenario(dict(loss=0.1), integrator='rk4')
+
+
+def test_stream_radio_delays_drops_forgets_and_dead_reckons():
+    """The realtime receive side: same fates as `decide` for the state's step, held until
+    stamp + delay, range on the sender's position, timeout, dead reckoning to now."""
+    cfg = dict(latency=0.1, jitter=0.1, loss=0.3, radio_range=5.0, timeout=0.5)
+    model = CommModel.from_config(cfg, NAMES, 0.05, seed=2)
+    ref = CommModel.from_config(cfg, NAMES, 0.05, seed=2)
+    r = StreamRadio(model, 1)
+    own = (0.0, 0.0, 0.0, 1.0)
+    for n in range(1, 41):
+        t = n * 0.05
+        for j, x in ((0, 1.0), (2, 6.0)):                   # agent_2 out of range
+            st = (t, x, 0.0, *quaternion_from_heading(0.0), 0.1)
+            got = r.hear(j, st, own[:2])
+            arr = ref.decide(n, [1], [own[:2]], [j], [[x, 0.0]])[0, 0]
+            assert got == (arr >= 0)
+            if got:
+                assert r.in_flight[-1][0] == pytest.approx(t + (arr - n) * 0.05)
+        rows, states = r.table(t, own)
+        assert 2 not in rows
+        if 0 in r.newest:
+            assert t - r.newest[0][0] >= 0.1 - 1e-9             # never fresher than the latency
+    assert r.delivered[2] == 0 and r.heard[2] == 40
+    assert binom_ok(r.delivered[0], 40, 0.7, ALPHA)
+    # dead reckoning: straight line at unit speed with u = 0.1 → the exact arc to now
+    now = 40 * 0.05 + 0.25                                  # everything in flight has landed
+    r.release(now)
+    t_last, x_last = r.newest[0][0], r.newest[0][1]
+    rows, states = r.table(now, own)
+    assert list(rows) == [0, 1] and now - t_last >= 0.25 - 1e-9
+    p_ref, th_ref = zoh_step(np.array([[x_last, 0.0]]), np.array([0.0]), np.array([0.1]), now - t_last)
+    assert np.array_equal(states[0, :2], p_ref[0])
+    # silence: forgotten after the timeout
+    rows, _ = r.table(t_last + 0.5 + 1e-6, own)
+    assert list(rows) == [1]
+
+
+def test_runtime_events_are_validated():
+    assert change_from_event(dict(t=1.0, kind='drop', loss=0.3, duration=5)) == dict(drop=0.3, duration=5)
+    assert change_from_event(dict(t=1.0, kind='partition', groups=[])) == dict(partition=[])
+    assert change_from_event(dict(t=1.0, kind='kill', agent='agent_3')) is None
+    assert change_from_event(dict(t=1.0, kind='comms', source='scenario', loss=0.2)) is None
+    for bad in (dict(kind='drop', loss=1.5), dict(kind='drop', loss=0.1, duration=-1),
+                dict(kind='partition', groups='a,b'), dict(kind='comms', latency=float('nan')), [1]):
+        with pytest.raises(ValueError):
+            change_from_event(bad)
+    m = CommModel.from_config(None, NAMES, 0.05)
+    assert m.perfect
+    with pytest.raises(ValueError, match="unknown agent 'ghost'"):
+        m.apply(dict(partition=[['ghost']]), 0)

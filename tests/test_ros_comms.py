@@ -147,8 +147,8 @@ def test_realtime_latency_and_swarm_drop(rclpy_context, swarm_cmd, processes):
             clock.publish(c)
             states.publish(odom('agent_0', -1.0 + t[0], 1.0, 0.0, t[0]))
             spin_for(ex, lambda: False, 0.03)
-            if 'agent_0' in agent.neigh:
-                lags.append(agent._now() - agent.neigh['agent_0'][0])
+            if 0 in agent.stream.newest:                     # agent_0's newest delivered state
+                lags.append(agent._now() - agent.stream.newest[0][0])
 
     def counts():
         return tuple(agent.radio_count['agent_0'])

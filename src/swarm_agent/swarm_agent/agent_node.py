@@ -31,7 +31,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray, String
 
-from swarm_core.comms import CommModel, dead_reckon
+from swarm_core.comms import CommModel, StreamRadio, change_from_event
 from swarm_core.laws import BARRIER_MODES, LAW_KINDS, LawConfig
 from swarm_core.model import PairGains, frame_from_quaternion
 from swarm_world import protocol as P
@@ -104,8 +104,7 @@ class AgentNode(Node):
         if self.radio_on:
             self.core.attach_comms(self.radio)
         self.heard = {}          # realtime radio: name -> newest state heard (before the radio)
-        self.in_flight = []      # realtime radio: (release time, name, state) delivered later
-        self.radio_count = {nm: [0, 0] for nm in self.roster if nm != self.agent_name}  # [heard, delivered]
+        self.stream = StreamRadio(self.radio, self.index)
 
         # live inputs (realtime; kept in lockstep for inspection)
         self.lam = 0.0
@@ -225,77 +224,38 @@ class AgentNode(Node):
     def _on_event(self, msg):
         """Runtime radio changes from /swarm/events (see swarm_world.protocol)."""
         try:
-            ev = json.loads(msg.data)
-            kind = ev.get('kind') if isinstance(ev, dict) else None
-        except ValueError:
-            self.reject(('event', msg.data[:40]), f'{P.EVENTS} {msg.data[:80]!r}: not JSON')
+            change = change_from_event(json.loads(msg.data))
+        except (ValueError, TypeError) as err:
+            self.reject(('event', str(err)[:60]), f'{P.EVENTS} event {msg.data[:80]!r}: {err}')
             return
-        if kind not in ('drop', 'partition', 'comms') or ev.get('source') == 'scenario':
+        if change is None:
             return                    # faults, or scheduled in the scenario (applied from our copy)
-        if kind == 'drop':
-            change = dict(drop=ev.get('loss'), duration=ev.get('duration'))
-        elif kind == 'partition':
-            change = dict(partition=ev.get('groups') or [])
-        else:
-            change = {k: ev.get(k) for k in ('loss', 'latency', 'jitter')}
         step = self.step if self.mode == 'lockstep' else P.step_of(self._now(), self.dt)
         try:
-            for key in ('drop', 'loss', 'latency', 'jitter'):
-                v = change.get(key)
-                if v is not None and not (math.isfinite(float(v)) and float(v) >= 0.0
-                                          and (key in ('latency', 'jitter') or float(v) <= 1.0)):
-                    raise ValueError(f'{key}={v!r} out of range')
-            if change.get('duration') is not None and not float(change['duration']) > 0.0:
-                raise ValueError(f'duration={change["duration"]!r} must be > 0')
             self.radio.apply(change, step)
-        except (ValueError, TypeError) as err:
-            self.reject(('event', str(err)), f'{P.EVENTS} {kind} event: {err}')
+        except ValueError as err:     # e.g. an unknown agent in a partition
+            self.reject(('event', str(err)[:60]), f'{P.EVENTS} event: {err}')
             return
         if not self.radio_on:
             self.radio_on = True
             if self.mode == 'lockstep':
                 self.core.attach_comms(self.radio)
-        self.get_logger().info(f'radio: {kind} {json.dumps(change)} from step {step}')
+        self.get_logger().info(f'radio: {json.dumps(change)} from step {step}')
 
     def _now(self):
         return self.get_clock().now().nanoseconds * 1e-9
 
-    def _radio_receive(self, name, t, vals):
-        """Realtime: the radio's fate of this state (keyed by its step); in flight if delivered."""
-        j = self.row[name]
-        m = P.step_of(t, self.dt)
-        self.radio_count[name][0] += 1
-        arr = int(self.radio.decide(m, [self.index], self.core.pos, [j], [vals[1:3]])[0, 0])
-        if arr < 0:
-            return
-        self.radio_count[name][1] += 1
-        self.in_flight.append((t + (arr - m) * self.dt, name, vals))
-
-    def _radio_release(self, now):
-        keep = []
-        for rel, name, vals in self.in_flight:
-            if rel <= now + 1e-9:
-                if name not in self.neigh or vals[0] > self.neigh[name][0]:
-                    self.neigh[name] = vals
-            else:
-                keep.append((rel, name, vals))
-        self.in_flight = keep
+    @property
+    def radio_count(self):
+        """{sender name: [heard, delivered]} of the realtime radio."""
+        r = self.stream
+        return {nm: [int(r.heard[j]), int(r.delivered[j])] for j, nm in enumerate(self.roster) if j != self.index}
 
     def radio_table(self, now):
-        """Like `table`, from the delivered states: neighbours heard within the timeout,
-        dead-reckoned to ``now`` if the model says so."""
-        names = [nm for nm in self.roster if nm == self.agent_name or
-                 (nm in self.neigh and now - self.neigh[nm][0] <= self.radio.timeout + 1e-9)]
-        rows = np.array([self.neigh[nm][:6] if nm != self.agent_name else
-                         (now, self.core.pos[0, 0], self.core.pos[0, 1], *self.core.quaternion, 0.0)
-                         for nm in names], dtype=float)
-        age = now - rows[:, 0]
-        if self.radio.dead_reckoning:
-            moved = (age > 0) & (np.array(names) != self.agent_name)
-            pos, qz, qw = dead_reckon(rows[:, 1:3], rows[:, 3], rows[:, 4], rows[:, 5], np.maximum(age, 0.0), moved)
-            rows[:, 1:3], rows[:, 3], rows[:, 4] = pos, qz, qw
-        flags = np.array([nm in self.leaders for nm in names])
-        return names.index(self.agent_name), rows[:, 1:5], flags
+        """Like `table`, from what the radio delivered (`comms.StreamRadio`)."""
+        rows, states = self.stream.table(now, (self.core.pos[0, 0], self.core.pos[0, 1], *self.core.quaternion))
+        flags = np.array([self.roster[j] in self.leaders for j in rows])
+        return int(np.searchsorted(rows, self.index)), states, flags
 
     def _on_state(self, msg):
         name = msg.child_frame_id
@@ -316,7 +276,7 @@ class AgentNode(Node):
                 p.orientation.z, p.orientation.w, msg.twist.twist.angular.z)
         if self.radio_on:
             self.heard[name] = vals
-            self._radio_receive(name, vals[0], vals)
+            self.stream.hear(self.row[name], vals, self.core.pos[0])
         else:
             self.neigh[name] = vals
 
@@ -337,8 +297,6 @@ class AgentNode(Node):
             return
         self._last_tick = now
         if self.radio_on:
-            self.radio.advance_to(P.step_of(now, self.dt))
-            self._radio_release(now)
             own, rows, flags = self.radio_table(now)
         else:
             own, rows, flags = self.table(now)

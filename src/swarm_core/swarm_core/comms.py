@@ -335,3 +335,98 @@ def delay_stats(delay_counts, dt: float) -> dict:
     steps = np.arange(delay_counts.size)
     return dict(messages=tot, mean_delay=float((steps * delay_counts).sum() / tot * dt),
                 max_delay=float(steps[delay_counts > 0].max() * dt))
+
+
+# ---------------------------------------------------------------- runtime events, realtime radio
+
+RADIO_EVENT_KINDS = ('drop', 'partition', 'comms')
+
+
+def change_from_event(ev) -> dict | None:
+    """The radio change of a ``/swarm/events`` object (see swarm_world.protocol), None if the
+    event is not for the radio (other kinds, or the scenario's own scheduled events, which
+    agents apply from their copy); ValueError naming the field if it is malformed."""
+    if not isinstance(ev, dict):
+        raise ValueError('an event is a JSON object')
+    kind = ev.get('kind')
+    if kind not in RADIO_EVENT_KINDS or ev.get('source') == 'scenario':
+        return None
+    if kind == 'drop':
+        change = dict(drop=ev.get('loss'), duration=ev.get('duration'))
+        if change['drop'] is None:
+            raise ValueError('drop event without loss')
+    elif kind == 'partition':
+        groups = ev.get('groups') or []
+        if not isinstance(groups, list) or not all(isinstance(g, list) and all(isinstance(s, str) for s in g)
+                                                   for g in groups):
+            raise ValueError('partition groups must be lists of agent names')
+        change = dict(partition=groups)
+    else:
+        change = {k: ev.get(k) for k in ('loss', 'latency', 'jitter')}
+    for key in ('drop', 'loss', 'latency', 'jitter'):
+        v = change.get(key)
+        if v is None:
+            continue
+        v = float(v)
+        if not (math.isfinite(v) and v >= 0.0 and (key in ('latency', 'jitter') or v <= 1.0)):
+            raise ValueError(f'{key}={change[key]!r} out of range')
+    dur = change.get('duration')
+    if dur is not None and not (math.isfinite(float(dur)) and float(dur) > 0.0):
+        raise ValueError(f'duration={dur!r} must be > 0')
+    return change
+
+
+class StreamRadio:
+    """The receive side of one realtime agent (row ``index``): states arrive one by one with
+    their stamp t; the fate of each is `CommModel.decide` for step round(t/dt), so a state is
+    lost or held in flight until t + delay exactly as in the batch engine (DDS delays come on
+    top).  `table(now)` gives the newest delivered state of every sender heard within the
+    timeout, dead-reckoned to ``now``."""
+
+    def __init__(self, model: CommModel, index: int):
+        self.model = model
+        self.index = int(index)
+        n = len(model.names)
+        self.newest = {}                      # sender row -> (t, x, y, qz, qw, u) delivered
+        self.in_flight = []                   # (release time, sender row, state)
+        self.heard = np.zeros(n, dtype=np.int64)
+        self.delivered = np.zeros(n, dtype=np.int64)
+
+    def hear(self, j: int, state, own_xy) -> bool:
+        """A state (t, x, y, qz, qw, u) of sender row j arrives; True if the radio delivers it."""
+        t = float(state[0])
+        m = int(round(t / self.model.dt))
+        self.heard[j] += 1
+        arr = int(self.model.decide(m, [self.index], np.reshape(np.asarray(own_xy, float), (1, 2)),
+                                    [j], [[state[1], state[2]]])[0, 0])
+        if arr < 0:
+            return False
+        self.delivered[j] += 1
+        self.in_flight.append((t + (arr - m) * self.model.dt, int(j), tuple(float(v) for v in state)))
+        return True
+
+    def release(self, now: float):
+        """Deliver what is due by ``now`` (newest stamp wins)."""
+        keep = []
+        for rel, j, st in self.in_flight:
+            if rel <= now + 1e-9:
+                if j not in self.newest or st[0] > self.newest[j][0]:
+                    self.newest[j] = st
+            else:
+                keep.append((rel, j, st))
+        self.in_flight = keep
+
+    def table(self, now: float, own_state):
+        """(rows, states (R, 4) of x, y, qz, qw): the senders known at ``now`` and this agent's
+        own row (own_state = x, y, qz, qw), in agent-index order, dead-reckoned to now."""
+        self.model.advance_to(int(round(now / self.model.dt)))
+        self.release(now)
+        rows = sorted([j for j, st in self.newest.items()
+                       if now - st[0] <= self.model.timeout + 1e-9 and j != self.index] + [self.index])
+        st = np.array([self.newest[j] if j != self.index else (now, *own_state, 0.0) for j in rows], dtype=float)
+        age = now - st[:, 0]
+        if self.model.dead_reckoning:
+            moved = (age > 0) & (np.array(rows) != self.index)
+            pos, qz, qw = dead_reckon(st[:, 1:3], st[:, 3], st[:, 4], st[:, 5], np.maximum(age, 0.0), moved)
+            st[:, 1:3], st[:, 3], st[:, 4] = pos, qz, qw
+        return np.array(rows, dtype=np.intp), st[:, 1:5]
