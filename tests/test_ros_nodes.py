@@ -11,7 +11,7 @@ pytestmark = pytest.mark.ros
 rclpy = pytest.importorskip('rclpy')
 from rclpy.parameter import Parameter  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
-from std_msgs.msg import Float64, Float64MultiArray, String  # noqa: E402
+from std_msgs.msg import Float64, Float64MultiArray  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode  # noqa: E402
@@ -19,7 +19,7 @@ from swarm_core.engine import Trajectory, simulate  # noqa: E402
 from swarm_core.laws import swarm_control  # noqa: E402
 from swarm_core.model import frame_from_quaternion, quaternion_from_heading  # noqa: E402
 from swarm_core.scenario import load  # noqa: E402
-from swarm_tools.launch import agent_parameters, build_nodes, node_parameters, run_in_process  # noqa: E402
+from swarm_tools.launch import agent_parameters, node_parameters, run_in_process  # noqa: E402
 from swarm_world import protocol as P  # noqa: E402
 from swarm_world.rosutil import ParameterError, make_executor  # noqa: E402
 from swarm_world.world_node import WorldNode  # noqa: E402
