@@ -53,6 +53,8 @@ def summary_of(scn, traj, series, checks) -> dict:
         out['barrier_clearance'] = series['barrier_clearance']
     if 'centroid_target_distance' in series:
         out['closest_centroid_target_distance'] = float(series['centroid_target_distance'].min())
+    if traj.meta.get('comms'):
+        out['comms'] = traj.meta['comms']      # what the radio did (swarm_core.comms)
     return out
 
 
