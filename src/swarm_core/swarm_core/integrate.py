@@ -21,13 +21,19 @@ def zoh_step(pos, theta, u, dt):
     θ' = θ + u dt,  r' = r + dt sinc(u dt/2) (cos(θ + u dt/2), sin(θ + u dt/2)).
     Works for any number of agents (arrays (N, 2), (N,), (N,)); returns new (pos, theta).
     """
-    theta = np.asarray(theta, dtype=float)
-    half = 0.5 * np.asarray(u, dtype=float) * dt
+    half = np.multiply(u, 0.5 * dt)                             # u dt/2
     mid = theta + half
-    chord = dt * sinc(half)
+    zero = half == 0.0                                          # sinc(0) = 1: (sin 0 + 1)/(0 + 1)
+    chord = np.sin(half)
+    chord += zero
+    np.divide(chord, half + zero, out=chord)
+    chord *= dt                                                 # dt sinc(u dt/2)
+    step = np.empty((2, len(half)))
+    np.cos(mid, out=step[0])
+    np.sin(mid, out=step[1])
+    step *= chord
     new_pos = np.empty_like(pos, dtype=float)
-    new_pos[:, 0] = pos[:, 0] + chord * np.cos(mid)
-    new_pos[:, 1] = pos[:, 1] + chord * np.sin(mid)
+    np.add(pos, step.T, out=new_pos)
     return new_pos, theta + 2.0 * half
 
 
