@@ -17,6 +17,8 @@ nonzero ``barrier_gain`` are given.
 """
 from __future__ import annotations
 
+import functools
+import math
 import threading
 from dataclasses import dataclass, field
 
@@ -170,18 +172,28 @@ class _Scratch(threading.local):
         self.arrays = {}
 
     def get(self, rows: int, n: int):
-        """(work arrays, moment array, bool array) for blocks of ``rows`` rows of n pairs."""
+        """Arrays for blocks of ``rows`` rows of n pairs: (dx, dy), (dx², dy²), two work
+        arrays, the six moments and a bool array; each also as views of its first rows."""
         key = (rows, n)
         arrays = self.arrays.get(key)
         if arrays is None:
             if len(self.arrays) >= 4:
                 self.arrays.clear()
-            arrays = self.arrays[key] = (tuple(np.empty((5, rows, n))), np.empty((6, rows, n)),
-                                         np.empty((rows, n), dtype=bool))
+            arrays = self.arrays[key] = (np.empty((2, rows, n)), np.empty((2, rows, n)),
+                                         np.empty((rows, n)), np.empty((rows, n)),
+                                         np.empty((6, rows, n)), np.empty((rows, n), dtype=bool))
         return arrays
 
 
 _scratch = _Scratch()
+
+
+@functools.lru_cache(maxsize=8)
+def _row_starts(rows: int, n: int):
+    """0, n, 2n, …: flat index of the first entry of each row of a (rows, n) block."""
+    starts = np.arange(0, rows * n, n)
+    starts.flags.writeable = False
+    return starts
 
 
 def _pair_weights(law, receivers, lam, q0, leaders, careful):
@@ -231,57 +243,54 @@ def _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k
     weights = None if target_kind else _pair_weights(law, receivers, lam, q0, leaders, careful)
     if n_recv == 0:
         return sums, weights is not None
-    x, y = xy = pos.T.copy()
-    xr, yr = xy[:, receivers]
+    xy = pos.T.copy()                                           # (2, N): x and y rows
+    xy_recv = xy[:, receivers, None]
     block = min(n_recv, max(1, DENSE_BLOCK // max(1, n)))
-    work, moments, within = _scratch.get(block, n)
+    scratch = _scratch.get(block, n)
     w2 = law.cutoff_radius * law.cutoff_radius
     a_r0 = g.alpha * g.r0 * g.r0
-    self_pair = np.arange(n_recv) * n + receivers               # flat index of (k, k) in a block
+    self_pair = receivers + _row_starts(n_recv, n)              # flat index of (k, k) in a block
     if weights is not None:
         far, follower, boost = weights
+        far = far[:, None]
+        sin_cos = np.array((sin_t, cos_t))[:, None, :]
         if follower is not None:
             follower_leader = l_of_k[follower]
     for a in range(0, n_recv, block):
         b = min(block, n_recv - a)
         rows = slice(a, a + b)
         if b == block:
-            dx, dy, dx2, dy2, rr = work
-            mom, wb = moments, within
+            d, d2, rr, h, mom, wb = scratch
         else:
-            dx, dy, dx2, dy2, rr = (w[:b] for w in work)
-            mom, wb = moments[:, :b], within[:b]
-        np.subtract(xr[rows, None], x, out=dx)
-        np.subtract(yr[rows, None], y, out=dy)
-        np.multiply(dx, dx, out=dx2)
-        np.multiply(dy, dy, out=dy2)
-        np.add(dx2, dy2, out=rr)                                 # ρ²
-        np.put(rr, self_pair[rows] - a * n, np.inf)              # the self pair: 1/ρ² = 0
+            d, d2, rr, h, mom, wb = scratch[0][:, :b], scratch[1][:, :b], scratch[2][:b], \
+                scratch[3][:b], scratch[4][:, :b], scratch[5][:b]
+        np.subtract(xy_recv[:, rows], xy[:, None, :], out=d)    # r_jk = r_k − r_j
+        np.multiply(d, d, out=d2)
+        np.add(d2[0], d2[1], out=rr)                             # ρ²
+        np.put(rr, self_pair[rows] - a * n if a else self_pair[rows], np.inf)   # self: 1/ρ² = 0
         if target_kind or weights is not None:
             np.less(rr, w2, out=wb)                              # ρ < w
         if careful:
             coincident = rr == 0.0
             rr[coincident] = np.inf
         if not target_kind:
-            np.subtract(dy2, dx2, out=mom[1])
+            np.subtract(d2[1], d2[0], out=mom[1])                # dy² − dx²
         np.divide(1.0, rr, out=rr)                               # 1/ρ²
-        h = dy2
         np.multiply(rr, a_r0, out=h)
         h -= g.alpha                                             # −α(1 − r0²/ρ²)
         if target_kind:
             if law.target_normalised:
-                np.sqrt(rr, out=dx2)
-                h *= dx2
+                h *= np.sqrt(rr, out=d2[0])
             h *= wb
-            np.multiply(h, dx, out=mom[2])
-            np.multiply(h, dy, out=mom[3])
+            np.multiply(d[0], h, out=mom[2])
+            np.multiply(d[1], h, out=mom[3])
             np.add.reduce(mom[2:4], axis=2, out=sums[2:4, rows])
             continue
-        np.sqrt(rr, out=dx2)                                     # 1/ρ
-        h *= dx2                                                 # h = −α(1 − r0²/ρ²)/ρ
+        h *= np.sqrt(rr, out=d2[0])                              # h = −α(1 − r0²/ρ²)/ρ
+        top = 4
         if weights is not None:
-            wm = dx2
-            np.copyto(wm, far[rows, None])
+            wm = d2[0]
+            np.copyto(wm, far[rows])
             np.copyto(wm, 1.0, where=wb)                         # c(ρ, q, w), eq. 6
             if follower is not None:                             # (ℓc − 1)λ + 1 with l(k), eq. 11
                 if b == n_recv:
@@ -293,14 +302,13 @@ def _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k
                 wm[coincident] = 0.0
             rr *= wm
             h *= wm
-            np.multiply(wm, sin_t, out=mom[4])
-            np.multiply(wm, cos_t, out=mom[5])
-        np.multiply(dx, dy, out=mom[0])
+            np.multiply(wm, sin_cos, out=mom[4:6])
+            top = 6
+        np.multiply(d[0], d[1], out=mom[0])
         mom[0] *= rr
         mom[1] *= rr
-        np.multiply(h, dx, out=mom[2])
-        np.multiply(h, dy, out=mom[3])
-        top = 6 if weights is not None else 4
+        np.multiply(d[0], h, out=mom[2])
+        np.multiply(d[1], h, out=mom[3])
         np.add.reduce(mom[:top], axis=2, out=sums[:top, rows])
     return sums, weights is not None
 
@@ -324,7 +332,7 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
     n_recv = receivers.size
     g = law.gains
     rk = receivers[k]
-    x, y = pos[:, 0], pos[:, 1]
+    x, y = pos.T.copy()
     dx = x[rk]
     dx -= x[j]
     dy = y[rk]
@@ -339,7 +347,7 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
     np.divide(1.0, rr, out=rr)                                  # 1/ρ²
     h = rr * (g.alpha * g.r0 * g.r0)
     h -= g.alpha                                                # −α(1 − r0²/ρ²)
-    m = np.zeros((6, n_recv))
+    m = np.empty((6, n_recv))
     if law.kind == 'target':
         if law.target_normalised:
             h *= np.sqrt(rr)
@@ -349,22 +357,30 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
         return m, False
     h *= np.sqrt(rr)                                            # h = −α(1 − r0²/ρ²)/ρ
     # c(ρ, q, w) with q = q0(1 − λ) (followers, none) or q0 (leaders), eq. 6, 11, 12
-    if leaders is None:
+    if q0 == 0.0:
+        weight = within.astype(float)
+    elif leaders is None:
         weight = np.where(within, 1.0, q0 * (1.0 - lam))
     else:
-        pair_leader = leaders[rk]
-        weight = np.where(within, 1.0, np.where(pair_leader, q0, q0 * (1.0 - lam)))
-        boost = (j == l_of_k[k]) & ~pair_leader                 # (ℓc − 1)λ + 1 with l(k), eq. 11
-        weight[boost] *= (law.leader_gain - 1.0) * lam + 1.0
+        weight = np.where(within, 1.0, np.where(leaders[rk], q0, q0 * (1.0 - lam)))
+    if leaders is not None:                                     # (ℓc − 1)λ + 1 with l(k), eq. 11
+        partner = np.where(leaders[receivers], -1, l_of_k)
+        weight[np.flatnonzero(j == partner[k])] *= (law.leader_gain - 1.0) * lam + 1.0
     if careful:
         weight[coincident] = 0.0
     rr *= weight
     h *= weight
-    dx2 = np.subtract(dy2, dx2, out=dx2)
+    np.subtract(dy2, dx2, out=dx2)
     dx2 *= rr
-    dy2 = np.multiply(dx, dy, out=dy2)
+    np.multiply(dx, dy, out=dy2)
     dy2 *= rr
-    for i, w in enumerate((dy2, dx2, h * dx, h * dy, weight * sin_t[j], weight * cos_t[j])):
+    dx *= h
+    dy *= h
+    for i, w in enumerate((dy2, dx2, dx, dy)):
+        m[i] = np.bincount(k, weights=w, minlength=n_recv)
+    for i, t in ((4, sin_t), (5, cos_t)):
+        w = t[j]
+        w *= weight
         m[i] = np.bincount(k, weights=w, minlength=n_recv)
     return m, True
 
@@ -380,9 +396,8 @@ def _pair_sum(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, pairs
             m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders,
                                             l_of_k, *pairs)
         sums = _combine(m, weighted, c, s, cos_t, sin_t, law)
-    bad = ~np.isfinite(sums)
-    if bad.any():
-        idx = np.flatnonzero(bad)
+    if not math.isfinite(np.add.reduce(sums)):
+        idx = np.flatnonzero(~np.isfinite(sums))
         lk = None if l_of_k is None else l_of_k[idx]
         if pairs is None:
             m, weighted = _pair_sums_dense(pos, cos_t, sin_t, receivers[idx], law, lam, q0, leaders,
