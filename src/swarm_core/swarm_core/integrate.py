@@ -10,9 +10,10 @@ import numpy as np
 
 
 def sinc(z):
-    """sin(z)/z with sinc(0) = 1 (unnormalised)."""
+    """sin(z)/z with sinc(0) = 1 (unnormalised), as (sin z + [z = 0]) / (z + [z = 0])."""
     z = np.asarray(z, dtype=float)
-    return np.divide(np.sin(z), z, out=np.ones_like(z), where=z != 0.0)
+    zero = z == 0.0
+    return (np.sin(z) + zero) / (z + zero)
 
 
 def zoh_step(pos, theta, u, dt):
@@ -23,10 +24,7 @@ def zoh_step(pos, theta, u, dt):
     """
     half = np.multiply(u, 0.5 * dt)                             # u dt/2
     mid = theta + half
-    zero = half == 0.0                                          # sinc(0) = 1: (sin 0 + 1)/(0 + 1)
-    chord = np.sin(half)
-    chord += zero
-    np.divide(chord, half + zero, out=chord)
+    chord = sinc(half)
     chord *= dt                                                 # dt sinc(u dt/2)
     step = np.empty((2, len(half)))
     np.cos(mid, out=step[0])

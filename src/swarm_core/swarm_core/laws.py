@@ -2,8 +2,12 @@
 
 `swarm_control` computes u_k for any set of receiving agents from a table of agent states:
 the batch engine passes the whole swarm as receivers, the ROS agent node passes itself as the
-only receiver and the neighbour states it has received as the table.  Pairs are summed with
-``np.bincount`` in table order, so the two paths give bit-identical controls.
+only receiver and the neighbour states it has received as the table.  The pair sums are
+formed from a few per-receiver "moments" of the pair geometry (`_pair_sums_dense`): numpy row
+sums over the whole table, or ``np.bincount`` over a neighbour list, both in table order and
+independent of how many receivers are asked for, so the two paths give bit-identical
+controls.  No Python loop runs over pairs; the dense path works in row blocks held in reused
+scratch arrays (the speed-ups are measured in BENCHMARKS.md, `scripts/bench_core.py`).
 
 Laws (``LawConfig.kind``):
 - ``global``            eq. 3,  u_k = Σ_j u_jk
@@ -209,7 +213,7 @@ def _pair_weights(law, receivers, lam, q0, leaders, careful):
         return None                     # every cutoff weight and the leader gain are 1
     recv_leader = leaders[receivers]
     far = np.where(recv_leader, q0, q0 * (1.0 - lam))
-    return far, np.flatnonzero(~recv_leader), (law.leader_gain - 1.0) * lam + 1.0
+    return far, (~recv_leader).nonzero()[0], (law.leader_gain - 1.0) * lam + 1.0
 
 
 def _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, careful=False):
@@ -267,7 +271,7 @@ def _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k
         np.subtract(xy_recv[:, rows], xy[:, None, :], out=d)    # r_jk = r_k − r_j
         np.multiply(d, d, out=d2)
         np.add(d2[0], d2[1], out=rr)                             # ρ²
-        np.put(rr, self_pair[rows] - a * n if a else self_pair[rows], np.inf)   # self: 1/ρ² = 0
+        rr.put(self_pair[rows] - a * n if a else self_pair[rows], np.inf)   # self: 1/ρ² = 0
         if target_kind or weights is not None:
             np.less(rr, w2, out=wb)                              # ρ < w
         if careful:
@@ -365,7 +369,7 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
         weight = np.where(within, 1.0, np.where(leaders[rk], q0, q0 * (1.0 - lam)))
     if leaders is not None:                                     # (ℓc − 1)λ + 1 with l(k), eq. 11
         partner = np.where(leaders[receivers], -1, l_of_k)
-        weight[np.flatnonzero(j == partner[k])] *= (law.leader_gain - 1.0) * lam + 1.0
+        weight[(j == partner[k]).nonzero()[0]] *= (law.leader_gain - 1.0) * lam + 1.0
     if careful:
         weight[coincident] = 0.0
     rr *= weight
@@ -435,9 +439,9 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
     leaders = None
     if law.uses_leaders and is_leader is not None:
         is_leader = np.asarray(is_leader, dtype=bool)
-        if is_leader.any():
+        if np.count_nonzero(is_leader):
             leaders = is_leader
-    l_of_k = nearest_leader(pos, receivers, np.flatnonzero(leaders)) if leaders is not None else None
+    l_of_k = nearest_leader(pos, receivers, leaders.nonzero()[0]) if leaders is not None else None
 
     sums = _pair_sum(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, pairs)
 
