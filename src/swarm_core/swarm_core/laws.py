@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model import PairGains, avoidance_control, pair_control
+from .model import PairGains
 
 LAW_KINDS = ('global', 'local', 'leader_following', 'homotopy', 'target')
 BARRIER_MODES = ('ahead', 'literal')
