@@ -97,8 +97,11 @@ def run_worker(spec, src=None):
 
 def extract(rev, into):
     """swarm_core of git revision ``rev`` into directory ``into``; returns its import root."""
-    tar = subprocess.run(['git', '-C', str(ROOT), 'archive', rev, 'src/swarm_core'],
-                         capture_output=True, check=True).stdout
+    r = subprocess.run(['git', '-C', str(ROOT), 'archive', rev, 'src/swarm_core'], capture_output=True)
+    if r.returncode:
+        raise SystemExit(f'bench_core: cannot read src/swarm_core at {rev!r}: '
+                         f'{r.stderr.decode(errors="replace").strip()}')
+    tar = r.stdout
     subprocess.run(['tar', '-x', '-C', into], input=tar, check=True)
     return str(Path(into) / 'src' / 'swarm_core')
 
