@@ -9,9 +9,8 @@ order, exactly as `swarm_core.engine.SwarmStepper` does for the whole swarm:
 2. u = `swarm_control(..., receivers=[own_row])` with λ, leader flags and s_k of that step;
 3. `zoh_step` on 1-element arrays, then the agent's own seeded noise (if any).
 
-Because `swarm_control` sums pairs in table order, in a way that does not depend on how many
-receivers are asked for, and every other operation is elementwise, the agent's u equals the
-batch engine's bit for bit.
+Because `swarm_control` sums pairs in table order with `np.bincount` and every other
+operation is elementwise, the agent's u equals the batch engine's bit for bit.
 """
 from __future__ import annotations
 
