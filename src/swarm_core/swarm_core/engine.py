@@ -51,15 +51,21 @@ class Trajectory:
 def neighbour_pairs(pos, radius):
     """(k, j) pairs with |r_k − r_j| ≤ radius, both directions, sorted by (k, j): a KD-tree
     neighbour search (not all pairs), for laws that couple only within w."""
-    tree = cKDTree(pos)
-    ij = tree.query_pairs(radius, output_type='ndarray')
+    n = len(pos)
+    ij = cKDTree(pos).query_pairs(radius, output_type='ndarray')
     if ij.size == 0:
         empty = np.zeros(0, dtype=np.intp)
         return empty, empty
-    k = np.concatenate([ij[:, 0], ij[:, 1]]).astype(np.intp)
-    j = np.concatenate([ij[:, 1], ij[:, 0]]).astype(np.intp)
-    order = np.lexsort((j, k))
-    return k[order], j[order]
+    # one sort of the keys k·n + j (both directions) orders the pairs by (k, j)
+    ij = ij.astype(np.intp, copy=False)
+    key = np.empty(2 * len(ij), dtype=np.intp)
+    np.multiply(ij[:, 0], n, out=key[:len(ij)])
+    key[:len(ij)] += ij[:, 1]
+    np.multiply(ij[:, 1], n, out=key[len(ij):])
+    key[len(ij):] += ij[:, 0]
+    key.sort()
+    k = key // n
+    return k, key - k * n
 
 
 class SwarmStepper:
