@@ -31,7 +31,7 @@ from swarm_core.model import yaw_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 
 from . import protocol as P
-from .checks import check_state
+from .checks import check_values
 from .rosutil import ParameterError, RejectLog, declare, make_executor, spin_until, steady_clock
 
 
@@ -106,7 +106,7 @@ class WorldNode(Node):
         self.pub_markers = self.create_publisher(MarkerArray, P.MARKERS, 5)
         self.pub_metrics = self.create_publisher(DiagnosticArray, P.METRICS, 10)
         self.sub_states = self.create_subscription(Odometry, P.STATES, self._on_state,
-                                                   P.qos_latched(max(100, 4 * self.n)))
+                                                   P.qos_latched(max(100, 4 * self.n)), raw=True)
         if self.mode == 'realtime':
             self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
         if self.mode == 'lockstep':
@@ -187,20 +187,24 @@ class WorldNode(Node):
         self.pub_barrier.publish(bs)
 
     # ------------------------------------------------------------ inputs
-    def _on_state(self, msg):
-        reason = check_state(msg, self.row, self.newest)
+    def _on_state(self, raw):
+        """A serialized /swarm/states message (decoded without building an Odometry)."""
+        try:
+            name, sec, nsec, pose, wz = P.cdr_to_odometry(raw)
+        except Exception as err:
+            self.reject('state-decode', f'{P.STATES} message that does not decode: {err}')
+            return
+        t = sec + nsec * 1e-9
+        reason = check_values(name, t, pose, wz, self.row, self.newest)
         if reason is not None:
             if reason != 'repeat':
-                self.reject((msg.child_frame_id, reason.split(':')[0]), reason)
+                self.reject((name, reason.split(':')[0]), reason)
             return
-        name = msg.child_frame_id
         i = self.row[name]
-        p = msg.pose.pose
-        t = P.stamp_to_time(msg.header.stamp)
-        vals = (p.position.x, p.position.y, p.orientation.z, p.orientation.w)
+        vals = (pose[0], pose[1], pose[4], pose[5])
         if self.mode == 'realtime':
             self.newest[name] = (t, *vals)
-            self.rt_record(i, t, vals, msg.twist.twist.angular.z)
+            self.rt_record(i, t, vals, wz)
             return
         k = P.step_of(t, self.dt)
         if k != self.cur:
@@ -208,7 +212,7 @@ class WorldNode(Node):
             return
         self.newest[name] = (t, *vals)
         self.buf[:, i] = vals
-        self.buf_u[i] = msg.twist.twist.angular.z
+        self.buf_u[i] = wz
         self.have[i] = True
         self.last_progress = time.monotonic()
         self.advance()
@@ -248,10 +252,9 @@ class WorldNode(Node):
                 self.rec_u[k - 1] = self.buf_u
             self.sim_t = k * self.dt
             self.pub_clock.publish(Clock(clock=self._stamp(self.sim_t)))
-            msg = Float64MultiArray()
-            msg.data = P.pack_states(k, self.sim_t, x, y, qz, qw).tolist()
-            self.pub_lock_states.publish(msg)
-            self.last_msg = (self.pub_lock_states, msg)
+            raw = P.float64_array_to_cdr(P.pack_states(k, self.sim_t, x, y, qz, qw))
+            self.pub_lock_states.publish(raw)
+            self.last_msg = (self.pub_lock_states, raw)
             self.states_out = True
             self.observe(k)
         if self.states_out and self.decision is not None:
@@ -261,8 +264,9 @@ class WorldNode(Node):
             self.lam_now, self.leaders_now = lam, flags
             x, y, qz, qw = self.buf
             data = P.pack_step(k, k * self.dt, lam, flags, steering, x, y, qz, qw, self.target, self.barrier)
-            self.pub_step.publish(P.float64_array_to_cdr(data))
-            self.last_msg = (self.pub_step, P.float64_array_to_cdr(data))
+            raw = P.float64_array_to_cdr(data)
+            self.pub_step.publish(raw)
+            self.last_msg = (self.pub_step, raw)
             self.cur += 1
             self.have[:] = False
             self.states_out = False
