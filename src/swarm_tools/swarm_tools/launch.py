@@ -227,6 +227,9 @@ def _parser():
     p.add_argument('--out', help='output directory (default: runs/SCENARIO-seedN-ros)')
     p.add_argument('--no-figure', action='store_true', help='no figure at the end')
     p.add_argument('--progress-every', type=float, default=50.0, help='progress line every this many sim s')
+    p.add_argument('--dds', choices=dds.CHOICES, default='auto', help=(
+        'DDS set-up of the processes: auto (default: localhost discovery up to 32 processes, '
+        'beyond that a generated Fast DDS profile, UDP on 127.0.0.1), localhost, or udp (the profile)'))
     return p
 
 
@@ -262,7 +265,7 @@ def main(argv=None) -> int:
     else:
         with tempfile.TemporaryDirectory(prefix='swarm_run_') as tmp:
             pfile = write_params_file(params, Path(tmp) / 'params.yaml')
-            env = dds.environment(n_proc, Path(tmp))
+            env = dds.environment(n_proc, Path(tmp), choice=a.dds)
             code = run_processes(params, pfile, scn.names, env, record=a.record, out_dir=out)
     wall = time.monotonic() - t0
     if code == 0 and traj_file.exists():
