@@ -10,9 +10,10 @@ and leader rule) with ``agents: {count: n}`` on a grid.  Numbers are read from t
 own lines (``discovered in X s``, ``finished ... in W s (R steps/s)``); "start" is the wall
 time from launching ``swarm run`` to the world's discovery line (process start + discovery).
 
-``--compare OTHER_SWARM`` runs the same cases with a second ``swarm`` executable (e.g. the
-venv of a checkout of an older commit) interleaved with this one, so that before/after
-numbers share the machine's load.
+``--swarm LABEL=PATH`` (repeatable) runs the same cases with several ``swarm`` executables
+(e.g. a wrapper running an older checkout) interleaved case by case, so that before/after
+numbers share the machine's load.  Because the machine is shared, the load-independent number
+is the CPU time per step (all processes of a run, from /proc), next to steps/s.
 
 The script uses its own ROS_DOMAIN_ID (claimed with the test suite's flock convention in
 /tmp/homotopy-swarm-domains, so it never shares one with a running test), starts every
@@ -215,6 +216,7 @@ class Run:
             if m:
                 steps, w = int(m.group(1)), float(m.group(2))
                 out.update(steps=steps, run_wall_s=w, steps_per_s=round(steps / w, 1) if w > 0 else None)
+        out['stalls'] = sum('stalled at step' in ln for ln in self.lines)
         if self.t_discovered is not None:
             out['start_s'] = round(self.t_discovered - t0, 2)
         by_role = {}
@@ -262,9 +264,9 @@ def main(argv=None) -> int:
     ap.add_argument('--full', action=argparse.BooleanOptionalAction, default=True,
                     help='also the whole homotopy_global run to t = 1000 with a bag (default on)')
     ap.add_argument('--repeat', type=int, default=1, help='runs per case (default 1)')
-    ap.add_argument('--swarm', default=DEFAULT_SWARM, help='the swarm executable to measure (default: this venv)')
-    ap.add_argument('--compare', metavar='OTHER_SWARM', help='a second swarm executable measured interleaved (e.g. an older checkout)')
-    ap.add_argument('--labels', default='this,other', help='names of --swarm and --compare in the output')
+    ap.add_argument('--swarm', action='append', metavar='LABEL=PATH', help=(
+        'a swarm executable to measure, with a label; repeat to measure several interleaved, case by '
+        'case (e.g. after=.venv/bin/swarm before=/tmp/old/swarm); default: this=' + DEFAULT_SWARM))
     ap.add_argument('--timeout', type=float, default=900, help='give up on one run after this many s')
     ap.add_argument('--out', default='bench/ros.json', help='results JSON (default bench/ros.json)')
     a = ap.parse_args(argv)
@@ -272,9 +274,12 @@ def main(argv=None) -> int:
         counts, inproc = parse_ints(a.agents), parse_ints(a.in_process)
     except ValueError:
         ap.error('--agents / --in-process: comma-separated integers')
-    exes = [(a.labels.split(',')[0], a.swarm)]
-    if a.compare:
-        exes.append((a.labels.split(',')[1] if ',' in a.labels else 'other', a.compare))
+    exes = []
+    for item in a.swarm or [f'this={DEFAULT_SWARM}']:
+        label, sep, exe = item.partition('=')
+        if not sep or not label or not exe:
+            ap.error(f'--swarm {item!r}: want LABEL=PATH')
+        exes.append((label, exe))
     for _, exe in exes:
         if not os.access(exe, os.X_OK):
             ap.error(f'{exe}: not an executable')
@@ -318,6 +323,9 @@ def main(argv=None) -> int:
                         r = Run(args, env, a.timeout).go()
                         if kind == 'full' and bag.exists():
                             r['bag_mib'] = round(bag.stat().st_size / 2**20, 2)
+                            r['bag_states'] = bag_states(bag)
+                            if r.get('steps'):
+                                r['bag_states_expected'] = (r['steps'] + 2) * n   # t_0 … t_{steps+1}
                         r.update(label=label, kind=kind, agents=n, repeat=rep, load_before=load0, load_after=loadavg())
                         results['runs'].append(r)
                         print(f'    -> {summary_line(r)}', flush=True)
@@ -331,13 +339,21 @@ def main(argv=None) -> int:
     return 0
 
 
+def bag_states(bag) -> int:
+    """Number of /swarm/states messages in a bag."""
+    from swarm_tools.bag import bag_topics
+    return bag_topics(bag).get('/swarm/states', {}).get('count', 0)
+
+
 def summary_line(r):
     rss = r.get('rss_mib', {})
     ag = rss.get('agent', {})
-    return (f"exit {r['exit_code']}, {r.get('steps_per_s', '—')} steps/s, start {r.get('start_s', '—')} s "
+    return (f"exit {r['exit_code']}, {r.get('steps_per_s', '—')} steps/s, {r.get('stalls')} stalls, start {r.get('start_s', '—')} s "
             f"(discovery {r.get('discovery_s', '—')} s), launcher wall {r['launcher_wall_s']} s, "
             f"agent RSS {ag.get('median', '—')} MiB, total {r.get('rss_total_mib', '—')} MiB, "
-            f"CPU ms/step {r.get('cpu_ms_per_step', {})}")
+            f"CPU ms/step {r.get('cpu_ms_per_step', {})}"
+            + (f", bag {r.get('bag_mib')} MiB with {r.get('bag_states')}/{r.get('bag_states_expected')} states"
+               if 'bag_mib' in r else ''))
 
 
 def markdown(results) -> str:

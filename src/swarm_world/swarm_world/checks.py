@@ -27,7 +27,8 @@ def check_values(name, t, pose, wz, row, newest):
         return f'state from unknown agent {name!r}'
     x, y, qx, qy, qz, qw = pose
     vals = (x, y, qz, qw)
-    if not all(math.isfinite(v) for v in vals + (wz,)):
+    isfinite = math.isfinite
+    if not (isfinite(x) and isfinite(y) and isfinite(qz) and isfinite(qw) and isfinite(wz)):
         return f'state of {name!r} with a non-finite pose/twist {vals + (wz,)}'
     if abs(qz ** 2 + qw ** 2 - 1.0) > 1e-6 or qx or qy:
         return f'state of {name!r}: orientation is not a planar unit quaternion'

@@ -236,3 +236,8 @@ def cdr_to_odometry(raw: bytes):
     x, y, _, qx, qy, qz, qw = struct.unpack_from(end + '7d', raw, o)
     wz, = struct.unpack_from(end + 'd', raw, o + 8 * _I_WZ)
     return name, sec, nsec, (x, y, qx, qy, qz, qw), wz
+
+
+def clock_to_cdr(t: float) -> bytes:
+    """Serialized ``rosgraph_msgs/Clock`` of sim time t (what ``publish()`` accepts as bytes)."""
+    return _HEADER + struct.pack('<iI', *time_to_stamp(t))

@@ -251,7 +251,7 @@ class WorldNode(Node):
             if k > 0:
                 self.rec_u[k - 1] = self.buf_u
             self.sim_t = k * self.dt
-            self.pub_clock.publish(Clock(clock=self._stamp(self.sim_t)))
+            self.pub_clock.publish(P.clock_to_cdr(self.sim_t))
             raw = P.float64_array_to_cdr(P.pack_states(k, self.sim_t, x, y, qz, qw))
             self.pub_lock_states.publish(raw)
             self.last_msg = (self.pub_lock_states, raw)
