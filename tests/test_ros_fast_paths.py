@@ -50,10 +50,11 @@ def test_odometry_bytes_round_trip_through_rclpy(name):
 
 
 def test_lockstep_over_the_udp_profile_equals_simulate(tmp_path, ros_domain, processes, swarm_cmd):
+    """Also with /clock only every 7 steps: lockstep inputs carry their own step and time."""
     path = tmp_path / 'dds_short.yaml'
     path.write_text(SHORT)
     out = tmp_path / 'run'
-    p = processes.start([swarm_cmd, 'run', path, '--dds', 'udp', '--out', out, '--no-figure'],
+    p = processes.start([swarm_cmd, 'run', path, '--dds', 'udp', '--clock-every', '7', '--out', out, '--no-figure'],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     text, _ = p.communicate(timeout=240)
     assert p.returncode == 0, text[-3000:]

@@ -27,7 +27,8 @@ Every input is paired with the step it belongs to.  For step n (t_n = n·dt):
 
 1. every agent has published its state of t_n on ``/swarm/states``;
 2. the world, once it holds all N states of t_n (rows in agent-index order = the scenario's
-   roster), publishes ``/clock`` = t_n and the packed states on ``/lockstep/states``;
+   roster), publishes ``/clock`` = t_n (every ``clock_every`` steps, default every step) and
+   the packed states on ``/lockstep/states``;
 3. the commander runs its `CommandPlan` (λ schedule, leader rule, steering programs, live
    set-points) on exactly those states and answers on ``/lockstep/decision``; it also
    publishes ``/swarm/lambda``, ``/<agent>/steering`` (on change) and ``/swarm/leaders``;

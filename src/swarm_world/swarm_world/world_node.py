@@ -73,6 +73,8 @@ class WorldNode(Node):
         self.output_dir = d('output_dir', '', 'where to write trajectory.npz at the end ("": nowhere)')
         self.progress_every = d('progress_every', 50.0, 'progress line every this many sim s (0: none)', lo=0.0, hi=1e9)
         self.view_every = d('view_every', 20, 'markers and metrics every this many steps (0: never)', lo=0, hi=10**9)
+        self.clock_every = d('clock_every', 1, 'lockstep: publish /clock every this many steps (every node '
+                             'receives each one; lockstep inputs carry their own time)', lo=1, hi=10**9)
         self.stall_timeout = d('stall_timeout', 2.0, 'lockstep: repeat the last message after this many wall s', lo=0.1, hi=1e6)
         self.start_timeout = d('start_timeout', 180.0, 'give up if not everyone is discovered in this many wall s', lo=1.0, hi=1e6)
         self.collision_distance = d('collision_distance', 0.01, 'pairs closer than this count as a collision', lo=0.0, hi=1e6)
@@ -251,7 +253,8 @@ class WorldNode(Node):
             if k > 0:
                 self.rec_u[k - 1] = self.buf_u
             self.sim_t = k * self.dt
-            self.pub_clock.publish(P.clock_to_cdr(self.sim_t))
+            if k % self.clock_every == 0 or k == self.steps:
+                self.pub_clock.publish(P.clock_to_cdr(self.sim_t))
             raw = P.float64_array_to_cdr(P.pack_states(k, self.sim_t, x, y, qz, qw))
             self.pub_lock_states.publish(raw)
             self.last_msg = (self.pub_lock_states, raw)
