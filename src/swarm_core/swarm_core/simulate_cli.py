@@ -21,7 +21,7 @@ def analyse(scn, traj, every_time: float = 1.0):
     every = max(1, int(round(every_time / rec_dt)))
     series = metrics.time_series(traj.t, traj.r, traj.theta, traj.leader, scn.law.cutoff_radius,
                                  target=scn.target, barrier_points=scn.barrier, every=every)
-    checks = outcomes.evaluate(scn.spec.expect, series) if len(traj.t) else {}
+    checks = outcomes.evaluate(scn.spec.expect, series, traj, scn) if len(traj.t) else {}
     return series, checks
 
 
