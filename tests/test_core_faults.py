@@ -172,23 +172,84 @@ def test_agent_cores_reproduce_engine_with_faults_failover_and_reunion():
 
 # ------------------------------------------------------------------ the shipped scenarios
 
-@pytest.mark.parametrize('name,passes', [('leader_failover', True), ('leader_no_failover', False)])
-def test_failover_scenario_subswarm_follows_program_only_with_failover(name, passes):
-    from swarm_core.scenario import load
-    scn = load(name, seed=0, duration=580.0)
-    tr = simulate(scn, record_every=10)
+EARLY = dict(name='early_failover', seed=0, dt=0.05, duration=24.0,
+             agents=dict(positions=[[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]),
+             law=dict(kind='homotopy', q0=1.0),
+             leaders=dict(rule='lateral_extremes', at=2.0, programs=[dict(kind='constant', curvature=0.05),
+                                                                     dict(kind='constant', curvature=-0.05)]),
+             faults=[dict(at=14.0, kill='leader:0')],
+             expect=dict(follows_program=dict(slot=0, **{'from': 16.0}, to=24.0, tolerance=0.3)))
+EARLY['lambda'] = dict(kind='tanh_window', rise_at=8.0, fall_at=1000.0, tau=2.0)
+
+
+@pytest.mark.parametrize('seed', [0, 1])
+@pytest.mark.parametrize('failover', [True, False])
+def test_lost_leaders_subswarm_follows_program_only_with_failover(seed, failover):
+    """The split of Fig. 3 brought forward (λ up at t = 8, leaders ±0.05), the left leader killed
+    at t = 14 after the split: with failover its subswarm keeps turning at +0.05."""
+    scn = parse(dict(EARLY, seed=seed, **({'failover': {'timeout': 0.5}} if failover else {})), 'early')
+    tr = simulate(scn)
     _, checks = analyse(scn, tr)
     fp = checks['follows_program']
-    assert fp['passed'] is passes, fp
-    if passes:
-        assert fp['successor'] is not None
-        succ = [e for e in tr.meta['events'] if e['kind'] == 'failover'][0]
-        assert succ['t'] == pytest.approx(451.0) and succ['slot'] == 0
+    assert fp['passed'] is failover, fp
+    if failover:
+        ev = [e for e in tr.meta['events'] if e['kind'] == 'failover'][0]
+        assert ev['t'] == pytest.approx(14.5) and ev['slot'] == 0 and ev['agent'] == fp['successor']
+        assert tr.leader[-1, tr.names.index(ev['agent'])]
     else:
-        assert abs(fp['turn_rate'] - fp['program']) > 0.3 * abs(fp['program'])
+        assert fp['successor'] is None and abs(fp['turn_rate']) < 0.3 * 0.05
 
 
 def test_follows_program_check_needs_a_constant_program():
     scn = scenario(leaders=dict(fixed={'agent_0': dict(kind='sinusoid')}))
     with pytest.raises(ValueError, match='constant'):
         outcomes.check_trajectory('follows_program', {'slot': 0, 'from': 0, 'to': 1}, simulate(scn), scn)
+
+
+# ------------------------------------------------------------------ reunion
+
+def two_groups(reunion):
+    """Two groups of three under local coupling (homotopy q0 = 0, λ = 0), 20 apart and heading
+    away from each other: without help they never meet."""
+    d = dict(name='two_groups', seed=0, dt=0.1, duration=400.0, law=dict(kind='homotopy', q0=0.0),
+             agents=dict(positions=[[0, 0], [0, 1.5], [1.5, 0.75], [0, 20], [0, 21.5], [1.5, 20.75]],
+                         headings=[-0.2, -0.2, -0.2, 0.2, 0.2, 0.2]),
+             expect=dict(split_at=5.0, one_cluster_from=215.0))
+    if reunion:
+        d['reunion'] = [dict(reunion, at=5.0, **{'for': 200.0})]
+    return parse(d, 'two_groups')
+
+
+@pytest.mark.parametrize('reunion,reunites', [(None, False), ({'gain': 0.05, 'coupling': 1.0}, True),
+                                              ({'point': 'none', 'coupling': 1.0}, True)])
+def test_reunion_brings_groups_together_and_local_coupling_keeps_them(reunion, reunites):
+    scn = two_groups(reunion)
+    tr = simulate(scn, record_every=10)
+    series, checks = analyse(scn, tr)
+    assert checks['split_at']['passed']
+    assert checks['one_cluster_from']['passed'] is reunites, checks
+    if reunion:
+        on, off = [e for e in tr.meta['events'] if e['kind'].startswith('rendezvous')]
+        assert (on['kind'], on['t'], off['kind'], off['t']) == ('rendezvous_on', 5.0, 'rendezvous_off', 205.0)
+        assert on['coupling'] == 1.0 and (on['point'] is None) == (reunion.get('point') == 'none')
+
+
+def test_rendezvous_point_is_the_centroid_at_switch_on_and_adds_the_target_term():
+    scn = two_groups({'gain': 0.05})
+    plan = scn.command_plan()
+    c, s = heading_frame(scn.theta0)
+    plan.update(4.9, scn.pos0, c, s)
+    assert plan.rendezvous_now is None
+    plan.update(5.0, scn.pos0, c, s)
+    point, gain, normalised, coupling = plan.rendezvous_now
+    np.testing.assert_allclose(point, scn.pos0.mean(axis=0))
+    assert (gain, normalised, coupling) == (0.05, False, None)
+    moved = scn.pos0 + 5.0
+    plan.update(6.0, moved, c, s)
+    np.testing.assert_allclose(plan.rendezvous_now[0], scn.pos0.mean(axis=0))    # fixed, not tracking
+    from swarm_core.faults import reunion_law
+    law, target = reunion_law(scn.law, None, plan.rendezvous_now)
+    from swarm_core.laws import target_term
+    u = swarm_control(moved, c, s, np.arange(6), law, target=target)
+    u0 = swarm_control(moved, c, s, np.arange(6), scn.law)
+    np.testing.assert_allclose(u - u0, target_term(moved, c, s, target, law), atol=1e-15)

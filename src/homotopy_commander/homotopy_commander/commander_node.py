@@ -59,6 +59,8 @@ class CommanderNode(Node):
                               lo=0.0, hi=1e6)
         self.ramp_shape = d('ramp_shape', 'smoothstep', 'shape of set-point ramps',
                             choices=('smoothstep', 'linear', 'tanh', 'step'))
+        self.heard_timeout = d('heard_timeout', 1.0, 'realtime: an agent silent for this many sim s is not heard '
+                               '(leader failover)', lo=0.0, hi=1e9)
         self.publish_every = d('publish_every', 10, 'lockstep: publish /swarm/lambda every this many steps',
                                lo=1, hi=10**9)
         try:
@@ -101,6 +103,7 @@ class CommanderNode(Node):
             self.pos = self.scn.pos0.copy()
             c, s = np.cos(self.scn.theta0), np.sin(self.scn.theta0)
             self.cos, self.sin = c, s
+            self.last_seen = np.full(self.n, -np.inf)
             self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)))
             self.timer = self.create_timer(self.dt, self._on_tick)
         self.publish_leaders([])
@@ -230,10 +233,12 @@ class CommanderNode(Node):
         self.pos[i] = vals[:2]
         c, s = frame_from_quaternion(vals[2], vals[3])
         self.cos[i], self.sin[i] = c, s
+        self.last_seen[i] = P.stamp_to_time(msg.header.stamp)
 
     def _on_tick(self):
         t = self.get_clock().now().nanoseconds * 1e-9
-        lam, flags, steering = self.decide(t, self.pos, self.cos, self.sin)
+        heard = t - self.last_seen <= self.heard_timeout
+        lam, flags, steering = self.decide(t, self.pos, self.cos, self.sin, heard=heard if heard.any() else None)
         self.publish_outputs(lam, flags, steering, force=True)
 
 
