@@ -127,6 +127,15 @@ def test_scheduled_faults_follower_frozen_leader_killed(failover, tmp_path, ros_
     assert lost == k and t_kill == 14.0 and group
     rate = outcomes.group_turn_rate(bag_traj, group, 16.0, 24.0)
     if failover:
+        # swarm report rebuilds the world's view from the bag alone (dead rows NaN, freeze held)
+        rep = tmp_path / 'report'
+        res = subprocess.run([swarm_cmd, 'report', str(bag), '--out', str(rep), '--no-figure'],
+                             capture_output=True, text=True, timeout=120)
+        assert res.returncode == 0, res.stderr
+        from_bag = Trajectory.load(rep / 'trajectory.npz')
+        T = len(live.t)
+        assert np.array_equal(np.isnan(from_bag.r[:T]), np.isnan(live.r))
+        assert np.nanmax(np.abs(from_bag.r[:T] - live.r)) < 1e-9
         succ = next(e['agent'] for e in events if e['kind'] == 'failover')
         assert succ in [scn.names[j] for j in group]
         assert steering[succ][-1] == PROGRAM            # the commander steers the successor
@@ -161,7 +170,7 @@ def agent_pid(out, name):
 
 def test_live_kill_pause_and_lost_agent(tmp_path, ros_domain, processes, swarm_cmd):
     path, out, bag, p = run(processes, swarm_cmd, tmp_path, SCENARIO.format(duration=150, extra=''),
-                            '--missing-timeout', '2', name='live')
+                            '--missing-timeout', '3', name='live')
     lines = Lines(p)
     assert lines.wait_for('discovered in', 120), ''.join(lines.lines)
     cli = [processes.start([swarm_cmd, 'kill', 'agent_4'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True),

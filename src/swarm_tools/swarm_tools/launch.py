@@ -280,8 +280,8 @@ def _parser():
     p.add_argument('--out', help='output directory (default: runs/SCENARIO-seedN-ros)')
     p.add_argument('--no-figure', action='store_true', help='no figure at the end')
     p.add_argument('--progress-every', type=float, default=50.0, help='progress line every this many sim s')
-    p.add_argument('--missing-timeout', type=float, default=5.0,
-                   help='lockstep: the world drops an agent whose state has not come after this many wall s (default 5)')
+    p.add_argument('--missing-timeout', type=float, default=10.0,
+                   help='lockstep: the world drops an agent whose state has not come after this many wall s (default 10)')
     return p
 
 

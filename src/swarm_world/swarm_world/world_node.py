@@ -90,7 +90,7 @@ class WorldNode(Node):
         self.stall_timeout = d('stall_timeout', 2.0, 'lockstep: repeat the last message after this many wall s', lo=0.1, hi=1e6)
         self.start_timeout = d('start_timeout', 180.0, 'give up if not everyone is discovered in this many wall s', lo=1.0, hi=1e6)
         self.collision_distance = d('collision_distance', 0.01, 'pairs closer than this count as a collision', lo=0.0, hi=1e6)
-        self.missing_timeout = d('missing_timeout', 5.0, 'lockstep: drop an agent whose state has not come after this many wall s',
+        self.missing_timeout = d('missing_timeout', 10.0, 'lockstep: drop an agent whose state has not come after this many wall s',
                                  lo=0.1, hi=1e6)
         self.pid_file = d('pid_file', '', 'JSON {agent: pid} of the agent processes, for kill/pause ("": none)')
         self.events_file = d('events_file', '', 'append every event here as JSON lines ("": output_dir/events.jsonl)')
