@@ -122,3 +122,30 @@ def processes():
 def swarm_cmd():
     """Path of the installed ``swarm`` command (the venv's console script)."""
     return str(VENV_BIN / 'swarm')
+
+
+#: the six agents of Figs. 3-4 under the homotopy law; a short run for ROS tests
+SHORT_HOMOTOPY = """
+name: homotopy_short
+seed: {seed}
+dt: 0.05
+duration: {duration}
+agents:
+  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
+  headings: {{rule: cone, half_width: 0.7853981633974483}}
+law: {{kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0, leader_gain: 30.0, q0: 1.0}}
+lambda: {lam}
+leaders:
+  rule: lateral_extremes
+  at: {at}
+  programs:
+    - {{kind: constant, curvature: 0.01}}
+    - {{kind: constant, curvature: -0.01}}
+"""
+
+
+def short_homotopy(path, *, duration, lam, at, seed=0):
+    """Write the short homotopy scenario (``lam``: a YAML λ schedule) to ``path``; returns it."""
+    path = Path(path)
+    path.write_text(SHORT_HOMOTOPY.format(seed=seed, duration=duration, lam=lam, at=at))
+    return path

@@ -57,7 +57,8 @@ def write_bag(traj, path, *, leaders=True, lam=True, cut_after=None):
             m.pose.pose.orientation.z = float(qz[s, k])
             m.pose.pose.orientation.w = float(qw[s, k])
             m.twist.twist.linear.x = 1.0
-            m.twist.twist.angular.z = float(traj.u[s, k])
+            # as agents publish it: the u held over the step that ended at this state
+            m.twist.twist.angular.z = float(traj.u[s - 1, k]) if s > 0 else 0.0
             w.write('/swarm/states', serialize_message(m), log + k)
         # as the lockstep commander does: step s's inputs are decided from step s's states
         if lam:
@@ -105,7 +106,8 @@ def test_report_matches_the_run(run, tmp_path, swarm_cmd):
     assert rebuilt.names == traj.names
     np.testing.assert_array_equal(rebuilt.r, traj.r)
     np.testing.assert_allclose(rebuilt.t, traj.t, rtol=0, atol=1e-9)
-    np.testing.assert_array_equal(rebuilt.u, traj.u)
+    np.testing.assert_array_equal(rebuilt.u[:-1], traj.u[:-1])
+    assert np.isnan(rebuilt.u[-1]).all(), 'the u after the newest state is not in the bag'
     np.testing.assert_array_equal(rebuilt.lam, traj.lam)
     np.testing.assert_array_equal(rebuilt.leader, traj.leader)
     d = np.angle(np.exp(1j * (rebuilt.theta - traj.theta)))

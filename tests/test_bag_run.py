@@ -110,3 +110,8 @@ def test_recorded_lockstep_run(recorded_run, swarm_cmd, tmp_path):
     assert mine['summary']['leaders_seen'] == [live.names[k] for k in
                                                np.flatnonzero(live.leader.any(axis=0))]
     assert (rep / 'report.png').is_file()
+    # the u the report reads from the states is the u the agents applied (the last state's u
+    # is carried by a state after the run, if the bag has one)
+    rebuilt = Trajectory.load(rep / 'trajectory.npz')
+    np.testing.assert_array_equal(rebuilt.r[:steps + 1], live.r)
+    np.testing.assert_array_equal(rebuilt.u[:steps], live.u[:steps])

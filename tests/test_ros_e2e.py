@@ -12,28 +12,13 @@ from swarm_core.engine import Trajectory, simulate
 from swarm_core.metrics import cluster_labels
 from swarm_core.scenario import load
 
+from conftest import short_homotopy
+
 pytestmark = pytest.mark.ros
 
 # homotopy_global's law, agents and start, with the λ window brought forward so that the split
 # and the reform fit in t = 420 (8400 steps) instead of t = 1000 (20000 steps): measured with
 # the batch engine, seeds 0-5 are one swarm until t ≈ 150, two until t ≈ 390-410, then one.
-SHORT = """
-name: homotopy_short
-seed: 0
-dt: 0.05
-duration: {duration}
-agents:
-  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
-  headings: {{rule: cone, half_width: 0.7853981633974483}}
-law: {{kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0, leader_gain: 30.0, q0: 1.0}}
-lambda: {lam}
-leaders:
-  rule: lateral_extremes
-  at: {at}
-  programs:
-    - {{kind: constant, curvature: 0.01}}
-    - {{kind: constant, curvature: -0.01}}
-"""
 
 
 class Lines:
@@ -72,9 +57,8 @@ def alive(pid):
 
 
 def test_processes_lockstep_split_reform_equals_simulate(tmp_path, ros_domain, processes, swarm_cmd):
-    path = tmp_path / 'homotopy_short.yaml'
-    path.write_text(SHORT.format(duration=420, lam='{kind: tanh_window, rise_at: 120, fall_at: 240, tau: 15}',
-                                 at=75))
+    path = short_homotopy(tmp_path / 'homotopy_short.yaml', duration=420,
+                          lam='{kind: tanh_window, rise_at: 120, fall_at: 240, tau: 15}', at=75)
     out = tmp_path / 'run'
     p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--progress-every', '100'],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -133,7 +117,7 @@ def test_realtime_lambda_from_the_cli_splits_the_swarm(tmp_path, ros_domain, pro
     """λ = 0 throughout in the scenario; leaders chosen at t = 5; `swarm lambda 1.0` mid-run
     must change the published λ and split the swarm."""
     path = tmp_path / 'homotopy_rt.yaml'
-    path.write_text(SHORT.format(duration=260, lam='{kind: constant, value: 0.0}', at=5))
+    short_homotopy(path, duration=260, lam='{kind: constant, value: 0.0}', at=5)
     out = tmp_path / 'run'
     p = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--rtf', '5', '--dt', '0.1',
                          '--out', out, '--no-figure', '--progress-every', '10'],

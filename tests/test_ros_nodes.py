@@ -11,7 +11,7 @@ pytestmark = pytest.mark.ros
 rclpy = pytest.importorskip('rclpy')
 from rclpy.parameter import Parameter  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
-from std_msgs.msg import Float64, Float64MultiArray, String  # noqa: E402
+from std_msgs.msg import Float64, Float64MultiArray  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode  # noqa: E402
@@ -19,35 +19,18 @@ from swarm_core.engine import Trajectory, simulate  # noqa: E402
 from swarm_core.laws import swarm_control  # noqa: E402
 from swarm_core.model import frame_from_quaternion, quaternion_from_heading  # noqa: E402
 from swarm_core.scenario import load  # noqa: E402
-from swarm_tools.launch import agent_parameters, build_nodes, node_parameters, run_in_process  # noqa: E402
+from swarm_tools.launch import agent_parameters, node_parameters, run_in_process  # noqa: E402
 from swarm_world import protocol as P  # noqa: E402
 from swarm_world.rosutil import ParameterError, make_executor  # noqa: E402
 from swarm_world.world_node import WorldNode  # noqa: E402
 
-SHORT = """
-name: homotopy_short
-seed: {seed}
-dt: 0.05
-duration: {duration}
-agents:
-  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
-  headings: {{rule: cone, half_width: 0.7853981633974483}}
-law: {{kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0, leader_gain: 30.0, q0: 1.0}}
-lambda: {{kind: tanh_window, rise_at: {rise}, fall_at: {fall}, tau: {tau}}}
-leaders:
-  rule: lateral_extremes
-  at: {at}
-  programs:
-    - {{kind: constant, curvature: 0.01}}
-    - {{kind: constant, curvature: -0.01}}
-"""
+from conftest import short_homotopy  # noqa: E402
 
 
 def short_scenario(tmp_path, seed=0, duration=40.0, rise=10.0, fall=30.0, tau=3.0, at=5.0):
     """homotopy_global's law and agents with the λ window and leader choice brought forward."""
-    p = tmp_path / 'homotopy_short.yaml'
-    p.write_text(SHORT.format(seed=seed, duration=duration, rise=rise, fall=fall, tau=tau, at=at))
-    return str(p)
+    lam = f'{{kind: tanh_window, rise_at: {rise}, fall_at: {fall}, tau: {tau}}}'
+    return str(short_homotopy(tmp_path / 'homotopy_short.yaml', seed=seed, duration=duration, lam=lam, at=at))
 
 
 def overrides(d):

@@ -28,7 +28,6 @@ import math
 import sys
 
 import numpy as np
-import rclpy
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray, String
@@ -38,7 +37,7 @@ from swarm_core.model import frame_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 from swarm_core.schedules import ConstantSteering
 from swarm_world import protocol as P
-from swarm_world.rosutil import ParameterError, RejectLog, declare, make_executor, spin_until
+from swarm_world.rosutil import ParameterError, RejectLog, declare, run_node
 
 from .live import LiveSchedule
 
@@ -243,21 +242,7 @@ class CommanderNode(Node):
 
 
 def main(argv=None):
-    args = sys.argv if argv is None else argv
-    rclpy.init(args=args)
-    ctx = rclpy.get_default_context()
-    try:
-        node = CommanderNode()
-    except ParameterError as err:
-        rclpy.logging.get_logger('homotopy_commander').error(str(err))
-        rclpy.try_shutdown()
-        return 2
-    ex = make_executor(ctx)
-    ex.add_node(node)
-    spin_until(ex, ctx, lambda: False)
-    node.destroy_node()
-    rclpy.try_shutdown()
-    return 0
+    return run_node(CommanderNode, 'homotopy_commander', argv)
 
 
 if __name__ == '__main__':

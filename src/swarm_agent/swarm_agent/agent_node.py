@@ -15,17 +15,16 @@ import math
 import sys
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import PointStamped, PolygonStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_core.laws import BARRIER_MODES, LAW_KINDS, LawConfig
-from swarm_core.model import PairGains, frame_from_quaternion
+from swarm_core.model import PairGains
 from swarm_world import protocol as P
 from swarm_world.checks import check_state
-from swarm_world.rosutil import ParameterError, RejectLog, declare, make_executor, spin_until
+from swarm_world.rosutil import ParameterError, RejectLog, declare, run_node
 
 from .core import AgentCore
 
@@ -255,21 +254,7 @@ class AgentNode(Node):
 
 
 def main(argv=None):
-    args = sys.argv if argv is None else argv
-    rclpy.init(args=args)
-    ctx = rclpy.get_default_context()
-    try:
-        node = AgentNode()
-    except ParameterError as err:
-        rclpy.logging.get_logger('swarm_agent').error(str(err))
-        rclpy.try_shutdown()
-        return 2
-    ex = make_executor(ctx)
-    ex.add_node(node)
-    spin_until(ex, ctx, lambda: False)
-    node.destroy_node()
-    rclpy.try_shutdown()
-    return 0
+    return run_node(AgentNode, 'swarm_agent', argv)
 
 
 if __name__ == '__main__':

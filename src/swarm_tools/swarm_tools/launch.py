@@ -27,6 +27,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -169,6 +170,28 @@ class Supervisor:
                 pass
 
 
+#: wall seconds to wait for the recorder's subscriptions before the nodes start
+RECORDER_READY_TIMEOUT = 30.0
+
+
+def wait_until_ready(proc, marker: str, timeout: float) -> bool:
+    """Forward ``proc``'s stderr lines to ours (on a thread, for its whole life) and wait until
+    one contains ``marker`` (the recorder has subscribed to the swarm's topics, so nothing
+    published from step 0 on is missed); False on timeout or if ``proc`` ends first."""
+    seen = threading.Event()
+
+    def pump():
+        for line in proc.stderr:
+            sys.stderr.write(line)
+            sys.stderr.flush()
+            if marker in line:
+                seen.set()
+        seen.set()
+
+    threading.Thread(target=pump, daemon=True).start()
+    return seen.wait(timeout) and proc.poll() is None
+
+
 def _exe(name):
     here = Path(sys.executable).parent
     cand = here / name
@@ -205,7 +228,11 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
     code = 1
     try:
         if record:
-            sup.start('record', [_exe('swarm'), 'record', '--out', str(record)], env)
+            rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record)], env,
+                            stderr=subprocess.PIPE, text=True, bufsize=1)
+            if not wait_until_ready(rec, 'swarm record: ready', RECORDER_READY_TIMEOUT):
+                print(f'swarm run: the recorder did not say it was ready within '
+                      f'{RECORDER_READY_TIMEOUT:g} s; starting the run anyway', file=sys.stderr, flush=True)
         world = sup.start('world', [_exe('swarm_world')] + ros + ['-r', '__node:=world'], env)
         sup.start('commander', [_exe('homotopy_commander')] + ros + ['-r', '__node:=commander'], env)
         for nm in names:

@@ -1,8 +1,9 @@
 """``swarm report BAG.mcap``: metrics and figures from a recorded run, from the bag alone.
 
 The trajectory is rebuilt from ``/swarm/states`` (``nav_msgs/Odometry``: ``child_frame_id`` =
-agent, stamp = sim time, pose = position + planar quaternion, ``twist.angular.z`` read as
-DESIGN.md defines it: the u applied from that state on), λ from ``/swarm/lambda`` and the
+agent, stamp = sim time, pose = position + planar quaternion, ``twist.angular.z`` = the u held
+over the step that ENDED at that stamp (see `swarm_world.protocol`), so the u applied from the
+state of t_n on is read from the state of t_(n+1); the newest state's u is not known yet (NaN)), λ from ``/swarm/lambda`` and the
 leaders from ``/swarm/leaders`` where the bag has them (each message belongs to the newest step
 whose states were received before it, and holds until the next), the target and barrier from
 ``/world/target`` / ``/world/barrier``.  Writes ``trajectory.npz`` (as `Trajectory.save`),
@@ -147,6 +148,9 @@ def rebuild_trajectory(run: dict):
         keep = np.ones(len(stamps), dtype=bool)
         keep[:-1] = stamps[1:] != stamps[:-1]       # a repeated stamp: the later one counts
         arrays[name] = (stamps[keep], logs[keep], vals[keep])
+    # twist.angular.z of an agent's state is the u it held over the step that ended there:
+    # the u applied from one of its states on is the next state's; the newest is unknown
+    u_from = {name: np.append(v[2][1:, 4], np.nan) for name, v in arrays.items()}
     all_stamps = np.unique(np.concatenate([v[0] for v in arrays.values()]))
     gone, frozen = {}, {}
     for ev in run.get('events', ()):
@@ -179,7 +183,7 @@ def rebuild_trajectory(run: dict):
         rows = vals[idx]
         r[:, k, 0], r[:, k, 1] = rows[:, 0], rows[:, 1]
         theta[:, k] = yaw_from_quaternion(rows[:, 2], rows[:, 3])
-        u[:, k] = rows[:, 4]
+        u[:, k] = u_from[name][idx]
         log_first = np.minimum(log_first, logs[idx])
         if name in gone:
             dead = grid >= gone[name]

@@ -97,3 +97,27 @@ def spin_until(executor, context, done, timeout=0.1):
 def steady_clock():
     from rclpy.clock import Clock, ClockType
     return Clock(clock_type=ClockType.STEADY_TIME)
+
+
+def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None) -> int:
+    """The ``main()`` of a node executable: init rclpy from ``argv``, build ``node_class()``
+    (a bad parameter -> one error line, exit 2), spin until ``done(node)`` or shutdown
+    (Ctrl-C), clean up; returns ``exit_code(node)`` (default 0)."""
+    import sys
+
+    import rclpy
+    rclpy.init(args=sys.argv if argv is None else argv)
+    ctx = rclpy.get_default_context()
+    try:
+        node = node_class()
+    except ParameterError as err:
+        rclpy.logging.get_logger(logger_name).error(str(err))
+        rclpy.try_shutdown()
+        return 2
+    ex = make_executor(ctx)
+    ex.add_node(node)
+    spin_until(ex, ctx, (lambda: done(node)) if done is not None else (lambda: False))
+    code = exit_code(node) if exit_code is not None else 0
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return code

@@ -27,7 +27,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import rclpy
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, Point32, PointStamped, PolygonStamped
@@ -46,7 +45,7 @@ from swarm_core.scenario import ScenarioError, load
 
 from . import protocol as P
 from .checks import check_state
-from .rosutil import ParameterError, RejectLog, declare, make_executor, spin_until, steady_clock
+from .rosutil import ParameterError, RejectLog, declare, run_node, steady_clock
 
 
 def parse_point(text):
@@ -341,6 +340,7 @@ class WorldNode(Node):
             return
         for ev in self.faults.apply(k, self.slots):
             i = self.row.get(ev['agent'])
+            self.emit(ev)                   # first: the launcher reads it when the agent dies
             if ev['kind'] == 'kill':
                 self.signal_agent(i, signal.SIGKILL)
                 self.stop_pending.discard(i)
@@ -365,7 +365,6 @@ class WorldNode(Node):
                     self.have[i] = True
                 else:
                     self.want[i] = k0
-            self.emit(ev)
 
     def emit(self, ev):
         ev = dict(ev, node='world')
@@ -560,10 +559,10 @@ class WorldNode(Node):
             self.rt_fault_step += 1
             for ev in self.faults.apply(self.rt_fault_step, {}):
                 i = self.row.get(ev['agent'])
+                self.emit(ev)
                 sig = {'kill': signal.SIGKILL, 'freeze': signal.SIGSTOP, 'resume': signal.SIGCONT}.get(ev['kind'])
                 if sig is not None:
                     self.signal_agent(i, sig)
-                self.emit(ev)
 
     def observe_rt(self, k, pos, theta):
         t = k * self.dt
@@ -669,23 +668,9 @@ class WorldNode(Node):
 
 
 def main(argv=None):
-    args = sys.argv if argv is None else argv
-    rclpy.init(args=args)
-    ctx = rclpy.get_default_context()
-    try:
-        node = WorldNode()
-    except ParameterError as err:
-        rclpy.logging.get_logger('swarm_world').error(str(err))
-        rclpy.try_shutdown()
-        return 2
-    ex = make_executor(ctx)
-    ex.add_node(node)
-    spin_until(ex, ctx, lambda: node.done)
-    code = 0 if (node.done and node.failed is None) else (1 if node.failed else 130)
-    # let the last messages go out before leaving
-    node.destroy_node()
-    rclpy.try_shutdown()
-    return code
+    return run_node(WorldNode, 'swarm_world', argv, done=lambda node: node.done,
+                    exit_code=lambda node: 0 if (node.done and node.failed is None)
+                    else (1 if node.failed else 130))
 
 
 if __name__ == '__main__':
