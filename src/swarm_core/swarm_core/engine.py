@@ -6,7 +6,7 @@ law gives u_k; the integrator advances every agent; noise is added per agent fro
 seeded stream (as each agent node does).
 
 Faults, failover and reunion (swarm_core.faults) are confined to `inputs` (the fault
-timeline and the plan's failover), `_table` (only agents heard this step are in the table;
+timeline and the plan's failover), `control` (only agents heard this step are in the table;
 a rendezvous adds the target term) and `advance` (agents not heard do not move or draw
 noise).  ``simulate`` records NaN for dead agents and the events in ``meta['events']``.
 """
@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .faults import event_names, reunion_law  # noqa: F401  (event_names: for the nodes)
+from .faults import event_names, reunion_law
 from .integrate import rk4_step, zoh_step
 from .laws import DENSE_LIMIT, sparse_coupling, swarm_control
 from .model import heading_frame
