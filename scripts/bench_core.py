@@ -2,29 +2,37 @@
 """Benchmark of the batch engine (no ROS): steps/s against swarm size, and the wall time of
 the paper's homotopy_global run to t = 1000.
 
-    .venv/bin/python scripts/bench_core.py [--quick] [--out bench/core]
+    .venv/bin/python scripts/bench_core.py [--quick] [--out bench/core] [--compare REV]
 
-Writes bench/core.json and bench/core.png (steps/s vs n, log-log) and prints a Markdown table.
-Timings are medians of repeated runs on whatever else the machine is doing: compare ratios
-measured in the same run, not absolute numbers across machines.
+Writes bench/core.json and bench/core.png (steps/s vs n, log-log) and prints Markdown tables.
+Every measurement runs in a fresh worker process.  With ``--compare REV`` (a git revision,
+e.g. a commit before a change) the same measurements also run on REV's swarm_core
+(extracted with ``git archive`` into a temporary directory), alternating REV and this
+checkout measurement by measurement, so both see the same machine load: compare the ratio,
+not absolute numbers across runs.  Each number is the median of ``--repeats`` runs; the
+process CPU time is reported beside the wall time (on a shared machine CPU time is the less
+load-dependent of the two).  The load average is recorded at the start and at the end.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import math
+import os
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+ROOT = Path(__file__).resolve().parents[1]
 
-from swarm_core import engine, scenario
 
+# ------------------------------------------------------------------ worker (one measurement)
 
 def swarm(n, kind, spacing=1.5, seed=0):
     """n agents on a square grid at the paper's spacing, random headings in a 90° cone."""
+    from swarm_core import scenario
     data = dict(name=f'bench_{kind}_{n}', seed=seed, dt=0.05, duration=1.0,
                 agents=dict(count=n, positions={'rule': 'grid', 'spacing': spacing},
                             headings={'rule': 'cone'}),
@@ -37,76 +45,187 @@ def swarm(n, kind, spacing=1.5, seed=0):
 
 
 def steps_per_second(n, kind, min_seconds=1.0):
+    """(steps/s by wall time, steps/s by process CPU time, pair search) of a SwarmStepper."""
+    from swarm_core import engine
     stepper = engine.SwarmStepper(swarm(n, kind))
-    stepper.step()                                   # warm-up (caches, pair tables)
-    steps, t0 = 0, time.perf_counter()
+    stepper.step()                                   # warm-up (caches, scratch arrays)
+    steps, t0, c0 = 0, time.perf_counter(), time.process_time()
     while True:
         stepper.step()
         steps += 1
         el = time.perf_counter() - t0
         if el >= min_seconds and steps >= 3:
-            return steps / el, stepper.neighbour_search
+            cpu = time.process_time() - c0
+            search = 'kdtree' if stepper._pairs(stepper.pos, stepper.plan.schedule.value(0.0)) is not None else 'all pairs'
+            return steps / el, steps / max(cpu, 1e-9), search
 
 
-def full_run(name, dt, repeats):
-    times = []
-    for _ in range(repeats):
-        scn = scenario.load(name, dt=dt)
-        t0 = time.perf_counter()
-        engine.simulate(scn)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), times
+def full_run(name, dt):
+    """(wall s, CPU s) of one simulate() of a shipped scenario to its duration at dt."""
+    from swarm_core import engine, scenario
+    scn = scenario.load(name, dt=dt)
+    t0, c0 = time.perf_counter(), time.process_time()
+    engine.simulate(scn)
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
+def worker(spec):
+    import swarm_core
+    if spec['what'] == 'sps':
+        wall, cpu, search = steps_per_second(spec['n'], spec['kind'], spec['min_seconds'])
+        out = dict(wall=wall, cpu=cpu, search=search)
+    else:
+        wall, cpu = full_run(spec['name'], spec['dt'])
+        out = dict(wall=wall, cpu=cpu)
+    out['module'] = swarm_core.__file__
+    print(json.dumps(out))
+
+
+# ------------------------------------------------------------------ driver
+
+def run_worker(spec, src=None):
+    env = dict(os.environ)
+    if src is not None:            # a baseline swarm_core first on the path
+        env['PYTHONPATH'] = src + os.pathsep + env.get('PYTHONPATH', '')
+    r = subprocess.run([sys.executable, __file__, '--worker', json.dumps(spec)], env=env,
+                       capture_output=True, text=True, check=True)
+    out = json.loads(r.stdout.strip().splitlines()[-1])
+    if src is not None and not out['module'].startswith(src):
+        raise SystemExit(f'baseline not imported: got {out["module"]}')
+    return out
+
+
+def extract(rev, into):
+    """swarm_core of git revision ``rev`` into directory ``into``; returns its import root."""
+    r = subprocess.run(['git', '-C', str(ROOT), 'archive', rev, 'src/swarm_core'], capture_output=True)
+    if r.returncode:
+        raise SystemExit(f'bench_core: cannot read src/swarm_core at {rev!r}: '
+                         f'{r.stderr.decode(errors="replace").strip()}')
+    tar = r.stdout
+    subprocess.run(['tar', '-x', '-C', into], input=tar, check=True)
+    return str(Path(into) / 'src' / 'swarm_core')
+
+
+def loadavg():
+    try:
+        return os.getloadavg()
+    except OSError:
+        return None
 
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('--quick', action='store_true', help='fewer sizes, shorter timings')
     p.add_argument('--out', default='bench/core', help='output path stem (default bench/core)')
+    p.add_argument('--compare', metavar='REV', help='also measure git revision REV, side by side')
+    p.add_argument('--repeats', type=int, default=None, help='runs per measurement (median; default 3, quick 1)')
+    p.add_argument('--worker', help=argparse.SUPPRESS)
     a = p.parse_args(argv)
+    if a.worker:
+        worker(json.loads(a.worker))
+        return 0
     sizes = {'global': [6, 24, 100, 300, 1000, 2000, 4000],
              'local': [6, 100, 1000, 3000, 10000, 30000]}
     if a.quick:
         sizes = {'global': [6, 100, 1000, 2000], 'local': [100, 1000, 10000]}
+    repeats = a.repeats or (1 if a.quick else 3)
     min_s = 0.5 if a.quick else 1.5
-    res = {'steps_per_second': {}, 'full_runs': {}}
-    for kind, ns in sizes.items():
-        res['steps_per_second'][kind] = []
-        for n in ns:
-            sps, search = steps_per_second(n, kind, min_s)
-            res['steps_per_second'][kind].append(dict(n=n, steps_per_second=sps, search=search))
-            print(f'{kind:6s} n={n:6d}: {sps:10.1f} steps/s ({search})', file=sys.stderr)
-    for dt in (0.05, 0.1):
-        med, times = full_run('homotopy_global', dt, 3 if not a.quick else 1)
-        res['full_runs'][f'homotopy_global dt={dt}'] = dict(median_seconds=med, runs=times,
-                                                             steps=int(round(1000 / dt)))
-        print(f'homotopy_global to t=1000 at dt={dt}: {med:.2f} s (median of {len(times)})', file=sys.stderr)
+    specs = [dict(what='sps', kind=kind, n=n, min_seconds=min_s) for kind, ns in sizes.items() for n in ns]
+    specs += [dict(what='run', name='homotopy_global', dt=dt) for dt in (0.05, 0.1)]
+    res = dict(command='scripts/bench_core.py ' + ' '.join(sys.argv[1:] if argv is None else argv),
+               load_before=loadavg(), cpus=os.cpu_count(), repeats=repeats, compare=a.compare,
+               current={}, baseline={})
+    with tempfile.TemporaryDirectory() as tmp:
+        base_src = extract(a.compare, tmp) if a.compare else None
+        try:
+            for spec in specs:
+                key = f'{spec["kind"]} n={spec["n"]}' if spec['what'] == 'sps' else f'{spec["name"]} dt={spec["dt"]}'
+                runs = {'current': [], 'baseline': []}
+                for _ in range(repeats):
+                    if base_src:
+                        runs['baseline'].append(run_worker(spec, base_src))
+                    runs['current'].append(run_worker(spec))
+                for side, rr in runs.items():
+                    if not rr:
+                        continue
+                    row = dict(spec, wall=statistics.median(r['wall'] for r in rr),
+                               cpu=statistics.median(r['cpu'] for r in rr), runs=rr)
+                    if 'search' in rr[0]:
+                        row['search'] = rr[0]['search']
+                    res[side][key] = row
+                unit = 'steps/s' if spec['what'] == 'sps' else 's'
+                line = f'{key:28s} current {res["current"][key]["wall"]:9.2f} {unit} (cpu {res["current"][key]["cpu"]:.2f})'
+                if base_src:
+                    line += f'   baseline {res["baseline"][key]["wall"]:9.2f} (cpu {res["baseline"][key]["cpu"]:.2f})'
+                print(line, file=sys.stderr, flush=True)
+        except KeyboardInterrupt:
+            print('interrupted: writing what was measured', file=sys.stderr)
+    res['load_after'] = loadavg()
 
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix('.json').write_text(json.dumps(res, indent=1))
+    plot(res, out.with_suffix('.png'))
+    print(table(res))
+    return 0
+
+
+def table(res):
+    cmp_ = bool(res['baseline'])
+    lines = [f'load average (1, 5, 15 min): before {fmt_load(res["load_before"])}, after {fmt_load(res["load_after"])}; '
+             f'{res["cpus"]} CPUs; median of {res["repeats"]} run(s)', '']
+    head = '| law | n | pair search | steps/s | steps/s per CPU s |'
+    if cmp_:
+        head += f' before ({res["compare"]}) steps/s | before, per CPU s | speed-up (wall) |'
+    lines += [head, '|' + '---|' * (head.count('|') - 1)]
+    for key, row in res['current'].items():
+        if row['what'] != 'sps':
+            continue
+        line = f'| {row["kind"]} | {row["n"]} | {row.get("search", "")} | {row["wall"]:.1f} | {row["cpu"]:.1f} |'
+        if cmp_ and key in res['baseline']:
+            b = res['baseline'][key]
+            line += f' {b["wall"]:.1f} | {b["cpu"]:.1f} | {row["wall"] / b["wall"]:.1f}× |'
+        lines.append(line)
+    head = '| run | steps | wall (s) | CPU (s) |'
+    if cmp_:
+        head += ' before: wall (s) | before: CPU (s) |'
+    lines += ['', head, '|' + '---|' * (head.count('|') - 1)]
+    for key, row in res['current'].items():
+        if row['what'] != 'run':
+            continue
+        line = f'| {key} to t = 1000 | {int(round(1000 / row["dt"]))} | {row["wall"]:.2f} | {row["cpu"]:.2f} |'
+        if cmp_ and key in res['baseline']:
+            b = res['baseline'][key]
+            line += f' {b["wall"]:.2f} | {b["cpu"]:.2f} |'
+        lines.append(line)
+    return '\n'.join(lines)
+
+
+def fmt_load(la):
+    return 'n/a' if la is None else ', '.join(f'{x:.1f}' for x in la)
+
+
+def plot(res, path):
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
-    for kind, rows in res['steps_per_second'].items():
-        label = 'global law (all pairs)' if kind == 'global' else 'local law, λ = 1 (KD-tree within w)'
-        ax.loglog([r['n'] for r in rows], [r['steps_per_second'] for r in rows], 'o-', label=label)
+    labels = {'global': 'global law (all pairs)', 'local': 'local law, λ = 1 (KD-tree within w)'}
+    for side, style in (('current', 'o-'), ('baseline', 'o--')):
+        for i, kind in enumerate(('global', 'local')):
+            rows = [r for r in res[side].values() if r['what'] == 'sps' and r['kind'] == kind]
+            if not rows:
+                continue
+            label = labels[kind] + ('' if side == 'current' else f' — before ({res["compare"]})')
+            ax.loglog([r['n'] for r in rows], [r['wall'] for r in rows], style, color=f'C{i}',
+                      alpha=1.0 if side == 'current' else 0.5, label=label)
     ax.axhline(10, color='k', ls=':', lw=1, label='10 steps/s')
     ax.set_xlabel('agents n')
-    ax.set_ylabel('steps per second')
-    ax.set_title('batch engine throughput (one core)')
+    ax.set_ylabel('steps per second (wall)')
+    ax.set_title(f'batch engine throughput (one process; load average {fmt_load(res["load_before"])})', fontsize=9)
     ax.grid(True, which='both', alpha=0.3)
-    ax.legend()
-    fig.savefig(out.with_suffix('.png'), dpi=110)
-
-    print('| law | n | steps/s | pair search |\n|---|---|---|---|')
-    for kind, rows in res['steps_per_second'].items():
-        for r in rows:
-            print(f'| {kind} | {r["n"]} | {r["steps_per_second"]:.1f} | {r["search"]} |')
-    print('\n| run | median wall (s) | steps |\n|---|---|---|')
-    for k, v in res['full_runs'].items():
-        print(f'| {k} | {v["median_seconds"]:.2f} | {v["steps"]} |')
-    return 0
+    ax.legend(fontsize=8)
+    fig.savefig(path, dpi=110)
 
 
 if __name__ == '__main__':

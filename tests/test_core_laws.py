@@ -191,6 +191,49 @@ def test_one_agent_view_equals_batch_bit_for_bit():
         assert one[0] == batch[k]
 
 
+@pytest.mark.parametrize('kind,lam,q0', [('global', 0.0, 1.0), ('homotopy', 0.0, 1.0), ('homotopy', 0.4, 1.0),
+                                        ('homotopy', 1.0, 0.0), ('local', 0.0, 0.0), ('target', 0.0, 0.0)])
+def test_one_agent_view_equals_batch_with_many_row_blocks(kind, lam, q0):
+    """The dense path works in blocks of rows (`laws.DENSE_BLOCK`): a swarm large enough for
+    several blocks (and a partial last one) still gives every agent its batch u bit for bit,
+    also for an agent whose row holds a coincident neighbour (redone with explicit masks)."""
+    rng = np.random.default_rng(5)
+    n = 300
+    assert laws.DENSE_BLOCK // n < n and n % (laws.DENSE_BLOCK // n) != 0
+    pos = rng.uniform(-20, 20, (n, 2))
+    pos[17] = pos[40]                                   # two coincident agents
+    c, s = heading_frame(rng.uniform(-3, 3, n))
+    leaders = np.zeros(n, bool)
+    leaders[[3, 150]] = True
+    steer = np.where(leaders, 0.01, 0.0)
+    law = LawConfig(kind=kind, q0=q0, leader_gain=20.0)
+    kw = dict(lambda_=lam, is_leader=leaders)
+    batch = swarm_control(pos, c, s, np.arange(n), law, steering=steer, **kw)
+    assert np.all(np.isfinite(batch))
+    for k in (0, 3, 17, 40, 150, 299):
+        one = swarm_control(pos, c, s, np.array([k]), law, steering=steer[[k]], **kw)
+        assert one[0] == batch[k], k
+
+
+@pytest.mark.parametrize('kind', laws.LAW_KINDS)
+def test_coincident_agents_equal_pair_loop(kind):
+    """Agents at the same point contribute exactly nothing to each other (the loop skips them)."""
+    rng = np.random.default_rng(8)
+    n = 9
+    pos = rng.uniform(-4, 4, (n, 2))
+    pos[2] = pos[6]
+    pos[7] = pos[6]
+    th = rng.uniform(-math.pi, math.pi, n)
+    leaders = np.zeros(n, bool)
+    leaders[[1, 6]] = True
+    law = LawConfig(kind=kind, q0=0.05, leader_gain=15.0)
+    steering = np.full(n, 0.01)
+    c, s = heading_frame(th)
+    u = swarm_control(pos, c, s, np.arange(n), law, lambda_=0.6, is_leader=leaders, steering=steering)
+    ref = _law_loop(pos, th, law, 0.6, leaders, steering, None, None)
+    np.testing.assert_allclose(u, ref, rtol=0, atol=1e-12)
+
+
 def test_homotopy_limits():
     rng = np.random.default_rng(11)
     n = 8
@@ -245,3 +288,28 @@ def test_barrier_term_turns_away_only_while_ahead():
     assert laws.barrier_term(pos, c, s, behind_left, literal)[0] > 0   # the literal reading turns back
     far = np.array([[10.0, 0.0]])
     assert laws.barrier_term(pos, c, s, far, law)[0] == 0.0      # not sensed beyond w
+
+
+@pytest.mark.parametrize('kind,lam', [('local', 0.0), ('homotopy', 0.7), ('leader_following', 1.0), ('target', 0.0)])
+def test_neighbour_list_equals_whole_table_with_coincident_agents(kind, lam):
+    """The pair-list path (KD-tree neighbours within w, summed with np.bincount) gives the
+    dense result, coincident agents included, and one agent with its own list gets its batch
+    value bit for bit."""
+    from swarm_core.engine import neighbour_pairs
+    rng = np.random.default_rng(9)
+    n = 200
+    pos = rng.uniform(-15, 15, (n, 2))
+    pos[11] = pos[12]
+    c, s = heading_frame(rng.uniform(-3, 3, n))
+    leaders = np.zeros(n, bool)
+    leaders[[0, 12]] = True
+    law = LawConfig(kind=kind, q0=0.0, leader_gain=20.0)
+    kw = dict(lambda_=lam, is_leader=leaders, steering=np.full(n, 0.01))
+    pairs = neighbour_pairs(pos, law.cutoff_radius)
+    sparse = swarm_control(pos, c, s, np.arange(n), law, pairs=pairs, **kw)
+    dense = swarm_control(pos, c, s, np.arange(n), law, **kw)
+    np.testing.assert_allclose(sparse, dense, rtol=0, atol=1e-14)
+    for k in (0, 11, 12, 150):
+        kw1 = dict(kw, steering=kw['steering'][[k]])
+        one = swarm_control(pos, c, s, np.array([k]), law, pairs=laws.own_neighbour_pairs(pos, k, law.cutoff_radius), **kw1)
+        assert one[0] == sparse[k]

@@ -8,9 +8,19 @@ Realtime: a timer at the control rate (1/dt in sim time) uses the newest states 
 ``/swarm/lambda``, ``/swarm/leaders``, its ``steering`` topic, ``/world/target`` and
 ``/world/barrier``.
 Bad inputs are rejected with one log line naming them; no NaN ever enters the state.
+
+Communication model (parameter ``comms``: the scenario's ``comms`` section as JSON, '' = a
+perfect radio; see swarm_core.comms): the agent applies it on its receive side.  Lockstep: from
+each step's table it keeps only what its radio delivers (`AgentCore.comms_control`; equal to
+the batch engine bit for bit).  Realtime: each incoming state is lost or delayed by the same
+seeded fate function (keyed by the state's step), kept in flight until its delivery time, and
+the control uses the newest delivered state of each neighbour dead-reckoned to now, leaving
+out neighbours silent for longer than the timeout.  Runtime changes (``swarm drop``,
+``swarm partition``) arrive on ``/swarm/events`` and switch the radio path on if it was off.
 """
 from __future__ import annotations
 
+import json
 import math
 import sys
 
@@ -20,6 +30,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray, String
 
+from swarm_core.comms import CommModel, StreamRadio, change_from_event
 from swarm_core.laws import BARRIER_MODES, LAW_KINDS, LawConfig
 from swarm_core.model import PairGains
 from swarm_world import protocol as P
@@ -65,6 +76,7 @@ class AgentNode(Node):
         seed = d('seed', 0, 'scenario seed (noise stream)', lo=0, hi=2**31 - 1)
         self.stale_after = d('stale_after', 2.0, 'realtime: ignore neighbour states older than this (sim s)',
                              lo=0.0, hi=1e9)
+        comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect)")
         if self.roster == ['']:
             self.roster = [self.agent_name]
         if len(set(self.roster)) != len(self.roster):
@@ -80,6 +92,18 @@ class AgentNode(Node):
         rng = np.random.default_rng([seed, 7919, self.index])
         self.core = AgentCore(self.index, self.n, x, y, theta, self.law, self.dt, noise, rng)
         self.reject = RejectLog(self.get_logger())
+        try:
+            cfg = json.loads(comms) if comms.strip() else None
+            if cfg is not None and not isinstance(cfg, dict):
+                raise ValueError('not a JSON object')
+            self.radio = CommModel.from_config(cfg, self.roster, self.dt, seed)
+        except (ValueError, TypeError, KeyError) as err:
+            raise ParameterError(f'parameter comms: {err}') from None
+        self.radio_on = not self.radio.perfect
+        if self.radio_on:
+            self.core.attach_comms(self.radio)
+        self.heard = {}          # realtime radio: name -> newest state heard (before the radio)
+        self.stream = StreamRadio(self.radio, self.index)
 
         # live inputs (realtime; kept in lockstep for inspection)
         self.lam = 0.0
@@ -99,6 +123,7 @@ class AgentNode(Node):
         self.create_subscription(String, P.LEADERS, self._on_leaders, P.qos_latched())
         self.create_subscription(PointStamped, P.TARGET, self._on_target, P.qos_latched())
         self.create_subscription(PolygonStamped, P.BARRIER, self._on_barrier, P.qos_latched())
+        self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
         self.odom = Odometry()
         self.odom.header.frame_id = 'world'
         self.odom.child_frame_id = self.agent_name
@@ -155,8 +180,12 @@ class AgentNode(Node):
             return
         self.lam = s.lam
         self.silent = False
-        u = self.core.control(s.x, s.y, s.qz, s.qw, s.lam, s.flags, s.steering[self.index],
-                              s.target, s.barrier, alive=s.alive, rendezvous=s.rendezvous)
+        if self.radio_on:
+            u = self.core.comms_control(s.n, s.x, s.y, s.qz, s.qw, s.u, s.lam, s.flags,
+                                        s.steering[self.index], s.target, s.barrier)
+        else:
+            u = self.core.control(s.x, s.y, s.qz, s.qw, s.lam, s.flags, s.steering[self.index],
+                                  s.target, s.barrier, alive=s.alive, rendezvous=s.rendezvous)
         if not math.isfinite(u):
             self.reject('u-nan', f'non-finite control u={u} at step {s.n}; holding u=0')
             u = 0.0
@@ -202,6 +231,43 @@ class AgentNode(Node):
             return
         self.barrier = np.array(pts, float) if pts else None
 
+    # ------------------------------------------------------------ radio (communication model)
+    def _on_event(self, msg):
+        """Runtime radio changes from /swarm/events (see swarm_world.protocol)."""
+        try:
+            change = change_from_event(json.loads(msg.data))
+        except (ValueError, TypeError) as err:
+            self.reject(('event', str(err)[:60]), f'{P.EVENTS} event {msg.data[:80]!r}: {err}')
+            return
+        if change is None:
+            return                    # faults, or scheduled in the scenario (applied from our copy)
+        step = self.step if self.mode == 'lockstep' else P.step_of(self._now(), self.dt)
+        try:
+            self.radio.apply(change, step)
+        except ValueError as err:     # e.g. an unknown agent in a partition
+            self.reject(('event', str(err)[:60]), f'{P.EVENTS} event: {err}')
+            return
+        if not self.radio_on:
+            self.radio_on = True
+            if self.mode == 'lockstep':
+                self.core.attach_comms(self.radio)
+        self.get_logger().info(f'radio: {json.dumps(change)} from step {step}')
+
+    def _now(self):
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    @property
+    def radio_count(self):
+        """{sender name: [heard, delivered]} of the realtime radio."""
+        r = self.stream
+        return {nm: [int(r.heard[j]), int(r.delivered[j])] for j, nm in enumerate(self.roster) if j != self.index}
+
+    def radio_table(self, now):
+        """Like `table`, from what the radio delivered (`comms.StreamRadio`)."""
+        rows, states = self.stream.table(now, (self.core.pos[0, 0], self.core.pos[0, 1], *self.core.quaternion))
+        flags = np.array([self.roster[j] in self.leaders for j in rows])
+        return int(np.searchsorted(rows, self.index)), states, flags
+
     def _on_state(self, msg):
         name = msg.child_frame_id
         if name == self.agent_name:
@@ -211,21 +277,26 @@ class AgentNode(Node):
                     and msg.header.stamp == self.odom.header.stamp:
                 self.reject(('dup', name), f'state claiming to be {name!r} (this agent): duplicate agent name')
             return
-        reason = check_state(msg, self.row, self.neigh)
+        reason = check_state(msg, self.row, self.heard if self.radio_on else self.neigh)
         if reason is not None:
             if reason != 'repeat':
                 self.reject((name, reason.split(':')[0]), reason)
             return
         p = msg.pose.pose
-        self.neigh[name] = (P.stamp_to_time(msg.header.stamp), p.position.x, p.position.y,
-                            p.orientation.z, p.orientation.w)
+        vals = (P.stamp_to_time(msg.header.stamp), p.position.x, p.position.y,
+                p.orientation.z, p.orientation.w, msg.twist.twist.angular.z)
+        if self.radio_on:
+            self.heard[name] = vals
+            self.stream.hear(self.row[name], vals, self.core.pos[0])
+        else:
+            self.neigh[name] = vals
 
     # ------------------------------------------------------------ realtime control
     def table(self, now):
         """(x, y, qz, qw, flags) over the agents known at time ``now`` plus self; own row."""
         names = [nm for nm in self.roster if nm == self.agent_name or
                  (nm in self.neigh and now - self.neigh[nm][0] <= self.stale_after)]
-        rows = np.array([self.neigh[nm][1:] if nm != self.agent_name else
+        rows = np.array([self.neigh[nm][1:5] if nm != self.agent_name else
                          (self.core.pos[0, 0], self.core.pos[0, 1], *self.core.quaternion) for nm in names])
         flags = np.array([nm in self.leaders for nm in names])
         return names.index(self.agent_name), rows, flags
@@ -236,7 +307,10 @@ class AgentNode(Node):
             self._last_tick = now
             return
         self._last_tick = now
-        own, rows, flags = self.table(now)
+        if self.radio_on:
+            own, rows, flags = self.radio_table(now)
+        else:
+            own, rows, flags = self.table(now)
         saved = self.core.index
         self.core.index = own
         try:

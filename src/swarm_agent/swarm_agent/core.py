@@ -14,6 +14,11 @@ order, and a rendezvous (reunion) switches the target term on, as in the batch e
 
 Because `swarm_control` sums pairs in table order with `np.bincount` and every other
 operation is elementwise, the agent's u equals the batch engine's bit for bit.
+
+With a communication model (`attach_comms`), `comms_control` first lets the agent's radio
+decide which states of the step's table it receives (`swarm_core.comms`, the same pure fate
+function the batch engine uses for every link), folds them into its beliefs and computes u on
+its belief table (`comms.belief_control`): again bit for bit the batch engine's u.
 """
 from __future__ import annotations
 
@@ -21,6 +26,7 @@ import math
 import numpy as np
 
 from swarm_core.faults import reunion_law
+from swarm_core.comms import Beliefs, CommModel, belief_control
 from swarm_core.integrate import zoh_step
 from swarm_core.laws import LawConfig, swarm_control
 from swarm_core.model import frame_from_quaternion, quaternion_from_heading
@@ -39,6 +45,25 @@ class AgentCore:
         self.noisy = bool(np.any(self.noise_scale > 0))
         self.rng = noise_rng
         self.u_last = 0.0
+        self.comms = None
+        self.beliefs = None
+
+    def attach_comms(self, model: CommModel):
+        """Receive through ``model`` from now on (lockstep: `comms_control`)."""
+        self.comms = model
+        self.beliefs = Beliefs([self.index], self.n)
+
+    def comms_control(self, step, x, y, qz, qw, u_sent, lam, is_leader, steering_own,
+                      target=None, barrier=None):
+        """u of this agent at ``step`` from what its radio delivers of the step's table
+        (x, y, qz, qw, u_sent: arrays of length N, the states of t_step as sent)."""
+        k = self.index
+        xy = np.stack([np.asarray(x, float), np.asarray(y, float)], axis=1)
+        arrival = self.comms.decide(step, [k], xy[k:k + 1], np.arange(self.n), xy)
+        self.beliefs.receive(step, arrival, xy[:, 0], xy[:, 1], np.asarray(qz, float), np.asarray(qw, float),
+                             np.asarray(u_sent, float))
+        return belief_control(self.law, self.beliefs, 0, step, self.comms, self.pos[0], self.theta[0], lam,
+                              is_leader, steering_own, target, barrier)
 
     # -- what the agent publishes
     @property

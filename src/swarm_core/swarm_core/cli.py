@@ -19,6 +19,8 @@ ROS_VERBS = {
     'play': ('swarm_tools.play:main', 'republish an MCAP bag with its /clock'),
     'kill': ('swarm_world.fault_cli:kill_main', 'kill an agent of a running swarm (fault injection)'),
     'pause': ('swarm_world.fault_cli:pause_main', 'freeze an agent of a running swarm for some seconds'),
+    'drop': ('swarm_world.comms_cli:drop_main', 'burst packet loss in a running swarm'),
+    'partition': ('swarm_world.comms_cli:partition_main', 'partition a running swarm into groups that cannot hear each other'),
 }
 CORE_VERBS = {
     'simulate': ('swarm_core.simulate_cli:simulate_main', 'run a scenario in the batch engine (no ROS)'),

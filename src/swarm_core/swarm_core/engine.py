@@ -22,7 +22,8 @@ from scipy.spatial import cKDTree
 from .faults import event_names, reunion_law
 from .integrate import rk4_step, zoh_step
 from .laws import DENSE_LIMIT, sparse_coupling, swarm_control
-from .model import heading_frame
+from .comms import Beliefs, belief_control, delay_stats
+from .model import heading_frame, quaternion_from_heading
 from .scenario import Scenario
 
 
@@ -56,15 +57,21 @@ class Trajectory:
 def neighbour_pairs(pos, radius):
     """(k, j) pairs with |r_k − r_j| ≤ radius, both directions, sorted by (k, j): a KD-tree
     neighbour search (not all pairs), for laws that couple only within w."""
-    tree = cKDTree(pos)
-    ij = tree.query_pairs(radius, output_type='ndarray')
+    n = len(pos)
+    ij = cKDTree(pos).query_pairs(radius, output_type='ndarray')
     if ij.size == 0:
         empty = np.zeros(0, dtype=np.intp)
         return empty, empty
-    k = np.concatenate([ij[:, 0], ij[:, 1]]).astype(np.intp)
-    j = np.concatenate([ij[:, 1], ij[:, 0]]).astype(np.intp)
-    order = np.lexsort((j, k))
-    return k[order], j[order]
+    # one sort of the keys k·n + j (both directions) orders the pairs by (k, j)
+    ij = ij.astype(np.intp, copy=False)
+    key = np.empty(2 * len(ij), dtype=np.intp)
+    np.multiply(ij[:, 0], n, out=key[:len(ij)])
+    key[:len(ij)] += ij[:, 1]
+    np.multiply(ij[:, 1], n, out=key[len(ij):])
+    key[len(ij):] += ij[:, 0]
+    key.sort()
+    k = key // n
+    return k, key - k * n
 
 
 class SwarmStepper:
@@ -95,6 +102,7 @@ class SwarmStepper:
         self.step_index = 0
         self.faults = scn.fault_timeline()
         self.events = []
+        self._init_comms()
 
     def _pairs(self, pos, lam):
         """None (all pairs, dense) or the KD-tree pairs within w where only those carry weight."""
@@ -105,6 +113,8 @@ class SwarmStepper:
         return neighbour_pairs(pos, self.law.cutoff_radius)
 
     def control(self, t, pos, theta, lam, is_leader, steering, frame=None):
+        if self.comms is not None:
+            return self._comms_control(pos, theta, lam, is_leader, steering)
         cos_t, sin_t = heading_frame(theta) if frame is None else frame
         law, target = self._law_target()
         alive = self.faults.alive
@@ -162,6 +172,8 @@ class SwarmStepper:
                     steer[idx] = prog.value(tt, p[idx], float(np.arctan2(s[idx], c[idx])))
                 return self.control(tt, p, th, lam_s, is_leader, steer)
             self.pos, self.theta = rk4_step(self.pos, self.theta, t, self.dt, control)
+        if self.comms is not None:
+            self.u_prev = np.asarray(u, dtype=float).copy()
         if self.noisy:
             draws = np.stack([rng.uniform(-1.0, 1.0, size=3) if not s else np.zeros(3)
                               for rng, s in zip(self._rngs, still)])
@@ -171,6 +183,46 @@ class SwarmStepper:
         if held is not None:                 # faults: dead and frozen agents do not move
             self.pos[still], self.theta[still] = held
         self.step_index += 1
+
+    # ---------------------------------------------------------------- communication model
+    # A separate path (swarm_core.comms), taken only when the scenario's radio is not perfect:
+    # every receiver computes its u with THE law on its own belief table (a loop over
+    # receivers; the fates of all links of a step are drawn at once, vectorised).
+
+    def _init_comms(self):
+        self.comms = self.scn.comm_model()
+        if self.comms is None:
+            return
+        if self.integrator != 'zoh':
+            raise ValueError('a communication model needs the zoh integrator')
+        sp = self.scn.spec
+        if sp.faults or sp.failover or sp.reunion:
+            raise ValueError('faults, failover and reunion are not combined with a communication '
+                             'model in the batch engine (not built yet)')
+        self.beliefs = Beliefs(self.receivers, self.n)
+        self.u_prev = np.zeros(self.n)          # u held over the step that ended at t_n (sent with the state)
+        self._comms_step = -1
+
+    def _comms_control(self, pos, theta, lam, is_leader, steering):
+        n = self.step_index
+        if self._comms_step != n:               # the radio delivers once per step
+            qz, qw = quaternion_from_heading(theta)
+            arrival = self.comms.decide(n, self.receivers, pos, self.receivers, pos)
+            self.beliefs.receive(n, arrival, pos[:, 0], pos[:, 1], qz, qw, self.u_prev)
+            self._comms_step = n
+        s = np.zeros(self.n) if steering is None else np.asarray(steering, dtype=float)
+        return np.array([belief_control(self.law, self.beliefs, k, n, self.comms, pos[k], theta[k], lam,
+                                        is_leader, s[k], self.target, self.barrier)
+                         for k in range(self.n)])
+
+    def comms_stats(self) -> dict | None:
+        """What the radio did so far: messages sent/delivered (links j ≠ k), delays."""
+        if self.comms is None:
+            return None
+        b = self.beliefs
+        sent, got = int(b.sent.sum()), int(b.delivered.sum())
+        return dict(sent=sent, delivered=got, delivered_fraction=got / sent if sent else None,
+                    **delay_stats(b.delay_counts, self.dt))
 
 
 def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int = 1,
@@ -215,5 +267,7 @@ def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int 
                 integrator=stepper.integrator, steps=steps, record_every=record_every,
                 wall_seconds=time.perf_counter() - wall, neighbour_search=stepper.neighbour_search,
                 interrupted=interrupted, events=stepper.events)
+    if stepper.comms is not None:
+        meta['comms'] = stepper.comms_stats()
     return Trajectory(scn.names, t_rec[:recorded], r_rec[:recorded], th_rec[:recorded],
                       u_rec[:recorded], lam_rec[:recorded], lead_rec[:recorded], meta)

@@ -10,9 +10,10 @@ import numpy as np
 
 
 def sinc(z):
-    """sin(z)/z with sinc(0) = 1 (unnormalised)."""
+    """sin(z)/z with sinc(0) = 1 (unnormalised), as (sin z + [z = 0]) / (z + [z = 0])."""
     z = np.asarray(z, dtype=float)
-    return np.divide(np.sin(z), z, out=np.ones_like(z), where=z != 0.0)
+    zero = z == 0.0
+    return (np.sin(z) + zero) / (z + zero)
 
 
 def zoh_step(pos, theta, u, dt):
@@ -21,13 +22,16 @@ def zoh_step(pos, theta, u, dt):
     θ' = θ + u dt,  r' = r + dt sinc(u dt/2) (cos(θ + u dt/2), sin(θ + u dt/2)).
     Works for any number of agents (arrays (N, 2), (N,), (N,)); returns new (pos, theta).
     """
-    theta = np.asarray(theta, dtype=float)
-    half = 0.5 * np.asarray(u, dtype=float) * dt
+    half = np.multiply(u, 0.5 * dt)                             # u dt/2
     mid = theta + half
-    chord = dt * sinc(half)
+    chord = sinc(half)
+    chord *= dt                                                 # dt sinc(u dt/2)
+    step = np.empty((2, len(half)))
+    np.cos(mid, out=step[0])
+    np.sin(mid, out=step[1])
+    step *= chord
     new_pos = np.empty_like(pos, dtype=float)
-    new_pos[:, 0] = pos[:, 0] + chord * np.cos(mid)
-    new_pos[:, 1] = pos[:, 1] + chord * np.sin(mid)
+    np.add(pos, step.T, out=new_pos)
     return new_pos, theta + 2.0 * half
 
 

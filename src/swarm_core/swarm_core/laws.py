@@ -2,8 +2,12 @@
 
 `swarm_control` computes u_k for any set of receiving agents from a table of agent states:
 the batch engine passes the whole swarm as receivers, the ROS agent node passes itself as the
-only receiver and the neighbour states it has received as the table.  Pairs are summed with
-``np.bincount`` in table order, so the two paths give bit-identical controls.
+only receiver and the neighbour states it has received as the table.  The pair sums are
+formed from a few per-receiver "moments" of the pair geometry (`_pair_sums_dense`): numpy row
+sums over the whole table, or ``np.bincount`` over a neighbour list, both in table order and
+independent of how many receivers are asked for, so the two paths give bit-identical
+controls.  No Python loop runs over pairs; the dense path works in row blocks held in reused
+scratch arrays (the speed-ups are measured in BENCHMARKS.md, `scripts/bench_core.py`).
 
 Laws (``LawConfig.kind``):
 - ``global``            eq. 3,  u_k = Σ_j u_jk
@@ -17,11 +21,14 @@ nonzero ``barrier_gain`` are given.
 """
 from __future__ import annotations
 
+import functools
+import math
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model import PairGains, avoidance_control, pair_control
+from .model import PairGains
 
 LAW_KINDS = ('global', 'local', 'leader_following', 'homotopy', 'target')
 BARRIER_MODES = ('ahead', 'literal')
@@ -93,9 +100,9 @@ def nearest_leader(pos, receivers, leader_rows):
     leader_rows = np.asarray(leader_rows, dtype=np.intp)
     if leader_rows.size == 0:
         return np.full(len(receivers), -1, dtype=np.intp)
-    ax = pos[receivers, 0][:, None] - pos[leader_rows, 0]
-    ay = pos[receivers, 1][:, None] - pos[leader_rows, 1]
-    return leader_rows[np.argmin(ax * ax + ay * ay, axis=1)]
+    d = pos[receivers][:, None, :] - pos[leader_rows]
+    d *= d
+    return leader_rows[(d[..., 0] + d[..., 1]).argmin(axis=1)]
 
 
 def target_term(pos_k, cos_k, sin_k, target, law: LawConfig):
@@ -156,41 +163,256 @@ def own_neighbour_pairs(pos, row: int, radius: float):
     return np.zeros(j.size, dtype=np.intp), j
 
 
-#: row block of the dense path: about this many pair entries per block (fits in cache)
-DENSE_BLOCK = 32768
+#: row block of the dense path: about this many pair entries per block (the block's scratch
+#: arrays stay in the L2 cache)
+DENSE_BLOCK = 8192
 
 
-def _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k):
-    """Σ_j weight_jk·u_jk for each receiver over the whole table, in blocks of receiver rows
-    (no Python loop over pairs).  The self pair has ρ = 0 and contributes exactly 0; each row is
-    reduced by numpy's row sum, whose result does not depend on how many rows a block holds."""
+class _Scratch(threading.local):
+    """Per-thread scratch arrays of the dense path, kept from call to call (no allocation per
+    step; an agent node and the batch engine each keep their own shape)."""
+
+    def __init__(self):
+        self.arrays = {}
+
+    def get(self, rows: int, n: int):
+        """Arrays for blocks of ``rows`` rows of n pairs: (dx, dy), (dx², dy²), two work
+        arrays, the six moments and a bool array; each also as views of its first rows."""
+        key = (rows, n)
+        arrays = self.arrays.get(key)
+        if arrays is None:
+            if len(self.arrays) >= 4:
+                self.arrays.clear()
+            arrays = self.arrays[key] = (np.empty((2, rows, n)), np.empty((2, rows, n)),
+                                         np.empty((rows, n)), np.empty((rows, n)),
+                                         np.empty((6, rows, n)), np.empty((rows, n), dtype=bool))
+        return arrays
+
+
+_scratch = _Scratch()
+
+
+@functools.lru_cache(maxsize=8)
+def _row_starts(rows: int, n: int):
+    """0, n, 2n, …: flat index of the first entry of each row of a (rows, n) block."""
+    starts = np.arange(0, rows * n, n)
+    starts.flags.writeable = False
+    return starts
+
+
+def _pair_weights(law, receivers, lam, q0, leaders, careful):
+    """Per-receiver far weight q of c(ρ, q, w) and the leader gain (eq. 6, 11, 12), or None
+    where every weight is 1 (then no weight matrix is built)."""
+    n_recv = receivers.size
+    if leaders is None:
+        far = q0 * (1.0 - lam)
+        if far == 1.0 and not careful:
+            return None
+        return np.full(n_recv, far), None, 1.0
+    if q0 == 1.0 and lam == 0.0 and not careful:
+        return None                     # every cutoff weight and the leader gain are 1
+    recv_leader = leaders[receivers]
+    far = np.where(recv_leader, q0, q0 * (1.0 - lam))
+    return far, (~recv_leader).nonzero()[0], (law.leader_gain - 1.0) * lam + 1.0
+
+
+def _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, careful=False):
+    """Row sums ("moments") from which Σ_j weight_jk·u_jk follows for each receiver, over the
+    whole table, in blocks of receiver rows (no Python loop over pairs).
+
+    u_jk (eq. 4) is linear in pair moments whose coefficients depend only on the receiver's
+    frame (c, s) = (cos θ_k, sin θ_k).  With r_jk = (dx, dy): (r_jk·x_k)(r_jk·y_k) =
+    (c² − s²)·dx·dy + c·s·(dy² − dx²) and r_jk·y_k = c·dy − s·dx, so
+
+        Σ_j W_jk u_jk = −η[(c² − s²)·A + c·s·B] + (c·Hy − s·Hx) + μ(c·S − s·C)
+
+    A = Σ W dx dy/ρ², B = Σ W (dy² − dx²)/ρ², (Hx, Hy) = Σ W h·(dx, dy), h = −α(1 − r0²/ρ²)/ρ,
+    S = Σ W sin θ_j, C = Σ W cos θ_j.  The self pair adds exactly 0 to A, B, Hx, Hy (its ρ² is
+    set to ∞) and its alignment c·s_k − s·c_k cancels.  With unit weights (no cutoff weight or
+    leader gain differs from 1) S and C are the plain table sums and are not formed per row.
+    The target law (eq. 13) needs only (Hx, Hy) with h = −α(1 − r0²/ρ²) (·1/ρ if normalised)
+    within w.
+
+    Returns (moments (6, K), weighted): rows A, B, Hx, Hy, S, C (S, C only if weighted).
+    Each moment is numpy's row reduction of a contiguous row, whose result does not depend on
+    how many rows a block holds, so one receiver alone (an agent node) gets the batch value
+    bit for bit.  A coincident pair (ρ = 0, j ≠ k) makes its row non-finite; the caller redoes
+    such rows with ``careful``, where coincident pairs get weight 0 (they contribute 0).
+    """
     n = pos.shape[0]
-    out = np.empty(receivers.size)
-    block = max(1, DENSE_BLOCK // max(1, n))
+    n_recv = receivers.size
+    sums = np.empty((6, n_recv))
+    g = law.gains
+    target_kind = law.kind == 'target'
+    weights = None if target_kind else _pair_weights(law, receivers, lam, q0, leaders, careful)
+    if n_recv == 0:
+        return sums, weights is not None
+    xy = pos.T.copy()                                           # (2, N): x and y rows
+    xy_recv = xy[:, receivers, None]
+    block = min(n_recv, max(1, DENSE_BLOCK // max(1, n)))
+    scratch = _scratch.get(block, n)
     w2 = law.cutoff_radius * law.cutoff_radius
-    for a in range(0, receivers.size, block):
-        rows = receivers[a:a + block]
-        dx = pos[rows, 0][:, None] - pos[:, 0]
-        dy = pos[rows, 1][:, None] - pos[:, 1]
-        ck, sk = cos_t[rows][:, None], sin_t[rows][:, None]
-        if law.kind == 'target':
-            u = avoidance_control(dx, dy, ck, sk, law.gains, law.target_normalised)
-            u = u * ((dx * dx + dy * dy) < w2)
+    a_r0 = g.alpha * g.r0 * g.r0
+    self_pair = receivers + _row_starts(n_recv, n)              # flat index of (k, k) in a block
+    if weights is not None:
+        far, follower, boost = weights
+        far = far[:, None]
+        sin_cos = np.array((sin_t, cos_t))[:, None, :]
+        if follower is not None:
+            follower_leader = l_of_k[follower]
+    for a in range(0, n_recv, block):
+        b = min(block, n_recv - a)
+        rows = slice(a, a + b)
+        if b == block:
+            d, d2, rr, h, mom, wb = scratch
         else:
-            u = pair_control(dx, dy, ck, sk, cos_t, sin_t, law.gains)
-            if leaders is None:
-                far = q0 * (1.0 - lam)
-                if far != 1.0:
-                    u = u * np.where((dx * dx + dy * dy) < w2, 1.0, far)
-            else:
-                recv_leader = leaders[rows]
-                far = np.where(recv_leader, q0, q0 * (1.0 - lam))[:, None]
-                weight = np.where((dx * dx + dy * dy) < w2, 1.0, far)
-                follower = np.flatnonzero(~recv_leader)
-                weight[follower, l_of_k[a:a + block][follower]] *= (law.leader_gain - 1.0) * lam + 1.0
-                u = u * weight
-        out[a:a + block] = u.sum(axis=1)
-    return out
+            d, d2, rr, h, mom, wb = scratch[0][:, :b], scratch[1][:, :b], scratch[2][:b], \
+                scratch[3][:b], scratch[4][:, :b], scratch[5][:b]
+        np.subtract(xy_recv[:, rows], xy[:, None, :], out=d)    # r_jk = r_k − r_j
+        np.multiply(d, d, out=d2)
+        np.add(d2[0], d2[1], out=rr)                             # ρ²
+        rr.put(self_pair[rows] - a * n if a else self_pair[rows], np.inf)   # self: 1/ρ² = 0
+        if target_kind or weights is not None:
+            np.less(rr, w2, out=wb)                              # ρ < w
+        if careful:
+            coincident = rr == 0.0
+            rr[coincident] = np.inf
+        if not target_kind:
+            np.subtract(d2[1], d2[0], out=mom[1])                # dy² − dx²
+        np.divide(1.0, rr, out=rr)                               # 1/ρ²
+        np.multiply(rr, a_r0, out=h)
+        h -= g.alpha                                             # −α(1 − r0²/ρ²)
+        if target_kind:
+            if law.target_normalised:
+                h *= np.sqrt(rr, out=d2[0])
+            h *= wb
+            np.multiply(d[0], h, out=mom[2])
+            np.multiply(d[1], h, out=mom[3])
+            np.add.reduce(mom[2:4], axis=2, out=sums[2:4, rows])
+            continue
+        h *= np.sqrt(rr, out=d2[0])                              # h = −α(1 − r0²/ρ²)/ρ
+        top = 4
+        if weights is not None:
+            wm = d2[0]
+            np.copyto(wm, far[rows])
+            np.copyto(wm, 1.0, where=wb)                         # c(ρ, q, w), eq. 6
+            if follower is not None:                             # (ℓc − 1)λ + 1 with l(k), eq. 11
+                if b == n_recv:
+                    wm[follower, follower_leader] *= boost
+                else:
+                    lo, hi = np.searchsorted(follower, (a, a + b))
+                    wm[follower[lo:hi] - a, follower_leader[lo:hi]] *= boost
+            if careful:
+                wm[coincident] = 0.0
+            rr *= wm
+            h *= wm
+            np.multiply(wm, sin_cos, out=mom[4:6])
+            top = 6
+        np.multiply(d[0], d[1], out=mom[0])
+        mom[0] *= rr
+        mom[1] *= rr
+        np.multiply(d[0], h, out=mom[2])
+        np.multiply(d[1], h, out=mom[3])
+        np.add.reduce(mom[:top], axis=2, out=sums[:top, rows])
+    return sums, weights is not None
+
+
+def _combine(m, weighted, c, s, cos_t, sin_t, law):
+    """Σ_j W_jk u_jk of each receiver (frame c, s) from its moments (see `_pair_sums_dense`)."""
+    if law.kind == 'target':
+        return c * m[3] - s * m[2]
+    g = law.gains
+    if weighted:
+        sin_sum, cos_sum = m[4], m[5]
+    else:
+        sin_sum, cos_sum = np.add.reduce(sin_t), np.add.reduce(cos_t)
+    return (c * (m[3] + g.mu * sin_sum) - s * (m[2] + g.mu * cos_sum)
+            - g.eta * ((c * c - s * s) * m[0] + (c * s) * m[1]))
+
+
+def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, k, j, careful=False):
+    """The moments of `_pair_sums_dense` over a pair list (receiver position k, sender row j)
+    instead of the whole table, each summed with np.bincount in pair order."""
+    n_recv = receivers.size
+    g = law.gains
+    rk = receivers[k]
+    x, y = pos.T.copy()
+    dx = x[rk]
+    dx -= x[j]
+    dy = y[rk]
+    dy -= y[j]
+    dx2 = dx * dx
+    dy2 = dy * dy
+    rr = dx2 + dy2                                              # ρ²
+    within = rr < law.cutoff_radius * law.cutoff_radius
+    if careful:
+        coincident = rr == 0.0
+        rr[coincident] = np.inf
+    np.divide(1.0, rr, out=rr)                                  # 1/ρ²
+    h = rr * (g.alpha * g.r0 * g.r0)
+    h -= g.alpha                                                # −α(1 − r0²/ρ²)
+    m = np.empty((6, n_recv))
+    if law.kind == 'target':
+        if law.target_normalised:
+            h *= np.sqrt(rr)
+        h *= within
+        m[2] = np.bincount(k, weights=h * dx, minlength=n_recv)
+        m[3] = np.bincount(k, weights=h * dy, minlength=n_recv)
+        return m, False
+    h *= np.sqrt(rr)                                            # h = −α(1 − r0²/ρ²)/ρ
+    # c(ρ, q, w) with q = q0(1 − λ) (followers, none) or q0 (leaders), eq. 6, 11, 12
+    if q0 == 0.0:
+        weight = within.astype(float)
+    elif leaders is None:
+        weight = np.where(within, 1.0, q0 * (1.0 - lam))
+    else:
+        weight = np.where(within, 1.0, np.where(leaders[rk], q0, q0 * (1.0 - lam)))
+    if leaders is not None:                                     # (ℓc − 1)λ + 1 with l(k), eq. 11
+        partner = np.where(leaders[receivers], -1, l_of_k)
+        weight[(j == partner[k]).nonzero()[0]] *= (law.leader_gain - 1.0) * lam + 1.0
+    if careful:
+        weight[coincident] = 0.0
+    rr *= weight
+    h *= weight
+    np.subtract(dy2, dx2, out=dx2)
+    dx2 *= rr
+    np.multiply(dx, dy, out=dy2)
+    dy2 *= rr
+    dx *= h
+    dy *= h
+    for i, w in enumerate((dy2, dx2, dx, dy)):
+        m[i] = np.bincount(k, weights=w, minlength=n_recv)
+    for i, t in ((4, sin_t), (5, cos_t)):
+        w = t[j]
+        w *= weight
+        m[i] = np.bincount(k, weights=w, minlength=n_recv)
+    return m, True
+
+
+def _pair_sum(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, pairs):
+    """Σ_j weight_jk·u_jk of each receiver: densely over the table or over a pair list.  A row
+    with coincident agents (non-finite in the fast form) is redone with explicit masks."""
+    c, s = cos_t[receivers], sin_t[receivers]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        if pairs is None:
+            m, weighted = _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k)
+        else:
+            m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders,
+                                            l_of_k, *pairs)
+        sums = _combine(m, weighted, c, s, cos_t, sin_t, law)
+    if not math.isfinite(np.add.reduce(sums)):
+        idx = np.flatnonzero(~np.isfinite(sums))
+        lk = None if l_of_k is None else l_of_k[idx]
+        if pairs is None:
+            m, weighted = _pair_sums_dense(pos, cos_t, sin_t, receivers[idx], law, lam, q0, leaders,
+                                           lk, careful=True)
+        else:
+            keep = np.isin(pairs[0], idx)
+            k_sub = np.searchsorted(idx, pairs[0][keep])
+            m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers[idx], law, lam, q0, leaders,
+                                            lk, k_sub, pairs[1][keep], careful=True)
+        sums[idx] = _combine(m, weighted, c[idx], s[idx], cos_t, sin_t, law)
+    return sums
 
 
 def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
@@ -213,42 +435,23 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
     pos = np.asarray(pos, dtype=float)
     receivers = np.asarray(receivers, dtype=np.intp)
     n_recv = receivers.size
-    cos_k, sin_k = cos_t[receivers], sin_t[receivers]
     lam, q0 = law.effective_lambda_q0(lambda_) if law.kind != 'target' else (0.0, 0.0)
     leaders = None
-    if law.uses_leaders and is_leader is not None and np.any(is_leader):
-        leaders = np.asarray(is_leader, dtype=bool)
-    l_of_k = nearest_leader(pos, receivers, np.flatnonzero(leaders)) if leaders is not None else None
+    if law.uses_leaders and is_leader is not None:
+        is_leader = np.asarray(is_leader, dtype=bool)
+        if np.count_nonzero(is_leader):
+            leaders = is_leader
+    l_of_k = nearest_leader(pos, receivers, leaders.nonzero()[0]) if leaders is not None else None
 
-    if pairs is None:
-        sums = _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k)
-    else:
-        k, j = pairs
-        rk = receivers[k]
-        dx = pos[rk, 0] - pos[j, 0]
-        dy = pos[rk, 1] - pos[j, 1]
-        ck, sk = cos_t[rk], sin_t[rk]
-        within = (dx * dx + dy * dy) < law.cutoff_radius * law.cutoff_radius
-        if law.kind == 'target':
-            u_pair = avoidance_control(dx, dy, ck, sk, law.gains, law.target_normalised) * within
-        else:
-            u_pair = pair_control(dx, dy, ck, sk, cos_t[j], sin_t[j], law.gains)
-            if leaders is None:
-                u_pair = u_pair * np.where(within, 1.0, q0 * (1.0 - lam))
-            else:
-                # follower pairs: c(ρ, q0(1 − λ), w), times (ℓc − 1)λ + 1 for the pair with
-                # l(k); leader pairs: c(ρ, q0, w)  (eq. 11, 12)
-                pair_leader = leaders[rk]
-                far = np.where(pair_leader, q0, q0 * (1.0 - lam))
-                boost = np.where((j == l_of_k[k]) & ~pair_leader, (law.leader_gain - 1.0) * lam + 1.0, 1.0)
-                u_pair = u_pair * (np.where(within, 1.0, far) * boost)
-        sums = np.bincount(k, weights=u_pair, minlength=n_recv)
+    sums = _pair_sum(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, pairs)
 
     if leaders is not None:
         s = np.zeros(n_recv) if steering is None else np.asarray(steering, dtype=float)
         u = np.where(leaders[receivers], (1.0 - lam) * sums + lam * s, sums)
     else:
         u = sums
+    if (target is not None and law.target_gain != 0.0) or (barrier is not None and law.barrier_gain != 0.0):
+        cos_k, sin_k = cos_t[receivers], sin_t[receivers]
     if target is not None and law.target_gain != 0.0:
         u = u + target_term(pos[receivers], cos_k, sin_k, np.asarray(target, float), law)
     if barrier is not None and law.barrier_gain != 0.0 and len(barrier):

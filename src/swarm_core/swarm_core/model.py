@@ -86,7 +86,10 @@ def pair_terms(dx, dy, cos_k, sin_k, cos_j, sin_j, gains: PairGains):
 
 
 def pair_control(dx, dy, cos_k, sin_k, cos_j, sin_j, gains: PairGains):
-    """u_jk (eq. 4): the Justh-Krishnaprasad steering of agent k due to agent j."""
+    """u_jk (eq. 4): the Justh-Krishnaprasad steering of agent k due to agent j.
+
+    The per-pair reference form; `laws.swarm_control` sums the same terms over all pairs
+    through per-receiver moments of the pair geometry (`laws._pair_sums_dense`)."""
     baseline, spacing, alignment = pair_terms(dx, dy, cos_k, sin_k, cos_j, sin_j, gains)
     return baseline + spacing + alignment
 

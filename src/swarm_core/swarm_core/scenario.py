@@ -235,6 +235,53 @@ class ReunionSpec(_Strict):
     normalised: bool = False
     track: bool = False          # point: centroid re-taken at every step (moves with the swarm)
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
+# ------------------------------------------------------------------ communication (comms.py)
+
+Probability = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
+NameOrNames = Union[str, list[str]]
+
+
+class LinkSpec(_Strict):
+    """Per-agent or per-link values: links from ``sender`` to ``receiver`` (a name or a list of
+    names; omitted = every agent) get these values instead of the base ones."""
+    sender: Optional[NameOrNames] = None
+    receiver: Optional[NameOrNames] = None
+    loss: Optional[Probability] = None
+    latency: Optional[NonNeg] = None
+    jitter: Optional[NonNeg] = None
+
+
+class CommsEventSpec(_Strict):
+    """A change of the radio at sim time ``at`` (from the first step n with n·dt ≥ at)."""
+    at: NonNeg
+    loss: Optional[Probability] = None
+    latency: Optional[NonNeg] = None
+    jitter: Optional[NonNeg] = None
+    drop: Optional[Probability] = None        # burst loss on top of ``loss`` (0 ends a burst)
+    duration: Optional[Positive] = None       # of the burst (omitted: until the next drop)
+    partition: Optional[list[list[str]]] = None   # new groups; [] heals
+
+    @model_validator(mode='after')
+    def _something(self):
+        if all(getattr(self, k) is None for k in ('loss', 'latency', 'jitter', 'drop', 'partition')):
+            raise ValueError('a comms event needs one of loss, latency, jitter, drop, partition')
+        if self.duration is not None and self.drop is None:
+            raise ValueError('duration belongs to a drop (burst loss)')
+        return self
+
+
+class CommsSpec(_Strict):
+    """The communication model (see swarm_core.comms); the defaults are a perfect radio."""
+    seed: Optional[Annotated[int, Field(ge=0)]] = None     # default: the scenario's seed
+    radio_range: Optional[Positive] = None                  # None: unlimited (w still applies)
+    loss: Probability = 0.0
+    latency: NonNeg = 0.0                                   # sim s
+    jitter: NonNeg = 0.0                                    # sim s, delay = latency + U[0,1)·jitter
+    timeout: Positive = 2.0                                 # forget senders silent this long (sim s)
+    dead_reckoning: bool = True
+    links: list[LinkSpec] = Field(default_factory=list)
+    partition: list[list[str]] = Field(default_factory=list)
+    events: list[CommsEventSpec] = Field(default_factory=list)
 
 
 class ScenarioSpec(_Strict):
@@ -254,6 +301,7 @@ class ScenarioSpec(_Strict):
     faults: list[FaultSpec] = Field(default_factory=list)
     failover: Optional[FailoverSpec] = None
     reunion: list[ReunionSpec] = Field(default_factory=list)
+    comms: Optional[CommsSpec] = None
     expect: dict = Field(default_factory=dict)   # what `swarm sweep` checks (see outcomes.py)
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
 
@@ -331,6 +379,17 @@ class Scenario:
         """A fresh timeline of the scenario's faults (faults.py)."""
         return FaultTimeline([Fault(f.at, f.kind, f.agent, f.for_ or 0.0) for f in self.spec.faults],
                              self.names, self.spec.dt)
+
+    def comms_config(self) -> dict | None:
+        """The ``comms`` section as a plain mapping (what `comms.CommModel.from_config` and
+        the agents' ``comms`` parameter take), None without one."""
+        return None if self.spec.comms is None else self.spec.comms.model_dump(mode='json')
+
+    def comm_model(self):
+        """A fresh `comms.CommModel` of this scenario, or None if its radio is perfect."""
+        from .comms import CommModel
+        m = CommModel.from_config(self.comms_config(), self.names, self.dt, self.seed)
+        return None if m.perfect else m
 
     def noise_rng(self, index: int) -> np.random.Generator:
         """Agent ``index``'s own noise stream (the same in the batch engine and its node)."""
@@ -450,6 +509,14 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
             raise ScenarioError(f'{source}: faults.{i}.{f.kind}: unknown agent {f.agent!r} (agents are '
                                 f'{", ".join(known[:8])}{", ..." if len(known) > 8 else ""})')
     names, pos0, theta0 = initial_conditions(spec)
+    if spec.comms is not None:
+        from .comms import CommModel
+        try:
+            CommModel.from_config(spec.comms.model_dump(mode='json'), names, spec.dt, spec.seed)
+        except ValueError as err:
+            raise ScenarioError(f'{source}: {err}') from None
+        if spec.integrator != 'zoh' and spec.comms.model_dump() != CommsSpec().model_dump():
+            raise ScenarioError(f'{source}: comms: a communication model needs integrator zoh')
     return Scenario(spec=spec, names=names, pos0=pos0, theta0=theta0, law=law, source=source)
 
 

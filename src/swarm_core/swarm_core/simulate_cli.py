@@ -55,6 +55,8 @@ def summary_of(scn, traj, series, checks) -> dict:
         out['closest_centroid_target_distance'] = float(series['centroid_target_distance'].min())
     if traj.meta.get('events'):
         out['events'] = traj.meta['events']        # faults, failover, reunion (faults.py)
+    if traj.meta.get('comms'):
+        out['comms'] = traj.meta['comms']      # what the radio did (swarm_core.comms)
     return out
 
 

@@ -51,7 +51,8 @@ def agent_parameters(scn, i: int, mode: str) -> dict:
                 target_normalised=law.target_normalised, barrier_gain=law.barrier_gain,
                 barrier_mode=law.barrier_mode, dt=scn.dt, mode=mode,
                 noise_position=float(noise.position), noise_heading=float(noise.heading),
-                seed=int(scn.seed), use_sim_time=True)
+                seed=int(scn.seed), use_sim_time=True,
+                comms=json.dumps(scn.comms_config()) if scn.comms_config() is not None else '')
 
 
 def node_parameters(scn, scenario_ref: str, mode: str, rtf: float = 1.0, output_dir: str = '',

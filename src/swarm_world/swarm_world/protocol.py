@@ -25,6 +25,16 @@ Fixed, user-facing topics (DESIGN.md)
 ``/swarm/fault_request``  std_msgs/String, reliable + transient-local depth 10: JSON ``{"kind": "kill"|"freeze",
     "agent": NAME, "for": SECONDS}`` (``swarm kill`` / ``swarm pause``); the world applies it
     at its next step (see swarm_core.faults for the semantics) and signals the agent process.
+    The communication model's events on ``/swarm/events`` (``"t"`` may be null if unknown);
+    recorded in the bag by ``swarm record``.  Kinds of the
+    communication model (swarm_core.comms), which agents APPLY when they read them:
+    ``{"t", "kind": "drop", "loss": P, "duration": T|null}`` (burst loss P on every link for T
+    sim s; P = 0 ends a burst; ``swarm drop``), ``{"t", "kind": "partition", "groups":
+    [[names], ...]}`` (``[]`` heals; ``swarm partition``), ``{"t", "kind": "comms", "loss",
+    "latency", "jitter"}`` (base values; any subset).  Events with ``"source": "scenario"``
+    are the scenario's own ``comms.events``, published by the world at their step for the
+    record; agents apply those from their copy of the scenario, not from the topic.  Other
+    kinds (faults) are ignored by the radio.
 
 Lockstep (deterministic; equal to ``swarm simulate`` to rounding)
 -----------------------------------------------------------------
@@ -52,7 +62,9 @@ Packed layouts (std_msgs/Float64MultiArray, empty ``layout``, ``data`` as below;
 ``/lockstep/decision``  [n, t_n, N,  λ, leader flags(N) (0/1), s(N), slot(N), R]
 ``/lockstep/step``      [n, t_n, N,  λ, leader flags(N), s(N), x(N), y(N), qz(N), qw(N),
                          has_target, target_x, target_y, M, barrier x(M), barrier y(M),
-                         alive(N), R]
+                         u(N), alive(N), R]
+    u(N) (trailing; optional for readers, zeros if absent): the u each agent's state of t_n
+    carries (twist.angular.z, u_{n−1}); an agent with a communication model dead-reckons with it.
 with (faults, failover, reunion; appended at the end so that older readers still work):
 ``alive``  1 for the agents heard at step n (in the table), 0 for dead or frozen ones (their
            x, y, qz, qw are stale and must not be read); absent = all 1;
@@ -185,19 +197,20 @@ def unpack_decision(d):
     return n, t, lam, d[4:4 + N] > 0.5, d[4 + N:4 + 2 * N]
 
 
-def pack_step(n, t, lam, flags, steering, x, y, qz, qw, target=None, barrier=None, alive=None,
+def pack_step(n, t, lam, flags, steering, x, y, qz, qw, target=None, barrier=None, u=None, alive=None,
               rendezvous=None) -> np.ndarray:
     geo = [1.0, float(target[0]), float(target[1])] if target is not None else [0.0, 0.0, 0.0]
     b = np.zeros((0, 2)) if barrier is None else np.asarray(barrier, float).reshape(-1, 2)
+    u = np.zeros(len(x)) if u is None else np.asarray(u, float)
     alive = np.ones(len(x)) if alive is None else np.asarray(alive, float)
     return np.concatenate([[n, t, len(x), lam], np.asarray(flags, float), steering, x, y, qz, qw,
-                           geo, [len(b)], b[:, 0], b[:, 1], alive,
+                           geo, [len(b)], b[:, 0], b[:, 1], u, alive,
                            pack_rendezvous(rendezvous)]).astype(float)
 
 
 class Step:
     """A decoded ``/lockstep/step`` message."""
-    __slots__ = ('n', 't', 'lam', 'flags', 'steering', 'x', 'y', 'qz', 'qw', 'target', 'barrier',
+    __slots__ = ('n', 't', 'lam', 'flags', 'steering', 'x', 'y', 'qz', 'qw', 'target', 'barrier', 'u',
                  'alive', 'rendezvous')
 
     def __init__(self, d):
@@ -212,9 +225,17 @@ class Step:
         m = int(d[o + 3])
         self.barrier = np.stack([d[o + 4:o + 4 + m], d[o + 4 + m:o + 4 + 2 * m]], axis=1) if m else None
         o += 4 + 2 * m
+        self.u = d[o:o + N].copy() if d.size >= o + N else np.zeros(N)
+        o += N
         a = d[o:o + N]
         self.alive = a > 0.5 if a.size == N else np.ones(N, bool)
         self.rendezvous = unpack_rendezvous(d[o + N:o + N + R_SIZE])
+
+
+def event_json(kind: str, t, **fields) -> str:
+    """The JSON text of a ``/swarm/events`` message."""
+    import json
+    return json.dumps(dict(t=None if t is None else float(t), kind=str(kind), **fields))
 
 
 # ------------------------------------------------------------------ raw CDR of Float64MultiArray

@@ -136,7 +136,6 @@ class WorldNode(Node):
         self.pub_barrier = self.create_publisher(PolygonStamped, P.BARRIER, P.qos_latched())
         self.pub_markers = self.create_publisher(MarkerArray, P.MARKERS, 5)
         self.pub_metrics = self.create_publisher(DiagnosticArray, P.METRICS, 10)
-        self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
         self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
         self.create_subscription(String, P.FAULT_REQUEST, self._on_fault_request, P.qos_latched(10))
         self.sub_states = self.create_subscription(Odometry, P.STATES, self._on_state,
@@ -182,6 +181,13 @@ class WorldNode(Node):
         self.lam_now = 0.0
         self.leaders_now = np.zeros(self.n, bool)
         self.next_progress = 0.0
+        # the scenario's scheduled radio changes (comms.events), published on /swarm/events
+        # at their step for the record (agents apply them from their own copy)
+        from swarm_core.comms import event_step
+        self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
+        cspec = self.scn.spec.comms
+        self.comms_events = sorted(((event_step(e.at, self.dt), e.model_dump(exclude_none=True))
+                                    for e in (cspec.events if cspec else [])), key=lambda se: se[0])
         self.publish_geometry()
         self.timer = self.create_timer(0.05 if self.mode == 'lockstep' else 0.01, self._on_timer,
                                        clock=steady_clock())
@@ -321,7 +327,8 @@ class WorldNode(Node):
             self.lam_now, self.leaders_now = lam, flags & alive
             x, y, qz, qw = self.buf
             data = P.pack_step(k, k * self.dt, lam, flags, steering, x, y, qz, qw, self.target, self.barrier,
-                               alive=alive, rendezvous=rdv)
+                               self.buf_u, alive=alive, rendezvous=rdv)
+            self.publish_scheduled_events(k)
             self.pub_step.publish(P.float64_array_to_cdr(data))
             self.last_msg = (self.pub_step, P.float64_array_to_cdr(data))
             self.cur += 1
@@ -435,6 +442,11 @@ class WorldNode(Node):
             self.emit(dict(t=self.cur * self.dt, step=self.cur, kind='lost', agent=self.names[i]))
         self.advance()
 
+    def publish_scheduled_events(self, k):
+        while self.comms_events and self.comms_events[0][0] <= k:
+            _, e = self.comms_events.pop(0)
+            self.pub_events.publish(String(data=P.event_json('comms', k * self.dt, source='scenario', **e)))
+
     def observe(self, k):
         """Per-step checks (collisions, intrusions), progress, metrics and markers."""
         idx = np.flatnonzero(self.faults.alive)         # faults: only agents in the table
@@ -543,6 +555,7 @@ class WorldNode(Node):
         self.sim_t = (now - self.run_wall) * self.rtf
         self.pub_clock.publish(Clock(clock=self._stamp(self.sim_t)))
         k = P.step_of(self.sim_t, self.dt)
+        self.publish_scheduled_events(k)
         if self.view_every and (k // self.view_every) != getattr(self, '_rt_view', -1):
             self._rt_view = k // self.view_every
             have = [nm for nm in self.names if nm in self.newest]

@@ -1,0 +1,432 @@
+"""Communication model: what each agent's radio delivers, and what it believes (no ROS).
+
+A state message is sent by every agent j at every step n (its state of t_n: x, y, the planar
+quaternion (qz, qw) and u, the curvature it held over the step that ended at t_n).  Receiver k
+gets it, or not, according to the model in force at step n (the send step):
+
+- ``radio_range``  R: delivered only if |r_k − r_j| ≤ R at t_n (None: unlimited; the law's own
+  cutoff w still applies inside `swarm_control`);
+- ``loss``         p: lost with probability p (per link overrides; a burst ``drop`` b
+  composes as 1 − (1 − p)(1 − b));
+- ``latency`` L, ``jitter`` J (sim seconds): delay L + U·J, U uniform in [0, 1), quantised up
+  to whole steps: the message is usable from step n + ceil((L + U·J)/dt) on (0: the same step);
+- ``partition``: groups of agent names; no message crosses from one group to another (agents
+  in no group form one more group).  Partitions and loss are decided at the send step.
+
+**Deterministic, without shared state.**  The fate of the message j → k of step n is a pure
+function of (seed, n, k, j): two uniforms from a counter-based hash (`link_uniforms`,
+splitmix64 finaliser over the four numbers), so the batch engine, which decides every link of
+a step at once, and each agent process, which decides only its own incoming links, draw the
+very same fates.  All arithmetic is elementwise, so the results are bit-identical.
+
+**Beliefs.**  Each receiver keeps, per sender, the newest state it has received (by stamp; a
+late older message never replaces a newer one).  Senders whose newest state is older than
+``timeout`` are forgotten (left out of the table).  With ``dead_reckoning`` the state of t_m is
+predicted to t_n on the exact arc of unit speed with the sender's known heading and u
+(`integrate.zoh_step` with dt = t_n − t_m).  `belief_control` gives u_k from the receiver's
+own state and that table with THE law (`laws.swarm_control`).
+
+Changes in time: ``events`` at sim times (``loss``/``latency``/``jitter`` set the base values,
+``drop`` + ``duration`` a burst loss, ``partition`` new groups, ``[]`` heals), applied from the
+first step n with n·dt ≥ at; at runtime the same events arrive as JSON (see
+swarm_world.protocol EVENTS) and are applied with `CommModel.apply`.
+
+The model is configured by a plain mapping (the scenario's ``comms`` section, validated by
+`scenario.CommsSpec`; agents get it as JSON), so this module needs neither pydantic nor ROS.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .integrate import zoh_step
+from .laws import LawConfig, swarm_control
+from .model import frame_from_quaternion, heading_frame, quaternion_from_heading, yaw_from_quaternion
+
+DEFAULTS = dict(seed=None, radio_range=None, loss=0.0, latency=0.0, jitter=0.0, timeout=2.0,
+                dead_reckoning=True, links=(), partition=(), events=())
+
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
+#: the two draws of a link and step
+STREAM_LOSS, STREAM_DELAY = 0, 1
+
+
+def _mix(z):
+    """splitmix64 finaliser (a bijection of uint64; arrays, wrapping arithmetic)."""
+    z = (z ^ (z >> _S30)) * _M1
+    z = (z ^ (z >> _S27)) * _M2
+    return z ^ (z >> _S31)
+
+
+def link_uniforms(seed, step, receiver, sender, stream=STREAM_LOSS):
+    """Uniforms in [0, 1), a pure function of (seed, step, receiver, sender, stream);
+    arguments broadcast like numpy arrays (non-negative integers)."""
+    h = np.full(np.broadcast_shapes(np.shape(seed), np.shape(step), np.shape(receiver),
+                                    np.shape(sender), np.shape(stream)), _GOLDEN, dtype=np.uint64)
+    with np.errstate(over='ignore'):
+        for key in (seed, step, receiver, sender, stream):
+            h = _mix(h ^ _mix(np.asarray(key, dtype=np.uint64) + _GOLDEN))
+    return (h >> _S11).astype(np.float64) * (1.0 / 9007199254740992.0)
+
+
+def event_step(at: float, dt: float) -> int:
+    """The first step n with n·dt ≥ at."""
+    return max(0, int(math.ceil(at / dt - 1e-9)))
+
+
+def _names(v):
+    if v is None:
+        return None
+    return [v] if isinstance(v, str) else list(v)
+
+
+@dataclass
+class CommModel:
+    """The radio of a swarm with agents ``names`` (table order), steps of ``dt``; see module doc."""
+
+    names: list
+    dt: float
+    seed: int = 0
+    radio_range: float | None = None
+    loss: float = 0.0
+    latency: float = 0.0
+    jitter: float = 0.0
+    timeout: float = 2.0
+    dead_reckoning: bool = True
+    links: tuple = ()
+    partition: tuple = ()
+    events: tuple = ()
+    # state in force (changed by events)
+    burst: tuple = field(default=(0.0, 0, None), repr=False)      # (b, first step, end step or None)
+    labels: np.ndarray = field(default=None, repr=False)
+
+    @classmethod
+    def from_config(cls, cfg: dict | None, names, dt: float, seed: int = 0) -> 'CommModel':
+        """From the scenario's ``comms`` mapping (None: the perfect radio); unknown agent names
+        raise ValueError naming them."""
+        c = dict(DEFAULTS)
+        c.update({k: v for k, v in (cfg or {}).items() if v is not None or k == 'radio_range'})
+        unknown = set(c) - set(DEFAULTS)
+        if unknown:
+            raise ValueError(f'comms: unknown field {sorted(unknown)[0]!r}')
+        m = cls(names=list(names), dt=float(dt), seed=int(seed if c['seed'] is None else c['seed']),
+                radio_range=None if c['radio_range'] is None else float(c['radio_range']),
+                loss=float(c['loss']), latency=float(c['latency']), jitter=float(c['jitter']),
+                timeout=float(c['timeout']), dead_reckoning=bool(c['dead_reckoning']),
+                links=tuple(dict(x) for x in c['links']),
+                partition=tuple(tuple(g) for g in c['partition']),
+                events=tuple(sorted((dict(e) for e in c['events']), key=lambda e: float(e['at']))))
+        m._build()
+        return m
+
+    # ------------------------------------------------------------ set-up
+    def _index(self, names, where):
+        row = {nm: i for i, nm in enumerate(self.names)}
+        bad = [nm for nm in names if nm not in row]
+        if bad:
+            raise ValueError(f'comms: {where}: unknown agent {bad[0]!r}')
+        return [row[nm] for nm in names]
+
+    def _build(self):
+        n = len(self.names)
+        self._ovr = {key: np.full((n, n), np.nan) for key in ('loss', 'latency', 'jitter')}
+        for i, link in enumerate(self.links):
+            recv = _names(link.get('receiver'))
+            send = _names(link.get('sender'))
+            rk = np.arange(n) if recv is None else np.array(self._index(recv, f'links.{i}.receiver'), int)
+            sj = np.arange(n) if send is None else np.array(self._index(send, f'links.{i}.sender'), int)
+            for key in ('loss', 'latency', 'jitter'):
+                if link.get(key) is not None:
+                    self._ovr[key][np.ix_(rk, sj)] = float(link[key])
+        self.set_partition(self.partition)
+        for i, e in enumerate(self.events):
+            if e.get('partition'):
+                for g in e['partition']:
+                    self._index(g, f'events.{i}.partition')
+        self._pending_events = [(event_step(float(e['at']), self.dt), e) for e in self.events]
+        self._applied_to = -1
+
+    def set_partition(self, groups):
+        """Groups of agent names that cannot hear each other ([] or None: no partition)."""
+        n = len(self.names)
+        groups = [list(g) for g in (groups or []) if len(g)]
+        labels = np.full(n, len(groups), dtype=np.intp)        # the rest: one more group
+        for gi, g in enumerate(groups):
+            labels[self._index(g, 'partition')] = gi
+        self.labels = labels
+        self.partition = tuple(tuple(g) for g in groups)
+
+    @property
+    def perfect(self) -> bool:
+        """True if every message arrives in its own step: the model changes nothing."""
+        ovr = any(np.nan_to_num(a, nan=0.0).any() for a in self._ovr.values())
+        return (self.radio_range is None and self.loss == 0.0 and self.latency == 0.0 and self.jitter == 0.0
+                and not ovr and not self.partition and not self.events)
+
+    # ------------------------------------------------------------ changes in time
+    def apply(self, event: dict, step: int):
+        """Apply one change (an ``events`` entry or a runtime event) from ``step`` on.
+
+        Fields: loss, latency, jitter (base values), drop (burst loss, with optional duration in
+        sim s; drop 0 ends a burst), partition (list of groups; [] heals)."""
+        for key in ('loss', 'latency', 'jitter'):
+            if event.get(key) is not None:
+                setattr(self, key, float(event[key]))
+        if event.get('drop') is not None:
+            b = float(event['drop'])
+            dur = event.get('duration')
+            end = None if dur is None else step + max(1, int(round(float(dur) / self.dt)))
+            self.burst = (b, int(step), end)
+        if event.get('partition') is not None:
+            self.set_partition(event['partition'])
+        if event.get('heal'):
+            self.set_partition([])
+
+    def advance_to(self, step: int):
+        """Apply the scheduled events due at or before ``step`` (steps never go back)."""
+        while self._pending_events and self._pending_events[0][0] <= step:
+            s, e = self._pending_events.pop(0)
+            self.apply(e, s)
+        self._applied_to = step
+
+    def burst_at(self, step: int) -> float:
+        b, start, end = self.burst
+        return b if (b > 0.0 and step >= start and (end is None or step < end)) else 0.0
+
+    def _param(self, key, recv, send):
+        base = getattr(self, key)
+        o = self._ovr[key][np.ix_(recv, send)]
+        return np.where(np.isnan(o), base, o)
+
+    # ------------------------------------------------------------ fates
+    def decide(self, step: int, recv, recv_xy, send, send_xy) -> np.ndarray:
+        """Arrival step of the messages of ``step`` from senders ``send`` (J,) to receivers
+        ``recv`` (K,): an int array (K, J), −1 where lost.  recv_xy (K, 2), send_xy (J, 2):
+        positions at t_step (for the radio range).  A receiver always has its own message."""
+        self.advance_to(step)
+        recv = np.asarray(recv, dtype=np.intp)
+        send = np.asarray(send, dtype=np.intp)
+        rk, sj = recv[:, None], send[None, :]
+        p = self._param('loss', recv, send)
+        b = self.burst_at(step)
+        if b > 0.0:
+            p = 1.0 - (1.0 - p) * (1.0 - b)
+        ok = link_uniforms(self.seed, step, rk, sj, STREAM_LOSS) >= p
+        if self.partition:
+            ok &= self.labels[rk] == self.labels[sj]
+        if self.radio_range is not None:
+            rx, sx = np.asarray(recv_xy, float), np.asarray(send_xy, float)
+            dx = rx[:, 0][:, None] - sx[:, 0][None, :]
+            dy = rx[:, 1][:, None] - sx[:, 1][None, :]
+            ok &= dx * dx + dy * dy <= self.radio_range * self.radio_range
+        delay_t = self._param('latency', recv, send)
+        jit = self._param('jitter', recv, send)
+        if np.any(jit > 0.0):
+            delay_t = delay_t + jit * link_uniforms(self.seed, step, rk, sj, STREAM_DELAY)
+        delay = np.maximum(np.ceil(delay_t / self.dt - 1e-9), 0.0).astype(np.int64)
+        arrival = np.where(ok, step + delay, -1)
+        arrival[rk == sj] = step
+        return arrival
+
+    def max_age_steps(self) -> int:
+        """Beliefs older than this many steps are forgotten (timeout)."""
+        return int(math.floor(self.timeout / self.dt + 1e-9))
+
+
+class Beliefs:
+    """Newest received state per (receiver, sender) for receivers ``recv`` (K,) of N agents."""
+
+    def __init__(self, recv, n_agents: int):
+        self.recv = np.asarray(recv, dtype=np.intp)
+        K, N = self.recv.size, int(n_agents)
+        self.stamp = np.full((K, N), -1, dtype=np.int64)       # step of the newest state held
+        self.state = np.zeros((5, K, N))                       # x, y, qz, qw, u
+        self.pending = []                                      # (step, arrival (K, N), state (5, N))
+        self.other = self.recv[:, None] != np.arange(N)[None, :]
+        # statistics of what the radio did (links j ≠ k): counts and delays in steps
+        self.sent = np.zeros((K, N), dtype=np.int64)
+        self.delivered = np.zeros((K, N), dtype=np.int64)
+        self.delay_counts = np.zeros(1, dtype=np.int64)       # histogram of delays (steps) of delivered messages
+
+    def receive(self, step: int, arrival, x, y, qz, qw, u):
+        """Take the fates of step ``step`` (from `CommModel.decide`) and the states sent then;
+        fold every message due by ``step`` into the beliefs, newest stamp winning."""
+        arrival = np.asarray(arrival, dtype=np.int64)
+        got = (arrival >= 0) & self.other
+        self.sent += self.other
+        self.delivered += got
+        d = np.bincount((arrival - step)[got])
+        if d.size > self.delay_counts.size:
+            d[:self.delay_counts.size] += self.delay_counts
+            self.delay_counts = d
+        else:
+            self.delay_counts[:d.size] += d
+        self.pending.append((step, arrival, np.array([x, y, qz, qw, u], dtype=float)))
+        keep = []
+        for m, arr, st in self.pending:
+            due = (arr >= 0) & (arr <= step) & (m > self.stamp)
+            if due.any():
+                self.stamp = np.where(due, m, self.stamp)
+                self.state = np.where(due[None], st[:, None, :], self.state)
+            if np.any(arr > step):
+                keep.append((m, arr, st))
+        self.pending = keep
+
+    def table(self, i: int, step: int, model: CommModel):
+        """Rows (agent indices, ascending) receiver ``recv[i]`` knows at ``step`` and their
+        (x, y, cos θ, sin θ), dead-reckoned to t_step if the model says so; the receiver's own
+        row is a placeholder (its true state is put in by `belief_control`)."""
+        k = int(self.recv[i])
+        age = step - self.stamp[i]
+        known = (self.stamp[i] >= 0) & (age <= model.max_age_steps())
+        known[k] = True
+        rows = np.flatnonzero(known)
+        x, y, qz, qw, u = self.state[:, i, rows]
+        age = age[rows]
+        if model.dead_reckoning and np.any(age > 0):
+            pos, qz, qw = dead_reckon(np.stack([x, y], axis=1), qz, qw, u, age * model.dt, moved=age > 0)
+            x, y = pos[:, 0], pos[:, 1]
+        c, s = frame_from_quaternion(qz, qw)
+        return rows, x, y, c, s
+
+
+def dead_reckon(pos, qz, qw, u, horizon, moved=None):
+    """States (pos (R, 2), quaternion) predicted ``horizon`` (R,) sim seconds ahead at unit speed
+    with constant u on the exact arc (`zoh_step`); rows where ``moved`` is False are returned
+    unchanged (bit for bit).  Returns (pos, qz, qw)."""
+    theta = yaw_from_quaternion(qz, qw)
+    p2, th2 = zoh_step(np.asarray(pos, float), theta, np.asarray(u, float), np.asarray(horizon, float))
+    qz2, qw2 = quaternion_from_heading(th2)
+    if moved is None:
+        return p2, qz2, qw2
+    m = np.asarray(moved, bool)
+    return (np.where(m[:, None], p2, pos), np.where(m, qz2, qz), np.where(m, qw2, qw))
+
+
+def belief_control(law: LawConfig, beliefs: Beliefs, i: int, step: int, model: CommModel,
+                   own_xy, own_theta, lambda_, is_leader, steering_own, target=None, barrier=None):
+    """u of receiver ``beliefs.recv[i]`` at ``step`` from its own true state and what it
+    believes of the others (`Beliefs.table`), with THE law `swarm_control` (dense sums over the
+    table, in agent-index order).  is_leader (N,) are the step's leader flags of all agents."""
+    k = int(beliefs.recv[i])
+    rows, x, y, c, s = beliefs.table(i, step, model)
+    own = int(np.searchsorted(rows, k))
+    pos = np.stack([x, y], axis=1)
+    pos[own] = own_xy
+    oc, os_ = heading_frame(np.array([float(own_theta)]))
+    c, s = np.array(c), np.array(s)
+    c[own], s[own] = oc[0], os_[0]
+    flags = None if is_leader is None else np.asarray(is_leader, bool)[rows]
+    u = swarm_control(pos, c, s, np.array([own]), law, lambda_=float(lambda_), is_leader=flags,
+                      steering=np.array([float(steering_own)]), target=target, barrier=barrier)
+    return float(u[0])
+
+
+def delay_stats(delay_counts, dt: float) -> dict:
+    """Mean/max measured delay (sim s) from a histogram of delays in steps."""
+    tot = int(delay_counts.sum())
+    if tot == 0:
+        return dict(messages=0, mean_delay=None, max_delay=None)
+    steps = np.arange(delay_counts.size)
+    return dict(messages=tot, mean_delay=float((steps * delay_counts).sum() / tot * dt),
+                max_delay=float(steps[delay_counts > 0].max() * dt))
+
+
+# ---------------------------------------------------------------- runtime events, realtime radio
+
+RADIO_EVENT_KINDS = ('drop', 'partition', 'comms')
+
+
+def change_from_event(ev) -> dict | None:
+    """The radio change of a ``/swarm/events`` object (see swarm_world.protocol), None if the
+    event is not for the radio (other kinds, or the scenario's own scheduled events, which
+    agents apply from their copy); ValueError naming the field if it is malformed."""
+    if not isinstance(ev, dict):
+        raise ValueError('an event is a JSON object')
+    kind = ev.get('kind')
+    if kind not in RADIO_EVENT_KINDS or ev.get('source') == 'scenario':
+        return None
+    if kind == 'drop':
+        change = dict(drop=ev.get('loss'), duration=ev.get('duration'))
+        if change['drop'] is None:
+            raise ValueError('drop event without loss')
+    elif kind == 'partition':
+        groups = ev.get('groups') or []
+        if not isinstance(groups, list) or not all(isinstance(g, list) and all(isinstance(s, str) for s in g)
+                                                   for g in groups):
+            raise ValueError('partition groups must be lists of agent names')
+        change = dict(partition=groups)
+    else:
+        change = {k: ev.get(k) for k in ('loss', 'latency', 'jitter')}
+    for key in ('drop', 'loss', 'latency', 'jitter'):
+        v = change.get(key)
+        if v is None:
+            continue
+        v = float(v)
+        if not (math.isfinite(v) and v >= 0.0 and (key in ('latency', 'jitter') or v <= 1.0)):
+            raise ValueError(f'{key}={change[key]!r} out of range')
+    dur = change.get('duration')
+    if dur is not None and not (math.isfinite(float(dur)) and float(dur) > 0.0):
+        raise ValueError(f'duration={dur!r} must be > 0')
+    return change
+
+
+class StreamRadio:
+    """The receive side of one realtime agent (row ``index``): states arrive one by one with
+    their stamp t; the fate of each is `CommModel.decide` for step round(t/dt), so a state is
+    lost or held in flight until t + delay exactly as in the batch engine (DDS delays come on
+    top).  `table(now)` gives the newest delivered state of every sender heard within the
+    timeout, dead-reckoned to ``now``."""
+
+    def __init__(self, model: CommModel, index: int):
+        self.model = model
+        self.index = int(index)
+        n = len(model.names)
+        self.newest = {}                      # sender row -> (t, x, y, qz, qw, u) delivered
+        self.in_flight = []                   # (release time, sender row, state)
+        self.heard = np.zeros(n, dtype=np.int64)
+        self.delivered = np.zeros(n, dtype=np.int64)
+
+    def hear(self, j: int, state, own_xy) -> bool:
+        """A state (t, x, y, qz, qw, u) of sender row j arrives; True if the radio delivers it."""
+        t = float(state[0])
+        m = int(round(t / self.model.dt))
+        self.heard[j] += 1
+        arr = int(self.model.decide(m, [self.index], np.reshape(np.asarray(own_xy, float), (1, 2)),
+                                    [j], [[state[1], state[2]]])[0, 0])
+        if arr < 0:
+            return False
+        self.delivered[j] += 1
+        self.in_flight.append((t + (arr - m) * self.model.dt, int(j), tuple(float(v) for v in state)))
+        return True
+
+    def release(self, now: float):
+        """Deliver what is due by ``now`` (newest stamp wins)."""
+        keep = []
+        for rel, j, st in self.in_flight:
+            if rel <= now + 1e-9:
+                if j not in self.newest or st[0] > self.newest[j][0]:
+                    self.newest[j] = st
+            else:
+                keep.append((rel, j, st))
+        self.in_flight = keep
+
+    def table(self, now: float, own_state):
+        """(rows, states (R, 4) of x, y, qz, qw): the senders known at ``now`` and this agent's
+        own row (own_state = x, y, qz, qw), in agent-index order, dead-reckoned to now."""
+        self.model.advance_to(int(round(now / self.model.dt)))
+        self.release(now)
+        rows = sorted([j for j, st in self.newest.items()
+                       if now - st[0] <= self.model.timeout + 1e-9 and j != self.index] + [self.index])
+        st = np.array([self.newest[j] if j != self.index else (now, *own_state, 0.0) for j in rows], dtype=float)
+        age = now - st[:, 0]
+        if self.model.dead_reckoning:
+            moved = (age > 0) & (np.array(rows) != self.index)
+            pos, qz, qw = dead_reckon(st[:, 1:3], st[:, 3], st[:, 4], st[:, 5], np.maximum(age, 0.0), moved)
+            st[:, 1:3], st[:, 3], st[:, 4] = pos, qz, qw
+        return np.array(rows, dtype=np.intp), st[:, 1:5]

@@ -1,0 +1,203 @@
+"""The communication model in the ROS nodes: a lockstep run with loss, latency, jitter, a
+per-link override and a scheduled partition equals the batch engine to 1e-9 (and the world
+publishes the scheduled events on /swarm/events); a realtime agent delays incoming states by
+the latency, and ``swarm drop`` (a CLI process) cuts what it receives, after which the silent
+neighbour is forgotten; ``swarm drop 0`` restores it; so do ``swarm partition`` / ``--heal``."""
+import json
+import math
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.ros
+
+rclpy = pytest.importorskip('rclpy')
+from nav_msgs.msg import Odometry  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
+
+from swarm_agent.agent_node import AgentNode  # noqa: E402
+from swarm_core.engine import Trajectory, simulate  # noqa: E402
+from swarm_core.model import quaternion_from_heading  # noqa: E402
+from swarm_core.scenario import load  # noqa: E402
+from swarm_tools.launch import agent_parameters, build_nodes, node_parameters  # noqa: E402
+from swarm_world import protocol as P  # noqa: E402
+from swarm_world.rosutil import make_executor  # noqa: E402
+
+SCN = """
+name: comms_short
+seed: 5
+dt: 0.05
+duration: 12.0
+agents:
+  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
+  headings: {rule: cone, half_width: 0.7853981633974483}
+law: {kind: homotopy, q0: 1.0, leader_gain: 30.0}
+lambda: {kind: tanh_window, rise_at: 4.0, fall_at: 9.0, tau: 1.5}
+leaders:
+  rule: lateral_extremes
+  at: 2.0
+  programs: [{kind: constant, curvature: 0.01}, {kind: constant, curvature: -0.01}]
+comms:
+  loss: 0.25
+  latency: 0.1
+  jitter: 0.1
+  timeout: 0.6
+  links: [{sender: agent_0, receiver: agent_3, loss: 0.9}]
+  events:
+    - {at: 5.0, partition: [[agent_0, agent_1, agent_2]]}
+    - {at: 8.0, partition: []}
+"""
+
+
+def overrides(d):
+    return [Parameter(k, value=v) for k, v in d.items()]
+
+
+def spin_for(ex, cond, timeout=10.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():
+            return True
+        ex.spin_once(timeout_sec=0.05)
+    return cond()
+
+
+def test_lockstep_with_a_lossy_delayed_radio_equals_the_batch_engine(tmp_path, rclpy_context):
+    path = tmp_path / 'comms_short.yaml'
+    path.write_text(SCN)
+    scn = load(str(path))
+    out = tmp_path / 'run'
+    params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
+    assert json.loads(params['/agent_3/agent']['comms'])['loss'] == 0.25
+    ctx = rclpy_context
+    world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
+    probe = rclpy.create_node('probe', context=ctx)
+    events = []
+    probe.create_subscription(String, P.EVENTS, lambda m: events.append(json.loads(m.data)), P.qos_latched(100))
+    ex = make_executor(ctx)
+    for nd in [world, commander, *agents, probe]:
+        ex.add_node(nd)
+    assert spin_for(ex, lambda: world.done, 240.0)
+    assert world.failed is None
+    spin_for(ex, lambda: len(events) >= 2, 5.0)
+    got = Trajectory.load(out / 'trajectory.npz')
+    ref = simulate(scn)
+    assert ref.leader.any() and ref.lam.max() > 0.9
+    assert 0.5 < ref.meta['comms']['delivered_fraction'] < 0.8
+    assert np.abs(got.r - ref.r).max() <= 1e-9
+    assert np.abs(got.theta - ref.theta).max() <= 1e-9
+    assert np.abs(got.u - ref.u).max() <= 1e-9
+    # the radio mattered: the perfect radio flies differently
+    perfect = simulate(_perfect(path))
+    assert np.abs(perfect.r - ref.r).max() > 1e-3
+    # each agent's radio counted what the engine's did for its incoming links
+    a3 = [a for a in agents if a.agent_name == 'agent_3'][0]
+    assert a3.core.beliefs.delivered[0, 0] < a3.core.beliefs.delivered[0, 1]      # the 0.9 link
+    assert [(e['t'], e['kind'], e['source'], e['partition']) for e in events] == [
+        (5.0, 'comms', 'scenario', [['agent_0', 'agent_1', 'agent_2']]), (8.0, 'comms', 'scenario', [])]
+    for nd in [world, commander, *agents, probe]:
+        nd.destroy_node()
+
+
+def _perfect(path):
+    import yaml
+
+    from swarm_core.scenario import parse
+    data = yaml.safe_load(SCN)
+    data.pop('comms')
+    return parse(data, str(path))
+
+
+def odom(name, x, y, theta, t, u=0.0):
+    m = Odometry()
+    m.header.frame_id, m.child_frame_id = 'world', name
+    m.header.stamp.sec, m.header.stamp.nanosec = P.time_to_stamp(t)
+    m.pose.pose.position.x, m.pose.pose.position.y = x, y
+    qz, qw = quaternion_from_heading(theta)
+    m.pose.pose.orientation.z, m.pose.pose.orientation.w = float(qz), float(qw)
+    m.twist.twist.angular.z = u
+    return m
+
+
+def test_realtime_latency_and_swarm_drop(rclpy_context, swarm_cmd, processes):
+    scn = load('homotopy_global')
+    ctx = rclpy_context
+    ex = make_executor(ctx)
+    prm = dict(agent_parameters(scn, 1, 'realtime'), comms=json.dumps(dict(latency=0.2, timeout=0.5)))
+    agent = AgentNode('agent', namespace='agent_1', context=ctx, parameter_overrides=overrides(prm))
+    probe = rclpy.create_node('probe', context=ctx)
+    clock = probe.create_publisher(Clock, '/clock', 10)
+    states = probe.create_publisher(Odometry, P.STATES, P.qos_latched(10))
+    ex.add_node(agent)
+    ex.add_node(probe)
+    assert agent.radio_on
+    assert spin_for(ex, lambda: clock.get_subscription_count() and states.get_subscription_count())
+    t = [0.0]
+    lags = []
+
+    def tick(k):
+        for _ in range(k):
+            t[0] = round(t[0] + scn.dt, 10)
+            c = Clock()
+            c.clock.sec, c.clock.nanosec = P.time_to_stamp(t[0])
+            clock.publish(c)
+            states.publish(odom('agent_0', -1.0 + t[0], 1.0, 0.0, t[0]))
+            spin_for(ex, lambda: False, 0.03)
+            if 0 in agent.stream.newest:                     # agent_0's newest delivered state
+                lags.append(agent._now() - agent.stream.newest[0][0])
+
+    def counts():
+        return tuple(agent.radio_count['agent_0'])
+
+    def known():
+        """agent_0 is in agent_1's control table (only agent_0 publishes states here)."""
+        _, rows, _ = agent.radio_table(agent._now())
+        return len(rows) == 2
+
+    tick(30)
+    heard, got = counts()
+    assert heard >= 10 and got == heard                     # no loss configured
+    assert lags and min(lags) >= 0.2 - 1e-9                  # never fresher than the latency
+    assert known()
+
+    def run_cli(*args):
+        p = processes.start([swarm_cmd, *args, '--wait', '20'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True)
+        while p.poll() is None:
+            tick(1)
+        out = p.stdout.read()
+        assert p.returncode == 0, out
+        return out
+
+    run_cli('drop', '1.0')
+    assert agent.radio.burst[0] == 1.0
+    tick(2)
+    heard0, got0 = counts()
+    tick(20)                                                 # 1 s > timeout + latency
+    heard1, got1 = counts()
+    assert heard1 >= heard0 + 10 and got1 == got0            # heard, never delivered
+    assert not known()                                       # silent > timeout: forgotten
+    run_cli('drop', '0')
+    tick(20)
+    heard2, got2 = counts()
+    assert got2 >= got1 + 5 and known()
+    # agent_1 in a group of its own (agent_0: the rest) cuts the link; --heal restores it
+    bad = processes.start([swarm_cmd, 'partition', 'agent_1,ghost', '--wait', '20'], stdout=subprocess.PIPE,
+                          stderr=subprocess.STDOUT, text=True)
+    while bad.poll() is None:
+        tick(1)
+    assert bad.returncode == 2 and "unknown agent 'ghost'" in bad.stdout.read()
+    run_cli('partition', 'agent_1')
+    tick(2)
+    _, got3 = counts()
+    tick(20)
+    assert counts()[1] == got3 and not known()
+    run_cli('partition', '--heal')
+    tick(20)
+    assert counts()[1] >= got3 + 5 and known()
+    assert math.isfinite(agent.core.theta[0])
+    probe.destroy_node()
