@@ -236,8 +236,11 @@ class CommanderNode(Node):
 
     def _on_tick(self):
         t = self.get_clock().now().nanoseconds * 1e-9
-        heard = t - self.last_seen <= self.heard_timeout
-        lam, flags, steering = self.decide(t, self.pos, self.cos, self.sin, heard=heard if heard.any() else None)
+        heard = None
+        if self.plan.failover is not None:       # only failover reads it (a lagging agent is not lost)
+            heard = t - self.last_seen <= self.heard_timeout
+            heard = heard if heard.any() else None
+        lam, flags, steering = self.decide(t, self.pos, self.cos, self.sin, heard=heard)
         self.publish_outputs(lam, flags, steering, force=True)
 
 

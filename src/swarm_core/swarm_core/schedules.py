@@ -210,8 +210,9 @@ class CommandPlan:
         pos (N, 2) and the frames (cos θ, sin θ) are what the agents publish, so the batch
         engine and the ROS commander get the same answer.  ``heard`` (bool (N,), default all):
         the agents whose states of t are known; the rows of the others are not read.
-        steering is an array (N,) with s_k for heard leaders and 0 elsewhere.  The leader
-        indices include leaders that are not heard (until failover replaces them)."""
+        steering is an array (N,) with s_k for leaders (from their last known state if not
+        heard) and 0 elsewhere.  The leader indices include leaders that are not heard (until
+        failover replaces them)."""
         self.events = []
         n = len(cos_t)
         heard = np.ones(n, bool) if heard is None else np.asarray(heard, bool)
@@ -232,9 +233,8 @@ class CommandPlan:
         lam = float(self.schedule.value(t))
         steering = np.zeros(n)
         for idx, prog in self.leaders.items():
-            if heard[idx]:
-                heading = math.atan2(float(sin_t[idx]), float(cos_t[idx]))
-                steering[idx] = prog.value(t, pos[idx], heading)
+            heading = math.atan2(float(sin_t[idx]), float(cos_t[idx]))
+            steering[idx] = prog.value(t, pos[idx], heading)
         self.rendezvous_now = None
         for j, r in enumerate(self.rendezvous):
             now = r.update(t, pos, heard)
