@@ -117,17 +117,15 @@ class AgentNode(Node):
         self.u_history = []      # (step, u) for tests (bounded)
         self.silent = False      # lockstep: not in the table (frozen, or killed)
 
-        self.pub = self.create_publisher(Odometry, P.STATES, P.qos_latched())
+        self.pub = self.create_publisher(Odometry, P.STATES, P.qos_latched(P.STATES_DEPTH))
         self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
         self.create_subscription(Float64, 'steering', self._on_steering, P.qos_reliable())
         self.create_subscription(String, P.LEADERS, self._on_leaders, P.qos_latched())
         self.create_subscription(PointStamped, P.TARGET, self._on_target, P.qos_latched())
         self.create_subscription(PolygonStamped, P.BARRIER, self._on_barrier, P.qos_latched())
         self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
-        self.odom = Odometry()
-        self.odom.header.frame_id = 'world'
-        self.odom.child_frame_id = self.agent_name
-        self.odom.twist.twist.linear.x = 1.0
+        self.serialize_state = P.OdometryWriter(self.agent_name)
+        self.own = None          # (sec, nanosec, x, y, qz, qw, u) last published
         if self.mode == 'lockstep':
             self.create_subscription(Float64MultiArray, P.LOCK_STEP, self._on_step, P.qos_latched(), raw=True)
         else:
@@ -138,13 +136,26 @@ class AgentNode(Node):
 
     # ------------------------------------------------------------ output
     def publish_state(self):
-        o = self.odom
-        o.header.stamp.sec, o.header.stamp.nanosec = P.time_to_stamp(self.t)
-        p = o.pose.pose
-        p.position.x, p.position.y = float(self.core.pos[0, 0]), float(self.core.pos[0, 1])
-        p.orientation.z, p.orientation.w = self.core.quaternion
-        o.twist.twist.angular.z = float(self.core.u_last)
-        self.pub.publish(o)
+        """Publish the own state of t (pre-serialised: no message object per step)."""
+        sec, nsec = P.time_to_stamp(self.t)
+        qz, qw = self.core.quaternion
+        self.own = (sec, nsec, float(self.core.pos[0, 0]), float(self.core.pos[0, 1]), qz, qw,
+                    float(self.core.u_last))
+        self.pub.publish(self.serialize_state(*self.own))
+
+    @property
+    def odom(self):
+        """The last published state as an Odometry message (for inspection, not the hot path)."""
+        o = Odometry()
+        o.header.frame_id, o.child_frame_id = 'world', self.agent_name
+        o.twist.twist.linear.x = 1.0
+        if self.own is not None:
+            sec, nsec, x, y, qz, qw, u = self.own
+            o.header.stamp.sec, o.header.stamp.nanosec = sec, nsec
+            o.pose.pose.position.x, o.pose.pose.position.y = x, y
+            o.pose.pose.orientation.z, o.pose.pose.orientation.w = qz, qw
+            o.twist.twist.angular.z = u
+        return o
 
     def _apply(self, u):
         u = self.core.advance(u)
@@ -271,10 +282,10 @@ class AgentNode(Node):
     def _on_state(self, msg):
         name = msg.child_frame_id
         if name == self.agent_name:
-            own = self.odom.pose.pose
             p = msg.pose.pose
-            if (p.position.x, p.position.y, p.orientation.z) != (own.position.x, own.position.y, own.orientation.z) \
-                    and msg.header.stamp == self.odom.header.stamp:
+            sec, nsec, x, y, qz = self.own[:5]
+            if (p.position.x, p.position.y, p.orientation.z) != (x, y, qz) \
+                    and (msg.header.stamp.sec, msg.header.stamp.nanosec) == (sec, nsec):
                 self.reject(('dup', name), f'state claiming to be {name!r} (this agent): duplicate agent name')
             return
         reason = check_state(msg, self.row, self.heard if self.radio_on else self.neigh)

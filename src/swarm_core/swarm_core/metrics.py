@@ -28,11 +28,21 @@ def polarisation(theta):
     return float(np.hypot(np.cos(theta).mean(), np.sin(theta).mean()))
 
 
+#: up to this many agents `min_distance` compares all pairs densely
+DENSE_MIN_DISTANCE = 128
+
+
 def min_distance(pos):
     """Minimum pairwise distance (collision margin); inf for fewer than two agents."""
     pos = np.asarray(pos, dtype=float)
     if len(pos) < 2:
         return float('inf')
+    if len(pos) <= DENSE_MIN_DISTANCE:     # all pairs: faster than building a tree (per-step use)
+        dx = pos[:, 0, None] - pos[:, 0]
+        dy = pos[:, 1, None] - pos[:, 1]
+        d2 = dx * dx + dy * dy
+        np.fill_diagonal(d2, np.inf)
+        return float(np.sqrt(d2.min()))
     d, _ = cKDTree(pos).query(pos, k=2)
     return float(d[:, 1].min())
 

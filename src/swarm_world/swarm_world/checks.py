@@ -14,16 +14,24 @@ def check_state(msg, row, newest):
     unit quaternion; a stamp older than the newest one of that agent (a stamp from the past);
     a different state with the same stamp as the newest one of that agent (two publishers
     using one name: a duplicate agent name)."""
-    name = msg.child_frame_id
+    p = msg.pose.pose
+    o = p.orientation
+    return check_values(msg.child_frame_id, P.stamp_to_time(msg.header.stamp),
+                        (p.position.x, p.position.y, o.x, o.y, o.z, o.w), msg.twist.twist.angular.z,
+                        row, newest)
+
+
+def check_values(name, t, pose, wz, row, newest):
+    """`check_state` on decoded values: pose = (x, y, qx, qy, qz, qw), wz = twist.angular.z."""
     if name not in row:
         return f'state from unknown agent {name!r}'
-    p = msg.pose.pose
-    vals = (p.position.x, p.position.y, p.orientation.z, p.orientation.w)
-    if not all(math.isfinite(v) for v in vals + (msg.twist.twist.angular.z,)):
-        return f'state of {name!r} with a non-finite pose/twist {vals + (msg.twist.twist.angular.z,)}'
-    if abs(p.orientation.z ** 2 + p.orientation.w ** 2 - 1.0) > 1e-6 or p.orientation.x or p.orientation.y:
+    x, y, qx, qy, qz, qw = pose
+    vals = (x, y, qz, qw)
+    isfinite = math.isfinite
+    if not (isfinite(x) and isfinite(y) and isfinite(qz) and isfinite(qw) and isfinite(wz)):
+        return f'state of {name!r} with a non-finite pose/twist {vals + (wz,)}'
+    if abs(qz ** 2 + qw ** 2 - 1.0) > 1e-6 or qx or qy:
         return f'state of {name!r}: orientation is not a planar unit quaternion'
-    t = P.stamp_to_time(msg.header.stamp)
     if name in newest:
         t0 = newest[name][0]
         if t < t0:

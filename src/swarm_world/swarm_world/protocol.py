@@ -9,7 +9,10 @@ Fixed, user-facing topics (DESIGN.md)
     (u_{n−1} for the state of t_n; 0 for the initial state).  In lockstep the u an agent
     applies from t_n on is decided only after every agent's state of t_n is known, so it is
     carried by the agent's next message (t_{n+1}); realtime agents use the same convention.
-    QoS: reliable, transient-local, depth 1 (a late joiner gets each agent's newest state).
+    QoS: reliable, transient-local, depth `STATES_DEPTH` (a late joiner gets each agent's
+    newest states; a reader one step behind loses none).  Agents publish it pre-serialised
+    (`OdometryWriter`) and the world reads it raw (`cdr_to_odometry`): the same bytes as
+    rclpy's serializer, without building message objects each step.
 ``/swarm/lambda``  std_msgs/Float64, commander (or a user): λ ∈ [0, 1].
 ``/<agent>/steering``  std_msgs/Float64, commander (or a user): leader steering value s_k.
 ``/swarm/leaders``  std_msgs/String, transient-local: comma-separated leader names ('' = none).
@@ -42,7 +45,8 @@ Every input is paired with the step it belongs to.  For step n (t_n = n·dt):
 
 1. every agent has published its state of t_n on ``/swarm/states``;
 2. the world, once it holds all N states of t_n (rows in agent-index order = the scenario's
-   roster), publishes ``/clock`` = t_n and the packed states on ``/lockstep/states``;
+   roster), publishes ``/clock`` = t_n (every ``clock_every`` steps, default every step) and
+   the packed states on ``/lockstep/states``;
 3. the commander runs its `CommandPlan` (λ schedule, leader rule, steering programs, live
    set-points) on exactly those states and answers on ``/lockstep/decision``; it also
    publishes ``/swarm/lambda``, ``/<agent>/steering`` (on change) and ``/swarm/leaders``;
@@ -96,6 +100,8 @@ LOCK_DECISION = '/lockstep/decision'
 LOCK_STEP = '/lockstep/step'
 EVENTS = '/swarm/events'
 FAULT_REQUEST = '/swarm/fault_request'
+#: publisher depth of /swarm/states (transient-local): history a late or slow reader can get
+STATES_DEPTH = 100
 
 
 def steering_topic(agent: str) -> str:
@@ -266,3 +272,64 @@ def cdr_to_float64_array(raw: bytes) -> np.ndarray:
     o += 4
     o = (o - 4 + 7) // 8 * 8 + 4
     return np.frombuffer(raw, dtype=end + 'f8', count=size, offset=o)
+
+
+# ------------------------------------------------------------------ raw CDR of nav_msgs/Odometry
+#
+# Layout (XCDR1, offsets after the 4-byte encapsulation header): header.stamp (int32 sec,
+# uint32 nanosec), header.frame_id (uint32 length incl. NUL, bytes), child_frame_id (aligned
+# to 4, same), then aligned to 8 the 85 float64 of pose.pose (position 3, orientation 4),
+# pose.covariance (36), twist.twist (linear 3, angular 3), twist.covariance (36).
+
+_ODOM_DOUBLES = 7 + 36 + 6 + 36
+_I_X, _I_Y, _I_QX, _I_QY, _I_QZ, _I_QW = 0, 1, 3, 4, 5, 6
+_I_VX = 43
+_I_WZ = 48
+
+
+def _cdr_string(s: str, off: int) -> tuple[bytes, int]:
+    """Padding + length + bytes of a CDR string written at body offset `off`; new offset."""
+    b = s.encode() + b'\0'
+    pad = (-off) % 4
+    out = b'\0' * pad + struct.pack('<I', len(b)) + b
+    return out, off + len(out)
+
+
+class OdometryWriter:
+    """Serialized ``nav_msgs/Odometry`` of one agent (what ``publish()`` accepts as bytes):
+    frame_id ``world``, fixed child_frame_id, twist.linear.x = 1, zero covariances."""
+
+    def __init__(self, child_frame_id: str, frame_id: str = 'world'):
+        off = 8                                          # after the stamp
+        frame, off = _cdr_string(frame_id, off)
+        child, off = _cdr_string(child_frame_id, off)
+        pad = (-off) % 8
+        self._names = frame + child + b'\0' * pad
+        self._body = np.zeros(_ODOM_DOUBLES, dtype='<f8')
+        self._body[_I_VX] = 1.0
+
+    def __call__(self, sec: int, nanosec: int, x: float, y: float, qz: float, qw: float, wz: float) -> bytes:
+        b = self._body
+        b[_I_X], b[_I_Y], b[_I_QZ], b[_I_QW], b[_I_WZ] = x, y, qz, qw, wz
+        return _HEADER + struct.pack('<iI', sec, nanosec) + self._names + b.tobytes()
+
+
+def cdr_to_odometry(raw: bytes):
+    """(child_frame_id, sec, nanosec, (x, y, qx, qy, qz, qw), angular.z) of a serialized
+    ``nav_msgs/Odometry`` (either byte order, any frame_id)."""
+    end = '<' if raw[1] & 1 else '>'
+    sec, nsec, n = struct.unpack_from(end + 'iII', raw, 4)
+    o = 16 + n                                       # after header.frame_id
+    o = (o - 4 + 3) // 4 * 4 + 4
+    n, = struct.unpack_from(end + 'I', raw, o)
+    name = raw[o + 4:o + 3 + n].decode('utf-8', 'replace')
+    o += 4 + n
+    o = (o - 4 + 7) // 8 * 8 + 4
+    x, y, _, qx, qy, qz, qw = struct.unpack_from(end + '7d', raw, o)
+    wz, = struct.unpack_from(end + 'd', raw, o + 8 * _I_WZ)
+    return name, sec, nsec, (x, y, qx, qy, qz, qw), wz
+
+
+def clock_to_cdr(t: float) -> bytes:
+    """Serialized ``rosgraph_msgs/Clock`` of sim time t (what ``publish()`` accepts as bytes)."""
+    return _HEADER + struct.pack('<iI', *time_to_stamp(t))

@@ -85,11 +85,22 @@ def make_executor(context, events=None):
 
 
 def spin_until(executor, context, done, timeout=0.1):
-    """spin_once loop (EventsExecutor.spin() burns CPU and ignores signals) until done()."""
+    """Spin until done() (checked at least every ``timeout`` s), SIGINT or shutdown.
+
+    Not ``EventsExecutor.spin()`` (it burns CPU while idle and ignores signals).  With the
+    EventsExecutor, ``spin_until_future_complete`` on a future nobody completes, with a
+    timeout, handles every event of that interval in C++ (one Python round trip per interval,
+    not per message); other executors get a ``spin_once`` loop."""
     from rclpy.executors import ExternalShutdownException
+    from rclpy.task import Future
+    events = type(executor).__name__ == 'EventsExecutor'
+    never = Future()
     try:
         while context.ok() and not done():
-            executor.spin_once(timeout_sec=timeout)
+            if events:
+                executor.spin_until_future_complete(never, timeout_sec=timeout)
+            else:
+                executor.spin_once(timeout_sec=timeout)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
 

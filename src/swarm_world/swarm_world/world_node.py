@@ -44,7 +44,7 @@ from swarm_core.model import yaw_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 
 from . import protocol as P
-from .checks import check_state
+from .checks import check_values
 from .rosutil import ParameterError, RejectLog, declare, run_node, steady_clock
 
 
@@ -86,6 +86,8 @@ class WorldNode(Node):
         self.output_dir = d('output_dir', '', 'where to write trajectory.npz at the end ("": nowhere)')
         self.progress_every = d('progress_every', 50.0, 'progress line every this many sim s (0: none)', lo=0.0, hi=1e9)
         self.view_every = d('view_every', 20, 'markers and metrics every this many steps (0: never)', lo=0, hi=10**9)
+        self.clock_every = d('clock_every', 1, 'lockstep: publish /clock every this many steps (every node '
+                             'receives each one; lockstep inputs carry their own time)', lo=1, hi=10**9)
         self.stall_timeout = d('stall_timeout', 2.0, 'lockstep: repeat the last message after this many wall s', lo=0.1, hi=1e6)
         self.start_timeout = d('start_timeout', 180.0, 'give up if not everyone is discovered in this many wall s', lo=1.0, hi=1e6)
         self.collision_distance = d('collision_distance', 0.01, 'pairs closer than this count as a collision', lo=0.0, hi=1e6)
@@ -139,7 +141,7 @@ class WorldNode(Node):
         self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
         self.create_subscription(String, P.FAULT_REQUEST, self._on_fault_request, P.qos_latched(10))
         self.sub_states = self.create_subscription(Odometry, P.STATES, self._on_state,
-                                                   P.qos_latched(max(100, 4 * self.n)))
+                                                   P.qos_latched(max(100, 4 * self.n)), raw=True)
         if self.mode == 'realtime':
             self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
         if self.mode == 'lockstep':
@@ -230,23 +232,27 @@ class WorldNode(Node):
         self.pub_barrier.publish(bs)
 
     # ------------------------------------------------------------ inputs
-    def _on_state(self, msg):
-        reason = check_state(msg, self.row, self.newest)
+    def _on_state(self, raw):
+        """A serialized /swarm/states message (decoded without building an Odometry)."""
+        try:
+            name, sec, nsec, pose, wz = P.cdr_to_odometry(raw)
+        except Exception as err:
+            self.reject('state-decode', f'{P.STATES} message that does not decode: {err}')
+            return
+        t = sec + nsec * 1e-9
+        reason = check_values(name, t, pose, wz, self.row, self.newest)
         if reason is not None:
             if reason != 'repeat':
-                self.reject((msg.child_frame_id, reason.split(':')[0]), reason)
+                self.reject((name, reason.split(':')[0]), reason)
             return
-        name = msg.child_frame_id
         i = self.row[name]
-        p = msg.pose.pose
-        t = P.stamp_to_time(msg.header.stamp)
-        vals = (p.position.x, p.position.y, p.orientation.z, p.orientation.w)
+        vals = (pose[0], pose[1], pose[4], pose[5])
         if self.mode == 'realtime':
             self.newest[name] = (t, *vals)
-            self.rt_record(i, t, vals, msg.twist.twist.angular.z)
+            self.rt_record(i, t, vals, wz)
             return
         k = P.step_of(t, self.dt)
-        u = msg.twist.twist.angular.z
+        u = wz
         if not self.faults.alive[i]:          # faults: dead or frozen
             self.newest[name] = (t, *vals)
             if self.faults.frozen[i] and k == self.faults.frozen_at[i]:
@@ -312,11 +318,11 @@ class WorldNode(Node):
                 fresh = self.fresh & alive
                 self.rec_u[k - 1, fresh] = self.buf_u[fresh]
             self.sim_t = k * self.dt
-            self.pub_clock.publish(Clock(clock=self._stamp(self.sim_t)))
-            msg = Float64MultiArray()
-            msg.data = P.pack_states(k, self.sim_t, x, y, qz, qw, alive).tolist()
-            self.pub_lock_states.publish(msg)
-            self.last_msg = (self.pub_lock_states, msg)
+            if k % self.clock_every == 0 or k == self.steps:
+                self.pub_clock.publish(P.clock_to_cdr(self.sim_t))
+            raw = P.float64_array_to_cdr(P.pack_states(k, self.sim_t, x, y, qz, qw, alive))
+            self.pub_lock_states.publish(raw)
+            self.last_msg = (self.pub_lock_states, raw)
             self.states_out = True
             self.observe(k)
         if self.states_out and self.decision is not None:
@@ -329,8 +335,9 @@ class WorldNode(Node):
             data = P.pack_step(k, k * self.dt, lam, flags, steering, x, y, qz, qw, self.target, self.barrier,
                                self.buf_u, alive=alive, rendezvous=rdv)
             self.publish_scheduled_events(k)
-            self.pub_step.publish(P.float64_array_to_cdr(data))
-            self.last_msg = (self.pub_step, P.float64_array_to_cdr(data))
+            raw = P.float64_array_to_cdr(data)
+            self.pub_step.publish(raw)
+            self.last_msg = (self.pub_step, raw)
             self.cur += 1
             self.have[:] = False
             self.fresh[:] = False

@@ -1,0 +1,79 @@
+"""The fast paths of the ROS swarm keep its behaviour: hand-serialised /swarm/states messages
+are what rclpy would send, and a lockstep run over the large-n DDS profile (UDP loopback, no
+shared memory) still equals `swarm simulate`."""
+import math
+import subprocess
+
+import numpy as np
+import pytest
+
+from swarm_core.engine import Trajectory, simulate
+from swarm_core.scenario import load
+from swarm_world import protocol as P
+
+SHORT = """
+name: dds_short
+seed: 3
+dt: 0.05
+duration: 15
+agents:
+  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
+  headings: {rule: cone, half_width: 0.7853981633974483}
+law: {kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0, leader_gain: 30.0, q0: 1.0}
+lambda: {kind: tanh_window, rise_at: 5, fall_at: 12, tau: 1}
+leaders:
+  rule: lateral_extremes
+  at: 2
+  programs:
+    - {kind: constant, curvature: 0.01}
+    - {kind: constant, curvature: -0.01}
+"""
+
+
+@pytest.mark.parametrize('name', ['agent_0', 'a', 'ab', 'agent_123', 'ünï'])
+def test_odometry_bytes_round_trip_through_rclpy(name):
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message, serialize_message
+    raw = P.OdometryWriter(name)(12, 345_000_000, 1.5, -2.25, math.sin(0.3), math.cos(0.3), -0.01)
+    m = deserialize_message(raw, Odometry)
+    assert (m.header.frame_id, m.child_frame_id) == ('world', name)
+    assert (m.header.stamp.sec, m.header.stamp.nanosec) == (12, 345_000_000)
+    p = m.pose.pose
+    assert (p.position.x, p.position.y, p.position.z) == (1.5, -2.25, 0.0)
+    assert (p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w) == (0.0, 0.0, math.sin(0.3), math.cos(0.3))
+    assert (m.twist.twist.linear.x, m.twist.twist.angular.z) == (1.0, -0.01)
+    assert not any(m.pose.covariance) and not any(m.twist.covariance)
+    # and the world's raw reader decodes what rclpy serialises
+    m.pose.pose.orientation.x = 0.5
+    assert P.cdr_to_odometry(serialize_message(m)) == (
+        name, 12, 345_000_000, (1.5, -2.25, 0.5, 0.0, math.sin(0.3), math.cos(0.3)), -0.01)
+
+
+def test_lockstep_over_the_udp_profile_equals_simulate(tmp_path, ros_domain, processes, swarm_cmd):
+    """Also with /clock only every 7 steps: lockstep inputs carry their own step and time."""
+    path = tmp_path / 'dds_short.yaml'
+    path.write_text(SHORT)
+    out = tmp_path / 'run'
+    p = processes.start([swarm_cmd, 'run', path, '--dds', 'udp', '--clock-every', '7', '--out', out, '--no-figure'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    text, _ = p.communicate(timeout=240)
+    assert p.returncode == 0, text[-3000:]
+    got = Trajectory.load(out / 'trajectory.npz')
+    ref = simulate(load(str(path)))
+    assert ref.leader.any() and ref.lam.max() > 0.5          # leaders and λ were exercised
+    assert np.abs(got.r - ref.r).max() <= 1e-9
+    assert np.abs(got.theta - ref.theta).max() <= 1e-9
+    assert np.abs(got.u - ref.u).max() <= 1e-9
+    assert np.array_equal(got.lam, ref.lam) and np.array_equal(got.leader, ref.leader)
+    assert 'stalled' not in text and 'XMLPARSER' not in text      # the profile parsed
+
+
+def test_udp_profile_is_written_for_large_runs(tmp_path):
+    from swarm_tools import dds
+    env = dds.environment(98, tmp_path, base={'ROS_DOMAIN_ID': '5'})
+    xml = (tmp_path / 'fastdds_loopback.xml').read_text()
+    assert env['FASTRTPS_DEFAULT_PROFILES_FILE'] == str(tmp_path / 'fastdds_loopback.xml')
+    assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SYSTEM_DEFAULT'
+    assert '<maxInitialPeersRange>130</maxInitialPeersRange>' in xml
+    small = dds.environment(8, tmp_path / 'x', base={})
+    assert small['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST' and 'FASTRTPS_DEFAULT_PROFILES_FILE' not in small
