@@ -15,9 +15,15 @@ Live changes:
   agent's program becomes the constant curvature (the agent becomes a leader if it was not).
 λ outside [0, 1] or not finite, a non-finite steering value, an unknown agent: rejected with
 one log line, nothing changes.
+
+Faults (swarm_core.faults): in lockstep the plan sees which agents the world heard at each step
+(the alive mask of ``/lockstep/states``), so leader failover elects the same successor as the
+batch engine; the decision carries the leader slots and the rendezvous (reunion) target.  The
+plan's events (leaders chosen, failover, leader lost, rendezvous on/off) go to ``/swarm/events``.
 """
 from __future__ import annotations
 
+import json
 import math
 import sys
 
@@ -26,6 +32,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray, String
 
+from swarm_core.faults import event_names
 from swarm_core.model import frame_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 from swarm_core.schedules import ConstantSteering
@@ -51,6 +58,8 @@ class CommanderNode(Node):
                               lo=0.0, hi=1e6)
         self.ramp_shape = d('ramp_shape', 'smoothstep', 'shape of set-point ramps',
                             choices=('smoothstep', 'linear', 'tanh', 'step'))
+        self.heard_timeout = d('heard_timeout', 1.0, 'realtime: an agent silent for this many sim s is not heard '
+                               '(leader failover)', lo=0.0, hi=1e9)
         self.publish_every = d('publish_every', 10, 'lockstep: publish /swarm/lambda every this many steps',
                                lo=1, hi=10**9)
         try:
@@ -74,6 +83,7 @@ class CommanderNode(Node):
 
         self.pub_lambda = self.create_publisher(Float64, P.LAMBDA, P.qos_reliable())
         self.pub_leaders = self.create_publisher(String, P.LEADERS, P.qos_latched())
+        self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
         self.pub_steer = {nm: self.create_publisher(Float64, P.steering_topic(nm), P.qos_reliable())
                           for nm in self.names}
         # rclpy's message info carries no publisher id here, so the commander recognises its own
@@ -92,6 +102,7 @@ class CommanderNode(Node):
             self.pos = self.scn.pos0.copy()
             c, s = np.cos(self.scn.theta0), np.sin(self.scn.theta0)
             self.cos, self.sin = c, s
+            self.last_seen = np.full(self.n, -np.inf)
             self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)))
             self.timer = self.create_timer(self.dt, self._on_tick)
         self.publish_leaders([])
@@ -156,9 +167,16 @@ class CommanderNode(Node):
         self.pending.clear()
 
     # ------------------------------------------------------------ deciding
-    def decide(self, t, pos, cos_t, sin_t):
+    def decide(self, t, pos, cos_t, sin_t, heard=None):
         self.apply_pending(t)
-        lam, leaders, steering = self.plan.update(t, pos, cos_t, sin_t)
+        lam, leaders, steering = self.plan.update(t, pos, cos_t, sin_t, heard=heard)
+        for ev in self.plan.events:
+            ev = dict(event_names(ev, self.names), node='commander')
+            self.pub_events.publish(String(data=json.dumps(ev)))
+            if ev['kind'] in ('failover', 'leader_lost'):
+                self.get_logger().warning(f't={t:.2f}: leader {ev["lost"]} lost; '
+                                          + (f'{ev["agent"]} takes over its program' if 'agent' in ev
+                                             else 'no follower to take over'))
         flags = np.zeros(self.n, bool)
         flags[leaders] = True
         self.t, self.lam = t, lam
@@ -184,7 +202,8 @@ class CommanderNode(Node):
             self.get_logger().info(f'leaders: {", ".join(leaders)}')
 
     def _on_states(self, raw):
-        n, t, x, y, qz, qw = P.unpack_states(P.cdr_to_float64_array(raw))
+        data = P.cdr_to_float64_array(raw)
+        n, t, x, y, qz, qw = P.unpack_states(data)
         if self.last_decision is not None and n == self.last_decision[0]:
             self.pub_decision.publish(self.last_decision[1])     # a repeat: answer again
             return
@@ -193,8 +212,13 @@ class CommanderNode(Node):
             return
         cos_t, sin_t = frame_from_quaternion(qz, qw)
         pos = np.stack([x, y], axis=1)
-        lam, flags, steering = self.decide(t, pos, cos_t, sin_t)
-        raw_out = P.float64_array_to_cdr(P.pack_decision(n, t, lam, flags, steering))
+        alive = P.states_alive(data)
+        lam, flags, steering = self.decide(t, pos, cos_t, sin_t, heard=alive)
+        slots = np.full(self.n, -1.0)
+        for sl, i in self.plan.slots.items():
+            slots[i] = sl
+        raw_out = P.float64_array_to_cdr(P.pack_decision(n, t, lam, flags, steering, slots,
+                                                         self.plan.rendezvous_now))
         self.pub_decision.publish(raw_out)
         self.last_decision = (n, raw_out)
         self.publish_outputs(lam, flags, steering, force=(n % self.publish_every == 0))
@@ -208,10 +232,15 @@ class CommanderNode(Node):
         self.pos[i] = vals[:2]
         c, s = frame_from_quaternion(vals[2], vals[3])
         self.cos[i], self.sin[i] = c, s
+        self.last_seen[i] = P.stamp_to_time(msg.header.stamp)
 
     def _on_tick(self):
         t = self.get_clock().now().nanoseconds * 1e-9
-        lam, flags, steering = self.decide(t, self.pos, self.cos, self.sin)
+        heard = None
+        if self.plan.failover is not None:       # only failover reads it (a lagging agent is not lost)
+            heard = t - self.last_seen <= self.heard_timeout
+            heard = heard if heard.any() else None
+        lam, flags, steering = self.decide(t, self.pos, self.cos, self.sin, heard=heard)
         self.publish_outputs(lam, flags, steering, force=True)
 
 

@@ -115,6 +115,7 @@ class AgentNode(Node):
         self.step = 0            # lockstep: the step whose state we hold
         self.t = 0.0
         self.u_history = []      # (step, u) for tests (bounded)
+        self.silent = False      # lockstep: not in the table (frozen, or killed)
 
         self.pub = self.create_publisher(Odometry, P.STATES, P.qos_latched(P.STATES_DEPTH))
         self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
@@ -172,6 +173,16 @@ class AgentNode(Node):
         if s.n == self.step - 1:       # a repeat (stall recovery): say our answer again
             self.publish_state()
             return
+        if len(s.alive) == self.n and not s.alive[self.index]:
+            # faults: dead or frozen at this step: neither move nor speak (a frozen agent
+            # resumes at the first step that lists it alive, with the state it holds)
+            if s.n >= self.step and not self.silent:
+                self.silent = True
+                self.get_logger().info(f'not in the table from step {s.n} on (killed or frozen)')
+            return
+        if s.n > self.step:            # back after a freeze (maybe stopped before it saw one)
+            self.get_logger().info(f'back in the table at step {s.n} (was frozen at step {self.step})')
+            self.step = s.n
         if s.n != self.step:
             self.reject(('step', s.n), f'/lockstep/step for step {s.n} (this agent is at step {self.step})')
             return
@@ -179,12 +190,13 @@ class AgentNode(Node):
             self.reject('step-n', f'/lockstep/step with {len(s.x)} agents (roster has {self.n})')
             return
         self.lam = s.lam
+        self.silent = False
         if self.radio_on:
             u = self.core.comms_control(s.n, s.x, s.y, s.qz, s.qw, s.u, s.lam, s.flags,
                                         s.steering[self.index], s.target, s.barrier)
         else:
             u = self.core.control(s.x, s.y, s.qz, s.qw, s.lam, s.flags, s.steering[self.index],
-                                  s.target, s.barrier)
+                                  s.target, s.barrier, alive=s.alive, rendezvous=s.rendezvous)
         if not math.isfinite(u):
             self.reject('u-nan', f'non-finite control u={u} at step {s.n}; holding u=0')
             u = 0.0

@@ -9,6 +9,9 @@ order, exactly as `swarm_core.engine.SwarmStepper` does for the whole swarm:
 2. u = `swarm_control(..., receivers=[own_row])` with λ, leader flags and s_k of that step;
 3. `zoh_step` on 1-element arrays, then the agent's own seeded noise (if any).
 
+With faults (swarm_core.faults) the table holds only the agents alive at that step, in index
+order, and a rendezvous (reunion) switches the target term on, as in the batch engine.
+
 Because `swarm_control` sums pairs in table order with `np.bincount` and every other
 operation is elementwise, the agent's u equals the batch engine's bit for bit.
 
@@ -20,9 +23,9 @@ its belief table (`comms.belief_control`): again bit for bit the batch engine's 
 from __future__ import annotations
 
 import math
-
 import numpy as np
 
+from swarm_core.faults import reunion_law
 from swarm_core.comms import Beliefs, CommModel, belief_control
 from swarm_core.integrate import zoh_step
 from swarm_core.laws import LawConfig, swarm_control
@@ -68,18 +71,29 @@ class AgentCore:
         qz, qw = quaternion_from_heading(self.theta)
         return float(qz[0]), float(qw[0])
 
-    def control(self, x, y, qz, qw, lam, is_leader, steering_own, target=None, barrier=None):
-        """u of this agent from the table (arrays of length N in agent-index order)."""
+    def control(self, x, y, qz, qw, lam, is_leader, steering_own, target=None, barrier=None,
+                alive=None, rendezvous=None):
+        """u of this agent from the table (arrays of length N in agent-index order).
+
+        alive (N,) bool: only these rows are in the table (this agent must be one);
+        rendezvous: the reunion of this step (`faults.reunion_law`), or None."""
+        k = self.index
+        law = self.law
+        if alive is not None and not np.all(alive):
+            rows = np.flatnonzero(alive)
+            x, y, qz, qw = (np.asarray(v, float)[rows] for v in (x, y, qz, qw))
+            is_leader = np.asarray(is_leader, bool)[rows]
+            k = int(np.searchsorted(rows, self.index))
+        law, target = reunion_law(law, target, rendezvous)
         pos = np.stack([np.asarray(x, float), np.asarray(y, float)], axis=1)
         cos_t, sin_t = frame_from_quaternion(np.asarray(qz, float), np.asarray(qw, float))
-        k = self.index
         pos[k] = self.pos[0]
         oz, ow = quaternion_from_heading(self.theta)
         c, s = frame_from_quaternion(oz, ow)
         cos_t = np.array(cos_t)
         sin_t = np.array(sin_t)
         cos_t[k], sin_t[k] = c[0], s[0]
-        u = swarm_control(pos, cos_t, sin_t, np.array([k]), self.law, lambda_=float(lam),
+        u = swarm_control(pos, cos_t, sin_t, np.array([k]), law, lambda_=float(lam),
                           is_leader=np.asarray(is_leader, bool), steering=np.array([float(steering_own)]),
                           target=target, barrier=barrier)
         return float(u[0])

@@ -4,6 +4,11 @@ The reference the ROS nodes are checked against, and the fast path for sweeps an
 swarms.  Each step: the commander plan gives λ, leaders and s_k from the states of t_n; the
 law gives u_k; the integrator advances every agent; noise is added per agent from its own
 seeded stream (as each agent node does).
+
+Faults, failover and reunion (swarm_core.faults) are confined to `inputs` (the fault
+timeline and the plan's failover), `control` (only agents heard this step are in the table;
+a rendezvous adds the target term) and `advance` (agents not heard do not move or draw
+noise).  ``simulate`` records NaN for dead agents and the events in ``meta['events']``.
 """
 from __future__ import annotations
 
@@ -14,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .faults import event_names, reunion_law
 from .integrate import rk4_step, zoh_step
 from .laws import DENSE_LIMIT, sparse_coupling, swarm_control
 from .comms import Beliefs, belief_control, delay_stats
@@ -94,13 +100,15 @@ class SwarmStepper:
         self.noisy = bool(np.any(self.noise_scale > 0))
         self._rngs = [scn.noise_rng(i) for i in range(self.n)] if self.noisy else None
         self.step_index = 0
+        self.faults = scn.fault_timeline()
+        self.events = []
         self._init_comms()
 
     def _pairs(self, pos, lam):
         """None (all pairs, dense) or the KD-tree pairs within w where only those carry weight."""
         if self.neighbour_search == 'all' or self.law.couples_globally(lam):
             return None
-        if self.neighbour_search == 'auto' and not sparse_coupling(self.n, self.law, lam):
+        if self.neighbour_search == 'auto' and not sparse_coupling(len(pos), self.law, lam):
             return None
         return neighbour_pairs(pos, self.law.cutoff_radius)
 
@@ -108,16 +116,36 @@ class SwarmStepper:
         if self.comms is not None:
             return self._comms_control(pos, theta, lam, is_leader, steering)
         cos_t, sin_t = heading_frame(theta) if frame is None else frame
-        return swarm_control(pos, cos_t, sin_t, self.receivers, self.law, lambda_=lam,
-                             is_leader=is_leader, steering=steering, target=self.target,
-                             barrier=self.barrier, pairs=self._pairs(pos, lam))
+        law, target = self._law_target()
+        alive = self.faults.alive
+        if alive.all():
+            return swarm_control(pos, cos_t, sin_t, self.receivers, law, lambda_=lam,
+                                 is_leader=is_leader, steering=steering, target=target,
+                                 barrier=self.barrier, pairs=self._pairs(pos, lam))
+        # --- faults: the table holds only the agents heard this step, in index order
+        rows = np.flatnonzero(alive)
+        u = np.zeros(self.n)
+        p = pos[rows]
+        u[rows] = swarm_control(p, cos_t[rows], sin_t[rows], np.arange(rows.size), law, lambda_=lam,
+                                is_leader=is_leader[rows], steering=steering[rows], target=target,
+                                barrier=self.barrier, pairs=self._pairs(p, lam))
+        return u
+
+    def _law_target(self):
+        """The law and target of this step: a rendezvous (reunion) switches the target term on."""
+        return reunion_law(self.law, self.target, self.plan.rendezvous_now)
 
     def inputs(self):
         """t, λ, leader flags (n,), steering (n,) for the current step (the commander's job),
         and the frames (cos θ, sin θ) they were computed from."""
         t = self.step_index * self.dt
         frame = heading_frame(self.theta)
-        lam, leaders, steering = self.plan.update(t, self.pos, *frame)
+        names = self.scn.names
+        for ev in self.faults.apply(self.step_index, self.plan.slots):
+            self.events.append(ev)
+        lam, leaders, steering = self.plan.update(t, self.pos, *frame, heard=self.faults.alive)
+        for ev in self.plan.events:
+            self.events.append(event_names(ev, names))
         is_leader = np.zeros(self.n, dtype=bool)
         is_leader[leaders] = True
         return t, lam, is_leader, steering, frame
@@ -130,6 +158,8 @@ class SwarmStepper:
         return t, lam, is_leader, u
 
     def advance(self, t, u, lam, is_leader, steering):
+        still = ~self.faults.alive
+        held = (self.pos[still], self.theta[still]) if still.any() else None
         if self.integrator == 'zoh':
             self.pos, self.theta = zoh_step(self.pos, self.theta, u, self.dt)
         else:
@@ -145,10 +175,13 @@ class SwarmStepper:
         if self.comms is not None:
             self.u_prev = np.asarray(u, dtype=float).copy()
         if self.noisy:
-            draws = np.stack([rng.uniform(-1.0, 1.0, size=3) for rng in self._rngs])
+            draws = np.stack([rng.uniform(-1.0, 1.0, size=3) if not s else np.zeros(3)
+                              for rng, s in zip(self._rngs, still)])
             noise = draws * self.noise_scale
             self.pos = self.pos + noise[:, :2]
             self.theta = self.theta + noise[:, 2]
+        if held is not None:                 # faults: dead and frozen agents do not move
+            self.pos[still], self.theta[still] = held
         self.step_index += 1
 
     # ---------------------------------------------------------------- communication model
@@ -162,6 +195,10 @@ class SwarmStepper:
             return
         if self.integrator != 'zoh':
             raise ValueError('a communication model needs the zoh integrator')
+        sp = self.scn.spec
+        if sp.faults or sp.failover or sp.reunion:
+            raise ValueError('faults, failover and reunion are not combined with a communication '
+                             'model in the batch engine (not built yet)')
         self.beliefs = Beliefs(self.receivers, self.n)
         self.u_prev = np.zeros(self.n)          # u held over the step that ended at t_n (sent with the state)
         self._comms_step = -1
@@ -212,7 +249,10 @@ def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int 
             if i % record_every == 0:
                 s = i // record_every
                 t_rec[s], r_rec[s], th_rec[s], u_rec[s] = t, stepper.pos, stepper.theta, u
-                lam_rec[s], lead_rec[s] = lam, is_leader
+                lam_rec[s], lead_rec[s] = lam, is_leader & stepper.faults.alive
+                dead = stepper.faults.dead
+                if dead.any():               # faults: a dead agent's rows are NaN
+                    r_rec[s, dead], th_rec[s, dead], u_rec[s, dead] = np.nan, np.nan, np.nan
                 recorded = s + 1
             if i == steps:
                 break
@@ -226,7 +266,7 @@ def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int 
     meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration,
                 integrator=stepper.integrator, steps=steps, record_every=record_every,
                 wall_seconds=time.perf_counter() - wall, neighbour_search=stepper.neighbour_search,
-                interrupted=interrupted)
+                interrupted=interrupted, events=stepper.events)
     if stepper.comms is not None:
         meta['comms'] = stepper.comms_stats()
     return Trajectory(scn.names, t_rec[:recorded], r_rec[:recorded], th_rec[:recorded],

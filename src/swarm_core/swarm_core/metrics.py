@@ -99,32 +99,37 @@ def time_series(t, r, theta, leader, w, *, target=None, barrier_points=None, eve
 
     Returns a dict of arrays: t, clusters, polarisation, min_distance, centroid (T, 2),
     one_leader_per_cluster (bool: each cluster holds exactly one leader), and, where the
-    scenario has them, centroid_target_distance, min_target_distance, intrusions."""
+    scenario has them, centroid_target_distance, min_target_distance, intrusions.
+    Agents whose row is not finite (dead: faults.py) are left out of each sample."""
     barrier = Barrier(barrier_points) if barrier_points is not None else None
     idx = np.arange(0, len(t), every)
     if idx[-1] != len(t) - 1:
         idx = np.append(idx, len(t) - 1)
     out = {k: [] for k in ('clusters', 'polarisation', 'min_distance', 'one_leader_per_cluster')}
     for i in idx:
-        count, labels = cluster_labels(r[i], w)
+        ok = np.isfinite(r[i]).all(axis=1) & np.isfinite(theta[i])
+        ri, lead_i = (r[i], leader[i]) if ok.all() else (r[i][ok], leader[i][ok])
+        count, labels = cluster_labels(ri, w)
         out['clusters'].append(count)
-        out['polarisation'].append(polarisation(theta[i]))
-        out['min_distance'].append(min_distance(r[i]))
-        lead = np.flatnonzero(leader[i])
+        out['polarisation'].append(polarisation(theta[i][ok]) if ok.any() else float('nan'))
+        out['min_distance'].append(min_distance(ri))
+        lead = np.flatnonzero(lead_i)
         per = [len(v) for v in leader_membership(labels, lead).values()] if len(lead) else [0]
         out['one_leader_per_cluster'].append(all(p == 1 for p in per))
     res = {k: np.asarray(v) for k, v in out.items()}
     res['t'] = np.asarray(t)[idx]
-    res['centroid'] = r[idx].mean(axis=1)
+    finite = np.isfinite(r[idx]).all()
+    res['centroid'] = r[idx].mean(axis=1) if finite else np.nanmean(r[idx], axis=1)
     if target is not None:
         tgt = np.asarray(target, dtype=float)
         res['centroid_target_distance'] = np.hypot(*(res['centroid'] - tgt).T)
-        res['min_target_distance'] = np.hypot(*(r[idx] - tgt).transpose(2, 0, 1)).min(axis=1)
+        d = np.hypot(*(r[idx] - tgt).transpose(2, 0, 1))
+        res['min_target_distance'] = d.min(axis=1) if finite else np.nanmin(d, axis=1)
     if barrier is not None:
         # intrusions are checked at every record, not only the sampled ones
         flat = np.asarray(r, dtype=float).reshape(-1, 2)
         inside = barrier.inside(flat).reshape(len(t), -1).sum(axis=1)
         res['intrusions_total'] = int(inside.sum())
         res['intrusions'] = inside[idx]
-        res['barrier_clearance'] = float(barrier.clearance(flat).min())
+        res['barrier_clearance'] = float(np.nanmin(barrier.clearance(flat)))
     return res

@@ -14,10 +14,23 @@ assert them.  Checks:
 - ``split_near_x: [x0, x1]``      ≥ 2 clusters while the centroid's x is in [x0, x1] (Fig. 5)
 - ``rejoins_after_x: [x0, x1]``   one cluster again at some sample with centroid x in [x0, x1]
 - ``arrives_within: d``           the centroid comes within d of the target
+- ``split_at: t``                 at least two clusters at the sample nearest t
+- ``one_cluster_from: t0``        one cluster at every sample from t0 to the end (reunion)
+- ``follows_program: {slot, from, to, tolerance}``  (faults.py, needs the trajectory and its
+                                  events) the lost leader's subswarm — the agents in the
+                                  cluster of the leader of ``slot`` at the last sample before it
+                                  was killed, minus it — turns, over [from, to], at the rate of
+                                  that slot's steering program s (constant curvature):
+                                  |turn rate − s| ≤ tolerance·|s|; the turn rate is the slope
+                                  of the group's mean heading (a line fit).  Without a leader
+                                  the subswarm flies straight (turn rate ≈ 0) and fails.
+Dead agents (NaN rows) are left out of every sample (metrics.time_series).
 """
 from __future__ import annotations
 
 import numpy as np
+
+TRAJECTORY_CHECKS = ('follows_program',)
 
 
 def _window(series, a, b):
@@ -70,13 +83,81 @@ def check(name, arg, series, n_leaders_max=2):
         d = series['centroid_target_distance']
         ok = d < arg
         return bool(ok.any()), {'t_arrival': _first_t(series, ok), 'closest': round(float(d.min()), 3)}
+    if name == 'split_at':
+        i = int(np.argmin(np.abs(t - arg)))
+        return bool(c[i] >= 2), {'clusters': int(c[i])}
+    if name == 'one_cluster_from':
+        win = t >= arg - 1e-9
+        bad = np.flatnonzero(win & (c != 1))
+        return bool(win.any() and bad.size == 0), {
+            'last_not_one': float(t[bad[-1]]) if bad.size else None,
+            'max_clusters_after': int(c[win].max()) if win.any() else None}
     raise ValueError(f'unknown expectation {name!r}')
 
 
-def evaluate(expect: dict, series) -> dict:
-    """{check name: {'passed': bool, ...details}} for every check in ``expect``."""
+def group_turn_rate(traj, group, a, b):
+    """Slope (rad per unit time) of the circular-mean heading of ``group`` over [a, b]."""
+    sel = (traj.t >= a - 1e-9) & (traj.t <= b + 1e-9)
+    th = traj.theta[sel][:, group]
+    ang = np.unwrap(np.arctan2(np.nanmean(np.sin(th), axis=1), np.nanmean(np.cos(th), axis=1)))
+    if ang.size < 2:
+        return float('nan')
+    return float(np.polyfit(traj.t[sel], ang, 1)[0])
+
+
+def lost_leader_group(traj, w, slot=None, agent=None):
+    """(killed leader index, its subswarm (indices), kill time) from the trajectory's events:
+    the agents in the leader's cluster at the last sample before the kill, minus the leader."""
+    from .metrics import cluster_labels
+    names = list(traj.names)
+    for ev in traj.meta.get('events') or []:
+        if ev.get('kind') != 'kill':
+            continue
+        if (slot is not None and ev.get('slot') == slot) or (agent is not None and ev.get('agent') == agent):
+            k = names.index(ev['agent'])
+            before = np.flatnonzero(traj.t < ev['t'] - 1e-9)
+            if before.size == 0:
+                return k, [], ev['t']
+            r = traj.r[before[-1]]
+            ok = np.flatnonzero(np.isfinite(r).all(axis=1))
+            _, labels = cluster_labels(r[ok], w)
+            lab = dict(zip(ok, labels))
+            group = [int(j) for j in ok if lab[j] == lab[k] and j != k]
+            return k, group, float(ev['t'])
+    return None, [], None
+
+
+def check_trajectory(name, arg, traj, scn):
+    if name == 'follows_program':
+        slot = int(arg.get('slot', 0))
+        progs = scn.spec.leaders.programs or list(scn.spec.leaders.fixed.values())
+        prog = progs[slot] if slot < len(progs) else None
+        if prog is None or prog.kind != 'constant':
+            raise ValueError(f'follows_program: slot {slot} needs a constant steering program')
+        s = float(prog.curvature)
+        k, group, t_kill = lost_leader_group(traj, scn.law.cutoff_radius, slot=slot)
+        if k is None or not group:
+            return False, {'turn_rate': None, 'program': s, 'group': None}
+        rate = group_turn_rate(traj, group, arg['from'], arg['to'])
+        tol = float(arg.get('tolerance', 0.3)) * abs(s)
+        successor = [ev.get('agent') for ev in traj.meta.get('events') or []
+                     if ev.get('kind') == 'failover' and ev.get('slot') == slot]
+        return bool(abs(rate - s) <= tol), {'turn_rate': round(rate, 6), 'program': s,
+                                            'group_size': len(group), 't_kill': t_kill,
+                                            'successor': successor[0] if successor else None}
+    raise ValueError(f'unknown expectation {name!r}')
+
+
+def evaluate(expect: dict, series, traj=None, scn=None) -> dict:
+    """{check name: {'passed': bool, ...details}} for every check in ``expect``; checks in
+    TRAJECTORY_CHECKS need the trajectory (with its events) and the scenario."""
     out = {}
     for name, arg in expect.items():
-        passed, details = check(name, arg, series)
+        if name in TRAJECTORY_CHECKS:
+            if traj is None:
+                continue
+            passed, details = check_trajectory(name, arg, traj, scn)
+        else:
+            passed, details = check(name, arg, series)
         out[name] = {'passed': bool(passed), **details}
     return out

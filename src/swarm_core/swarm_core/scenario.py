@@ -15,6 +15,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from .faults import Fault, FaultTimeline, Rendezvous
 from .laws import LawConfig
 from .model import PairGains
 from .schedules import (CommandPlan, ConstantLambda, ConstantSteering, RampSchedule,
@@ -186,6 +187,54 @@ class NoiseSpec(_Strict):
     heading: NonNeg = 0.0        # half-width of uniform noise on θ, per step
 
 
+# ------------------------------------------------------------------ faults, failover, reunion
+
+class FaultSpec(_Strict):
+    """``{at: 450, kill: agent_2}`` or ``{at: 300, freeze: leader:0, for: 5.0}`` (faults.py)."""
+    at: NonNeg
+    kill: Optional[str] = None
+    freeze: Optional[str] = None
+    for_: Optional[Positive] = Field(default=None, alias='for')
+    model_config = ConfigDict(extra='forbid', populate_by_name=True)
+
+    @model_validator(mode='after')
+    def _one(self):
+        if (self.kill is None) == (self.freeze is None):
+            raise ValueError('give exactly one of kill: AGENT or freeze: AGENT')
+        if self.freeze is not None and self.for_ is None:
+            raise ValueError('freeze needs for: SECONDS')
+        if self.kill is not None and self.for_ is not None:
+            raise ValueError('for: is only for freeze')
+        who = self.kill or self.freeze
+        if who.startswith('leader:') and not who[7:].isdigit():
+            raise ValueError(f'{who!r}: leader slots are leader:0, leader:1, ...')
+        return self
+
+    @property
+    def kind(self):
+        return 'kill' if self.kill is not None else 'freeze'
+
+    @property
+    def agent(self):
+        return self.kill if self.kill is not None else self.freeze
+
+
+class FailoverSpec(_Strict):
+    """Leader failover (faults.py): a leader not heard for ``timeout`` sim s is replaced."""
+    timeout: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 1.0
+
+
+class ReunionSpec(_Strict):
+    """Over [at, at + for): a shared rendezvous target (eq. 13; point: [x, y], centroid or none)
+    and/or far coupling q0 = ``coupling`` (faults.py)."""
+    at: NonNeg
+    for_: Positive = Field(alias='for')
+    point: Union[Literal['centroid', 'none'], Point] = 'centroid'
+    coupling: Optional[Annotated[float, Field(ge=0, le=1)]] = None
+    gain: NonNeg = 0.05
+    normalised: bool = False
+    track: bool = False          # point: centroid re-taken at every step (moves with the swarm)
+    model_config = ConfigDict(extra='forbid', populate_by_name=True)
 # ------------------------------------------------------------------ communication (comms.py)
 
 Probability = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
@@ -249,6 +298,9 @@ class ScenarioSpec(_Strict):
     target: Optional[TargetSpec] = None
     barrier: Optional[BarrierSpec] = None
     noise: NoiseSpec = Field(default_factory=NoiseSpec)
+    faults: list[FaultSpec] = Field(default_factory=list)
+    failover: Optional[FailoverSpec] = None
+    reunion: list[ReunionSpec] = Field(default_factory=list)
     comms: Optional[CommsSpec] = None
     expect: dict = Field(default_factory=dict)   # what `swarm sweep` checks (see outcomes.py)
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
@@ -259,6 +311,13 @@ class ScenarioSpec(_Strict):
         if not v.strip():
             raise ValueError('must not be empty')
         return v
+
+    @model_validator(mode='after')
+    def _reunion_vs_target(self):
+        if self.reunion and self.target is not None:
+            raise ValueError('reunion: a scenario with a target cannot also have a rendezvous '
+                             '(both use the target term of eq. 13)')
+        return self
 
 
 # ------------------------------------------------------------------ runtime scenario
@@ -309,7 +368,17 @@ class Scenario:
                            fixed_leaders={self.names.index(n): build_program(p)
                                           for n, p in self.spec.leaders.fixed.items()},
                            rule=self.spec.leaders.rule, choose_at=self.spec.leaders.at,
-                           rule_programs=[build_program(p) for p in self.spec.leaders.programs])
+                           rule_programs=[build_program(p) for p in self.spec.leaders.programs],
+                           failover_timeout=self.spec.failover.timeout if self.spec.failover else None,
+                           rendezvous=[Rendezvous(r.at, r.for_, None if r.point == 'centroid' else
+                                                  r.point if r.point == 'none' else tuple(r.point),
+                                                  r.gain, r.normalised, r.track, r.coupling)
+                                       for r in self.spec.reunion])
+
+    def fault_timeline(self) -> FaultTimeline:
+        """A fresh timeline of the scenario's faults (faults.py)."""
+        return FaultTimeline([Fault(f.at, f.kind, f.agent, f.for_ or 0.0) for f in self.spec.faults],
+                             self.names, self.spec.dt)
 
     def comms_config(self) -> dict | None:
         """The ``comms`` section as a plain mapping (what `comms.CommModel.from_config` and
@@ -434,6 +503,11 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
         if who not in known:
             raise ScenarioError(f'{source}: leaders.fixed.{who}: unknown agent (agents are {", ".join(known[:8])}'
                                 f'{", ..." if len(known) > 8 else ""})')
+    known = names or [f'agent_{i}' for i in range(spec.agents.count)]
+    for i, f in enumerate(spec.faults):
+        if not f.agent.startswith('leader:') and f.agent not in known:
+            raise ScenarioError(f'{source}: faults.{i}.{f.kind}: unknown agent {f.agent!r} (agents are '
+                                f'{", ".join(known[:8])}{", ..." if len(known) > 8 else ""})')
     names, pos0, theta0 = initial_conditions(spec)
     if spec.comms is not None:
         from .comms import CommModel

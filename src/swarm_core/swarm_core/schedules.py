@@ -11,6 +11,8 @@ from typing import Sequence
 
 import numpy as np
 
+from .faults import Failover, elect_successor, followers_of
+
 RAMP_SHAPES = ('smoothstep', 'linear', 'step', 'tanh')
 
 
@@ -169,6 +171,13 @@ class CommandPlan:
     Leaders are either fixed (``fixed_leaders``: agent index → program) or chosen by
     ``rule`` at the first step with t ≥ ``choose_at`` (the left extreme gets programs[0],
     the right one programs[1]).  Before the choice there are no leaders.
+
+    Beyond the paper (see `swarm_core.faults`): ``failover_timeout`` (None: off) replaces a
+    leader not heard for that long by the elected successor, which inherits its program and
+    slot (``slots``: slot → agent index; slot i = programs[i] / the i-th fixed leader);
+    ``rendezvous`` entries switch on a shared rendezvous target (``rendezvous_now`` after
+    each update: (point, gain, normalised) or None).  ``events`` lists what the last update
+    decided (leader choice, leader lost, failover, rendezvous on/off) as dicts.
     """
 
     schedule: LambdaSchedule = field(default_factory=ConstantLambda)
@@ -177,32 +186,98 @@ class CommandPlan:
     choose_at: float = 0.0
     rule_programs: Sequence[SteeringProgram] = ()
     leaders: dict = field(default_factory=dict)   # current: agent index → program
+    failover_timeout: float | None = None
+    rendezvous: Sequence = ()
 
     def __post_init__(self):
         if not self.leaders:
             self.leaders = dict(self.fixed_leaders)
         if self.rule is not None and self.rule not in LEADER_RULES:
             raise ValueError(f'leader rule must be one of {LEADER_RULES}, got {self.rule!r}')
+        self.slots = {s: i for s, i in enumerate(self.leaders)}
+        self.failover = Failover(self.failover_timeout) if self.failover_timeout is not None else None
+        self.events = []
+        self.rendezvous_now = None
+        self._rdv_on = [False] * len(self.rendezvous)
 
     @property
     def pending_choice(self) -> bool:
         return self.rule is not None and not self.leaders
 
-    def update(self, t: float, pos, cos_t, sin_t):
+    def update(self, t: float, pos, cos_t, sin_t, heard=None):
         """Advance to time t with the swarm's states; returns (λ, leader indices, steering).
 
         pos (N, 2) and the frames (cos θ, sin θ) are what the agents publish, so the batch
-        engine and the ROS commander get the same answer.  steering is an array (N,) with
-        s_k for leaders and 0 elsewhere."""
+        engine and the ROS commander get the same answer.  ``heard`` (bool (N,), default all):
+        the agents whose states of t are known; the rows of the others are not read.
+        steering is an array (N,) with s_k for leaders (from their last known state if not
+        heard) and 0 elsewhere.  The leader indices include leaders that are not heard (until
+        failover replaces them)."""
+        self.events = []
+        n = len(cos_t)
+        heard = np.ones(n, bool) if heard is None else np.asarray(heard, bool)
         if self.pending_choice and t >= self.choose_at:
-            left, right = lateral_extremes(pos, cos_t, sin_t)
+            rows = np.flatnonzero(heard)
+            pos_h = np.asarray(pos, float)[rows]
+            left, right = lateral_extremes(pos_h, np.asarray(cos_t)[rows], np.asarray(sin_t)[rows])
+            left, right = int(rows[left]), int(rows[right])
             progs = list(self.rule_programs)
             self.leaders = {left: progs[0]}
+            self.slots = {0: left}
             if right != left and len(progs) > 1:
                 self.leaders[right] = progs[1]
+                self.slots[1] = right
+            self.events.append(dict(t=t, kind='leaders_chosen', leaders=sorted(self.leaders)))
+        if self.failover is not None and self.leaders:
+            self._failover(t, pos, heard)
         lam = float(self.schedule.value(t))
-        steering = np.zeros(len(cos_t))
+        steering = np.zeros(n)
         for idx, prog in self.leaders.items():
             heading = math.atan2(float(sin_t[idx]), float(cos_t[idx]))
             steering[idx] = prog.value(t, pos[idx], heading)
+        self.rendezvous_now = None
+        for j, r in enumerate(self.rendezvous):
+            now = r.update(t, pos, heard)
+            if now is not None and self.rendezvous_now is None:
+                self.rendezvous_now = now
+            if (now is not None) != self._rdv_on[j]:
+                self._rdv_on[j] = now is not None
+                ev = dict(t=t, kind='rendezvous_on' if now is not None else 'rendezvous_off')
+                if now is not None:
+                    ev.update(point=None if now[0] is None else list(now[0]), gain=now[1], coupling=now[3])
+                self.events.append(ev)
         return lam, sorted(self.leaders), steering
+
+    def _failover(self, t, pos, heard):
+        fo = self.failover
+        lost = []
+        for idx in sorted(self.leaders):
+            if heard[idx]:
+                fo.missing_since.pop(idx, None)
+            else:
+                fo.missing_since.setdefault(idx, t)
+                if idx in fo.last_position and t - fo.missing_since[idx] >= fo.timeout - 1e-9:
+                    lost.append(idx)
+        for idx in lost:
+            prog = self.leaders.pop(idx)
+            slot = next((s for s, i in self.slots.items() if i == idx), None)
+            eligible = fo.followers.get(idx, np.zeros(len(heard), bool)) & heard
+            eligible[list(self.leaders)] = False
+            succ = elect_successor(fo.last_position[idx], pos, eligible)
+            fo.missing_since.pop(idx, None)
+            ev = dict(t=t, kind='failover' if succ >= 0 else 'leader_lost', lost=idx, slot=slot)
+            if succ >= 0:
+                self.leaders[succ] = prog
+                if slot is not None:
+                    self.slots[slot] = succ
+                ev['agent'] = succ
+            elif slot is not None:
+                self.slots.pop(slot)
+            self.events.append(ev)
+        # remember, for every heard leader, where it is and who follows it (for a later loss)
+        rows = sorted(self.leaders)
+        lk = followers_of(pos, heard, rows)
+        for idx in rows:
+            if heard[idx]:
+                fo.last_position[idx] = np.array(pos[idx], float)
+                fo.followers[idx] = lk == idx

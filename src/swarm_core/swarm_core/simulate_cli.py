@@ -20,7 +20,7 @@ def analyse(scn, traj, every_time: float = 1.0):
     every = max(1, int(round(every_time / rec_dt)))
     series = metrics.time_series(traj.t, traj.r, traj.theta, traj.leader, scn.law.cutoff_radius,
                                  target=scn.target, barrier_points=scn.barrier, every=every)
-    checks = outcomes.evaluate(scn.spec.expect, series) if len(traj.t) else {}
+    checks = outcomes.evaluate(scn.spec.expect, series, traj, scn) if len(traj.t) else {}
     return series, checks
 
 
@@ -53,6 +53,8 @@ def summary_of(scn, traj, series, checks) -> dict:
         out['barrier_clearance'] = series['barrier_clearance']
     if 'centroid_target_distance' in series:
         out['closest_centroid_target_distance'] = float(series['centroid_target_distance'].min())
+    if traj.meta.get('events'):
+        out['events'] = traj.meta['events']        # faults, failover, reunion (faults.py)
     if traj.meta.get('comms'):
         out['comms'] = traj.meta['comms']      # what the radio did (swarm_core.comms)
     return out
@@ -140,6 +142,9 @@ def simulate_main(argv) -> int:
           f'polarisation {summary["final_polarisation"]:.3f}, min distance {summary["min_distance"]:.3g}, '
           f'compute {summary["wall_seconds"]:.2f}s' + (' (INTERRUPTED: partial run saved)' if interrupted else ''))
     print(f'  clusters over time: {changes}')
+    for ev in summary.get('events', [])[:20]:
+        det = ', '.join(f'{k}={v}' for k, v in ev.items() if k not in ('t', 'kind', 'step'))
+        print(f'  event t={ev["t"]:g}: {ev["kind"]} ({det})')
     for name, res in checks.items():
         det = ', '.join(f'{k}={v}' for k, v in res.items() if k != 'passed')
         print(f'  {"PASS" if res["passed"] else "FAIL"} {name}: {det}')

@@ -466,6 +466,11 @@ def parse_odometry(data: bytes) -> dict:
                 x=x, y=y, qz=qz, qw=qw, vx=vx, wz=wz)
 
 
+def parse_string(data: bytes) -> str:
+    """``std_msgs/msg/String`` (CDR), e.g. a ``/swarm/events`` JSON object."""
+    return _string(data, 4, '<' if data[1] & 1 else '>')[0]
+
+
 def parse_float64(data: bytes) -> float:
     """``std_msgs/msg/Float64`` (CDR)."""
     return struct.unpack_from(('<' if data[1] & 1 else '>') + 'd', data, 4)[0]

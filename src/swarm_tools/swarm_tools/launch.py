@@ -7,6 +7,15 @@ processes in one process group of their own, prints the world's progress, stops 
 Ctrl-C / SIGTERM (SIGINT to the group, then SIGKILL after a grace period) and, at the end,
 writes what ``swarm simulate`` writes (trajectory.npz from what was published, metrics.json,
 a figure) to ``--out``.
+
+Faults (``swarm kill`` / ``swarm pause``, a scenario's ``faults``): the launcher writes the
+agents' pids to ``pids.json`` (in the run's temporary directory, and a copy in ``--out``) and
+gives its path to the world,
+which signals the agent processes at the right sim step (SIGKILL; SIGSTOP ... SIGCONT) and logs
+every event to ``events.jsonl`` in ``--out``.  An agent that exits is not a run failure: if
+the events name it as killed the launcher says so; otherwise it warns, and the world drops the
+agent after its ``missing_timeout``.  Stopping a run first sends SIGCONT to every child (a
+stopped process cannot handle SIGINT).
 """
 from __future__ import annotations
 
@@ -139,6 +148,7 @@ class Supervisor:
     def stop(self, grace=STOP_GRACE, first=()):
         """SIGINT to ``first`` (e.g. the recorder, so it can finish its file) and everyone else,
         wait, then SIGKILL the process group."""
+        self.signal_all(signal.SIGCONT)          # a frozen (SIGSTOPped) agent cannot stop
         for label in first:
             p = self.procs.get(label)
             if p is not None and p.poll() is None:
@@ -189,7 +199,25 @@ def _exe(name):
     return str(cand) if cand.exists() else (shutil.which(name) or name)
 
 
-def run_processes(params: dict, params_file: Path, names, env, record=None, out_dir=None) -> int:
+def killed_agents(events_file) -> set:
+    """Agents the events file records as killed (deliberately) or lost."""
+    out = set()
+    try:
+        lines = Path(events_file).read_text().splitlines()
+    except OSError:
+        return out
+    for line in lines:
+        try:
+            ev = json.loads(line)
+        except ValueError:
+            continue
+        if ev.get('kind') in ('kill', 'lost'):
+            out.add(ev.get('agent'))
+    return out
+
+
+def run_processes(params: dict, params_file: Path, names, env, record=None, out_dir=None,
+                  pid_file=None, events_file=None) -> int:
     sup = Supervisor()
     stopping = {'sig': None}
 
@@ -210,6 +238,14 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
         sup.start('commander', [_exe('homotopy_commander')] + ros + ['-r', '__node:=commander'], env)
         for nm in names:
             sup.start(nm, [_exe('swarm_agent')] + ros + ['-r', '__node:=agent', '-r', f'__ns:=/{nm}'], env)
+        if pid_file is not None:
+            tmp = Path(str(pid_file) + '.tmp')
+            tmp.write_text(json.dumps({nm: sup.procs[nm].pid for nm in names}))
+            tmp.replace(pid_file)
+            if out_dir is not None:
+                shutil.copyfile(pid_file, Path(out_dir) / 'pids.json')
+        agents = set(names)
+        gone = set()
         while True:
             if stopping['sig'] is not None:
                 print(f'swarm run: {signal.Signals(stopping["sig"]).name}: stopping {len(sup.alive())} processes',
@@ -220,7 +256,16 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
             if rc is not None:
                 code = rc
                 break
-            dead = [k for k, p in sup.procs.items() if p.poll() is not None and k != 'world']
+            dead = [k for k, p in sup.procs.items() if p.poll() is not None and k != 'world' and k not in gone]
+            for k in [k for k in dead if k in agents]:
+                gone.add(k)
+                rc = sup.procs[k].returncode
+                if k in killed_agents(events_file) if events_file else ():
+                    print(f'swarm run: {k} killed (fault injection)', file=sys.stderr, flush=True)
+                else:
+                    print(f'swarm run: {k} exited with code {rc}; the world drops it from the roster '
+                          'after its missing_timeout', file=sys.stderr, flush=True)
+            dead = [k for k in dead if k not in agents]
             if dead:
                 k = dead[0]
                 print(f'swarm run: {k} exited with code {sup.procs[k].returncode}; stopping the run',
@@ -233,6 +278,14 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
         for s, h in old.items():
             signal.signal(s, h)
     return code
+
+
+def read_events(path) -> list:
+    """The events of a run (``events.jsonl`` as the world writes it); [] if none."""
+    try:
+        return [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+    except (OSError, ValueError):
+        return []
 
 
 # ---------------------------------------------------------------- CLI
@@ -255,6 +308,8 @@ def _parser():
     p.add_argument('--out', help='output directory (default: runs/SCENARIO-seedN-ros)')
     p.add_argument('--no-figure', action='store_true', help='no figure at the end')
     p.add_argument('--progress-every', type=float, default=50.0, help='progress line every this many sim s')
+    p.add_argument('--missing-timeout', type=float, default=10.0,
+                   help='lockstep: the world drops an agent whose state has not come after this many wall s (default 10)')
     p.add_argument('--clock-every', type=int, default=1, metavar='K', help=(
         'lockstep: the world publishes /clock every K steps (default 1). Every node receives each '
         '/clock; K = 10 saves about a fifth of the CPU per step with 6-24 agent processes, and sim '
@@ -267,6 +322,9 @@ def _parser():
 
 def main(argv=None) -> int:
     a = _parser().parse_args(argv)
+    if not (a.missing_timeout >= 0.1 and a.missing_timeout < 1e6):
+        print(f'swarm run: --missing-timeout {a.missing_timeout}: must be in [0.1, 1e6)', file=sys.stderr)
+        return 2
     if a.clock_every < 1:
         print(f'swarm run: --clock-every {a.clock_every}: must be ≥ 1', file=sys.stderr)
         return 2
@@ -286,8 +344,11 @@ def main(argv=None) -> int:
     traj_file = out / 'trajectory.npz'
     if traj_file.exists():
         traj_file.unlink()
+    if (out / 'events.jsonl').exists():
+        (out / 'events.jsonl').unlink()
     params = node_parameters(scn, ref, a.mode, a.rtf, str(out), scn.duration,
-                             extra_world=dict(progress_every=float(a.progress_every), clock_every=int(a.clock_every)))
+                             extra_world=dict(progress_every=float(a.progress_every), clock_every=int(a.clock_every),
+                                              missing_timeout=float(a.missing_timeout)))
     n_proc = len(scn.names) + 2 + (1 if a.record else 0)
     print(f'swarm run: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '
           f'{"one process" if a.in_process else f"{n_proc} processes"}, t = {scn.duration:g}, dt = {scn.dt:g}',
@@ -299,9 +360,12 @@ def main(argv=None) -> int:
         code = run_in_process(params)
     else:
         with tempfile.TemporaryDirectory(prefix='swarm_run_') as tmp:
+            pid_file = Path(tmp) / 'pids.json'
+            params['/world'].update(pid_file=str(pid_file), events_file=str(out / 'events.jsonl'))
             pfile = write_params_file(params, Path(tmp) / 'params.yaml')
             env = dds.environment(n_proc, Path(tmp), choice=a.dds)
-            code = run_processes(params, pfile, scn.names, env, record=a.record, out_dir=out)
+            code = run_processes(params, pfile, scn.names, env, record=a.record, out_dir=out,
+                                 pid_file=pid_file, events_file=out / 'events.jsonl')
     wall = time.monotonic() - t0
     if code == 0 and traj_file.exists():
         try:
@@ -309,7 +373,7 @@ def main(argv=None) -> int:
             from swarm_core.simulate_cli import analyse, write_outputs
             traj = Trajectory.load(traj_file)
             traj.meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration, source='ros',
-                             mode=a.mode, wall_seconds=wall)
+                             mode=a.mode, wall_seconds=wall, events=read_events(out / 'events.jsonl'))
             series, checks = analyse(scn, traj)
             summary = write_outputs(out, scn, traj, series, checks, figure=not a.no_figure)
             print(f'swarm run: done in {wall:.1f} s; final clusters {summary.get("final_clusters", "?")}; '

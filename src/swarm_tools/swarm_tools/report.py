@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .bag import iter_messages, parse_float64, parse_odometry
+from .bag import iter_messages, parse_float64, parse_odometry, parse_string
 
 STATES = '/swarm/states'
 LAMBDA = '/swarm/lambda'
@@ -28,6 +28,7 @@ LEADERS = '/swarm/leaders'
 TARGET = '/world/target'
 BARRIER = '/world/barrier'
 METRICS = '/world/metrics'
+EVENTS = '/swarm/events'
 
 
 def natural_key(name: str):
@@ -79,7 +80,7 @@ def read_run(path, *, cutoff_radius=None) -> dict:
     """Everything the report needs from a bag: per-agent state lists, λ / leader events,
     target, barrier, and whether the file was cut short."""
     per_agent: dict[str, list] = {}
-    lam_events, leader_msgs = [], []
+    lam_events, leader_msgs, events = [], [], []
     target = barrier = None
     w_from_bag = None
     decode = _Decoder()
@@ -91,6 +92,13 @@ def read_run(path, *, cutoff_radius=None) -> dict:
                 (s['stamp_ns'], m.log_time, s['x'], s['y'], s['qz'], s['qw'], s['wz']))
         elif m.topic == LAMBDA:
             lam_events.append((m.log_time, parse_float64(m.data)))
+        elif m.topic == EVENTS:
+            try:
+                ev = json.loads(parse_string(m.data))
+            except ValueError:
+                continue
+            if isinstance(ev, dict) and isinstance(ev.get('t'), (int, float)):
+                events.append(ev)
         elif m.topic == LEADERS:
             leader_msgs.append((m.log_time, decode(m)))
         elif m.topic == TARGET:
@@ -107,7 +115,7 @@ def read_run(path, *, cutoff_radius=None) -> dict:
                             w_from_bag = float(kv.value)
             except (AttributeError, ValueError):
                 pass
-    return dict(per_agent=per_agent, lam_events=lam_events, leader_msgs=leader_msgs,
+    return dict(per_agent=per_agent, lam_events=lam_events, leader_msgs=leader_msgs, events=events,
                 target=target, barrier=barrier, truncated=stats.get('truncated', False),
                 w=cutoff_radius if cutoff_radius is not None else w_from_bag)
 
@@ -117,7 +125,11 @@ def rebuild_trajectory(run: dict):
 
     Lockstep runs (every agent has a state at every stamp) are taken as they are; otherwise
     each agent's newest state at each stamp is used (forward fill) from the first stamp at
-    which every agent has reported."""
+    which every agent has reported.
+
+    Faults (``/swarm/events``): an agent killed or lost has NaN rows from that time on and its
+    missing stamps do not count against lockstep alignment; a frozen agent holds its state
+    over the freeze (its stamps there are not missing either)."""
     from swarm_core.engine import Trajectory
     from swarm_core.model import yaw_from_quaternion
 
@@ -140,9 +152,21 @@ def rebuild_trajectory(run: dict):
     # the u applied from one of its states on is the next state's; the newest is unknown
     u_from = {name: np.append(v[2][1:, 4], np.nan) for name, v in arrays.items()}
     all_stamps = np.unique(np.concatenate([v[0] for v in arrays.values()]))
+    gone, frozen = {}, {}
+    for ev in run.get('events', ()):
+        ns = int(round(float(ev['t']) * 1e9))
+        if ev.get('kind') in ('kill', 'lost') and ev.get('agent') in arrays:
+            gone[ev['agent']] = min(ns, gone.get(ev['agent'], ns))
+        elif ev.get('kind') == 'freeze' and ev.get('agent') in arrays and 'until' in ev:
+            frozen.setdefault(ev['agent'], []).append((ns, int(round(float(ev['until']) * 1e9))))
     common = all_stamps
-    for v in arrays.values():
-        common = np.intersect1d(common, v[0], assume_unique=True)
+    for name, v in arrays.items():
+        covered = v[0]
+        if name in gone:
+            covered = np.union1d(covered, all_stamps[all_stamps >= gone[name]])
+        for a, b in frozen.get(name, ()):
+            covered = np.union1d(covered, all_stamps[(all_stamps > a) & (all_stamps <= b)])
+        common = np.intersect1d(common, covered, assume_unique=True)
     if len(common) >= 0.9 * len(all_stamps):
         grid, mode = common, 'lockstep'
     else:
@@ -161,6 +185,9 @@ def rebuild_trajectory(run: dict):
         theta[:, k] = yaw_from_quaternion(rows[:, 2], rows[:, 3])
         u[:, k] = u_from[name][idx]
         log_first = np.minimum(log_first, logs[idx])
+        if name in gone:
+            dead = grid >= gone[name]
+            r[dead, k], theta[dead, k], u[dead, k] = np.nan, np.nan, np.nan
     t = grid.astype(np.float64) * 1e-9
     # λ and leaders: a message belongs to the newest step whose states came before it (in
     # lockstep the commander decides step n's inputs from step n's states), and holds until

@@ -20,9 +20,16 @@ Fixed, user-facing topics (DESIGN.md)
 ``/world/target``  geometry_msgs/PointStamped, transient-local.
 ``/world/barrier``  geometry_msgs/PolygonStamped, transient-local (no points = no barrier).
 ``/world/markers``  visualization_msgs/MarkerArray; ``/world/metrics`` diagnostic_msgs/DiagnosticArray.
-``/swarm/events``  std_msgs/String, QoS `qos_latched(100)` (reliable, transient-local, depth
-    100): every injected event as one JSON object with at least ``"t"`` (sim time, null if
-    unknown) and ``"kind"``, plus fields; recorded in the bag by ``swarm record``.  Kinds of the
+``/swarm/events``  std_msgs/String, reliable + transient-local depth 100 (`qos_latched(100)`):
+    one JSON object per injected or decided event, at least ``t`` (sim time), ``kind`` and
+    ``agent``, plus ``node`` (who published it).  Kinds: ``kill``, ``freeze``, ``resume``,
+    ``lost`` (the world gave up waiting for an agent), ``fault_skipped`` (world);
+    ``leaders_chosen``, ``failover``, ``leader_lost``, ``rendezvous_on``/``_off`` (commander).
+``/swarm/fault_request``  std_msgs/String, reliable + transient-local depth 10: JSON ``{"kind": "kill"|"freeze",
+    "agent": NAME, "for": SECONDS}`` (``swarm kill`` / ``swarm pause``); the world applies it
+    at its next step (see swarm_core.faults for the semantics) and signals the agent process.
+    The communication model's events on ``/swarm/events`` (``"t"`` may be null if unknown);
+    recorded in the bag by ``swarm record``.  Kinds of the
     communication model (swarm_core.comms), which agents APPLY when they read them:
     ``{"t", "kind": "drop", "loss": P, "duration": T|null}`` (burst loss P on every link for T
     sim s; P = 0 ends a burst; ``swarm drop``), ``{"t", "kind": "partition", "groups":
@@ -55,12 +62,23 @@ re-publishing its answer (stall recovery: the world repeats its last message aft
 ``stall_timeout`` seconds without progress).
 
 Packed layouts (std_msgs/Float64MultiArray, empty ``layout``, ``data`` as below; N agents)
-``/lockstep/states``    [n, t_n, N,  x(N), y(N), qz(N), qw(N)]
-``/lockstep/decision``  [n, t_n, N,  λ, leader flags(N) (0/1), s(N)]
+``/lockstep/states``    [n, t_n, N,  x(N), y(N), qz(N), qw(N), alive(N)]
+``/lockstep/decision``  [n, t_n, N,  λ, leader flags(N) (0/1), s(N), slot(N), R]
 ``/lockstep/step``      [n, t_n, N,  λ, leader flags(N), s(N), x(N), y(N), qz(N), qw(N),
-                         has_target, target_x, target_y, M, barrier x(M), barrier y(M), u(N)]
+                         has_target, target_x, target_y, M, barrier x(M), barrier y(M),
+                         u(N), alive(N), R]
     u(N) (trailing; optional for readers, zeros if absent): the u each agent's state of t_n
     carries (twist.angular.z, u_{n−1}); an agent with a communication model dead-reckons with it.
+with (faults, failover, reunion; appended at the end so that older readers still work):
+``alive``  1 for the agents heard at step n (in the table), 0 for dead or frozen ones (their
+           x, y, qz, qw are stale and must not be read); absent = all 1;
+``slot``   the leader slot of each agent (faults.py), −1 for none;
+``R``      the reunion of step n (swarm_core.faults.Rendezvous): [on, has_point, x, y, gain γ,
+           normalised, coupling q0 (−1: the law's)]; absent = off.
+The world decides ``alive`` (scheduled faults at exactly their step, live requests at its next
+step, agents it gave up waiting for); the commander decides leaders (failover) and R.  An agent
+computes u over the alive rows only, in index order (as the batch engine does), and ignores
+steps in which it is not alive; a frozen agent resumes at the first step that lists it alive.
 """
 from __future__ import annotations
 
@@ -81,6 +99,7 @@ LOCK_STATES = '/lockstep/states'
 LOCK_DECISION = '/lockstep/decision'
 LOCK_STEP = '/lockstep/step'
 EVENTS = '/swarm/events'
+FAULT_REQUEST = '/swarm/fault_request'
 #: publisher depth of /swarm/states (transient-local): history a late or slow reader can get
 STATES_DEPTH = 100
 
@@ -122,8 +141,38 @@ def stamp_to_time(stamp) -> float:
 
 # ------------------------------------------------------------------ packing
 
-def pack_states(n: int, t: float, x, y, qz, qw) -> np.ndarray:
-    return np.concatenate([[n, t, len(x)], x, y, qz, qw]).astype(float)
+def pack_states(n: int, t: float, x, y, qz, qw, alive=None) -> np.ndarray:
+    alive = np.ones(len(x)) if alive is None else np.asarray(alive, float)
+    return np.concatenate([[n, t, len(x)], x, y, qz, qw, alive]).astype(float)
+
+
+def states_alive(d) -> np.ndarray:
+    """The alive mask of a packed ``/lockstep/states`` (all True if absent)."""
+    d = np.asarray(d, dtype=float)
+    N = int(d[2])
+    a = d[3 + 4 * N:3 + 5 * N]
+    return a > 0.5 if a.size == N else np.ones(N, bool)
+
+
+R_SIZE = 7
+
+
+def pack_rendezvous(rdv) -> list:
+    """R of a plan's ``rendezvous_now`` (None: off), see the layouts above."""
+    if rdv is None:
+        return [0.0] * R_SIZE
+    point, gain, norm, coupling = rdv
+    x, y = (0.0, 0.0) if point is None else point
+    return [1.0, 0.0 if point is None else 1.0, float(x), float(y), float(gain), 1.0 if norm else 0.0,
+            -1.0 if coupling is None else float(coupling)]
+
+
+def unpack_rendezvous(r):
+    r = np.asarray(r, dtype=float)
+    if r.size < R_SIZE or r[0] < 0.5:
+        return None
+    point = (float(r[2]), float(r[3])) if r[1] > 0.5 else None
+    return point, float(r[4]), bool(r[5] > 0.5), None if r[6] < 0 else float(r[6])
 
 
 def unpack_states(d):
@@ -133,8 +182,19 @@ def unpack_states(d):
     return n, t, body[0], body[1], body[2], body[3]
 
 
-def pack_decision(n: int, t: float, lam: float, flags, steering) -> np.ndarray:
-    return np.concatenate([[n, t, len(flags), lam], np.asarray(flags, float), steering]).astype(float)
+def pack_decision(n: int, t: float, lam: float, flags, steering, slots=None, rendezvous=None) -> np.ndarray:
+    slots = np.full(len(flags), -1.0) if slots is None else np.asarray(slots, float)
+    return np.concatenate([[n, t, len(flags), lam], np.asarray(flags, float), steering, slots,
+                           pack_rendezvous(rendezvous)]).astype(float)
+
+
+def decision_extras(d):
+    """(slots (N,) int, rendezvous or None) of a packed ``/lockstep/decision``."""
+    d = np.asarray(d, dtype=float)
+    N = int(d[2])
+    o = 4 + 2 * N
+    slots = d[o:o + N].astype(int) if d.size >= o + N else np.full(N, -1)
+    return slots, unpack_rendezvous(d[o + N:o + N + R_SIZE])
 
 
 def unpack_decision(d):
@@ -143,17 +203,21 @@ def unpack_decision(d):
     return n, t, lam, d[4:4 + N] > 0.5, d[4 + N:4 + 2 * N]
 
 
-def pack_step(n, t, lam, flags, steering, x, y, qz, qw, target=None, barrier=None, u=None) -> np.ndarray:
+def pack_step(n, t, lam, flags, steering, x, y, qz, qw, target=None, barrier=None, u=None, alive=None,
+              rendezvous=None) -> np.ndarray:
     geo = [1.0, float(target[0]), float(target[1])] if target is not None else [0.0, 0.0, 0.0]
     b = np.zeros((0, 2)) if barrier is None else np.asarray(barrier, float).reshape(-1, 2)
     u = np.zeros(len(x)) if u is None else np.asarray(u, float)
+    alive = np.ones(len(x)) if alive is None else np.asarray(alive, float)
     return np.concatenate([[n, t, len(x), lam], np.asarray(flags, float), steering, x, y, qz, qw,
-                           geo, [len(b)], b[:, 0], b[:, 1], u]).astype(float)
+                           geo, [len(b)], b[:, 0], b[:, 1], u, alive,
+                           pack_rendezvous(rendezvous)]).astype(float)
 
 
 class Step:
     """A decoded ``/lockstep/step`` message."""
-    __slots__ = ('n', 't', 'lam', 'flags', 'steering', 'x', 'y', 'qz', 'qw', 'target', 'barrier', 'u')
+    __slots__ = ('n', 't', 'lam', 'flags', 'steering', 'x', 'y', 'qz', 'qw', 'target', 'barrier', 'u',
+                 'alive', 'rendezvous')
 
     def __init__(self, d):
         d = np.asarray(d, dtype=float)
@@ -168,6 +232,10 @@ class Step:
         self.barrier = np.stack([d[o + 4:o + 4 + m], d[o + 4 + m:o + 4 + 2 * m]], axis=1) if m else None
         o += 4 + 2 * m
         self.u = d[o:o + N].copy() if d.size >= o + N else np.zeros(N)
+        o += N
+        a = d[o:o + N]
+        self.alive = a > 0.5 if a.size == N else np.ones(N, bool)
+        self.rendezvous = unpack_rendezvous(d[o + N:o + N + R_SIZE])
 
 
 def event_json(kind: str, t, **fields) -> str:

@@ -5,10 +5,23 @@ other nodes (for the roster, duration, target and barrier), records what the age
 and, at the end, writes ``trajectory.npz`` (the batch engine's format) to ``output_dir``.
 Target and barrier can be moved during a run: ``ros2 param set /world target "400,0"``,
 ``ros2 param set /world barrier "x,y;x,y;…"`` (empty string: none).
+
+Faults (swarm_core.faults; protocol.py for the layout): the world runs the scenario's
+`FaultTimeline` at exactly the scheduled steps and applies live requests from
+``/swarm/fault_request`` (``swarm kill`` / ``swarm pause``) at its next step.  It sends the
+agent's process SIGKILL (kill), SIGSTOP (freeze: once it holds the agent's state of the freeze
+step) and SIGCONT (resume), by the pid in ``pid_file`` (written by ``swarm run --processes``;
+no file: the agent is only left out of the table, which it obeys).  An agent whose state does
+not come within ``missing_timeout`` wall seconds is dropped from the roster (event ``lost``)
+and the run goes on.  Every event is published on ``/swarm/events`` and appended (with the
+commander's events) to ``events_file`` (JSON lines).
 """
 from __future__ import annotations
 
+import json
 import math
+import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -26,6 +39,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from swarm_core import metrics as M
 from swarm_core.engine import Trajectory
+from swarm_core.faults import FAULT_KINDS, Fault
 from swarm_core.model import yaw_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 
@@ -77,6 +91,10 @@ class WorldNode(Node):
         self.stall_timeout = d('stall_timeout', 2.0, 'lockstep: repeat the last message after this many wall s', lo=0.1, hi=1e6)
         self.start_timeout = d('start_timeout', 180.0, 'give up if not everyone is discovered in this many wall s', lo=1.0, hi=1e6)
         self.collision_distance = d('collision_distance', 0.01, 'pairs closer than this count as a collision', lo=0.0, hi=1e6)
+        self.missing_timeout = d('missing_timeout', 10.0, 'lockstep: drop an agent whose state has not come after this many wall s',
+                                 lo=0.1, hi=1e6)
+        self.pid_file = d('pid_file', '', 'JSON {agent: pid} of the agent processes, for kill/pause ("": none)')
+        self.events_file = d('events_file', '', 'append every event here as JSON lines ("": output_dir/events.jsonl)')
         self.trail_length = d('trail_length', 200, 'trail points per agent in the markers', lo=0, hi=100000)
         try:
             self.scn = load(scenario, seed=None if seed < 0 else seed,
@@ -98,6 +116,20 @@ class WorldNode(Node):
         except ValueError as err:
             raise ParameterError(f'parameter target/barrier: {err}') from None
         self.barrier_geom = M.Barrier(self.barrier) if self.barrier is not None else None
+        # faults (swarm_core.faults): the same timeline as the batch engine
+        self.faults = self.scn.fault_timeline()
+        self.slots = {}                 # leader slot → agent index, from the last decision
+        self.events = []
+        self.held = {}                  # frozen agent index → (step, (x, y, qz, qw), u)
+        self.freezes = []               # (agent index, k0, k1) for the trajectory
+        self.stop_pending = set()       # frozen agents to SIGSTOP once their state is held
+        self.pids = None
+        self.rt_fault_step = -1
+        if not self.events_file and self.output_dir:
+            self.events_file = str(Path(self.output_dir) / 'events.jsonl')
+        if self.events_file:
+            Path(self.events_file).parent.mkdir(parents=True, exist_ok=True)
+            Path(self.events_file).write_text('')
         self.add_on_set_parameters_callback(self._on_params)
         self.reject = RejectLog(self.get_logger())
 
@@ -106,6 +138,8 @@ class WorldNode(Node):
         self.pub_barrier = self.create_publisher(PolygonStamped, P.BARRIER, P.qos_latched())
         self.pub_markers = self.create_publisher(MarkerArray, P.MARKERS, 5)
         self.pub_metrics = self.create_publisher(DiagnosticArray, P.METRICS, 10)
+        self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
+        self.create_subscription(String, P.FAULT_REQUEST, self._on_fault_request, P.qos_latched(10))
         self.sub_states = self.create_subscription(Odometry, P.STATES, self._on_state,
                                                    P.qos_latched(max(100, 4 * self.n)), raw=True)
         if self.mode == 'realtime':
@@ -130,6 +164,9 @@ class WorldNode(Node):
         self.buf = np.zeros((4, self.n))
         self.buf_u = np.zeros(self.n)
         self.have = np.zeros(self.n, bool)
+        self.fresh = np.zeros(self.n, bool)      # state stamped at the current step (not held)
+        self.want = np.zeros(self.n, dtype=np.int64)   # the stamp step wanted from each agent
+        self.step_wall = time.monotonic()
         self.states_out = False
         self.decision = None
         self.last_msg = None
@@ -215,13 +252,27 @@ class WorldNode(Node):
             self.rt_record(i, t, vals, wz)
             return
         k = P.step_of(t, self.dt)
-        if k != self.cur:
+        u = wz
+        if not self.faults.alive[i]:          # faults: dead or frozen
+            self.newest[name] = (t, *vals)
+            if self.faults.frozen[i] and k == self.faults.frozen_at[i]:
+                self.held[i] = (k, vals, u)
+                if 0 < k <= self.steps:
+                    self.rec_u[k - 1, i] = u
+                if i in self.stop_pending:
+                    self.stop_pending.discard(i)
+                    self.signal_agent(i, signal.SIGSTOP)
+            return
+        if k != self.want[i]:
             self.reject((name, 'step'), f'state of {name!r} for step {k} while the world is at step {self.cur}')
             return
         self.newest[name] = (t, *vals)
         self.buf[:, i] = vals
-        self.buf_u[i] = wz
+        self.buf_u[i] = u
         self.have[i] = True
+        self.fresh[i] = k == self.cur
+        if k != self.cur and 0 < k <= self.steps:     # a resumed agent's held state
+            self.rec_u[k - 1, i] = u
         self.last_progress = time.monotonic()
         self.advance()
 
@@ -233,7 +284,9 @@ class WorldNode(Node):
                 or len(flags) != self.n:
             self.reject('decision', f'commander decision for step {n}: λ={lam}, non-finite or wrong size')
             return
-        self.decision = (lam, flags.copy(), steering.copy())
+        slots, rdv = P.decision_extras(P.cdr_to_float64_array(raw))
+        self.decision = (lam, flags.copy(), steering.copy(), rdv)
+        self.slots = {int(sl): int(i) for i, sl in enumerate(slots) if sl >= 0}
         self.last_progress = time.monotonic()
         self.advance()
 
@@ -244,44 +297,157 @@ class WorldNode(Node):
                 and self.pub_lock_states.get_subscription_count() >= 1
                 and self.sub_decision.handle.get_publisher_count() >= 1)
 
+    def complete(self):
+        """Every agent in the table of the current step has its state here."""
+        return bool(np.all(self.have | ~self.faults.alive))
+
     def advance(self):
         if not self.started or self.done:
             return
-        if self.have.all() and not self.states_out:
+        if self.complete() and not self.states_out:
             k = self.cur
+            alive = self.faults.alive
             if k > self.steps:                         # the final u_{steps}
-                self.rec_u[self.steps] = self.buf_u
+                self.rec_u[self.steps, alive] = self.buf_u[alive]
                 self.finish()
                 return
             x, y, qz, qw = self.buf
-            self.rec_r[k, :, 0], self.rec_r[k, :, 1] = x, y
-            self.rec_theta[k] = yaw_from_quaternion(qz, qw)
+            self.rec_r[k, alive, 0], self.rec_r[k, alive, 1] = x[alive], y[alive]
+            self.rec_theta[k, alive] = yaw_from_quaternion(qz[alive], qw[alive])
             if k > 0:
-                self.rec_u[k - 1] = self.buf_u
+                fresh = self.fresh & alive
+                self.rec_u[k - 1, fresh] = self.buf_u[fresh]
             self.sim_t = k * self.dt
             if k % self.clock_every == 0 or k == self.steps:
                 self.pub_clock.publish(P.clock_to_cdr(self.sim_t))
-            raw = P.float64_array_to_cdr(P.pack_states(k, self.sim_t, x, y, qz, qw))
+            raw = P.float64_array_to_cdr(P.pack_states(k, self.sim_t, x, y, qz, qw, alive))
             self.pub_lock_states.publish(raw)
             self.last_msg = (self.pub_lock_states, raw)
             self.states_out = True
             self.observe(k)
         if self.states_out and self.decision is not None:
             k = self.cur
-            lam, flags, steering = self.decision
-            self.rec_lam[k], self.rec_leader[k] = lam, flags
-            self.lam_now, self.leaders_now = lam, flags
+            lam, flags, steering, rdv = self.decision
+            alive = self.faults.alive
+            self.rec_lam[k], self.rec_leader[k] = lam, flags & alive
+            self.lam_now, self.leaders_now = lam, flags & alive
             x, y, qz, qw = self.buf
             data = P.pack_step(k, k * self.dt, lam, flags, steering, x, y, qz, qw, self.target, self.barrier,
-                               self.buf_u)
+                               self.buf_u, alive=alive, rendezvous=rdv)
             self.publish_scheduled_events(k)
             raw = P.float64_array_to_cdr(data)
             self.pub_step.publish(raw)
             self.last_msg = (self.pub_step, raw)
             self.cur += 1
             self.have[:] = False
+            self.fresh[:] = False
+            self.want[:] = self.cur
             self.states_out = False
             self.decision = None
+            self.step_wall = time.monotonic()
+            self.begin_step(self.cur)
+
+    # ------------------------------------------------------------ faults
+    def begin_step(self, k):
+        """Apply the faults of step k (scheduled and live) before its states are awaited."""
+        if k > self.steps:
+            return
+        for ev in self.faults.apply(k, self.slots):
+            i = self.row.get(ev['agent'])
+            self.emit(ev)                   # first: the launcher reads it when the agent dies
+            if ev['kind'] == 'kill':
+                self.signal_agent(i, signal.SIGKILL)
+                self.stop_pending.discard(i)
+                if k > 0:
+                    self.rec_u[k - 1:, i] = np.nan
+            elif ev['kind'] == 'freeze':
+                k1 = int(self.faults.frozen_until[i])
+                self.freezes.append((i, int(self.faults.frozen_at[i]), k1))
+                held = self.held.get(i)
+                if held is not None and held[0] == self.faults.frozen_at[i]:
+                    self.signal_agent(i, signal.SIGSTOP)
+                else:
+                    self.stop_pending.add(i)
+            elif ev['kind'] == 'resume':
+                self.stop_pending.discard(i)
+                self.signal_agent(i, signal.SIGCONT)
+                k0 = int(self.faults.frozen_at[i])
+                held = self.held.pop(i, None)
+                if held is not None and held[0] == k0:
+                    self.buf[:, i] = held[1]
+                    self.buf_u[i] = held[2]
+                    self.have[i] = True
+                else:
+                    self.want[i] = k0
+
+    def emit(self, ev):
+        ev = dict(ev, node='world')
+        self.events.append(ev)
+        self.log(f'[world] event t={ev["t"]:.2f}: {ev["kind"]} {ev.get("agent", "")}', flush=True)
+        self.pub_events.publish(String(data=json.dumps(ev)))
+        self.write_event(ev)
+
+    def write_event(self, ev):
+        if self.events_file:
+            with open(self.events_file, 'a') as f:
+                f.write(json.dumps(ev) + '\n')
+
+    def _on_event(self, msg):
+        try:
+            ev = json.loads(msg.data)
+        except ValueError:
+            self.reject('event-json', f'{P.EVENTS}: not JSON: {msg.data[:80]!r}')
+            return
+        if isinstance(ev, dict) and ev.get('node') != 'world':
+            self.events.append(ev)
+            self.write_event(ev)
+
+    def _on_fault_request(self, msg):
+        try:
+            req = json.loads(msg.data)
+            kind, agent = req['kind'], req['agent']
+            dur = float(req.get('for', 0.0))
+            if kind not in FAULT_KINDS:
+                raise ValueError(f'kind must be one of {FAULT_KINDS}')
+            if kind == 'freeze' and not (math.isfinite(dur) and dur > 0):
+                raise ValueError(f'freeze needs "for" > 0 seconds, got {dur!r}')
+            k = self.cur + 1 if self.mode == 'lockstep' else self.rt_fault_step + 1
+            self.faults.add(Fault(0.0, kind, agent, dur, source='live'), not_before=k)
+        except (ValueError, KeyError, TypeError) as err:
+            self.reject(('fault-request', msg.data[:40]), f'{P.FAULT_REQUEST} {msg.data[:80]!r}: {err}')
+            return
+        self.get_logger().info(f'fault request: {kind} {agent}' + (f' for {dur:g} s' if kind == 'freeze' else '')
+                               + f' at step {k}')
+
+    def signal_agent(self, i, sig):
+        """Send ``sig`` to agent i's process (pid from ``pid_file``), if there is one."""
+        if i is None or not self.pid_file:
+            return
+        if self.pids is None:
+            try:
+                self.pids = json.loads(Path(self.pid_file).read_text())
+            except (OSError, ValueError) as err:
+                self.get_logger().warning(f'pid_file {self.pid_file}: {err}; faults only leave agents out')
+                self.pids = {}
+        pid = self.pids.get(self.names[i])
+        if pid is None:
+            return
+        try:
+            os.kill(int(pid), sig)
+        except ProcessLookupError:
+            pass
+
+    def drop_missing(self):
+        """Lockstep: give up on agents whose state has not come within missing_timeout."""
+        missing = np.flatnonzero(self.faults.alive & ~self.have)
+        for i in missing:
+            self.faults.lose(i)
+            if self.cur > 0:
+                self.rec_u[self.cur - 1:, i] = np.nan
+            self.get_logger().warning(f'{self.names[i]}: no state for step {self.cur} within '
+                                      f'{self.missing_timeout:g} s: dropped from the roster')
+            self.emit(dict(t=self.cur * self.dt, step=self.cur, kind='lost', agent=self.names[i]))
+        self.advance()
 
     def publish_scheduled_events(self, k):
         while self.comms_events and self.comms_events[0][0] <= k:
@@ -290,7 +456,8 @@ class WorldNode(Node):
 
     def observe(self, k):
         """Per-step checks (collisions, intrusions), progress, metrics and markers."""
-        pos = self.rec_r[k]
+        idx = np.flatnonzero(self.faults.alive)         # faults: only agents in the table
+        pos = self.rec_r[k, idx]
         md = M.min_distance(pos)
         if md < self.collision_distance:
             self.collisions += 1
@@ -300,7 +467,7 @@ class WorldNode(Node):
             if inside.any():
                 self.intrusions += int(inside.sum())
                 self.reject(('intrusion', k // 2000), f'nothing: barrier intrusion at t={k * self.dt:.2f} by '
-                            + ', '.join(self.names[i] for i in np.flatnonzero(inside)))
+                            + ', '.join(self.names[idx[i]] for i in np.flatnonzero(inside)))
         t = k * self.dt
         if self.progress_every > 0 and t >= self.next_progress:
             self.next_progress = t + self.progress_every
@@ -309,14 +476,17 @@ class WorldNode(Node):
             self.log(f'[world] t={t:8.2f}  clusters={c}  λ={self.lam_now:.3f}  min_dist={md:.3f}  '
                      f'({k / el if el > 0 else 0:.0f} steps/s)', flush=True)
         if self.view_every and k % self.view_every == 0:
-            self.publish_view(t, pos, self.rec_theta[k], md)
+            self.publish_view(t, pos, self.rec_theta[k, idx], md, idx)
 
-    def publish_view(self, t, pos, theta, md):
+    def publish_view(self, t, pos, theta, md, idx=None):
+        """Metrics and markers of agents ``idx`` (default all) at rows pos, theta."""
+        idx = np.arange(len(pos)) if idx is None else idx
         c, labels = M.cluster_labels(pos, self.w)
         st = DiagnosticStatus(name='swarm', hardware_id='world', level=DiagnosticStatus.OK,
                               message=f'{c} cluster(s)')
         vals = dict(t=t, clusters=c, polarisation=M.polarisation(theta), min_distance=md, **{'lambda': self.lam_now},
                     leaders=','.join(self.names[i] for i in np.flatnonzero(self.leaders_now)),
+                    agents=len(idx),
                     intrusions=self.intrusions, collisions=self.collisions)
         if self.target is not None:
             vals['centroid_target_distance'] = float(np.hypot(*(pos.mean(0) - self.target)))
@@ -330,17 +500,17 @@ class WorldNode(Node):
         stamp = self._stamp(t)
         palette = [(0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16),
                    (0.58, 0.4, 0.74), (0.55, 0.34, 0.29)]
-        for i in range(self.n):
+        for row, i in enumerate(idx):
             tr = self.trails[i]
-            tr.append((pos[i, 0], pos[i, 1]))
+            tr.append((pos[row, 0], pos[row, 1]))
             if len(tr) > self.trail_length:
                 del tr[0]
             m = Marker(ns='agents', id=i, type=Marker.ARROW, action=Marker.ADD)
             m.header.frame_id, m.header.stamp = 'world', stamp
-            m.pose.position.x, m.pose.position.y = float(pos[i, 0]), float(pos[i, 1])
-            m.pose.orientation.z, m.pose.orientation.w = math.sin(theta[i] / 2), math.cos(theta[i] / 2)
+            m.pose.position.x, m.pose.position.y = float(pos[row, 0]), float(pos[row, 1])
+            m.pose.orientation.z, m.pose.orientation.w = math.sin(theta[row] / 2), math.cos(theta[row] / 2)
             m.scale.x, m.scale.y, m.scale.z = 0.8, 0.25, 0.25
-            r, g, b = palette[labels[i] % len(palette)]
+            r, g, b = palette[labels[row] % len(palette)]
             m.color.r, m.color.g, m.color.b, m.color.a = (1.0, 0.84, 0.0, 1.0) if self.leaders_now[i] else (r, g, b, 1.0)
             ma.markers.append(m)
             tm = Marker(ns='trails', id=i, type=Marker.LINE_STRIP, action=Marker.ADD)
@@ -399,8 +569,20 @@ class WorldNode(Node):
             pos = np.array([self.newest[nm][1:3] for nm in have])
             th = np.array([yaw_from_quaternion(*self.newest[nm][3:5]) for nm in have])
             self.observe_rt(k, pos, th)
+        self.rt_faults(min(k, self.steps))
         if self.sim_t >= self.scn.duration:
             self.finish()
+
+    def rt_faults(self, k):
+        """Realtime: the faults of every step up to k, signals at once (leader slots unknown)."""
+        while self.rt_fault_step < k:
+            self.rt_fault_step += 1
+            for ev in self.faults.apply(self.rt_fault_step, {}):
+                i = self.row.get(ev['agent'])
+                self.emit(ev)
+                sig = {'kill': signal.SIGKILL, 'freeze': signal.SIGSTOP, 'resume': signal.SIGCONT}.get(ev['kind'])
+                if sig is not None:
+                    self.signal_agent(i, sig)
 
     def observe_rt(self, k, pos, theta):
         t = k * self.dt
@@ -425,6 +607,8 @@ class WorldNode(Node):
                 self.run_wall = now
                 self.log(f'[world] lockstep: {self.n} agents and the commander discovered in '
                          f'{now - self.wall_start:.1f} s; {self.steps} steps of dt={self.dt}', flush=True)
+                self.step_wall = now
+                self.begin_step(0)
                 self.advance()
             elif now - self.wall_start > self.start_timeout:
                 self.failed = (f'discovery timed out after {self.start_timeout:.0f} s: have states of '
@@ -432,6 +616,9 @@ class WorldNode(Node):
                                f'commander {"yes" if self.pub_lock_states.get_subscription_count() else "no"}')
                 self.get_logger().error(self.failed)
                 self.done = True
+            return
+        if not self.states_out and now - self.step_wall > self.missing_timeout and not self.complete():
+            self.drop_missing()
             return
         if self.last_msg is not None and now - self.last_progress > self.stall_timeout:
             pub, msg = self.last_msg
@@ -451,17 +638,42 @@ class WorldNode(Node):
                 r[k, miss], theta[k, miss] = r[k - 1, miss], theta[k - 1, miss]
                 if not np.isfinite(lam[k]):
                     lam[k] = lam[k - 1]
+        # faults: a frozen agent holds its state of the freeze step
+        for i, k0, k1 in self.freezes:
+            k_last = min(k1, T)
+            src = self.frozen_state(i, k0)
+            if src is not None:
+                r[k0:k_last, i] = src[0]
+                theta[k0:k_last, i] = src[1]
         # headings travel as quaternions (θ mod 2π): unwrap in time, start at the scenario's θ0
         good = np.all(np.isfinite(theta), axis=1)
         if good.all():
             theta = np.unwrap(theta, axis=0)
             theta += np.round((self.scn.theta0 - theta[0]) / (2 * np.pi)) * 2 * np.pi
+        else:                              # faults: unwrap each agent over its finite samples
+            for i in range(self.n):
+                ok = np.isfinite(theta[:, i])
+                if ok.any():
+                    col = np.unwrap(theta[ok, i])
+                    theta[ok, i] = col + np.round((self.scn.theta0[i] - col[0]) / (2 * np.pi)) * 2 * np.pi
         tr = Trajectory(list(self.names), np.arange(T) * self.dt, r, theta, self.rec_u.copy(),
                         lam, self.rec_leader.copy(),
                         meta=dict(scenario=self.scn.name, seed=self.scn.seed, dt=self.dt, duration=self.scn.duration,
                                   steps=self.steps, source='ros', mode=self.mode,
-                                  wall_seconds=time.monotonic() - (self.run_wall or self.wall_start)))
+                                  wall_seconds=time.monotonic() - (self.run_wall or self.wall_start),
+                                  events=list(self.events)))
         return tr
+
+    def frozen_state(self, i, k0):
+        """(position, θ) agent i held while frozen from step k0, if known."""
+        if i in self.held and self.held[i][0] == k0:
+            x, y, qz, qw = self.held[i][1]
+        else:
+            k1 = next((b for a, s0, b in self.freezes if a == i and s0 == k0), None)
+            if k1 is None or k1 > self.steps or not np.isfinite(self.rec_r[k1, i]).all():
+                return None
+            return self.rec_r[k1, i].copy(), float(self.rec_theta[k1, i])
+        return np.array([x, y]), float(yaw_from_quaternion(qz, qw))
 
     def finish(self):
         self.done = True
