@@ -68,16 +68,19 @@ class TopicFilter:
         return not any(p.fullmatch(topic) or p.pattern == topic for p in self.exclude)
 
 
-#: the project's fixed volatile topics (DESIGN.md): subscribed at start-up, before any
-#: publisher exists, so that step 0 of a run is not missed while the graph is polled.  If the
-#: publishers turn out to offer other QoS or another type, the subscription is re-made.
-#: (Latched topics need no head start: a late transient-local subscription gets them.)
+#: the project's fixed topics whose first messages matter (DESIGN.md), with the durability
+#: their publishers offer (rmw enum: 1 transient-local, 2 volatile): subscribed at start-up,
+#: before any publisher exists, with the QoS the publishers will offer, so that step 0 of a
+#: run is not missed while the graph is polled and no subscription has to be made again (a
+#: re-made subscription can lose what the old one had not yet taken).  If the publishers turn
+#: out to offer other QoS or another type, the subscription is re-made.
 SWARM_TOPICS = {
-    '/swarm/states': 'nav_msgs/msg/Odometry',
-    '/swarm/lambda': 'std_msgs/msg/Float64',
-    '/clock': 'rosgraph_msgs/msg/Clock',
-    '/world/markers': 'visualization_msgs/msg/MarkerArray',
-    '/world/metrics': 'diagnostic_msgs/msg/DiagnosticArray',
+    '/swarm/states': ('nav_msgs/msg/Odometry', 1),
+    '/swarm/events': ('std_msgs/msg/String', 1),
+    '/swarm/lambda': ('std_msgs/msg/Float64', 2),
+    '/clock': ('rosgraph_msgs/msg/Clock', 2),
+    '/world/markers': ('visualization_msgs/msg/MarkerArray', 2),
+    '/world/metrics': ('diagnostic_msgs/msg/DiagnosticArray', 2),
 }
 
 
@@ -117,9 +120,9 @@ class Recorder:
         self.sub_type: dict[str, str] = {}
         self.skipped: set[str] = set()
         self.states: dict[str, set] = {}
-        for topic, type_name in (presubscribe or {}).items():
+        for topic, (type_name, durability) in (presubscribe or {}).items():
             if wanted(topic):
-                self._subscribe(topic, type_name, request_qos([qos_dict(reliability=1)]))
+                self._subscribe(topic, type_name, request_qos([qos_dict(reliability=1, durability=durability)]))
         self.timer = node.create_timer(POLL_PERIOD, self.poll)
 
     def _publishers(self, topic):
