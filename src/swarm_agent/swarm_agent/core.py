@@ -12,7 +12,8 @@ order, exactly as `swarm_core.engine.SwarmStepper` does for the whole swarm:
 With faults (swarm_core.faults) the table holds only the agents alive at that step, in index
 order, and a rendezvous (reunion) switches the target term on, as in the batch engine.
 
-Because `swarm_control` sums pairs in table order with `np.bincount` and every other
+Because `swarm_control` reduces each receiver's row of pair terms on its own (numpy row sums
+over the whole table, or `np.bincount` over a neighbour list, in table order) and every other
 operation is elementwise, the agent's u equals the batch engine's bit for bit.
 
 With a communication model (`attach_comms`), `comms_control` first lets the agent's radio
