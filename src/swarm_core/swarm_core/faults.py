@@ -92,6 +92,7 @@ class FaultTimeline:
         self.dead = np.zeros(self.n, bool)
         self.frozen_until = np.full(self.n, -1, dtype=np.int64)   # step at which it resumes
         self.frozen_at = np.full(self.n, -1, dtype=np.int64)
+        self._alive = None                     # cached ~dead & ~frozen (None: recompute)
         for f in faults:
             self.add(f)
 
@@ -111,7 +112,12 @@ class FaultTimeline:
 
     @property
     def alive(self):
-        return ~self.dead & ~self.frozen
+        """~dead & ~frozen (read-only; recomputed only after a change: it is read several
+        times per step)."""
+        if self._alive is None:
+            self._alive = ~self.dead & ~self.frozen
+            self._alive.flags.writeable = False
+        return self._alive
 
     @property
     def any_fault(self) -> bool:
@@ -121,8 +127,13 @@ class FaultTimeline:
         """Agent i is gone without a scheduled fault (the world gave up waiting for it)."""
         self.dead[i] = True
         self.frozen_until[i] = -1
+        self._alive = None
 
     def apply(self, k: int, leader_slots=None) -> list:
+        if not (self.pending and self.pending[0][0] <= k) and self._alive is not None \
+                and self._alive.all():
+            return []                          # nothing due, nobody frozen: nothing changes
+        self._alive = None
         t = k * self.dt
         events = []
         for i in np.flatnonzero(self.frozen_until == k):           # resumes first
