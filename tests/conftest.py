@@ -11,6 +11,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -149,3 +150,40 @@ def short_homotopy(path, *, duration, lam, at, seed=0):
     path = Path(path)
     path.write_text(SHORT_HOMOTOPY.format(seed=seed, duration=duration, lam=lam, at=at))
     return path
+
+
+class Lines:
+    """Collects a child's stdout lines in a thread (start it with stdout=PIPE, text=True)."""
+
+    def __init__(self, proc):
+        self.lines = []
+        self.t = threading.Thread(target=self._read, args=(proc,), daemon=True)
+        self.t.start()
+
+    def _read(self, proc):
+        for line in proc.stdout:
+            self.lines.append(line)
+
+    def wait_for(self, text, timeout):
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if any(text in ln for ln in self.lines):
+                return True
+            time.sleep(0.1)
+        return False
+
+
+def overrides(d):
+    """rclpy Parameters from a dict (a node's parameter_overrides)."""
+    from rclpy.parameter import Parameter
+    return [Parameter(k, value=v) for k, v in d.items()]
+
+
+def spin_for(ex, cond, timeout=10.0):
+    """Spin ``ex`` until ``cond()`` or ``timeout`` s; returns cond()."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():
+            return True
+        ex.spin_once(timeout_sec=0.05)
+    return cond()

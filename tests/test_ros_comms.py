@@ -6,7 +6,6 @@ neighbour is forgotten; ``swarm drop 0`` restores it; so do ``swarm partition`` 
 import json
 import math
 import subprocess
-import time
 
 import numpy as np
 import pytest
@@ -15,7 +14,6 @@ pytestmark = pytest.mark.ros
 
 rclpy = pytest.importorskip('rclpy')
 from nav_msgs.msg import Odometry  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
@@ -26,6 +24,8 @@ from swarm_core.scenario import load  # noqa: E402
 from swarm_tools.launch import agent_parameters, build_nodes, node_parameters  # noqa: E402
 from swarm_world import protocol as P  # noqa: E402
 from swarm_world.rosutil import make_executor  # noqa: E402
+
+from conftest import overrides, spin_for  # noqa: E402
 
 SCN = """
 name: comms_short
@@ -51,19 +51,6 @@ comms:
     - {at: 5.0, partition: [[agent_0, agent_1, agent_2]]}
     - {at: 8.0, partition: []}
 """
-
-
-def overrides(d):
-    return [Parameter(k, value=v) for k, v in d.items()]
-
-
-def spin_for(ex, cond, timeout=10.0):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        ex.spin_once(timeout_sec=0.05)
-    return cond()
 
 
 def test_lockstep_with_a_lossy_delayed_radio_equals_the_batch_engine(tmp_path, rclpy_context):

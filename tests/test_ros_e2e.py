@@ -2,7 +2,6 @@
 import os
 import signal
 import subprocess
-import threading
 import time
 
 import numpy as np
@@ -12,34 +11,13 @@ from swarm_core.engine import Trajectory, simulate
 from swarm_core.metrics import cluster_labels
 from swarm_core.scenario import load
 
-from conftest import short_homotopy
+from conftest import Lines, short_homotopy
 
 pytestmark = pytest.mark.ros
 
 # homotopy_global's law, agents and start, with the λ window brought forward so that the split
 # and the reform fit in t = 420 (8400 steps) instead of t = 1000 (20000 steps): measured with
 # the batch engine, seeds 0-5 are one swarm until t ≈ 150, two until t ≈ 390-410, then one.
-
-
-class Lines:
-    """Collects a child's stdout lines in a thread."""
-
-    def __init__(self, proc):
-        self.lines = []
-        self.t = threading.Thread(target=self._read, args=(proc,), daemon=True)
-        self.t.start()
-
-    def _read(self, proc):
-        for line in proc.stdout:
-            self.lines.append(line)
-
-    def wait_for(self, text, timeout):
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            if any(text in ln for ln in self.lines):
-                return True
-            time.sleep(0.1)
-        return False
 
 
 def children_of(pid):

@@ -13,8 +13,6 @@ import json
 import os
 import signal
 import subprocess
-import threading
-import time
 
 import numpy as np
 import pytest
@@ -22,6 +20,8 @@ import pytest
 from swarm_core import outcomes
 from swarm_core.engine import Trajectory, simulate
 from swarm_core.scenario import load
+
+from conftest import Lines
 
 pytestmark = pytest.mark.ros
 
@@ -152,24 +152,6 @@ def test_scheduled_faults_follower_frozen_leader_killed(failover, tmp_path, ros_
     else:
         assert not any(e['kind'] == 'failover' for e in events)
         assert abs(rate - PROGRAM) > 0.5 * PROGRAM, rate
-
-
-class Lines:
-    def __init__(self, proc):
-        self.lines = []
-        threading.Thread(target=self._read, args=(proc,), daemon=True).start()
-
-    def _read(self, proc):
-        for line in proc.stdout:
-            self.lines.append(line)
-
-    def wait_for(self, text, timeout):
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            if any(text in ln for ln in self.lines):
-                return True
-            time.sleep(0.1)
-        return False
 
 
 def agent_pid(out, name):

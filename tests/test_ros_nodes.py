@@ -1,7 +1,6 @@
 """Node tests with rclpy executors: several nodes in one executor, each test on its own
 ROS_DOMAIN_ID and rclpy Context (fixtures in conftest.py)."""
 import math
-import time
 
 import numpy as np
 import pytest
@@ -24,26 +23,13 @@ from swarm_world import protocol as P  # noqa: E402
 from swarm_world.rosutil import ParameterError, make_executor  # noqa: E402
 from swarm_world.world_node import WorldNode  # noqa: E402
 
-from conftest import short_homotopy  # noqa: E402
+from conftest import overrides, short_homotopy, spin_for  # noqa: E402
 
 
 def short_scenario(tmp_path, seed=0, duration=40.0, rise=10.0, fall=30.0, tau=3.0, at=5.0):
     """homotopy_global's law and agents with the λ window and leader choice brought forward."""
     lam = f'{{kind: tanh_window, rise_at: {rise}, fall_at: {fall}, tau: {tau}}}'
     return str(short_homotopy(tmp_path / 'homotopy_short.yaml', seed=seed, duration=duration, lam=lam, at=at))
-
-
-def overrides(d):
-    return [Parameter(k, value=v) for k, v in d.items()]
-
-
-def spin_for(ex, cond, timeout=10.0):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        ex.spin_once(timeout_sec=0.05)
-    return cond()
 
 
 def step_message(scn, pos, theta, lam, flags, steering, target=None, barrier=None, n=0):

@@ -20,8 +20,12 @@ import time
 SETPOINT = '/commander/lambda_setpoint'
 
 
-def _publish_once(msg_type, topic, msg, wait, qos_depth=10):
-    """Publish one message once a subscriber has matched (up to ``wait`` s); True if matched."""
+def _publish_once(msg_type, topic, msg, wait, qos_depth=10, for_node=None):
+    """Publish one message once a subscriber has matched (up to ``wait`` s); True if matched.
+
+    ``for_node``: the node the message is for (e.g. 'commander'): wait until a subscription of
+    that node is in the graph too, not just any (a recorder may match first), then publish and
+    wait for the acknowledgements."""
     import rclpy
     from rclpy.context import Context
     from rclpy.duration import Duration
@@ -30,8 +34,15 @@ def _publish_once(msg_type, topic, msg, wait, qos_depth=10):
     try:
         node = rclpy.create_node('swarm_cli', context=ctx, start_parameter_services=False)
         pub = node.create_publisher(msg_type, topic, qos_depth)
+
+        def ready():
+            if pub.get_subscription_count() == 0:
+                return False
+            return for_node is None or any(
+                i.node_name == for_node for i in node.get_subscriptions_info_by_topic(topic))
+
         end = time.monotonic() + wait
-        while pub.get_subscription_count() == 0 and time.monotonic() < end:
+        while not ready() and time.monotonic() < end:
             time.sleep(0.05)
         if pub.get_subscription_count() == 0:
             return False
@@ -58,7 +69,8 @@ def lambda_main(argv) -> int:
         print(f'swarm lambda: --ramp {a.ramp!r} rejected: must be finite and ≥ 0', file=sys.stderr)
         return 2
     from std_msgs.msg import Float64, Float64MultiArray
-    if _publish_once(Float64MultiArray, SETPOINT, Float64MultiArray(data=[a.value, a.ramp]), a.wait):
+    if _publish_once(Float64MultiArray, SETPOINT, Float64MultiArray(data=[a.value, a.ramp]), a.wait,
+                     for_node='commander'):
         print(f'swarm lambda: set-point λ={a.value:g}, ramp {a.ramp:g} s (sent to the commander)')
         return 0
     if _publish_once(Float64, '/swarm/lambda', Float64(data=a.value), 1.0):
@@ -84,7 +96,7 @@ def steer_main(argv) -> int:
         print(f'swarm steer: {a.agent!r} is not an agent name', file=sys.stderr)
         return 2
     from std_msgs.msg import Float64
-    if _publish_once(Float64, f'/{name}/steering', Float64(data=a.value), a.wait):
+    if _publish_once(Float64, f'/{name}/steering', Float64(data=a.value), a.wait, for_node='commander'):
         print(f'swarm steer: {name} steering {a.value:g}')
         return 0
     print(f'swarm steer: unknown agent {name!r}: nothing subscribes /{name}/steering', file=sys.stderr)

@@ -29,7 +29,8 @@ def _send(verb, request, wait):
 
     from homotopy_commander.cli import _publish_once
     # transient-local: a world whose side of the match comes late still gets the request
-    if _publish_once(String, P.FAULT_REQUEST, String(data=json.dumps(request)), wait, P.qos_latched(10)):
+    if _publish_once(String, P.FAULT_REQUEST, String(data=json.dumps(request)), wait, P.qos_latched(10),
+                     for_node='world'):
         return True
     print(f'swarm {verb}: no running swarm found (no world subscribes {P.FAULT_REQUEST}); '
           "is ROS_DOMAIN_ID the same as the run's?", file=sys.stderr)
