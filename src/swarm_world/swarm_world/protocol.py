@@ -101,7 +101,7 @@ LOCK_STEP = '/lockstep/step'
 EVENTS = '/swarm/events'
 FAULT_REQUEST = '/swarm/fault_request'
 #: publisher depth of /swarm/states (transient-local): history a late or slow reader can get
-STATES_DEPTH = 1000
+STATES_DEPTH = 100
 
 
 def steering_topic(agent: str) -> str:
