@@ -23,6 +23,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+import time
 
 import numpy as np
 from geometry_msgs.msg import PointStamped, PolygonStamped
@@ -40,6 +41,8 @@ from swarm_world.rosutil import ParameterError, RejectLog, declare, run_node
 from .core import AgentCore
 
 MODES = ('lockstep', 'realtime')
+#: lockstep: wall seconds to wait for `state_subscribers` readers before the first state
+FIRST_STATE_WAIT = 30.0
 
 
 class AgentNode(Node):
@@ -74,6 +77,8 @@ class AgentNode(Node):
         noise = (d('noise_position', 0.0, 'uniform noise half-width on x, y per step', lo=0.0, hi=1e6),
                  d('noise_heading', 0.0, 'uniform noise half-width on θ per step', lo=0.0, hi=1e6))
         seed = d('seed', 0, 'scenario seed (noise stream)', lo=0, hi=2**31 - 1)
+        self.state_subscribers = d('state_subscribers', 1, 'lockstep: publish the first state only once this '
+                                   'many readers of /swarm/states have matched (2 = world and recorder)', lo=1, hi=100000)
         self.stale_after = d('stale_after', 2.0, 'realtime: ignore neighbour states older than this (sim s)',
                              lo=0.0, hi=1e9)
         comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect)")
@@ -132,6 +137,24 @@ class AgentNode(Node):
             self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(50, 4 * self.n)))
             self.timer = self.create_timer(self.dt, self._on_tick)
             self._last_tick = None
+        if self.mode == 'lockstep' and self.state_subscribers > 1:
+            # a recorder matched late would miss the first states (the writer keeps 100): the world
+            # starts step 0 only when it holds every agent's first state, so wait for the readers
+            # (a steady-clock timer: sim time does not run before step 0)
+            from rclpy.clock import Clock, ClockType
+            self._first_deadline = time.monotonic() + FIRST_STATE_WAIT
+            self._first = self.create_timer(0.05, self._publish_first, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        else:
+            self.publish_state()
+
+    def _publish_first(self):
+        matched = self.pub.get_subscription_count() >= self.state_subscribers
+        if not matched and time.monotonic() < self._first_deadline:
+            return
+        if not matched:
+            self.get_logger().warning(f'only {self.pub.get_subscription_count()} of {self.state_subscribers} '
+                                      f'readers of {P.STATES} matched after {FIRST_STATE_WAIT:g} s; starting anyway')
+        self._first.cancel()
         self.publish_state()
 
     # ------------------------------------------------------------ output

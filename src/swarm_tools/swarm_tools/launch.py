@@ -349,6 +349,9 @@ def main(argv=None) -> int:
     params = node_parameters(scn, ref, a.mode, a.rtf, str(out), scn.duration,
                              extra_world=dict(progress_every=float(a.progress_every), clock_every=int(a.clock_every),
                                               missing_timeout=float(a.missing_timeout)))
+    if a.record and not a.in_process and a.mode == 'lockstep':
+        for nm in scn.names:            # the recorder must hear every state from step 0
+            params[f'/{nm}/agent']['state_subscribers'] = 2
     n_proc = len(scn.names) + 2 + (1 if a.record else 0)
     print(f'swarm run: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '
           f'{"one process" if a.in_process else f"{n_proc} processes"}, t = {scn.duration:g}, dt = {scn.dt:g}',
