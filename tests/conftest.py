@@ -88,6 +88,23 @@ class ProcessGroup:
         self.procs.append(p)
         return p
 
+    def communicate(self, p: subprocess.Popen, timeout: float) -> str:
+        """``p.communicate(timeout)``'s stdout; on a timeout the child is stopped (SIGINT to its
+        group) and the test fails with everything it printed."""
+        try:
+            return p.communicate(timeout=timeout)[0]
+        except subprocess.TimeoutExpired:
+            try:
+                os.killpg(p.pid, signal.SIGINT)
+            except ProcessLookupError:
+                pass
+            try:
+                out = p.communicate(timeout=15)[0]
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                out = p.communicate()[0]
+            pytest.fail(f'no exit within {timeout} s; it printed:\n{(out or "")[-8000:]}')
+
     def stop_all(self, grace: float = 5.0):
         for p in self.procs:
             if p.poll() is None:
@@ -171,6 +188,13 @@ class Lines:
                 return True
             time.sleep(0.1)
         return False
+
+    def wait(self, proc, timeout):
+        """proc.wait(timeout); on a timeout the test fails with everything the child printed."""
+        try:
+            return proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f'no exit within {timeout} s; it printed:\n' + ''.join(self.lines[-200:]))
 
 
 def overrides(d):

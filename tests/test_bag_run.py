@@ -45,7 +45,7 @@ def recorded_run(ros_domain, processes, swarm_cmd, tmp_path):
     proc = processes.start([swarm_cmd, 'run', scn_file, '--record', bag, '--out', out,
                             '--no-figure'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                            text=True)
-    text, _ = proc.communicate(timeout=240)
+    text = processes.communicate(proc, 240)
     assert proc.returncode == 0, text
     return bag, out, text
 

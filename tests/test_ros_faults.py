@@ -93,7 +93,7 @@ def run(processes, swarm_cmd, tmp_path, text, *extra, name='faults'):
 def test_scheduled_faults_follower_frozen_leader_killed(failover, tmp_path, ros_domain, processes, swarm_cmd):
     extra = SCHEDULED + ('failover: {timeout: 0.5}\n' if failover else '')
     path, out, bag, p = run(processes, swarm_cmd, tmp_path, SCENARIO.format(duration=24, extra=extra))
-    text, _ = p.communicate(timeout=300)
+    text = processes.communicate(p, 300)
     assert p.returncode == 0, text
     assert 'killed (fault injection)' in text, text
     scn = load(str(path))
@@ -171,7 +171,7 @@ def test_live_kill_pause_and_lost_agent(tmp_path, ros_domain, processes, swarm_c
     for c in cli:
         msg, _ = c.communicate(timeout=60)
         assert c.returncode == 0, msg
-    p.wait(timeout=400)
+    lines.wait(p, 240)
     text = ''.join(lines.lines)
     assert p.returncode == 0, text
     assert 'agent_0 exited with code' in text and 'agent_4 killed (fault injection)' in text, text
