@@ -110,6 +110,10 @@ def steady_clock():
     return Clock(clock_type=ClockType.STEADY_TIME)
 
 
+#: wall seconds a node's ROS teardown may take before the process exits without it
+TEARDOWN_LIMIT = 10.0
+
+
 def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None) -> int:
     """The ``main()`` of a node executable: init rclpy from ``argv``, build ``node_class()``
     (a bad parameter -> one error line, exit 2), spin until ``done(node)`` or shutdown
@@ -129,6 +133,21 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None) -
     ex.add_node(node)
     spin_until(ex, ctx, (lambda: done(node)) if done is not None else (lambda: False))
     code = exit_code(node) if exit_code is not None else 0
+    # a DDS teardown that never returns (seen with Fast DDS after a peer process was SIGKILLed)
+    # must not keep a finished node alive: its work is done and saved, so exit anyway
+    import os
+    import threading
+
+    def give_up():
+        rclpy.logging.get_logger(logger_name).warning(
+            f'shutdown took more than {TEARDOWN_LIMIT:g} s: exiting without it')
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    watchdog = threading.Timer(TEARDOWN_LIMIT, give_up)
+    watchdog.daemon = True
+    watchdog.start()
     node.destroy_node()
     rclpy.try_shutdown()
+    watchdog.cancel()
     return code

@@ -89,6 +89,8 @@ class WorldNode(Node):
         self.clock_every = d('clock_every', 1, 'lockstep: publish /clock every this many steps (every node '
                              'receives each one; lockstep inputs carry their own time)', lo=1, hi=10**9)
         self.stall_timeout = d('stall_timeout', 2.0, 'lockstep: repeat the last message after this many wall s', lo=0.1, hi=1e6)
+        self.step_timeout = d('step_timeout', 120.0, 'lockstep: give up (exit 1) if one step has not completed '
+                              'after this many wall s', lo=1.0, hi=1e9)
         self.start_timeout = d('start_timeout', 180.0, 'give up if not everyone is discovered in this many wall s', lo=1.0, hi=1e6)
         self.collision_distance = d('collision_distance', 0.01, 'pairs closer than this count as a collision', lo=0.0, hi=1e6)
         self.missing_timeout = d('missing_timeout', 10.0, 'lockstep: drop an agent whose state has not come after this many wall s',
@@ -620,9 +622,20 @@ class WorldNode(Node):
         if not self.states_out and now - self.step_wall > self.missing_timeout and not self.complete():
             self.drop_missing()
             return
+        if now - self.step_wall > max(self.step_timeout, self.missing_timeout + 10 * self.stall_timeout):
+            self.failed = (f'step {self.cur} has not completed after {now - self.step_wall:.0f} s '
+                           f'({"waiting for the commander" if self.states_out else "waiting for agents"}): giving up')
+            self.get_logger().error(self.failed)
+            self.done = True
+            return
         if self.last_msg is not None and now - self.last_progress > self.stall_timeout:
             pub, msg = self.last_msg
-            self.get_logger().warning(f'stalled at step {self.cur}: repeating the last message')
+            if self.states_out:
+                waiting = "the commander's decision"
+            else:
+                waiting = 'the states of ' + ', '.join(
+                    self.names[i] for i in np.flatnonzero(self.faults.alive & ~self.have))
+            self.get_logger().warning(f'stalled at step {self.cur} waiting for {waiting}: repeating the last message')
             pub.publish(msg)
             self.last_progress = now
 
