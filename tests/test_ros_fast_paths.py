@@ -56,7 +56,7 @@ def test_lockstep_over_the_udp_profile_equals_simulate(tmp_path, ros_domain, pro
     out = tmp_path / 'run'
     p = processes.start([swarm_cmd, 'run', path, '--dds', 'udp', '--clock-every', '7', '--out', out, '--no-figure'],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    text, _ = p.communicate(timeout=240)
+    text = processes.communicate(p, 240)
     assert p.returncode == 0, text[-3000:]
     got = Trajectory.load(out / 'trajectory.npz')
     ref = simulate(load(str(path)))
@@ -75,5 +75,12 @@ def test_udp_profile_is_written_for_large_runs(tmp_path):
     assert env['FASTRTPS_DEFAULT_PROFILES_FILE'] == str(tmp_path / 'fastdds_loopback.xml')
     assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SYSTEM_DEFAULT'
     assert '<maxInitialPeersRange>130</maxInitialPeersRange>' in xml
+    # small runs get the profile too (no shared memory); 'localhost' is rmw_fastrtps' own range
+    (tmp_path / 'x').mkdir()
     small = dds.environment(8, tmp_path / 'x', base={})
-    assert small['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST' and 'FASTRTPS_DEFAULT_PROFILES_FILE' not in small
+    assert small['FASTRTPS_DEFAULT_PROFILES_FILE'] == str(tmp_path / 'x' / 'fastdds_loopback.xml')
+    assert '<useBuiltinTransports>false</useBuiltinTransports>' in (tmp_path / 'x' / 'fastdds_loopback.xml').read_text()
+    shm = dds.environment(8, tmp_path / 'y', base={}, choice='localhost')
+    assert shm['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST' and 'FASTRTPS_DEFAULT_PROFILES_FILE' not in shm
+    own = dds.environment(8, tmp_path / 'z', base={'FASTRTPS_DEFAULT_PROFILES_FILE': '/my.xml'})
+    assert own['FASTRTPS_DEFAULT_PROFILES_FILE'] == '/my.xml'        # the user's profile is kept

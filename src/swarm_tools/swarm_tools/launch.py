@@ -315,8 +315,11 @@ def _parser():
         '/clock; K = 10 saves about a fifth of the CPU per step with 6-24 agent processes, and sim '
         'time in the nodes then advances in steps of K dt (lockstep results do not change)'))
     p.add_argument('--dds', choices=dds.CHOICES, default='auto', help=(
-        'DDS set-up of the processes: auto (default: localhost discovery up to 32 processes, '
-        'beyond that a generated Fast DDS profile, UDP on 127.0.0.1), localhost, or udp (the profile)'))
+        'DDS set-up of the processes: auto (default: a generated Fast DDS profile, UDP on '
+        '127.0.0.1 without shared memory, unless FASTRTPS_DEFAULT_PROFILES_FILE names one), udp '
+        '(that profile in any case) or localhost (rmw_fastrtps localhost discovery with shared '
+        'memory: up to 32 processes, and an agent killed or frozen by fault injection can block '
+        'shared memory for the others)'))
     return p
 
 
