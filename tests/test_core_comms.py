@@ -307,3 +307,29 @@ def test_runtime_events_are_validated():
     assert m.perfect
     with pytest.raises(ValueError, match="unknown agent 'ghost'"):
         m.apply(dict(partition=[['ghost']]), 0)
+
+
+def test_dead_and_frozen_agents_send_nothing_and_are_forgotten():
+    """Faults with a radio (batch engine): a killed agent's last state ages out of every
+    receiver's beliefs after the timeout; a frozen agent neither sends nor listens while frozen."""
+    comms = dict(loss=0.1, latency=0.05, timeout=0.5)
+    scn = scenario(comms, faults=[dict(at=2.0, kill='agent_5'), dict(at=3.0, freeze='agent_2', **{'for': 1.0})])
+    st = SwarmStepper(scn)
+    for _ in range(40):                      # to t = 2.0: the kill applies at step 40
+        st.step()
+    sent_before = st.beliefs.sent.copy()
+    for _ in range(30):                      # to t = 3.5: agent_2 frozen from step 60
+        st.step()
+    b = st.beliefs
+    others = [0, 1, 3, 4]
+    assert (b.stamp[others, 5] < 40).all()                  # nothing from agent_5 after its death
+    assert (b.sent[:, 5] == sent_before[:, 5]).all()        # and nothing counted as sent
+    assert (b.stamp[others, 2] < 60).all() and (b.stamp[2, [0, 1, 3, 4]] < 60).all()
+    rows = b.table(0, st.step_index, st.comms)[0]
+    assert 5 not in rows and 2 not in rows                  # both silent for longer than 0.5 s
+    for _ in range(15):                      # to t = 4.25: agent_2 back from step 80
+        st.step()
+    assert 2 in b.table(0, st.step_index, st.comms)[0] and 5 not in b.table(0, st.step_index, st.comms)[0]
+    assert (b.stamp[2, [0, 1, 3, 4]] >= 80).any()           # and it hears again
+    ref = simulate(scn)
+    assert np.isnan(ref.r[41:, 5]).all() and np.isfinite(ref.r[:, :5]).all()

@@ -1,6 +1,7 @@
 """The communication model in the ROS nodes: a lockstep run with loss, latency, jitter, a
 per-link override and a scheduled partition equals the batch engine to 1e-9 (and the world
-publishes the scheduled events on /swarm/events); a realtime agent delays incoming states by
+publishes the scheduled events on /swarm/events), also with faults (a frozen follower, a
+killed leader and failover) on top; a realtime agent delays incoming states by
 the latency, and ``swarm drop`` (a CLI process) cuts what it receives, after which the silent
 neighbour is forgotten; ``swarm drop 0`` restores it; so do ``swarm partition`` / ``--heal``."""
 import json
@@ -88,6 +89,48 @@ def test_lockstep_with_a_lossy_delayed_radio_equals_the_batch_engine(tmp_path, r
     assert [(e['t'], e['kind'], e['source'], e['partition']) for e in events if e['kind'] == 'comms'] == [
         (5.0, 'comms', 'scenario', [['agent_0', 'agent_1', 'agent_2']]), (8.0, 'comms', 'scenario', [])]
     for nd in [world, commander, *agents, probe]:
+        nd.destroy_node()
+
+
+FAULTS = """
+faults:
+  - {at: 3.0, freeze: agent_4, for: 1.5}
+  - {at: 6.0, kill: "leader:0"}
+failover: {timeout: 0.5}
+reunion:
+  - {at: 9.0, for: 2.0, point: centroid, coupling: 1.0}
+"""
+
+
+def test_lockstep_radio_with_faults_failover_and_reunion_equals_the_batch_engine(tmp_path, rclpy_context):
+    """Nodes in one executor (no processes to signal: a dead or frozen agent obeys the table's
+    alive mask): the radio hears nothing from agents out of the table, a frozen agent hears
+    nothing while frozen, and the run equals the batch engine to 1e-9, dead rows and all."""
+    path = tmp_path / 'comms_faults.yaml'
+    path.write_text(SCN + FAULTS)
+    scn = load(str(path))
+    ref = simulate(scn)
+    kinds = [e['kind'] for e in ref.meta['events']]
+    assert 'kill' in kinds and 'freeze' in kinds and 'failover' in kinds and 'rendezvous_on' in kinds, kinds
+    assert not np.isfinite(ref.r[-1]).all()                  # the killed leader's rows are NaN
+    out = tmp_path / 'run'
+    params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
+    ctx = rclpy_context
+    world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
+    ex = make_executor(ctx)
+    for nd in [world, commander, *agents]:
+        ex.add_node(nd)
+    assert spin_for(ex, lambda: world.done, 240.0)
+    assert world.failed is None
+    got = Trajectory.load(out / 'trajectory.npz')
+    assert np.array_equal(np.isfinite(got.r), np.isfinite(ref.r))
+    fin = np.isfinite(ref.r)
+    assert np.abs(got.r[fin] - ref.r[fin]).max() <= 1e-9
+    assert np.nanmax(np.abs(got.theta - ref.theta)) <= 1e-9
+    both = np.isfinite(got.u) & np.isfinite(ref.u)
+    assert np.abs(got.u[both] - ref.u[both]).max() <= 1e-9
+    assert np.array_equal(got.leader, ref.leader)
+    for nd in [world, commander, *agents]:
         nd.destroy_node()
 
 

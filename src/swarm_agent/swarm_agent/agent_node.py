@@ -216,7 +216,9 @@ class AgentNode(Node):
         self.silent = False
         if self.radio_on:
             u = self.core.comms_control(s.n, s.x, s.y, s.qz, s.qw, s.u, s.lam, s.flags,
-                                        s.steering[self.index], s.target, s.barrier)
+                                        s.steering[self.index], s.target, s.barrier,
+                                        alive=s.alive if len(s.alive) == self.n else None,
+                                        rendezvous=s.rendezvous)
         else:
             u = self.core.control(s.x, s.y, s.qz, s.qw, s.lam, s.flags, s.steering[self.index],
                                   s.target, s.barrier, alive=s.alive, rendezvous=s.rendezvous)

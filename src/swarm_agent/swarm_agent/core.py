@@ -55,15 +55,19 @@ class AgentCore:
         self.beliefs = Beliefs([self.index], self.n)
 
     def comms_control(self, step, x, y, qz, qw, u_sent, lam, is_leader, steering_own,
-                      target=None, barrier=None):
+                      target=None, barrier=None, alive=None, rendezvous=None):
         """u of this agent at ``step`` from what its radio delivers of the step's table
-        (x, y, qz, qw, u_sent: arrays of length N, the states of t_step as sent)."""
+        (x, y, qz, qw, u_sent: arrays of length N, the states of t_step as sent).
+
+        alive (N,) bool, faults: agents out of the table send nothing (the relay still carries
+        their last rows); rendezvous: the reunion of this step, as in `control`."""
         k = self.index
         xy = np.stack([np.asarray(x, float), np.asarray(y, float)], axis=1)
         arrival = self.comms.decide(step, [k], xy[k:k + 1], np.arange(self.n), xy)
         self.beliefs.receive(step, arrival, xy[:, 0], xy[:, 1], np.asarray(qz, float), np.asarray(qw, float),
-                             np.asarray(u_sent, float))
-        return belief_control(self.law, self.beliefs, 0, step, self.comms, self.pos[0], self.theta[0], lam,
+                             np.asarray(u_sent, float), alive=alive)
+        law, target = reunion_law(self.law, target, rendezvous)
+        return belief_control(law, self.beliefs, 0, step, self.comms, self.pos[0], self.theta[0], lam,
                               is_leader, steering_own, target, barrier)
 
     # -- what the agent publishes

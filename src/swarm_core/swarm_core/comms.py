@@ -253,12 +253,21 @@ class Beliefs:
         self.delivered = np.zeros((K, N), dtype=np.int64)
         self.delay_counts = np.zeros(1, dtype=np.int64)       # histogram of delays (steps) of delivered messages
 
-    def receive(self, step: int, arrival, x, y, qz, qw, u):
+    def receive(self, step: int, arrival, x, y, qz, qw, u, alive=None):
         """Take the fates of step ``step`` (from `CommModel.decide`) and the states sent then;
-        fold every message due by ``step`` into the beliefs, newest stamp winning."""
+        fold every message due by ``step`` into the beliefs, newest stamp winning.
+
+        alive (N,) bool, faults: agents out of the table (dead, frozen) neither send nor listen
+        at this step; their links carry nothing and are not counted as sent."""
         arrival = np.asarray(arrival, dtype=np.int64)
+        links = self.other
+        if alive is not None and not np.all(alive):
+            alive = np.asarray(alive, bool)
+            on = alive[self.recv][:, None] & alive[None, :]
+            arrival = np.where(on, arrival, -1)
+            links = links & on
         got = (arrival >= 0) & self.other
-        self.sent += self.other
+        self.sent += links
         self.delivered += got
         d = np.bincount((arrival - step)[got])
         if d.size > self.delay_counts.size:
@@ -312,7 +321,9 @@ def belief_control(law: LawConfig, beliefs: Beliefs, i: int, step: int, model: C
                    own_xy, own_theta, lambda_, is_leader, steering_own, target=None, barrier=None):
     """u of receiver ``beliefs.recv[i]`` at ``step`` from its own true state and what it
     believes of the others (`Beliefs.table`), with THE law `swarm_control` (dense sums over the
-    table, in agent-index order).  is_leader (N,) are the step's leader flags of all agents."""
+    table, in agent-index order).  is_leader (N,) are the step's leader flags of all agents.
+    (A dead agent stays in the table until its last state is older than the timeout: the
+    receiver cannot know it died.)"""
     k = int(beliefs.recv[i])
     rows, x, y, c, s = beliefs.table(i, step, model)
     own = int(np.searchsorted(rows, k))

@@ -172,8 +172,8 @@ class SwarmStepper:
                     steer[idx] = prog.value(tt, p[idx], float(np.arctan2(s[idx], c[idx])))
                 return self.control(tt, p, th, lam_s, is_leader, steer)
             self.pos, self.theta = rk4_step(self.pos, self.theta, t, self.dt, control)
-        if self.comms is not None:
-            self.u_prev = np.asarray(u, dtype=float).copy()
+        if self.comms is not None:          # faults: the dead and frozen keep the u they last flew
+            self.u_prev = np.where(still, self.u_prev, np.asarray(u, dtype=float))
         if self.noisy:
             draws = np.stack([rng.uniform(-1.0, 1.0, size=3) if not s else np.zeros(3)
                               for rng, s in zip(self._rngs, still)])
@@ -195,24 +195,22 @@ class SwarmStepper:
             return
         if self.integrator != 'zoh':
             raise ValueError('a communication model needs the zoh integrator')
-        sp = self.scn.spec
-        if sp.faults or sp.failover or sp.reunion:
-            raise ValueError('faults, failover and reunion are not combined with a communication '
-                             'model in the batch engine (not built yet)')
         self.beliefs = Beliefs(self.receivers, self.n)
         self.u_prev = np.zeros(self.n)          # u held over the step that ended at t_n (sent with the state)
         self._comms_step = -1
 
     def _comms_control(self, pos, theta, lam, is_leader, steering):
         n = self.step_index
+        alive = self.faults.alive           # faults: the dead and the frozen neither send nor listen
         if self._comms_step != n:               # the radio delivers once per step
             qz, qw = quaternion_from_heading(theta)
             arrival = self.comms.decide(n, self.receivers, pos, self.receivers, pos)
-            self.beliefs.receive(n, arrival, pos[:, 0], pos[:, 1], qz, qw, self.u_prev)
+            self.beliefs.receive(n, arrival, pos[:, 0], pos[:, 1], qz, qw, self.u_prev, alive=alive)
             self._comms_step = n
         s = np.zeros(self.n) if steering is None else np.asarray(steering, dtype=float)
-        return np.array([belief_control(self.law, self.beliefs, k, n, self.comms, pos[k], theta[k], lam,
-                                        is_leader, s[k], self.target, self.barrier)
+        law, target = self._law_target()
+        return np.array([belief_control(law, self.beliefs, k, n, self.comms, pos[k], theta[k], lam,
+                                        is_leader, s[k], target, self.barrier) if alive[k] else 0.0
                          for k in range(self.n)])
 
     def comms_stats(self) -> dict | None:
