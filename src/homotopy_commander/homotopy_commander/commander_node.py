@@ -60,6 +60,9 @@ class CommanderNode(Node):
                             choices=('smoothstep', 'linear', 'tanh', 'step'))
         self.heard_timeout = d('heard_timeout', 1.0, 'realtime: an agent silent for this many sim s is not heard '
                                '(leader failover)', lo=0.0, hi=1e9)
+        self.wait_for_recorder = d('wait_for_recorder', False, 'lockstep: take part only once the recorder '
+                                   'matched /swarm/lambda and every steering topic too '
+                                   f'(at most {P.RECORDER_MATCH_WAIT:g} s)')
         self.publish_every = d('publish_every', 10, 'lockstep: publish /swarm/lambda every this many steps',
                                lo=1, hi=10**9)
         try:
@@ -81,10 +84,10 @@ class CommanderNode(Node):
         self.pending = []            # live changes to apply at the next decision
         self.decisions = 0
 
-        self.pub_lambda = self.create_publisher(Float64, P.LAMBDA, P.qos_reliable())
+        self.pub_lambda = self.create_publisher(Float64, P.LAMBDA, P.qos_reliable(P.STEP_DEPTH))
         self.pub_leaders = self.create_publisher(String, P.LEADERS, P.qos_latched())
         self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
-        self.pub_steer = {nm: self.create_publisher(Float64, P.steering_topic(nm), P.qos_reliable())
+        self.pub_steer = {nm: self.create_publisher(Float64, P.steering_topic(nm), P.qos_reliable(P.STEP_DEPTH))
                           for nm in self.names}
         # rclpy's message info carries no publisher id here, so the commander recognises its own
         # publications by value: its own messages come back in order (one FIFO per topic)
@@ -95,9 +98,18 @@ class CommanderNode(Node):
             self.create_subscription(Float64, P.steering_topic(nm),
                                      lambda msg, nm=nm: self._on_steering(nm, msg), P.qos_reliable())
         if self.mode == 'lockstep':
-            self.pub_decision = self.create_publisher(Float64MultiArray, P.LOCK_DECISION, P.qos_latched())
-            self.create_subscription(Float64MultiArray, P.LOCK_STATES, self._on_states, P.qos_latched(), raw=True)
             self.last_decision = None
+            if self.wait_for_recorder:
+                # join the lockstep (the world waits for it) only once the recorder's readers
+                # of λ and steering matched: the first λ and steering messages are volatile
+                import time
+
+                from rclpy.clock import Clock, ClockType
+                self._join_deadline = time.monotonic() + P.RECORDER_MATCH_WAIT
+                self._join = self.create_timer(0.05, self._join_lockstep,
+                                               clock=Clock(clock_type=ClockType.STEADY_TIME))
+            else:
+                self._join_lockstep()
         else:
             self.pos = self.scn.pos0.copy()
             c, s = np.cos(self.scn.theta0), np.sin(self.scn.theta0)
@@ -106,6 +118,22 @@ class CommanderNode(Node):
             self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)))
             self.timer = self.create_timer(self.dt, self._on_tick)
         self.publish_leaders([])
+
+    def _join_lockstep(self):
+        if self.wait_for_recorder:
+            import time
+            # readers: λ — the agents, the commander itself, the recorder; steering — the agent,
+            # the commander itself, the recorder
+            short = self.pub_lambda.get_subscription_count() < self.n + 2 or any(
+                p.get_subscription_count() < 3 for p in self.pub_steer.values())
+            if short and time.monotonic() < self._join_deadline:
+                return
+            if short:
+                self.get_logger().warning(f'the recorder has not matched {P.LAMBDA} and every steering topic '
+                                          f'after {P.RECORDER_MATCH_WAIT:g} s; taking part anyway')
+            self._join.cancel()
+        self.pub_decision = self.create_publisher(Float64MultiArray, P.LOCK_DECISION, P.qos_latched())
+        self.create_subscription(Float64MultiArray, P.LOCK_STATES, self._on_states, P.qos_latched(), raw=True)
 
     def _send(self, topic, pub, value):
         fifo = self.own_sent.setdefault(topic, [])

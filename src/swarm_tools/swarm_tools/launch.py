@@ -355,6 +355,8 @@ def main(argv=None) -> int:
     if a.record and not a.in_process and a.mode == 'lockstep':
         for nm in scn.names:            # the recorder must hear every state from step 0
             params[f'/{nm}/agent']['state_subscribers'] = 2
+        params['/world']['wait_for_recorder'] = True          # ... every /clock
+        params['/commander']['wait_for_recorder'] = True      # ... and every λ and steering message
     n_proc = len(scn.names) + 2 + (1 if a.record else 0)
     print(f'swarm run: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '
           f'{"one process" if a.in_process else f"{n_proc} processes"}, t = {scn.duration:g}, dt = {scn.dt:g}',

@@ -108,6 +108,15 @@ def steering_topic(agent: str) -> str:
     return f'/{agent}/steering'
 
 
+#: lockstep with a recorder (``wait_for_recorder``): wall seconds a node waits for the
+#: recorder's readers to match its writers before it takes part anyway (with a warning)
+RECORDER_MATCH_WAIT = 30.0
+
+#: history of the volatile per-step writers (/clock, /swarm/lambda, steering): a reader that
+#: falls behind, or a datagram repaired late, still finds the sample
+STEP_DEPTH = 100
+
+
 def qos_latched(depth: int = 1):
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,

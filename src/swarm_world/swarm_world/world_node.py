@@ -89,6 +89,9 @@ class WorldNode(Node):
         self.clock_every = d('clock_every', 1, 'lockstep: publish /clock every this many steps (every node '
                              'receives each one; lockstep inputs carry their own time)', lo=1, hi=10**9)
         self.stall_timeout = d('stall_timeout', 2.0, 'lockstep: repeat the last message after this many wall s', lo=0.1, hi=1e6)
+        self.wait_for_recorder = d('wait_for_recorder', False, 'lockstep: start step 0 only once /clock has '
+                                   'one reader more than the agents and the commander (a recorder; '
+                                   f'at most {P.RECORDER_MATCH_WAIT:g} s)')
         self.step_timeout = d('step_timeout', 120.0, 'lockstep: give up (exit 1) if one step has not completed '
                               'after this many wall s', lo=1.0, hi=1e9)
         self.start_timeout = d('start_timeout', 180.0, 'give up if not everyone is discovered in this many wall s', lo=1.0, hi=1e6)
@@ -135,7 +138,7 @@ class WorldNode(Node):
         self.add_on_set_parameters_callback(self._on_params)
         self.reject = RejectLog(self.get_logger())
 
-        self.pub_clock = self.create_publisher(Clock, P.CLOCK, 10)
+        self.pub_clock = self.create_publisher(Clock, P.CLOCK, P.qos_reliable(P.STEP_DEPTH))
         self.pub_target = self.create_publisher(PointStamped, P.TARGET, P.qos_latched())
         self.pub_barrier = self.create_publisher(PolygonStamped, P.BARRIER, P.qos_latched())
         self.pub_markers = self.create_publisher(MarkerArray, P.MARKERS, 5)
@@ -294,10 +297,22 @@ class WorldNode(Node):
 
     # ------------------------------------------------------------ lockstep
     def ready(self):
-        """Everyone matched: agents' states of step 0 held, relay and commander matched."""
-        return (self.have.all() and self.pub_step.get_subscription_count() >= self.n
-                and self.pub_lock_states.get_subscription_count() >= 1
-                and self.sub_decision.handle.get_publisher_count() >= 1)
+        """Everyone matched: agents' states of step 0 held, relay and commander matched (and,
+        with ``wait_for_recorder``, the recorder's /clock reader: a late match would lose the
+        first /clock messages, which are volatile)."""
+        ok = (self.have.all() and self.pub_step.get_subscription_count() >= self.n
+              and self.pub_lock_states.get_subscription_count() >= 1
+              and self.sub_decision.handle.get_publisher_count() >= 1)
+        if ok and self.wait_for_recorder:
+            if self.pub_clock.get_subscription_count() < self.n + 2:       # agents, commander, recorder
+                now = time.monotonic()
+                self._recorder_since = getattr(self, '_recorder_since', now)
+                if now - self._recorder_since < P.RECORDER_MATCH_WAIT:
+                    return False
+                self.get_logger().warning(f'{P.CLOCK}: {self.pub_clock.get_subscription_count()} readers '
+                                          f'matched, not {self.n + 2}, after {P.RECORDER_MATCH_WAIT:g} s; '
+                                          'starting anyway')
+        return ok
 
     def complete(self):
         """Every agent in the table of the current step has its state here."""
