@@ -7,10 +7,10 @@ import pytest
 from swarm_agent.core import AgentCore
 from swarm_core import outcomes
 from swarm_core.engine import simulate
-from swarm_core.faults import Fault, FaultTimeline, elect_successor, followers_of
+from swarm_core.faults import Fault, FaultTimeline, elect_successor, followers_of, track_slots
 from swarm_core.laws import swarm_control
 from swarm_core.model import frame_from_quaternion, heading_frame
-from swarm_core.scenario import ScenarioError, parse
+from swarm_core.scenario import ScenarioError, load, parse
 from swarm_core.schedules import CommandPlan, ConstantSteering
 from swarm_core.simulate_cli import analyse
 
@@ -91,6 +91,26 @@ def test_fault_timeline_resolves_leader_slots_and_ignores_the_dead():
     ev = tl.apply(2, {})
     assert [e['kind'] for e in ev] == ['kill'] and not tl.frozen.any()     # freezing the dead: no-op
     assert tl.alive.tolist() == [True, True, False, False]
+
+
+def test_slots_tracked_from_the_commanders_events_resolve_leader_i_as_the_engine_does():
+    """Realtime: the world knows the leader slots only from the commander's events; followed
+    with `track_slots`, they name the agent the batch engine killed as 'leader:0' and, after
+    failover, the successor."""
+    scn = load('leader_failover', duration=480.0)
+    ref = simulate(scn)
+    row = {nm: i for i, nm in enumerate(scn.names)}
+    slots = dict(scn.command_plan().slots)
+    seen = []
+    for ev in ref.meta['events']:
+        if ev['kind'] == 'kill':
+            assert scn.names[slots[ev['slot']]] == ev['agent']
+            seen.append('kill')
+        track_slots(slots, ev, row)
+        if ev['kind'] == 'failover':
+            assert scn.names[slots[ev['slot']]] == ev['agent']
+            seen.append('failover')
+    assert seen == ['kill', 'failover'], ref.meta['events']
 
 
 # ------------------------------------------------------------------ failover rule

@@ -18,7 +18,7 @@ from swarm_core.engine import Trajectory, simulate  # noqa: E402
 from swarm_core.laws import swarm_control  # noqa: E402
 from swarm_core.model import frame_from_quaternion, quaternion_from_heading  # noqa: E402
 from swarm_core.scenario import load  # noqa: E402
-from swarm_tools.launch import agent_parameters, node_parameters, run_in_process  # noqa: E402
+from swarm_tools.launch import agent_parameters, build_nodes, node_parameters, run_in_process  # noqa: E402
 from swarm_world import protocol as P  # noqa: E402
 from swarm_world.rosutil import ParameterError, make_executor  # noqa: E402
 from swarm_world.world_node import WorldNode  # noqa: E402
@@ -318,4 +318,28 @@ def test_world_gives_up_on_a_step_that_never_completes(rclpy_context):
     assert time.monotonic() - t0 >= 1.4                 # not before its time ...
     assert world.failed and 'step 0' in world.failed and 'commander' in world.failed, world.failed
     for nd in (world, mute, *agents):
+        nd.destroy_node()
+
+
+def test_realtime_world_resolves_leader_i_from_the_commanders_events(tmp_path, rclpy_context):
+    """Realtime (nodes in one executor, rtf 10): leaders are chosen by rule at t = 1; the
+    scenario kills 'leader:1' at t = 2; the world names the agent the commander put in slot 1."""
+    import yaml
+    path = short_homotopy(tmp_path / 'rt_leader.yaml', duration=3.0, lam='{kind: constant, value: 0.0}', at=1.0)
+    data = yaml.safe_load(path.read_text())
+    data['faults'] = [{'at': 2.0, 'kill': 'leader:1'}]
+    path.write_text(yaml.safe_dump(data))
+    scn = load(str(path))
+    params = node_parameters(scn, str(path), 'realtime', rtf=10.0)
+    ctx = rclpy_context
+    world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
+    ex = make_executor(ctx)
+    for nd in [world, commander, *agents]:
+        ex.add_node(nd)
+    assert spin_for(ex, lambda: world.done, 60.0)
+    chosen = [e for e in world.events if e['kind'] == 'leaders_chosen']
+    kills = [e for e in world.events if e['kind'] == 'kill']
+    assert chosen and len(chosen[0]['slots']) == 2, world.events
+    assert len(kills) == 1 and kills[0]['slot'] == 1 and kills[0]['agent'] == chosen[0]['slots'][1], world.events
+    for nd in [world, commander, *agents]:
         nd.destroy_node()

@@ -170,14 +170,30 @@ class FaultTimeline:
 
 
 def event_names(ev: dict, names) -> dict:
-    """A plan event with agent indices (agent, lost, leaders) replaced by names."""
+    """A plan event with agent indices (agent, lost, leaders, slots) replaced by names."""
     out = dict(ev)
     for key in ('agent', 'lost'):
         if isinstance(out.get(key), (int, np.integer)):
             out[key] = names[out[key]]
-    if 'leaders' in out:
-        out['leaders'] = [names[i] for i in out['leaders']]
+    for key in ('leaders', 'slots'):
+        if key in out:
+            out[key] = [names[i] for i in out[key]]
     return out
+
+
+def track_slots(slots: dict, ev: dict, row: dict) -> None:
+    """Follow the commander's leader slots (slot → agent index) from its events (names, as
+    published on /swarm/events): ``leaders_chosen`` (``slots`` in slot order), ``failover``
+    (the successor takes the slot), ``leader_lost`` (the slot is gone).  Realtime: the world
+    resolves 'leader:i' with these."""
+    kind = ev.get('kind')
+    if kind == 'leaders_chosen' and isinstance(ev.get('slots'), list):
+        slots.clear()
+        slots.update({s: row[nm] for s, nm in enumerate(ev['slots']) if nm in row})
+    elif kind == 'failover' and ev.get('agent') in row and isinstance(ev.get('slot'), int):
+        slots[ev['slot']] = row[ev['agent']]
+    elif kind == 'leader_lost' and isinstance(ev.get('slot'), int):
+        slots.pop(ev['slot'], None)
 
 
 # ---------------------------------------------------------------- leader failover

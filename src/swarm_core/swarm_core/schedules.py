@@ -227,7 +227,8 @@ class CommandPlan:
             if right != left and len(progs) > 1:
                 self.leaders[right] = progs[1]
                 self.slots[1] = right
-            self.events.append(dict(t=t, kind='leaders_chosen', leaders=sorted(self.leaders)))
+            self.events.append(dict(t=t, kind='leaders_chosen', leaders=sorted(self.leaders),
+                                    slots=[self.slots[k] for k in sorted(self.slots)]))
         if self.failover is not None and self.leaders:
             self._failover(t, pos, heard)
         lam = float(self.schedule.value(t))

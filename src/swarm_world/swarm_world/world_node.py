@@ -39,7 +39,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from swarm_core import metrics as M
 from swarm_core.engine import Trajectory
-from swarm_core.faults import FAULT_KINDS, Fault
+from swarm_core.faults import FAULT_KINDS, Fault, track_slots
 from swarm_core.model import yaw_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 
@@ -130,6 +130,7 @@ class WorldNode(Node):
         self.stop_pending = set()       # frozen agents to SIGSTOP once their state is held
         self.pids = None
         self.rt_fault_step = -1
+        self.rt_slots = dict(self.scn.command_plan().slots)   # realtime: fixed leaders; then the commander's events
         if not self.events_file and self.output_dir:
             self.events_file = str(Path(self.output_dir) / 'events.jsonl')
         if self.events_file:
@@ -418,6 +419,8 @@ class WorldNode(Node):
         if isinstance(ev, dict) and ev.get('node') != 'world':
             self.events.append(ev)
             self.write_event(ev)
+            if self.mode == 'realtime':
+                track_slots(self.rt_slots, ev, self.row)
 
     def _on_fault_request(self, msg):
         try:
@@ -591,10 +594,11 @@ class WorldNode(Node):
             self.finish()
 
     def rt_faults(self, k):
-        """Realtime: the faults of every step up to k, signals at once (leader slots unknown)."""
+        """Realtime: the faults of every step up to k, signals at once ('leader:i' resolved with
+        the slots the commander's events announced)."""
         while self.rt_fault_step < k:
             self.rt_fault_step += 1
-            for ev in self.faults.apply(self.rt_fault_step, {}):
+            for ev in self.faults.apply(self.rt_fault_step, dict(self.rt_slots)):
                 i = self.row.get(ev['agent'])
                 self.emit(ev)
                 sig = {'kill': signal.SIGKILL, 'freeze': signal.SIGSTOP, 'resume': signal.SIGCONT}.get(ev['kind'])
