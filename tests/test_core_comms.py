@@ -333,3 +333,19 @@ def test_dead_and_frozen_agents_send_nothing_and_are_forgotten():
     assert (b.stamp[2, [0, 1, 3, 4]] >= 80).any()           # and it hears again
     ref = simulate(scn)
     assert np.isnan(ref.r[41:, 5]).all() and np.isfinite(ref.r[:, :5]).all()
+
+
+def test_a_radio_without_per_link_overrides_needs_no_n_squared_memory():
+    """No n × n override tables unless a link sets one (a 30,000-agent swarm needed 3 × 7 GB
+    for them before); a link's override still applies to that link only."""
+    import tracemalloc
+    names = [f'a{i}' for i in range(5000)]
+    tracemalloc.start()
+    m = CommModel.from_config(dict(loss=0.1), names, 0.05)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 20e6, peak                     # 3 × 5000² float64 would be 600 MB
+    assert m.decide(0, [0, 1], np.zeros((2, 2)), [0, 1, 2], np.zeros((3, 2))).shape == (2, 3)
+    one = CommModel.from_config(dict(links=[dict(receiver='a1', sender='a0', loss=1.0)]), names[:10], 0.05)
+    arrival = one.decide(0, np.arange(10), np.zeros((10, 2)), np.arange(10), np.zeros((10, 2)))
+    assert arrival[1, 0] == -1 and (np.delete(arrival.ravel(), 10) >= 0).all()

@@ -134,7 +134,10 @@ class CommModel:
 
     def _build(self):
         n = len(self.names)
-        self._ovr = {key: np.full((n, n), np.nan) for key in ('loss', 'latency', 'jitter')}
+        # per-link overrides (n × n, NaN = the base value): only the keys some link sets, so a
+        # radio without links costs no n² memory (a 30,000-agent swarm: 3 × 7 GB otherwise)
+        self._ovr = {key: np.full((n, n), np.nan) for key in ('loss', 'latency', 'jitter')
+                     if any(link.get(key) is not None for link in self.links)}
         for i, link in enumerate(self.links):
             recv = _names(link.get('receiver'))
             send = _names(link.get('sender'))
@@ -200,6 +203,8 @@ class CommModel:
 
     def _param(self, key, recv, send):
         base = getattr(self, key)
+        if key not in self._ovr:
+            return np.full((len(recv), len(send)), base)
         o = self._ovr[key][np.ix_(recv, send)]
         return np.where(np.isnan(o), base, o)
 
