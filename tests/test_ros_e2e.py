@@ -104,7 +104,7 @@ def test_realtime_lambda_from_the_cli_splits_the_swarm(tmp_path, ros_domain, pro
     assert lines.wait_for('[world] t=   20', 120), ''.join(lines.lines)
     cli = subprocess.run([swarm_cmd, 'lambda', '1.0', '--ramp', '5'], capture_output=True, text=True, timeout=60)
     assert cli.returncode == 0, cli.stderr
-    assert p.wait(timeout=180) == 0, ''.join(lines.lines[-30:])
+    assert lines.wait(p, 180) == 0, ''.join(lines.lines[-30:])
     got = Trajectory.load(out / 'trajectory.npz')
     t_cli = got.t[np.argmax(got.lam > 0.0)]
     assert got.lam[got.t < 19].max() == 0.0
