@@ -203,6 +203,20 @@ def overrides(d):
     return [Parameter(k, value=v) for k, v in d.items()]
 
 
+def run_nodes(params, ctx, timeout):
+    """World, commander and agents from `node_parameters`' output, in one executor on ``ctx``,
+    spun until the world is done (at most ``timeout`` s); returns (done?, world, [all nodes])."""
+    from swarm_tools.launch import build_nodes
+    from swarm_world.rosutil import make_executor
+    world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
+    ex = make_executor(ctx)
+    nodes = [world, commander, *agents]
+    for nd in nodes:
+        ex.add_node(nd)
+    done = spin_for(ex, lambda: world.done, timeout)
+    return done, world, nodes
+
+
 def spin_for(ex, cond, timeout=10.0):
     """Spin ``ex`` until ``cond()`` or ``timeout`` s; returns cond()."""
     end = time.monotonic() + timeout

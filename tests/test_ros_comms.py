@@ -26,7 +26,7 @@ from swarm_tools.launch import agent_parameters, build_nodes, node_parameters  #
 from swarm_world import protocol as P  # noqa: E402
 from swarm_world.rosutil import make_executor  # noqa: E402
 
-from conftest import overrides, spin_for  # noqa: E402
+from conftest import overrides, run_nodes, spin_for  # noqa: E402
 
 SCN = """
 name: comms_short
@@ -115,13 +115,8 @@ def test_lockstep_radio_with_faults_failover_and_reunion_equals_the_batch_engine
     assert not np.isfinite(ref.r[-1]).all()                  # the killed leader's rows are NaN
     out = tmp_path / 'run'
     params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
-    ctx = rclpy_context
-    world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
-    ex = make_executor(ctx)
-    for nd in [world, commander, *agents]:
-        ex.add_node(nd)
-    assert spin_for(ex, lambda: world.done, 240.0)
-    assert world.failed is None
+    done, world, nodes = run_nodes(params, rclpy_context, 240.0)
+    assert done and world.failed is None
     got = Trajectory.load(out / 'trajectory.npz')
     assert np.array_equal(np.isfinite(got.r), np.isfinite(ref.r))
     fin = np.isfinite(ref.r)
@@ -130,7 +125,7 @@ def test_lockstep_radio_with_faults_failover_and_reunion_equals_the_batch_engine
     both = np.isfinite(got.u) & np.isfinite(ref.u)
     assert np.abs(got.u[both] - ref.u[both]).max() <= 1e-9
     assert np.array_equal(got.leader, ref.leader)
-    for nd in [world, commander, *agents]:
+    for nd in nodes:
         nd.destroy_node()
 
 

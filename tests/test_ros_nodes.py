@@ -18,12 +18,12 @@ from swarm_core.engine import Trajectory, simulate  # noqa: E402
 from swarm_core.laws import swarm_control  # noqa: E402
 from swarm_core.model import frame_from_quaternion, quaternion_from_heading  # noqa: E402
 from swarm_core.scenario import load  # noqa: E402
-from swarm_tools.launch import agent_parameters, build_nodes, node_parameters, run_in_process  # noqa: E402
+from swarm_tools.launch import agent_parameters, node_parameters, run_in_process  # noqa: E402
 from swarm_world import protocol as P  # noqa: E402
 from swarm_world.rosutil import ParameterError, make_executor  # noqa: E402
 from swarm_world.world_node import WorldNode  # noqa: E402
 
-from conftest import overrides, short_homotopy, spin_for  # noqa: E402
+from conftest import overrides, run_nodes, short_homotopy, spin_for  # noqa: E402
 
 
 def short_scenario(tmp_path, seed=0, duration=40.0, rise=10.0, fall=30.0, tau=3.0, at=5.0):
@@ -331,15 +331,11 @@ def test_realtime_world_resolves_leader_i_from_the_commanders_events(tmp_path, r
     path.write_text(yaml.safe_dump(data))
     scn = load(str(path))
     params = node_parameters(scn, str(path), 'realtime', rtf=10.0)
-    ctx = rclpy_context
-    world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
-    ex = make_executor(ctx)
-    for nd in [world, commander, *agents]:
-        ex.add_node(nd)
-    assert spin_for(ex, lambda: world.done, 60.0)
+    done, world, nodes = run_nodes(params, rclpy_context, 60.0)
+    assert done
     chosen = [e for e in world.events if e['kind'] == 'leaders_chosen']
     kills = [e for e in world.events if e['kind'] == 'kill']
     assert chosen and len(chosen[0]['slots']) == 2, world.events
     assert len(kills) == 1 and kills[0]['slot'] == 1 and kills[0]['agent'] == chosen[0]['slots'][1], world.events
-    for nd in [world, commander, *agents]:
+    for nd in nodes:
         nd.destroy_node()
