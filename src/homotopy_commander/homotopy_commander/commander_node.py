@@ -61,7 +61,7 @@ class CommanderNode(Node):
         self.heard_timeout = d('heard_timeout', 1.0, 'realtime: an agent silent for this many sim s is not heard '
                                '(leader failover)', lo=0.0, hi=1e9)
         self.wait_for_recorder = d('wait_for_recorder', False, 'lockstep: take part only once the recorder '
-                                   'matched /swarm/lambda and every steering topic too '
+                                   'matched /swarm/lambda, every steering topic and /lockstep/decision too '
                                    f'(at most {P.RECORDER_MATCH_WAIT:g} s)')
         self.publish_every = d('publish_every', 10, 'lockstep: publish /swarm/lambda every this many steps',
                                lo=1, hi=10**9)
@@ -99,6 +99,7 @@ class CommanderNode(Node):
                                      lambda msg, nm=nm: self._on_steering(nm, msg), P.qos_reliable())
         if self.mode == 'lockstep':
             self.last_decision = None
+            self.pub_decision = self.create_publisher(Float64MultiArray, P.LOCK_DECISION, P.qos_latched())
             if self.wait_for_recorder:
                 # join the lockstep (the world waits for it) only once the recorder's readers
                 # of λ and steering matched: the first λ and steering messages are volatile
@@ -123,16 +124,16 @@ class CommanderNode(Node):
         if self.wait_for_recorder:
             import time
             # readers: λ — the agents, the commander itself, the recorder; steering — the agent,
-            # the commander itself, the recorder
-            short = self.pub_lambda.get_subscription_count() < self.n + 2 or any(
-                p.get_subscription_count() < 3 for p in self.pub_steer.values())
+            # the commander itself, the recorder; decisions — the world, the recorder
+            short = (self.pub_lambda.get_subscription_count() < self.n + 2
+                     or self.pub_decision.get_subscription_count() < 2
+                     or any(p.get_subscription_count() < 3 for p in self.pub_steer.values()))
             if short and time.monotonic() < self._join_deadline:
                 return
             if short:
                 self.get_logger().warning(f'the recorder has not matched {P.LAMBDA} and every steering topic '
                                           f'after {P.RECORDER_MATCH_WAIT:g} s; taking part anyway')
             self._join.cancel()
-        self.pub_decision = self.create_publisher(Float64MultiArray, P.LOCK_DECISION, P.qos_latched())
         self.create_subscription(Float64MultiArray, P.LOCK_STATES, self._on_states, P.qos_latched(), raw=True)
 
     def _send(self, topic, pub, value):
