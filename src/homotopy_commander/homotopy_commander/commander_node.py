@@ -37,7 +37,7 @@ from swarm_core.model import frame_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 from swarm_core.schedules import ConstantSteering
 from swarm_world import protocol as P
-from swarm_world.rosutil import ParameterError, RejectLog, declare, run_node
+from swarm_world.rosutil import ParameterError, RejectLog, declare, run_node, when_matched
 
 from .live import LiveSchedule
 
@@ -102,13 +102,9 @@ class CommanderNode(Node):
             self.pub_decision = self.create_publisher(Float64MultiArray, P.LOCK_DECISION, P.qos_latched())
             if self.wait_for_recorder:
                 # join the lockstep (the world waits for it) only once the recorder's readers
-                # of λ and steering matched: the first λ and steering messages are volatile
-                import time
-
-                from rclpy.clock import Clock, ClockType
-                self._join_deadline = time.monotonic() + P.RECORDER_MATCH_WAIT
-                self._join = self.create_timer(0.05, self._join_lockstep,
-                                               clock=Clock(clock_type=ClockType.STEADY_TIME))
+                # of λ, steering and decisions matched: the first of those messages are volatile
+                when_matched(self, self._recorder_matched, self._join_lockstep, P.RECORDER_MATCH_WAIT,
+                             f'the recorder has not matched {P.LAMBDA}, {P.LOCK_DECISION} and every steering topic')
             else:
                 self._join_lockstep()
         else:
@@ -120,20 +116,14 @@ class CommanderNode(Node):
             self.timer = self.create_timer(self.dt, self._on_tick)
         self.publish_leaders([])
 
+    def _recorder_matched(self):
+        # readers: λ — the agents, the commander itself, the recorder; steering — the agent, the
+        # commander itself, the recorder; decisions — the world, the recorder
+        return (self.pub_lambda.get_subscription_count() >= self.n + 2
+                and self.pub_decision.get_subscription_count() >= 2
+                and all(p.get_subscription_count() >= 3 for p in self.pub_steer.values()))
+
     def _join_lockstep(self):
-        if self.wait_for_recorder:
-            import time
-            # readers: λ — the agents, the commander itself, the recorder; steering — the agent,
-            # the commander itself, the recorder; decisions — the world, the recorder
-            short = (self.pub_lambda.get_subscription_count() < self.n + 2
-                     or self.pub_decision.get_subscription_count() < 2
-                     or any(p.get_subscription_count() < 3 for p in self.pub_steer.values()))
-            if short and time.monotonic() < self._join_deadline:
-                return
-            if short:
-                self.get_logger().warning(f'the recorder has not matched {P.LAMBDA} and every steering topic '
-                                          f'after {P.RECORDER_MATCH_WAIT:g} s; taking part anyway')
-            self._join.cancel()
         self.create_subscription(Float64MultiArray, P.LOCK_STATES, self._on_states, P.qos_latched(), raw=True)
 
     def _send(self, topic, pub, value):

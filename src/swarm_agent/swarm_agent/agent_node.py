@@ -23,7 +23,6 @@ from __future__ import annotations
 import json
 import math
 import sys
-import time
 
 import numpy as np
 from geometry_msgs.msg import PointStamped, PolygonStamped
@@ -36,13 +35,11 @@ from swarm_core.laws import BARRIER_MODES, LAW_KINDS, LawConfig
 from swarm_core.model import PairGains
 from swarm_world import protocol as P
 from swarm_world.checks import check_state
-from swarm_world.rosutil import ParameterError, RejectLog, declare, run_node
+from swarm_world.rosutil import ParameterError, RejectLog, declare, run_node, when_matched
 
 from .core import AgentCore
 
 MODES = ('lockstep', 'realtime')
-#: lockstep: wall seconds to wait for `state_subscribers` readers before the first state
-FIRST_STATE_WAIT = 30.0
 
 
 class AgentNode(Node):
@@ -140,22 +137,11 @@ class AgentNode(Node):
         if self.mode == 'lockstep' and self.state_subscribers > 1:
             # a recorder matched late would miss the first states (the writer keeps 100): the world
             # starts step 0 only when it holds every agent's first state, so wait for the readers
-            # (a steady-clock timer: sim time does not run before step 0)
-            from rclpy.clock import Clock, ClockType
-            self._first_deadline = time.monotonic() + FIRST_STATE_WAIT
-            self._first = self.create_timer(0.05, self._publish_first, clock=Clock(clock_type=ClockType.STEADY_TIME))
+            when_matched(self, lambda: self.pub.get_subscription_count() >= self.state_subscribers,
+                         self.publish_state, P.RECORDER_MATCH_WAIT,
+                         f'{P.STATES}: fewer than {self.state_subscribers} readers matched')
         else:
             self.publish_state()
-
-    def _publish_first(self):
-        matched = self.pub.get_subscription_count() >= self.state_subscribers
-        if not matched and time.monotonic() < self._first_deadline:
-            return
-        if not matched:
-            self.get_logger().warning(f'only {self.pub.get_subscription_count()} of {self.state_subscribers} '
-                                      f'readers of {P.STATES} matched after {FIRST_STATE_WAIT:g} s; starting anyway')
-        self._first.cancel()
-        self.publish_state()
 
     # ------------------------------------------------------------ output
     def publish_state(self):

@@ -110,6 +110,25 @@ def steady_clock():
     return Clock(clock_type=ClockType.STEADY_TIME)
 
 
+def when_matched(node, matched, then, limit, what):
+    """Call ``then()`` once ``matched()`` holds (checked every 0.05 s on a steady-clock timer:
+    sim time does not run yet), or after ``limit`` wall s with a warning that ``what`` did not
+    happen.  For a node that must not start before a recorder reads its writers."""
+    import time
+    deadline = time.monotonic() + limit
+
+    def check():
+        ok = matched()
+        if not ok and time.monotonic() < deadline:
+            return
+        if not ok:
+            node.get_logger().warning(f'{what} after {limit:g} s; going on anyway')
+        timer.cancel()
+        then()
+    timer = node.create_timer(0.05, check, clock=steady_clock())
+    return timer
+
+
 #: wall seconds a node's ROS teardown may take before the process exits without it
 TEARDOWN_LIMIT = 10.0
 

@@ -92,6 +92,7 @@ class WorldNode(Node):
         self.wait_for_recorder = d('wait_for_recorder', False, 'lockstep: start step 0 only once /clock has '
                                    'one reader more than the agents and the commander (a recorder; '
                                    f'at most {P.RECORDER_MATCH_WAIT:g} s)')
+        self.recorder_wait_from = None  # when everyone but the recorder was matched (wall s)
         self.step_timeout = d('step_timeout', 120.0, 'lockstep: give up (exit 1) if one step has not completed '
                               'after this many wall s', lo=1.0, hi=1e9)
         self.start_timeout = d('start_timeout', 180.0, 'give up if not everyone is discovered in this many wall s', lo=1.0, hi=1e6)
@@ -307,8 +308,9 @@ class WorldNode(Node):
         if ok and self.wait_for_recorder:
             if self.pub_clock.get_subscription_count() < self.n + 2:       # agents, commander, recorder
                 now = time.monotonic()
-                self._recorder_since = getattr(self, '_recorder_since', now)
-                if now - self._recorder_since < P.RECORDER_MATCH_WAIT:
+                if self.recorder_wait_from is None:
+                    self.recorder_wait_from = now
+                if now - self.recorder_wait_from < P.RECORDER_MATCH_WAIT:
                     return False
                 self.get_logger().warning(f'{P.CLOCK}: {self.pub_clock.get_subscription_count()} readers '
                                           f'matched, not {self.n + 2}, after {P.RECORDER_MATCH_WAIT:g} s; '
