@@ -203,6 +203,22 @@ def overrides(d):
     return [Parameter(k, value=v) for k, v in d.items()]
 
 
+def odom(name, x, y, theta, t, u=0.0):
+    """An agent's state as the nodes publish it (nav_msgs/Odometry; stamp = sim time t)."""
+    from nav_msgs.msg import Odometry
+
+    from swarm_core.model import quaternion_from_heading
+    from swarm_world import protocol as P
+    m = Odometry()
+    m.header.frame_id, m.child_frame_id = 'world', name
+    m.header.stamp.sec, m.header.stamp.nanosec = P.time_to_stamp(t)
+    m.pose.pose.position.x, m.pose.pose.position.y = x, y
+    qz, qw = quaternion_from_heading(theta)
+    m.pose.pose.orientation.z, m.pose.pose.orientation.w = float(qz), float(qw)
+    m.twist.twist.angular.z = u
+    return m
+
+
 def run_nodes(params, ctx, timeout):
     """World, commander and agents from `node_parameters`' output, in one executor on ``ctx``,
     spun until the world is done (at most ``timeout`` s); returns (done?, world, [all nodes])."""

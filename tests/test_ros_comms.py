@@ -20,13 +20,12 @@ from std_msgs.msg import String  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode  # noqa: E402
 from swarm_core.engine import Trajectory, simulate  # noqa: E402
-from swarm_core.model import quaternion_from_heading  # noqa: E402
 from swarm_core.scenario import load  # noqa: E402
 from swarm_tools.launch import agent_parameters, build_nodes, node_parameters  # noqa: E402
 from swarm_world import protocol as P  # noqa: E402
 from swarm_world.rosutil import make_executor  # noqa: E402
 
-from conftest import overrides, run_nodes, spin_for  # noqa: E402
+from conftest import odom, overrides, run_nodes, spin_for  # noqa: E402
 
 SCN = """
 name: comms_short
@@ -136,17 +135,6 @@ def _perfect(path):
     data = yaml.safe_load(SCN)
     data.pop('comms')
     return parse(data, str(path))
-
-
-def odom(name, x, y, theta, t, u=0.0):
-    m = Odometry()
-    m.header.frame_id, m.child_frame_id = 'world', name
-    m.header.stamp.sec, m.header.stamp.nanosec = P.time_to_stamp(t)
-    m.pose.pose.position.x, m.pose.pose.position.y = x, y
-    qz, qw = quaternion_from_heading(theta)
-    m.pose.pose.orientation.z, m.pose.pose.orientation.w = float(qz), float(qw)
-    m.twist.twist.angular.z = u
-    return m
 
 
 def test_realtime_latency_and_swarm_drop(rclpy_context, swarm_cmd, processes):

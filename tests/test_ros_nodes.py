@@ -23,7 +23,7 @@ from swarm_world import protocol as P  # noqa: E402
 from swarm_world.rosutil import ParameterError, make_executor  # noqa: E402
 from swarm_world.world_node import WorldNode  # noqa: E402
 
-from conftest import overrides, run_nodes, short_homotopy, spin_for  # noqa: E402
+from conftest import odom, overrides, run_nodes, short_homotopy, spin_for  # noqa: E402
 
 
 def short_scenario(tmp_path, seed=0, duration=40.0, rise=10.0, fall=30.0, tau=3.0, at=5.0):
@@ -234,15 +234,6 @@ def test_bad_states_are_rejected_by_the_world(rclpy_context):
     ex.add_node(world)
     ex.add_node(probe)
     assert spin_for(ex, lambda: pub.get_subscription_count() >= 1)
-
-    def odom(name, x, y, theta, t):
-        m = Odometry()
-        m.header.frame_id, m.child_frame_id = 'world', name
-        m.header.stamp.sec, m.header.stamp.nanosec = P.time_to_stamp(t)
-        m.pose.pose.position.x, m.pose.pose.position.y = x, y
-        qz, qw = quaternion_from_heading(theta)
-        m.pose.pose.orientation.z, m.pose.pose.orientation.w = float(qz), float(qw)
-        return m
 
     sent = [odom('agent_3', 1.0, 2.0, 0.5, 0.0),            # valid
             odom('intruder', 0.0, 0.0, 0.0, 0.0),           # unknown name
