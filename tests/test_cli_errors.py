@@ -98,3 +98,22 @@ def test_sweep_ctrl_c_keeps_the_finished_seeds(tmp_path, jobs):
     time.sleep(0.5)
     ps = subprocess.run(['ps', '-eo', 'sid='], capture_output=True, text=True).stdout.split()
     assert str(p.pid) not in ps, f'processes of the sweep left behind (exit after {took:.1f} s)'
+
+
+@pytest.mark.parametrize('verb, flag', [('lambda', '--wait'), ('steer', '--wait'), ('kill', '--wait'),
+                                        ('pause', '--wait'), ('drop', '--wait'), ('partition', '--wait'),
+                                        ('run', '--mode'), ('run', '--progress-every'), ('play', '--delay'),
+                                        ('play', '--wait-for-subscribers')])
+def test_ros_verbs_help_shows_defaults(verb, flag):
+    test_help_shows_defaults(verb, flag)
+
+
+@pytest.mark.parametrize('exe, param', [('swarm_world', 'scenario (str)'), ('swarm_agent', 'leader_gain (float)'),
+                                        ('homotopy_commander', 'default_ramp (float)')])
+def test_node_executables_answer_help_without_starting(ros_domain, swarm_cmd, exe, param):
+    """`swarm_world --help` (a setup.py entry point) prints its usage and parameters and
+    exits 0; it used to start a world node that waited for agents for 180 s."""
+    from pathlib import Path
+    r = subprocess.run([str(Path(swarm_cmd).with_name(exe)), '--help'], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith(f'usage: {exe}') and param in r.stdout, r.stdout

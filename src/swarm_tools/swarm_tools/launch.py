@@ -299,7 +299,9 @@ def _parser():
     g.add_argument('--processes', dest='in_process', action='store_false', default=False,
                    help='one OS process per node (default)')
     g.add_argument('--in-process', dest='in_process', action='store_true', help='all nodes in one executor')
-    p.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep')
+    p.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep', help=(
+        'lockstep (default: deterministic, equals swarm simulate) or realtime (timers against a '
+        'clock at --rtf)'))
     p.add_argument('--rtf', type=float, default=1.0, help='realtime: sim seconds per wall second (default 1)')
     p.add_argument('--record', metavar='BAG.mcap', help='also record the run (swarm record)')
     p.add_argument('--duration', type=float, help="sim seconds (default: the scenario's)")
@@ -307,7 +309,7 @@ def _parser():
     p.add_argument('--dt', type=float, help="step (default: the scenario's)")
     p.add_argument('--out', help='output directory (default: runs/SCENARIO-seedN-ros)')
     p.add_argument('--no-figure', action='store_true', help='no figure at the end')
-    p.add_argument('--progress-every', type=float, default=50.0, help='progress line every this many sim s')
+    p.add_argument('--progress-every', type=float, default=50.0, help='progress line every this many sim s (default 50)')
     p.add_argument('--missing-timeout', type=float, default=10.0,
                    help='lockstep: the world drops an agent whose state has not come after this many wall s (default 10)')
     p.add_argument('--clock-every', type=int, default=1, metavar='K', help=(

@@ -133,14 +133,58 @@ def when_matched(node, matched, then, limit, what):
 TEARDOWN_LIMIT = 10.0
 
 
-def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None) -> int:
-    """The ``main()`` of a node executable: init rclpy from ``argv``, build ``node_class()``
-    (a bad parameter -> one error line, exit 2), spin until ``done(node)`` or shutdown
-    (Ctrl-C), clean up; returns ``exit_code(node)`` (default 0)."""
+def wants_help(argv) -> bool:
+    """``-h`` / ``--help`` among a node executable's own arguments (not inside ``--ros-args``)."""
+    from rclpy.utilities import remove_ros_args
+    return any(a in ('-h', '--help') for a in remove_ros_args(list(argv))[1:])
+
+
+def node_help(node_class, exe) -> str:
+    """Usage of a node executable: what it is (its module's docstring, first paragraph) and
+    its parameters with type, default and description, read from a node built with the
+    defaults in a context of its own with DDS discovery off."""
+    import os
     import sys
 
     import rclpy
-    rclpy.init(args=sys.argv if argv is None else argv)
+    from rclpy.context import Context
+    doc = (sys.modules[node_class.__module__].__doc__ or '').strip().split('\n\n')[0]
+    lines = [f'usage: {exe} [-h] [--ros-args -p NAME:=VALUE ... | --params-file FILE]', '', doc, '',
+             'Usually started by `swarm run` (which writes one parameter file for every node).', '']
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'OFF'     # this node is only looked at
+    ctx = Context()
+    rclpy.init(args=[exe], context=ctx)
+    try:
+        node = node_class(context=ctx)
+    except ParameterError as err:
+        rclpy.try_shutdown(context=ctx)
+        return '\n'.join(lines + [f'(parameters not listed: {err})'])
+    try:
+        names = sorted(node._parameters)
+        lines.append('parameters (name (type) = default: description):')
+        for name, desc in zip(names, node.describe_parameters(names)):
+            value = node.get_parameter(name).value
+            text = ' '.join(desc.description.split()) or '(standard rclpy parameter)'
+            lines.append(f'  {name} ({type(value).__name__}) = {value!r}: {text}')
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+    return '\n'.join(lines)
+
+
+def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None) -> int:
+    """The ``main()`` of a node executable: init rclpy from ``argv``, build ``node_class()``
+    (a bad parameter -> one error line, exit 2), spin until ``done(node)`` or shutdown
+    (Ctrl-C), clean up; returns ``exit_code(node)`` (default 0).  ``-h`` / ``--help``: the
+    usage and the node's parameters, exit 0 (no node is started)."""
+    import sys
+
+    import rclpy
+    args = sys.argv if argv is None else argv
+    if wants_help(args):
+        print(node_help(node_class, logger_name))
+        return 0
+    rclpy.init(args=args)
     ctx = rclpy.get_default_context()
     try:
         node = node_class()
