@@ -117,3 +117,19 @@ def test_node_executables_answer_help_without_starting(ros_domain, swarm_cmd, ex
     r = subprocess.run([str(Path(swarm_cmd).with_name(exe)), '--help'], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
     assert r.stdout.startswith(f'usage: {exe}') and param in r.stdout, r.stdout
+
+
+def test_run_and_record_refuse_unwritable_outputs_before_starting(tmp_path):
+    """One line and exit 2 before any process starts (they were tracebacks; a bad --record
+    path failed the run only once the recorder had started)."""
+    blocker = tmp_path / 'a_file'
+    blocker.write_text('')
+    r = _swarm('run', 'global_alignment', '--duration', '1', '--out', blocker / 'run')
+    _one_clean_line(r, 'cannot create output directory')
+    for bag, words in [(blocker / 'x.mcap', ('--record', 'cannot create its directory')),
+                       (tmp_path / 'x.bag', ('--record', 'must name a .mcap file'))]:
+        r = _swarm('run', 'global_alignment', '--duration', '1', '--out', tmp_path / 'run', '--record', bag)
+        _one_clean_line(r, *words)
+        assert 'processes' not in r.stdout          # nothing was started
+    r = _swarm('record', '--out', blocker / 'x.mcap', '--duration', '1')
+    _one_clean_line(r, 'swarm record: cannot write')

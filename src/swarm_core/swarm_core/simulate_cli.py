@@ -109,7 +109,7 @@ def _make_dir_or_exit(prog, path) -> Path:
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as err:
-        print(f'{prog}: cannot create output directory {path}: {err.strerror or err}', file=sys.stderr)
+        print(f'{prog}: cannot create output directory {path}: {err.strerror or err} ({err.filename})', file=sys.stderr)
         raise SystemExit(2)
     return path
 

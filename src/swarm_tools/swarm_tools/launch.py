@@ -345,7 +345,25 @@ def main(argv=None) -> int:
     if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
         ref = str(Path(a.scenario).resolve())
     out = Path(a.out or os.path.join('runs', f'{scn.name}-seed{scn.seed}-ros')).resolve()
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        print(f'swarm run: cannot create output directory {out}: {err.strerror or err} ({err.filename})', file=sys.stderr)
+        return 2
+    if a.record and not a.in_process:
+        bag = Path(a.record)
+        if bag.suffix != '.mcap':
+            print(f'swarm run: --record {a.record}: must name a .mcap file', file=sys.stderr)
+            return 2
+        try:
+            bag.resolve().parent.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            print(f'swarm run: --record {a.record}: cannot create its directory: {err.strerror or err} ({err.filename})',
+                  file=sys.stderr)
+            return 2
+        if not os.access(bag.resolve().parent, os.W_OK) or (bag.exists() and not os.access(bag, os.W_OK)):
+            print(f'swarm run: --record {a.record}: not writable', file=sys.stderr)
+            return 2
     traj_file = out / 'trajectory.npz'
     if traj_file.exists():
         traj_file.unlink()
