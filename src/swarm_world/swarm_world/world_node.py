@@ -720,9 +720,31 @@ class WorldNode(Node):
             out.mkdir(parents=True, exist_ok=True)
             self.trajectory().save(out / 'trajectory.npz')
 
+    def save_partial(self):
+        """Stopped (Ctrl-C / SIGTERM) before the end: write the steps completed so far to
+        ``output_dir`` (as ``swarm simulate`` keeps the computed part of an interrupted run).
+        Lockstep: the rows whose state, λ, leaders and u are all known; realtime: up to now."""
+        if not self.output_dir or not self.started or self.done:
+            return None
+        if self.mode == 'realtime':
+            rows = min(P.step_of(self.sim_t, self.dt), self.steps) + 1
+        else:       # u of step k - 1 comes with the states of step k
+            rows = min(self.cur if self.states_out else self.cur - 1, self.steps + 1)
+        if rows < 1:
+            return None
+        tr = self.trajectory()
+        part = Trajectory(tr.names, tr.t[:rows], tr.r[:rows], tr.theta[:rows], tr.u[:rows], tr.lam[:rows],
+                          tr.leader[:rows], meta=dict(tr.meta, interrupted=True))
+        out = Path(self.output_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        path = part.save(out / 'trajectory.npz')
+        self.log(f'[world] stopped at t={part.t[-1]:g}: saved t = 0..{part.t[-1]:g} ({rows} samples) to {path}', flush=True)
+        return path
+
 
 def main(argv=None):
     return run_node(WorldNode, 'swarm_world', argv, done=lambda node: node.done,
+                    on_stop=lambda node: node.save_partial(),
                     exit_code=lambda node: 0 if (node.done and node.failed is None)
                     else (1 if node.failed else 130))
 
