@@ -140,6 +140,8 @@ def test_realtime_lambda_from_the_cli_splits_the_swarm(tmp_path, ros_domain, pro
     t_cli = got.t[np.argmax(got.lam > 0.0)]
     assert got.lam[got.t < 19].max() == 0.0
     assert t_cli >= 19 and got.lam[-1] == 1.0
+    # the leaders chosen at t = 5 are in the world's trajectory (they were all False in realtime)
+    assert not got.leader[got.t < 4].any() and got.leader[-1].sum() == 2, got.leader.sum(axis=1)[::100]
     # the split takes ~30-60 sim s once λ = 1; a CLI that found the swarm late leaves no time
     assert t_cli <= 260 - 120, f'λ arrived at t = {t_cli}: too late in this run to judge the split'
     assert np.all(np.isfinite(got.r)) and np.all(np.isfinite(got.theta))
