@@ -40,6 +40,7 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
     from . import protocol as P
     ctx = Context()
     rclpy.init(context=ctx)
+    node = ex = None
     try:
         node = rclpy.create_node('swarm_cli_events', context=ctx, start_parameter_services=False)
         clock = {}
@@ -65,6 +66,15 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
             ex.spin_once(timeout_sec=0.05)
             if pub.get_subscription_count() != count:
                 count, stable = pub.get_subscription_count(), time.monotonic()
+        # the graph's node names lag the matched readers (and an agent resumed after `swarm
+        # pause` is rediscovered late): wait for every named agent, and for the sim time,
+        # until --wait is up (at least 3 s more), before calling a name unknown
+        limit = max(end, time.monotonic() + 3.0)
+        while time.monotonic() < limit:
+            unknown = [nm for nm in check_names if nm not in _agents_in_graph(node)]
+            if not unknown and 't' in clock:
+                break
+            ex.spin_once(timeout_sec=0.05)
         unknown = [nm for nm in check_names if nm not in _agents_in_graph(node)]
         if unknown:
             print(f'{prog}: unknown agent {unknown[0]!r} (running: {", ".join(_agents_in_graph(node))})',
@@ -74,11 +84,13 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
         pub.publish(String(data=P.event_json(kind, t, **fields)))
         pub.wait_for_all_acked(Duration(seconds=2.0))
         print(f'{prog}: {kind} {fields} at t={"?" if t is None else f"{t:.2f}"} '
-              f'(sent to {count} readers of {P.EVENTS})')
-        ex.shutdown()
-        node.destroy_node()
+              f'(sent to {pub.get_subscription_count()} readers of {P.EVENTS})')
         return 0
-    finally:
+    finally:        # on every path (an early return left the executor to a GC after shutdown:
+        if ex is not None:      # "Exception ignored in Executor.__del__ ... InvalidHandle")
+            ex.shutdown()
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown(context=ctx)
 
 
