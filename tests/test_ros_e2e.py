@@ -75,6 +75,37 @@ def test_sigint_stops_every_process(tmp_path, ros_domain, processes, swarm_cmd):
     while time.monotonic() < end and any(alive(k) for k in kids):
         time.sleep(0.1)
     assert not [k for k in kids if alive(k)]
+    # nothing lost: the steps done are saved (as `swarm simulate` saves an interrupted run) and
+    # equal the batch engine's; no node prints a traceback on the way out
+    lines.t.join(timeout=10)
+    text = ''.join(lines.lines)
+    assert 'Traceback' not in text and 'Exception in' not in text, text[-3000:]
+    got = Trajectory.load(tmp_path / 'run' / 'trajectory.npz')
+    n = len(got.t)
+    assert n >= 2 and np.all(np.isfinite(got.r)) and np.all(np.isfinite(got.u)), text[-2000:]
+    ref = simulate(load('homotopy_global', duration=(n - 1) * 0.05))
+    assert np.abs(got.r - ref.r[:n]).max() <= 1e-9 and np.abs(got.u - ref.u[:n]).max() <= 1e-9
+    assert np.array_equal(got.lam, ref.lam[:n])
+
+
+def test_sigint_in_process_keeps_the_steps_done(tmp_path, ros_domain, processes, swarm_cmd):
+    """`swarm run --in-process`: Ctrl-C ends the run at once (a busy executor used to go on to
+    the end, or cut a callback off with a traceback) and the steps done are saved."""
+    p = processes.start([swarm_cmd, 'run', 'homotopy_global', '--in-process', '--out', tmp_path / 'run',
+                         '--no-figure', '--progress-every', '5'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait_for('[world] t=    5.00', 120), ''.join(lines.lines)
+    os.kill(p.pid, signal.SIGINT)
+    assert p.wait(timeout=30) == 130, ''.join(lines.lines[-20:])
+    lines.t.join(timeout=10)
+    text = ''.join(lines.lines)
+    assert 'Traceback' not in text and '[world] finished' not in text, text[-3000:]
+    got = Trajectory.load(tmp_path / 'run' / 'trajectory.npz')
+    n = len(got.t)
+    assert 5 / 0.05 <= n < 20001 and np.all(np.isfinite(got.r))
+    ref = simulate(load('homotopy_global', duration=(n - 1) * 0.05))
+    assert np.abs(got.r - ref.r[:n]).max() <= 1e-9
 
 
 def test_sigterm_stops_every_process(tmp_path, ros_domain, processes, swarm_cmd):
@@ -109,6 +140,8 @@ def test_realtime_lambda_from_the_cli_splits_the_swarm(tmp_path, ros_domain, pro
     t_cli = got.t[np.argmax(got.lam > 0.0)]
     assert got.lam[got.t < 19].max() == 0.0
     assert t_cli >= 19 and got.lam[-1] == 1.0
+    # the leaders chosen at t = 5 are in the world's trajectory (they were all False in realtime)
+    assert not got.leader[got.t < 4].any() and got.leader[-1].sum() == 2, got.leader.sum(axis=1)[::100]
     # the split takes ~30-60 sim s once λ = 1; a CLI that found the swarm late leaves no time
     assert t_cli <= 260 - 120, f'λ arrived at t = {t_cli}: too late in this run to judge the split'
     assert np.all(np.isfinite(got.r)) and np.all(np.isfinite(got.theta))

@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Literal, Optional, Union
+from typing import Annotated, Literal, Optional, Union, get_args
 
 import numpy as np
 import yaml
@@ -415,9 +415,22 @@ def build_program(spec):
     return WaypointSteering(tuple(spec.point), spec.gain, spec.max_curvature)
 
 
+def _kinds(union) -> str:
+    """'a, b, c': the ``kind`` tags of a discriminated union such as `LambdaSpec`."""
+    return ', '.join(get_args(m.model_fields['kind'].annotation)[0] for m in get_args(get_args(union)[0]))
+
+
+#: top-level field → the discriminated union found under it (for "no kind given" errors)
+_UNION_OF = {'lambda': LambdaSpec, 'leaders': ProgramSpec}
+
+
 def _format_error(err: ValidationError) -> str:
     e = err.errors()[0]
     loc = '.'.join(str(p) for p in e['loc'] if not str(p).startswith('function-')) or '(top level)'
+    if e['type'] == 'union_tag_not_found' and e['loc']:
+        union = _UNION_OF.get(str(e['loc'][0]))
+        kinds = f' (one of: {_kinds(union)})' if union is not None else ''
+        return f'{loc}: needs a `kind:` field{kinds}'
     # discriminated unions put the tag in the path: keep it readable
     got = e.get('input')
     got_s = '' if isinstance(got, (dict, list)) or got is None else f' (got {got!r})'

@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
+import signal
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -100,6 +102,18 @@ class _Progress:
         self.last = pct
 
 
+def _make_dir_or_exit(prog, path) -> Path:
+    """Create the output directory ``path`` before anything is computed: one line and exit 2
+    if it cannot be made (not a traceback after the work is done)."""
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        print(f'{prog}: cannot create output directory {path}: {err.strerror or err} ({err.filename})', file=sys.stderr)
+        raise SystemExit(2)
+    return path
+
+
 def _load_or_exit(name, **over):
     try:
         return scenario.load(name, **over)
@@ -129,8 +143,10 @@ def simulate_main(argv) -> int:
         over['integrator'] = a.integrator
     scn = _load_or_exit(a.scenario, **over)
     out = a.out or os.path.join('runs', f'{scn.name}-seed{scn.seed}')
+    _make_dir_or_exit('swarm simulate', out)
     if not a.quiet:
-        print(f'swarm simulate: {scn.name} ({scn.source}), {len(scn.names)} agents, law {scn.law.kind}, '
+        src = scn.source if scn.source.startswith(scn.name) else f'{scn.name} ({scn.source})'
+        print(f'swarm simulate: {src}, {len(scn.names)} agents, law {scn.law.kind}, '
               f'dt {scn.dt}, t = 0..{scn.duration:g} ({scn.steps} steps), seed {scn.seed}', file=sys.stderr)
     traj = engine.simulate(scn, record_every=a.record_every,
                            progress=_Progress(f'{scn.name} seed {scn.seed}', not a.quiet))
@@ -152,33 +168,87 @@ def simulate_main(argv) -> int:
     return 130 if interrupted else 0
 
 
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a sweep; ``results`` holds the seeds that finished (in seed order)."""
+
+    def __init__(self, results):
+        super().__init__()
+        self.results = results
+
+
+_STOP = None      # in a sweep's worker processes: set when the sweep is interrupted
+
+
+def _init_worker(stop):
+    """Pool worker initializer: a Ctrl-C while idle is ignored (``_sweep_one`` takes it
+    while it computes), so a worker never dies with a traceback between seeds; ``stop`` is
+    set by the parent when the sweep is interrupted (seeds already queued then do not start)."""
+    global _STOP
+    _STOP = stop
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _sweep_one(args):
     name, seed, over = args
-    scn = scenario.load(name, seed=seed, **over)
-    traj = engine.simulate(scn)
-    series, checks = analyse(scn, traj)
+    if _STOP is not None and _STOP.is_set():
+        return dict(seed=seed, interrupted=True)
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        scn = scenario.load(name, seed=seed, **over)
+        traj = engine.simulate(scn)
+        if traj.meta.get('interrupted'):
+            return dict(seed=seed, interrupted=True)
+        series, checks = analyse(scn, traj)
+    except KeyboardInterrupt:
+        return dict(seed=seed, interrupted=True)
+    finally:
+        signal.signal(signal.SIGINT, old)
     s = summary_of(scn, traj, series, checks)
     return dict(seed=seed, ok=s['behaviour_ok'], checks=checks, final_clusters=s['final_clusters'],
                 wall=s['wall_seconds'])
 
 
 def sweep(name, seeds, jobs=1, progress=True, **over):
-    """Run seeds 0..seeds−1 (or the given list) and return the per-seed results."""
+    """Run seeds 0..seeds−1 (or the given list) and return the per-seed results.
+
+    Ctrl-C (SIGINT to this process or to its whole group) stops the seeds still running
+    (each at its next step) and raises `SweepInterrupted` with the results of the seeds
+    that had finished; an interrupted seed is not counted."""
     seed_list = list(range(seeds)) if isinstance(seeds, int) else list(seeds)
     work = [(name, s, over) for s in seed_list]
     results = []
+
+    def take(r):
+        if r.get('interrupted'):
+            raise KeyboardInterrupt
+        results.append(r)
+        if progress:
+            print(f'  {name} seed {r["seed"]}: {"ok" if r["ok"] else "FAILED"} '
+                  f'({len(results)}/{len(work)})', file=sys.stderr, flush=True)
+
     if jobs > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            for r in pool.map(_sweep_one, work):
-                results.append(r)
-                if progress:
-                    print(f'  {name} seed {r["seed"]}: {"ok" if r["ok"] else "FAILED"}', file=sys.stderr)
+        stop = multiprocessing.Event()
+        with ProcessPoolExecutor(max_workers=jobs, initializer=_init_worker, initargs=(stop,)) as pool:
+            futures = [pool.submit(_sweep_one, w) for w in work]
+            try:
+                for f in futures:
+                    take(f.result())
+            except KeyboardInterrupt:
+                stop.set()
+                for f in futures:
+                    f.cancel()
+                for child in multiprocessing.active_children():   # the pool's workers
+                    try:
+                        os.kill(child.pid, signal.SIGINT)         # end the running seeds now
+                    except ProcessLookupError:
+                        pass
+                raise SweepInterrupted(results) from None
     else:
-        for w in work:
-            r = _sweep_one(w)
-            results.append(r)
-            if progress:
-                print(f'  {name} seed {r["seed"]}: {"ok" if r["ok"] else "FAILED"}', file=sys.stderr)
+        try:
+            for w in work:
+                take(_sweep_one(w))
+        except KeyboardInterrupt:
+            raise SweepInterrupted(results) from None
     return results
 
 
@@ -210,32 +280,54 @@ def sweep_table(name, results) -> str:
 def sweep_main(argv) -> int:
     p = argparse.ArgumentParser(prog='swarm sweep', description=(
         "Run scenarios over many seeds and count how often the paper's behaviour happens "
-        "(the scenario's `expect` checks)."))
+        "(the scenario's `expect` checks). Ctrl-C stops the sweep and keeps the seeds that "
+        "finished (table printed, --out written; exit 130)."))
     p.add_argument('scenarios', nargs='+', help='shipped scenario names or YAML files')
-    p.add_argument('--seeds', type=int, default=20, help='seeds 0..N-1 (default 20)')
-    p.add_argument('--first-seed', type=int, default=0)
-    p.add_argument('--jobs', type=int, default=os.cpu_count() or 1, help='parallel processes')
-    p.add_argument('--dt', type=float, help='override dt')
-    p.add_argument('--integrator', choices=['zoh', 'rk4'])
-    p.add_argument('--out', help='also write the tables (Markdown) and per-seed results (JSON next to it)')
+    p.add_argument('--seeds', type=int, default=20, help='seeds FIRST..FIRST+N-1 (default 20)')
+    p.add_argument('--first-seed', type=int, default=0, metavar='FIRST', help='first seed (default 0)')
+    jobs = os.cpu_count() or 1
+    p.add_argument('--jobs', type=int, default=jobs, help=f'parallel processes (default: the CPU count, {jobs})')
+    p.add_argument('--dt', type=float, help="override dt (default: the scenario's)")
+    p.add_argument('--integrator', choices=['zoh', 'rk4'], help="override the integrator (default: the scenario's)")
+    p.add_argument('--out', metavar='FILE.md', help='also write the tables (Markdown) and per-seed results (JSON next to it)')
     a = p.parse_args(argv)
     if a.seeds < 1:
         p.error('--seeds must be ≥ 1')
+    if a.jobs < 1:
+        p.error('--jobs must be ≥ 1')
+    if a.first_seed < 0:
+        p.error('--first-seed must be ≥ 0')
     over = {k: v for k, v in dict(dt=a.dt, integrator=a.integrator).items() if v is not None}
-    tables, everything = [], {}
     for name in a.scenarios:
-        _load_or_exit(name, **over)      # validate before spending time
+        _load_or_exit(name, **over)      # validate every scenario before spending time
+    if a.out:
+        _make_dir_or_exit('swarm sweep', Path(a.out).parent)
+    tables, everything = [], {}
+    interrupted = False
+    for name in a.scenarios:
         seeds = range(a.first_seed, a.first_seed + a.seeds)
         t0 = time.perf_counter()
-        res = sweep(name, seeds, jobs=a.jobs, **over)
-        table = sweep_table(name, res)
-        print(table + f'\n\n({time.perf_counter() - t0:.1f}s wall, {a.jobs} jobs)\n')
-        tables.append(table)
-        everything[name] = res
-    if a.out:
+        try:
+            res = sweep(name, seeds, jobs=a.jobs, **over)
+        except SweepInterrupted as stop:
+            res, interrupted = stop.results, True
+        note = f' INTERRUPTED after {len(res)} of {a.seeds} seeds' if interrupted else ''
+        if res or not interrupted:
+            table = sweep_table(name, res)
+            print(table + f'\n\n({time.perf_counter() - t0:.1f}s wall, {a.jobs} jobs{";" + note if note else ""})\n',
+                  flush=True)
+            tables.append(table + (f'\n\n({note.strip()})' if note else ''))
+            everything[name] = res
+        if interrupted:
+            rest = a.scenarios[a.scenarios.index(name) + 1:]
+            print(f'swarm sweep: interrupted during {name} ({len(res)}/{a.seeds} seeds finished)'
+                  + (f'; not run: {", ".join(rest)}' if rest else ''), file=sys.stderr)
+            break
+    if a.out and everything:
         Path(a.out).write_text('\n\n'.join(tables) + '\n')
         Path(a.out).with_suffix('.json').write_text(json.dumps(everything, indent=1, default=_jsonable))
-    return 0
+        print(f'wrote {a.out} and {Path(a.out).with_suffix(".json")}', file=sys.stderr)
+    return 130 if interrupted else 0
 
 
 def scenarios_main(argv) -> int:

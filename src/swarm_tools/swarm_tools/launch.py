@@ -93,12 +93,26 @@ def build_nodes(params: dict, context, log=print):
 
 
 def run_in_process(params: dict, domain_id=None) -> int:
+    """Every node in one executor until the world is done.  SIGINT / SIGTERM (main thread
+    only) set a flag the spin loop checks, so no callback is cut off; the world then saves
+    the steps done (exit 130)."""
     import rclpy
     from rclpy.context import Context
+    from rclpy.signals import SignalHandlerOptions
 
     from swarm_world.rosutil import ParameterError, make_executor, spin_until
+    from rclpy.task import Future
+    stop, wake = [], Future()
+
+    def on_signal(signum, _frame):
+        stop.append(signum)
+        if not wake.done():
+            wake.set_result(signum)
+    old = {}
+    if threading.current_thread() is threading.main_thread():
+        old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain_id)
+    rclpy.init(context=ctx, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
     try:
         try:
             world, commander, agents = build_nodes(params, ctx)
@@ -108,14 +122,18 @@ def run_in_process(params: dict, domain_id=None) -> int:
         ex = make_executor(ctx)
         for nd in [world, commander, *agents]:
             ex.add_node(nd)
-        spin_until(ex, ctx, lambda: world.done)
+        spin_until(ex, ctx, lambda: world.done or bool(stop), wake=wake)
         code = 0 if world.done and world.failed is None else (1 if world.failed else 130)
+        if code == 130:
+            world.save_partial()            # Ctrl-C: keep the steps done
         for nd in [world, commander, *agents]:
             nd.destroy_node()
         return code
     finally:
         if ctx.ok():
             rclpy.shutdown(context=ctx)
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
 
 
 # ---------------------------------------------------------------- processes
@@ -299,7 +317,9 @@ def _parser():
     g.add_argument('--processes', dest='in_process', action='store_false', default=False,
                    help='one OS process per node (default)')
     g.add_argument('--in-process', dest='in_process', action='store_true', help='all nodes in one executor')
-    p.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep')
+    p.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep', help=(
+        'lockstep (default: deterministic, equals swarm simulate) or realtime (timers against a '
+        'clock at --rtf)'))
     p.add_argument('--rtf', type=float, default=1.0, help='realtime: sim seconds per wall second (default 1)')
     p.add_argument('--record', metavar='BAG.mcap', help='also record the run (swarm record)')
     p.add_argument('--duration', type=float, help="sim seconds (default: the scenario's)")
@@ -307,7 +327,7 @@ def _parser():
     p.add_argument('--dt', type=float, help="step (default: the scenario's)")
     p.add_argument('--out', help='output directory (default: runs/SCENARIO-seedN-ros)')
     p.add_argument('--no-figure', action='store_true', help='no figure at the end')
-    p.add_argument('--progress-every', type=float, default=50.0, help='progress line every this many sim s')
+    p.add_argument('--progress-every', type=float, default=50.0, help='progress line every this many sim s (default 50)')
     p.add_argument('--missing-timeout', type=float, default=10.0,
                    help='lockstep: the world drops an agent whose state has not come after this many wall s (default 10)')
     p.add_argument('--clock-every', type=int, default=1, metavar='K', help=(
@@ -343,7 +363,25 @@ def main(argv=None) -> int:
     if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
         ref = str(Path(a.scenario).resolve())
     out = Path(a.out or os.path.join('runs', f'{scn.name}-seed{scn.seed}-ros')).resolve()
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        print(f'swarm run: cannot create output directory {out}: {err.strerror or err} ({err.filename})', file=sys.stderr)
+        return 2
+    if a.record and not a.in_process:
+        bag = Path(a.record)
+        if bag.suffix != '.mcap':
+            print(f'swarm run: --record {a.record}: must name a .mcap file', file=sys.stderr)
+            return 2
+        try:
+            bag.resolve().parent.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            print(f'swarm run: --record {a.record}: cannot create its directory: {err.strerror or err} ({err.filename})',
+                  file=sys.stderr)
+            return 2
+        if not os.access(bag.resolve().parent, os.W_OK) or (bag.exists() and not os.access(bag, os.W_OK)):
+            print(f'swarm run: --record {a.record}: not writable', file=sys.stderr)
+            return 2
     traj_file = out / 'trajectory.npz'
     if traj_file.exists():
         traj_file.unlink()
@@ -375,16 +413,19 @@ def main(argv=None) -> int:
             code = run_processes(params, pfile, scn.names, env, record=a.record, out_dir=out,
                                  pid_file=pid_file, events_file=out / 'events.jsonl')
     wall = time.monotonic() - t0
-    if code == 0 and traj_file.exists():
+    if code in (0, 130) and traj_file.exists():      # 130: Ctrl-C; the world saved the steps done
         try:
             from swarm_core.engine import Trajectory
             from swarm_core.simulate_cli import analyse, write_outputs
             traj = Trajectory.load(traj_file)
             traj.meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration, source='ros',
-                             mode=a.mode, wall_seconds=wall, events=read_events(out / 'events.jsonl'))
+                             mode=a.mode, wall_seconds=wall, events=read_events(out / 'events.jsonl'),
+                             interrupted=code == 130)
             series, checks = analyse(scn, traj)
             summary = write_outputs(out, scn, traj, series, checks, figure=not a.no_figure)
-            print(f'swarm run: done in {wall:.1f} s; final clusters {summary.get("final_clusters", "?")}; '
+            what = (f'stopped (code {code}) at t = {summary["t_end"]:g} after {wall:.1f} s; partial run'
+                    if code else f'done in {wall:.1f} s')
+            print(f'swarm run: {what}; final clusters {summary.get("final_clusters", "?")}; '
                   f'wrote {out}/trajectory.npz, metrics.json' + ('' if a.no_figure else f', {scn.name}.png'),
                   flush=True)
         except Exception as err:  # the trajectory is there; the extras are a bonus

@@ -32,10 +32,10 @@ def parse_args(argv):
     p.add_argument('--loop', '-l', action='store_true', help='start again at the end')
     p.add_argument('--topics', nargs='+', metavar='TOPIC', help='republish only these topics')
     p.add_argument('--delay', type=float, default=0.5,
-                   help='wall seconds to wait after creating the publishers (discovery)')
+                   help='wall seconds to wait after creating the publishers (discovery; default 0.5)')
     p.add_argument('--wait-for-subscribers', type=float, default=0.0, metavar='SECONDS',
-                   help='wait up to this long until every non-latched topic has a subscriber')
-    p.add_argument('--quiet', '-q', action='store_true')
+                   help='wait up to this long until every non-latched topic has a subscriber (default 0: do not wait)')
+    p.add_argument('--quiet', '-q', action='store_true', help='no per-topic summary at the end')
     a = p.parse_args(argv)
     if not (a.rate > 0) or a.rate == float('inf'):
         p.error('--rate must be a positive number')

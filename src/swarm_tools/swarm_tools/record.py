@@ -290,10 +290,14 @@ def main(argv=None) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
+    try:
+        writer = BagWriter(args.out, chunk_size=args.chunk_size, flush_interval=args.flush_interval)
+    except OSError as err:
+        print(f'swarm record: cannot write {args.out}: {err.strerror or err} ({err.filename})', file=sys.stderr)
+        return 2
     rclpy.init(args=None, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('swarm_recorder', enable_rosout=False,
                              start_parameter_services=False)
-    writer = BagWriter(args.out, chunk_size=args.chunk_size, flush_interval=args.flush_interval)
     rec = Recorder(node, writer, TopicFilter(args.topics, args.exclude),
                    log=lambda s: print(s, file=sys.stderr, flush=True),
                    presubscribe=None if args.no_presubscribe else SWARM_TOPICS)

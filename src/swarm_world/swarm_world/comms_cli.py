@@ -40,6 +40,7 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
     from . import protocol as P
     ctx = Context()
     rclpy.init(context=ctx)
+    node = ex = None
     try:
         node = rclpy.create_node('swarm_cli_events', context=ctx, start_parameter_services=False)
         clock = {}
@@ -65,6 +66,15 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
             ex.spin_once(timeout_sec=0.05)
             if pub.get_subscription_count() != count:
                 count, stable = pub.get_subscription_count(), time.monotonic()
+        # the graph's node names lag the matched readers (and an agent resumed after `swarm
+        # pause` is rediscovered late): wait for every named agent, and for the sim time,
+        # until --wait is up (at least 3 s more), before calling a name unknown
+        limit = max(end, time.monotonic() + 3.0)
+        while time.monotonic() < limit:
+            unknown = [nm for nm in check_names if nm not in _agents_in_graph(node)]
+            if not unknown and 't' in clock:
+                break
+            ex.spin_once(timeout_sec=0.05)
         unknown = [nm for nm in check_names if nm not in _agents_in_graph(node)]
         if unknown:
             print(f'{prog}: unknown agent {unknown[0]!r} (running: {", ".join(_agents_in_graph(node))})',
@@ -74,11 +84,13 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
         pub.publish(String(data=P.event_json(kind, t, **fields)))
         pub.wait_for_all_acked(Duration(seconds=2.0))
         print(f'{prog}: {kind} {fields} at t={"?" if t is None else f"{t:.2f}"} '
-              f'(sent to {count} readers of {P.EVENTS})')
-        ex.shutdown()
-        node.destroy_node()
+              f'(sent to {pub.get_subscription_count()} readers of {P.EVENTS})')
         return 0
-    finally:
+    finally:        # on every path (an early return left the executor to a GC after shutdown:
+        if ex is not None:      # "Exception ignored in Executor.__del__ ... InvalidHandle")
+            ex.shutdown()
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown(context=ctx)
 
 
@@ -88,7 +100,7 @@ def drop_main(argv) -> int:
         '(on top of the configured loss), for --for sim seconds or until the next `swarm drop`.'))
     p.add_argument('loss', type=float, help='loss probability P in [0, 1] (0 ends a burst)')
     p.add_argument('--for', dest='duration', type=float, help='duration in sim seconds (default: until changed)')
-    p.add_argument('--wait', type=float, default=10.0, help='seconds to wait for the swarm to be found')
+    p.add_argument('--wait', type=float, default=10.0, help='wall seconds to wait for the swarm to be found (default 10)')
     a = p.parse_args(argv)
     if not (math.isfinite(a.loss) and 0.0 <= a.loss <= 1.0):
         print(f'swarm drop: loss {a.loss!r} rejected: must be in [0, 1]', file=sys.stderr)
@@ -106,7 +118,7 @@ def partition_main(argv) -> int:
         '(agents named in no group form one more group), or heal it.'))
     p.add_argument('groups', nargs='*', help='groups of agent names, comma-separated, e.g. agent_0,agent_1 agent_2')
     p.add_argument('--heal', action='store_true', help='remove the partition')
-    p.add_argument('--wait', type=float, default=10.0, help='seconds to wait for the swarm to be found')
+    p.add_argument('--wait', type=float, default=10.0, help='wall seconds to wait for the swarm to be found (default 10)')
     a = p.parse_args(argv)
     if a.heal == bool(a.groups):
         print('swarm partition: give groups (a,b,c d,e) or --heal, not both / neither', file=sys.stderr)

@@ -42,7 +42,7 @@ def kill_main(argv) -> int:
         'Kill an agent of a running swarm: the world drops it from the roster at its next step '
         'and SIGKILLs its process (swarm run --processes).'))
     p.add_argument('agent', help='agent name, e.g. agent_3')
-    p.add_argument('--wait', type=float, default=10.0, help='seconds to wait for the world to be found')
+    p.add_argument('--wait', type=float, default=10.0, help='wall seconds to wait for the world to be found (default 10)')
     a = p.parse_args(argv)
     name = _agent_name(a.agent)
     if name is None:
@@ -60,7 +60,7 @@ def pause_main(argv) -> int:
         'heard, its process is stopped (SIGSTOP) and resumed (SIGCONT) with the state it had.'))
     p.add_argument('agent', help='agent name, e.g. agent_3')
     p.add_argument('seconds', type=float, help='sim seconds (> 0)')
-    p.add_argument('--wait', type=float, default=10.0, help='seconds to wait for the world to be found')
+    p.add_argument('--wait', type=float, default=10.0, help='wall seconds to wait for the world to be found (default 10)')
     a = p.parse_args(argv)
     name = _agent_name(a.agent)
     if name is None:

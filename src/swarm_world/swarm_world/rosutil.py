@@ -84,17 +84,19 @@ def make_executor(context, events=None):
         return SingleThreadedExecutor(context=context)
 
 
-def spin_until(executor, context, done, timeout=0.1):
+def spin_until(executor, context, done, timeout=0.1, wake=None):
     """Spin until done() (checked at least every ``timeout`` s), SIGINT or shutdown.
 
     Not ``EventsExecutor.spin()`` (it burns CPU while idle and ignores signals).  With the
     EventsExecutor, ``spin_until_future_complete`` on a future nobody completes, with a
     timeout, handles every event of that interval in C++ (one Python round trip per interval,
-    not per message); other executors get a ``spin_once`` loop."""
+    not per message); other executors get a ``spin_once`` loop.  ``wake``: a Future that ends
+    the current spin call when it completes (a signal handler completes it: a busy executor
+    may not return at its timeout)."""
     from rclpy.executors import ExternalShutdownException
     from rclpy.task import Future
     events = type(executor).__name__ == 'EventsExecutor'
-    never = Future()
+    never = Future() if wake is None else wake
     try:
         while context.ok() and not done():
             if events:
@@ -133,14 +135,74 @@ def when_matched(node, matched, then, limit, what):
 TEARDOWN_LIMIT = 10.0
 
 
-def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None) -> int:
-    """The ``main()`` of a node executable: init rclpy from ``argv``, build ``node_class()``
-    (a bad parameter -> one error line, exit 2), spin until ``done(node)`` or shutdown
-    (Ctrl-C), clean up; returns ``exit_code(node)`` (default 0)."""
+def wants_help(argv) -> bool:
+    """``-h`` / ``--help`` among a node executable's own arguments (not inside ``--ros-args``)."""
+    from rclpy.utilities import remove_ros_args
+    return any(a in ('-h', '--help') for a in remove_ros_args(list(argv))[1:])
+
+
+def node_help(node_class, exe) -> str:
+    """Usage of a node executable: what it is (its module's docstring, first paragraph) and
+    its parameters with type, default and description, read from a node built with the
+    defaults in a context of its own with DDS discovery off."""
+    import os
     import sys
 
     import rclpy
-    rclpy.init(args=sys.argv if argv is None else argv)
+    from rclpy.context import Context
+    doc = (sys.modules[node_class.__module__].__doc__ or '').strip().split('\n\n')[0]
+    lines = [f'usage: {exe} [-h] [--ros-args -p NAME:=VALUE ... | --params-file FILE]', '', doc, '',
+             'Usually started by `swarm run` (which writes one parameter file for every node).', '']
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'OFF'     # this node is only looked at
+    ctx = Context()
+    rclpy.init(args=[exe], context=ctx)
+    try:
+        node = node_class(context=ctx)
+    except ParameterError as err:
+        rclpy.try_shutdown(context=ctx)
+        return '\n'.join(lines + [f'(parameters not listed: {err})'])
+    try:
+        names = sorted(node._parameters)
+        lines.append('parameters (name (type) = default: description):')
+        for name, desc in zip(names, node.describe_parameters(names)):
+            value = node.get_parameter(name).value
+            text = ' '.join(desc.description.split()) or '(standard rclpy parameter)'
+            lines.append(f'  {name} ({type(value).__name__}) = {value!r}: {text}')
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+    return '\n'.join(lines)
+
+
+def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, on_stop=None) -> int:
+    """The ``main()`` of a node executable: init rclpy from ``argv``, build ``node_class()``
+    (a bad parameter -> one error line, exit 2), spin until ``done(node)`` or SIGINT / SIGTERM,
+    clean up; returns ``exit_code(node)`` (default 0).  ``-h`` / ``--help``: the usage and the
+    node's parameters, exit 0 (no node is started).
+
+    SIGINT / SIGTERM only set a flag that the spin loop checks (at least every 0.1 s): a
+    callback that is running finishes (rclpy's own handler shut the context down under it, and
+    every node logged a traceback on Ctrl-C), then ``on_stop(node)`` runs (e.g. the world
+    saves the steps done so far) and the node is cleaned up."""
+    import signal
+    import sys
+
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+    args = sys.argv if argv is None else argv
+    if wants_help(args):
+        print(node_help(node_class, logger_name))
+        return 0
+    from rclpy.task import Future
+    stop, wake = [], Future()
+
+    def on_signal(signum, _frame):
+        stop.append(signum)
+        if not wake.done():
+            wake.set_result(signum)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, on_signal)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     ctx = rclpy.get_default_context()
     try:
         node = node_class()
@@ -150,7 +212,10 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None) -
         return 2
     ex = make_executor(ctx)
     ex.add_node(node)
-    spin_until(ex, ctx, (lambda: done(node)) if done is not None else (lambda: False))
+    spin_until(ex, ctx, (lambda: bool(stop) or done(node)) if done is not None else (lambda: bool(stop)),
+               wake=wake)
+    if stop and on_stop is not None:
+        on_stop(node)
     code = exit_code(node) if exit_code is not None else 0
     # a DDS teardown that never returns (seen with Fast DDS after a peer process was SIGKILLed)
     # must not keep a finished node alive: its work is done and saved, so exit anyway

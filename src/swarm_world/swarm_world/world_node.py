@@ -151,6 +151,8 @@ class WorldNode(Node):
                                                    P.qos_latched(max(100, 4 * self.n)), raw=True)
         if self.mode == 'realtime':
             self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
+            # the leaders as the commander announces them (lockstep: in each decision)
+            self.create_subscription(String, P.LEADERS, self._on_leaders, P.qos_latched())
         if self.mode == 'lockstep':
             self.pub_lock_states = self.create_publisher(Float64MultiArray, P.LOCK_STATES, P.qos_latched())
             self.pub_step = self.create_publisher(Float64MultiArray, P.LOCK_STEP, P.qos_latched())
@@ -563,10 +565,21 @@ class WorldNode(Node):
         if math.isfinite(msg.data) and 0.0 <= msg.data <= 1.0:
             self.lam_now = msg.data
 
+    def _on_leaders(self, msg):
+        """Realtime: /swarm/leaders (comma-separated names) → the leader flags recorded."""
+        names = [nm.strip() for nm in msg.data.split(',') if nm.strip()]
+        unknown = [nm for nm in names if nm not in self.row]
+        if unknown:
+            self.reject(('leaders', tuple(unknown)), f'{P.LEADERS}: unknown agent(s) {", ".join(unknown)}')
+        flags = np.zeros(self.n, bool)
+        flags[[self.row[nm] for nm in names if nm in self.row]] = True
+        self.leaders_now = flags
+
     def rt_record(self, i, t, vals, u):
         k = P.step_of(t, self.dt)
         if 0 <= k <= self.steps:
             self.rec_lam[k] = self.lam_now
+            self.rec_leader[k] = self.leaders_now
             self.rec_r[k, i] = vals[:2]
             self.rec_theta[k, i] = yaw_from_quaternion(vals[2], vals[3])
             if k > 0:
@@ -663,15 +676,15 @@ class WorldNode(Node):
     def trajectory(self) -> Trajectory:
         T = self.steps + 1
         theta = self.rec_theta.copy()
-        r, lam = self.rec_r.copy(), self.rec_lam.copy()
+        r, lam, leader = self.rec_r.copy(), self.rec_lam.copy(), self.rec_leader.copy()
         if self.mode == 'realtime':        # hold each agent's last published state between its stamps
             if not np.isfinite(lam[0]):
                 lam[0] = 0.0
             for k in range(1, T):
                 miss = ~np.isfinite(theta[k])
                 r[k, miss], theta[k, miss] = r[k - 1, miss], theta[k - 1, miss]
-                if not np.isfinite(lam[k]):
-                    lam[k] = lam[k - 1]
+                if not np.isfinite(lam[k]):       # no state recorded at step k
+                    lam[k], leader[k] = lam[k - 1], leader[k - 1]
         # faults: a frozen agent holds its state of the freeze step
         for i, k0, k1 in self.freezes:
             k_last = min(k1, T)
@@ -691,7 +704,7 @@ class WorldNode(Node):
                     col = np.unwrap(theta[ok, i])
                     theta[ok, i] = col + np.round((self.scn.theta0[i] - col[0]) / (2 * np.pi)) * 2 * np.pi
         tr = Trajectory(list(self.names), np.arange(T) * self.dt, r, theta, self.rec_u.copy(),
-                        lam, self.rec_leader.copy(),
+                        lam, leader,
                         meta=dict(scenario=self.scn.name, seed=self.scn.seed, dt=self.dt, duration=self.scn.duration,
                                   steps=self.steps, source='ros', mode=self.mode,
                                   wall_seconds=time.monotonic() - (self.run_wall or self.wall_start),
@@ -720,9 +733,31 @@ class WorldNode(Node):
             out.mkdir(parents=True, exist_ok=True)
             self.trajectory().save(out / 'trajectory.npz')
 
+    def save_partial(self):
+        """Stopped (Ctrl-C / SIGTERM) before the end: write the steps completed so far to
+        ``output_dir`` (as ``swarm simulate`` keeps the computed part of an interrupted run).
+        Lockstep: the rows whose state, λ, leaders and u are all known; realtime: up to now."""
+        if not self.output_dir or not self.started or self.done:
+            return None
+        if self.mode == 'realtime':
+            rows = min(P.step_of(self.sim_t, self.dt), self.steps) + 1
+        else:       # u of step k - 1 comes with the states of step k
+            rows = min(self.cur if self.states_out else self.cur - 1, self.steps + 1)
+        if rows < 1:
+            return None
+        tr = self.trajectory()
+        part = Trajectory(tr.names, tr.t[:rows], tr.r[:rows], tr.theta[:rows], tr.u[:rows], tr.lam[:rows],
+                          tr.leader[:rows], meta=dict(tr.meta, interrupted=True))
+        out = Path(self.output_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        path = part.save(out / 'trajectory.npz')
+        self.log(f'[world] stopped at t={part.t[-1]:g}: saved t = 0..{part.t[-1]:g} ({rows} samples) to {path}', flush=True)
+        return path
+
 
 def main(argv=None):
     return run_node(WorldNode, 'swarm_world', argv, done=lambda node: node.done,
+                    on_stop=lambda node: node.save_partial(),
                     exit_code=lambda node: 0 if (node.done and node.failed is None)
                     else (1 if node.failed else 130))
 
