@@ -152,3 +152,21 @@ def test_agent_by_agent_equals_batch_exactly(name, extra):
     pos, th = _per_agent_run(scn, steps)
     np.testing.assert_array_equal(pos, tr.r[-1])
     np.testing.assert_array_equal(th, tr.theta[-1])
+
+
+def test_realtime_catch_up_moves_by_the_elapsed_periods():
+    """A realtime agent integrates round((now − t)/dt) periods (u held), none when no period
+    has passed (a second timer call for the same /clock time), and at most `limit` after a
+    long gap (a stopped process), restarting its time at now; no rounding drift."""
+    from swarm_agent.core import catch_up
+    dt = 0.05
+    assert catch_up(0.1, 0.0, dt, 4) == (2, 0.1)
+    assert catch_up(0.1, 0.1, dt, 4) == (0, 0.1)            # same time again: nothing moves
+    assert catch_up(0.12, 0.1, dt, 4) == (0, 0.1)           # less than half a period
+    assert catch_up(0.13, 0.1, dt, 4)[0] == 1               # more than half a period
+    assert catch_up(5.1, 0.1, dt, 4) == (4, 5.1)            # a freeze: limit periods, time reset
+    t, periods = 0.0, 0
+    for now in np.cumsum(np.random.default_rng(0).uniform(0.02, 0.11, 2000)):   # clock jitter
+        k, t = catch_up(float(now), t, dt, 4)
+        periods += k
+    assert abs(periods * dt - now) <= dt / 2 + 1e-9         # the agent kept up with the clock

@@ -145,6 +145,9 @@ def test_realtime_lambda_from_the_cli_splits_the_swarm(tmp_path, ros_domain, pro
     # the split takes ~30-60 sim s once λ = 1; a CLI that found the swarm late leaves no time
     assert t_cli <= 260 - 120, f'λ arrived at t = {t_cli}: too late in this run to judge the split'
     assert np.all(np.isfinite(got.r)) and np.all(np.isfinite(got.theta))
+    # unit speed in realtime too (agents that moved one dt per timer call flew at 0.55-0.7)
+    speed = np.linalg.norm(np.diff(got.r, axis=0), axis=2).sum(axis=0) / (got.t[-1] - got.t[0])
+    assert np.all((speed > 0.9) & (speed < 1.01)), speed
     c_before = cluster_labels(got.r[np.searchsorted(got.t, t_cli) - 1], 4.0)[0]
     c_end = cluster_labels(got.r[-1], 4.0)[0]
     assert c_before == 1 and c_end >= 2, (c_before, c_end)

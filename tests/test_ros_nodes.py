@@ -167,6 +167,43 @@ def test_realtime_lambda_and_steering_change_what_an_agent_does(rclpy_context):
     probe.destroy_node()
 
 
+def test_realtime_agent_moves_with_the_sim_clock(rclpy_context):
+    """The realtime agent's timer against a hand-driven /clock: a jump of two periods moves it
+    two periods (it moved one per timer call, so agents flew at 0.55-0.7 of unit speed in
+    `swarm run --mode realtime`), the same time again publishes no second state with that
+    stamp, and a long gap (a stopped process) moves it `catch_up_limit` periods."""
+    scn = load('homotopy_global')
+    ctx = rclpy_context
+    ex = make_executor(ctx)
+    agent = AgentNode('agent', namespace='agent_1', context=ctx,
+                      parameter_overrides=overrides(agent_parameters(scn, 1, 'realtime')))
+    probe = rclpy.create_node('probe', context=ctx)
+    clock = probe.create_publisher(Clock, '/clock', 10)
+    states = []
+    probe.create_subscription(Odometry, P.STATES, states.append, P.qos_latched(100))
+    for nd in (agent, probe):
+        ex.add_node(nd)
+    assert spin_for(ex, lambda: clock.get_subscription_count() and states)
+    limit = agent.catch_up_limit
+
+    def at(t, steps):
+        c = Clock()
+        c.clock.sec, c.clock.nanosec = P.time_to_stamp(t)
+        clock.publish(c)
+        assert spin_for(ex, lambda: agent.step >= steps, 5.0), (t, agent.step)
+        spin_for(ex, lambda: False, 0.3)         # any further timer call for this time
+        return agent.step
+
+    start = agent.core.pos.copy()
+    assert at(2 * scn.dt, 2) == 2 and agent.t == pytest.approx(2 * scn.dt)
+    moved = float(np.hypot(*(agent.core.pos - start)[0]))
+    assert moved == pytest.approx(2 * scn.dt, rel=1e-3)        # unit speed: an arc of 2 dt
+    assert at(2 * scn.dt, 2) == 2                                 # the same time: nothing
+    assert at(2 * scn.dt + 100 * scn.dt, 2 + limit) == 2 + limit
+    stamps = [(m.header.stamp.sec, m.header.stamp.nanosec) for m in states]
+    assert len(stamps) == len(set(stamps)) == 3, stamps         # t = 0, 2 dt, 102 dt
+    probe.destroy_node()
+
 def test_target_and_barrier_updates_reach_agents(rclpy_context):
     scn = load('target_barrier')
     ctx = rclpy_context

@@ -37,7 +37,7 @@ from swarm_world import protocol as P
 from swarm_world.checks import check_state
 from swarm_world.rosutil import ParameterError, RejectLog, declare, run_node, when_matched
 
-from .core import AgentCore
+from .core import AgentCore, catch_up
 
 MODES = ('lockstep', 'realtime')
 
@@ -78,6 +78,9 @@ class AgentNode(Node):
                                    'many readers of /swarm/states have matched (2 = world and recorder)', lo=1, hi=100000)
         self.stale_after = d('stale_after', 2.0, 'realtime: ignore neighbour states older than this (sim s)',
                              lo=0.0, hi=1e9)
+        self.catch_up_limit = d('catch_up_limit', 4, 'realtime: most control periods one timer call '
+                                'integrates when the sim clock jumped (u held); a longer gap (a stopped '
+                                'or starved process) moves the agent this many', lo=1, hi=10**6)
         comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect)")
         if self.roster == ['']:
             self.roster = [self.agent_name]
@@ -133,7 +136,6 @@ class AgentNode(Node):
         else:
             self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(50, 4 * self.n)))
             self.timer = self.create_timer(self.dt, self._on_tick)
-            self._last_tick = None
         if self.mode == 'lockstep' and self.state_subscribers > 1:
             # a recorder matched late would miss the first states (the writer keeps 100): the world
             # starts step 0 only when it holds every agent's first state, so wait for the readers
@@ -324,11 +326,14 @@ class AgentNode(Node):
         return names.index(self.agent_name), rows, flags
 
     def _on_tick(self):
+        """Realtime: one control period.  The agent moves by the sim time that passed since its
+        last state, in whole periods dt with u held (ZOH; `core.catch_up`), not by one dt per
+        call: a /clock jump may cover two periods and fire the timer once (it catches up), or
+        fire it again at the same time (nothing moves, so no two states share a stamp)."""
         now = self.get_clock().now().nanoseconds * 1e-9
-        if self._last_tick is None:
-            self._last_tick = now
+        periods, t_new = catch_up(now, self.t, self.dt, self.catch_up_limit)
+        if periods == 0:
             return
-        self._last_tick = now
         if self.radio_on:
             own, rows, flags = self.radio_table(now)
         else:
@@ -343,11 +348,11 @@ class AgentNode(Node):
         if not math.isfinite(u):
             self.reject('u-nan', f'non-finite control u={u}; holding u=0')
             u = 0.0
-        self._apply(u)
-        self.step += 1
-        self.t = now
+        for _ in range(periods):
+            self._apply(u)
+        self.step += periods
+        self.t = t_new
         self.publish_state()
-
 
 def main(argv=None):
     return run_node(AgentNode, 'swarm_agent', argv)

@@ -33,6 +33,23 @@ from swarm_core.laws import LawConfig, swarm_control
 from swarm_core.model import frame_from_quaternion, quaternion_from_heading
 
 
+def catch_up(now: float, t_state: float, dt: float, limit: int) -> tuple[int, float]:
+    """Realtime: how many control periods to integrate (u held, ZOH) at sim time ``now`` when
+    the agent holds its state of time ``t_state``, and the time of the state that results.
+
+    periods = round((now − t_state)/dt): a /clock jump may cover two periods (one timer call)
+    or none (a second call at the same time: 0 periods, no new state).  The new state's time is
+    t_state + periods·dt, so rounding never accumulates.  A gap of more than ``limit`` periods
+    (the process was stopped, e.g. a freeze fault, or starved) moves the agent ``limit``
+    periods and restarts its time at ``now``."""
+    periods = math.floor((now - t_state) / dt + 0.5)
+    if periods < 1:
+        return 0, t_state
+    if periods > limit:
+        return limit, now
+    return periods, t_state + periods * dt
+
+
 class AgentCore:
     def __init__(self, index: int, n_agents: int, x: float, y: float, theta: float,
                  law: LawConfig, dt: float, noise=(0.0, 0.0), noise_rng=None):
