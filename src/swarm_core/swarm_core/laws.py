@@ -176,16 +176,15 @@ class _Scratch(threading.local):
         self.arrays = {}
 
     def get(self, rows: int, n: int):
-        """Arrays for blocks of ``rows`` rows of n pairs: (dx, dy), (dx², dy²), two work
-        arrays, the six moments and a bool array; each also as views of its first rows."""
+        """Arrays for blocks of ``rows`` rows of n pairs: the pair factors G (3, 2, rows, n),
+        their multipliers M (3, rows, n), (dx², dy²) (2, rows, n) and a bool array (rows, n)."""
         key = (rows, n)
         arrays = self.arrays.get(key)
         if arrays is None:
             if len(self.arrays) >= 4:
                 self.arrays.clear()
-            arrays = self.arrays[key] = (np.empty((2, rows, n)), np.empty((2, rows, n)),
-                                         np.empty((rows, n)), np.empty((rows, n)),
-                                         np.empty((6, rows, n)), np.empty((rows, n), dtype=bool))
+            arrays = self.arrays[key] = (np.empty((3, 2, rows, n)), np.empty((3, rows, n)),
+                                         np.empty((2, rows, n)), np.empty((rows, n), dtype=bool))
         return arrays
 
 
@@ -200,23 +199,24 @@ def _row_starts(rows: int, n: int):
     return starts
 
 
-def _pair_weights(law, receivers, lam, q0, leaders, careful):
-    """Per-receiver far weight q of c(ρ, q, w) and the leader gain (eq. 6, 11, 12), or None
-    where every weight is 1 (then no weight matrix is built)."""
-    n_recv = receivers.size
+def _pair_weights(law, lam, q0, leaders, recv_leader, careful):
+    """The weights of eq. 6, 11, 12, or None where every weight is 1 (then no weight matrix is
+    built): (far, gain, leader rows) with far the weight q of c(ρ, q, w) beyond w (a number, or
+    (K, 1) per receiver) and, for leader laws, gain (K,) the factor of the pair with the
+    nearest leader l(k), (ℓc − 1)λ + 1 for a follower and 1 for a leader."""
     if leaders is None:
         far = q0 * (1.0 - lam)
         if far == 1.0 and not careful:
             return None
-        return np.full(n_recv, far), None, 1.0
+        return far, None, None
     if q0 == 1.0 and lam == 0.0 and not careful:
         return None                     # every cutoff weight and the leader gain are 1
-    recv_leader = leaders[receivers]
-    far = np.where(recv_leader, q0, q0 * (1.0 - lam))
-    return far, (~recv_leader).nonzero()[0], (law.leader_gain - 1.0) * lam + 1.0
+    far = np.where(recv_leader, q0, q0 * (1.0 - lam))[:, None]
+    gain = np.where(recv_leader, 1.0, (law.leader_gain - 1.0) * lam + 1.0)
+    return far, gain, leaders.nonzero()[0]
 
 
-def _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, careful=False):
+def _pair_sums_dense(pos, sin_cos, receivers, law, lam, q0, leaders, recv_leader, careful=False):
     """Row sums ("moments") from which Σ_j weight_jk·u_jk follows for each receiver, over the
     whole table, in blocks of receiver rows (no Python loop over pairs).
 
@@ -231,54 +231,67 @@ def _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k
     set to ∞) and its alignment c·s_k − s·c_k cancels.  With unit weights (no cutoff weight or
     leader gain differs from 1) S and C are the plain table sums and are not formed per row.
     The target law (eq. 13) needs only (Hx, Hy) with h = −α(1 − r0²/ρ²) (·1/ρ if normalised)
-    within w.
+    within w.  The nearest leader l(k) (eq. 8) is read off the block's ρ² (the same numbers
+    `nearest_leader` forms; ties to the lower row).
 
-    Returns (moments (6, K), weighted): rows A, B, Hx, Hy, S, C (S, C only if weighted).
-    Each moment is numpy's row reduction of a contiguous row, whose result does not depend on
-    how many rows a block holds, so one receiver alone (an agent node) gets the batch value
-    bit for bit.  A coincident pair (ρ = 0, j ≠ k) makes its row non-finite; the caller redoes
-    such rows with ``careful``, where coincident pairs get weight 0 (they contribute 0).
+    Few numpy calls per block (at n = 6 their overhead, not the arithmetic, is the cost): the
+    pair factors G = [dx·dy, dy² − dx²], [dx, dy], [sin θ_j, cos θ_j] times their multipliers
+    M = W/ρ², W·h, W in one broadcast product, then one row reduction.
+
+    Returns (moments (3, 2, K): [A, B], [Hx, Hy], [S, C] (S, C only if weighted), weighted,
+    redo).  Each moment is numpy's row reduction of a contiguous row, whose result does not
+    depend on how many rows a block holds, so one receiver alone (an agent node) gets the batch
+    value bit for bit.  A row with a coincident pair (ρ = 0, j ≠ k) is not valid here; redo
+    (None or receiver positions) lists them for the caller to redo with ``careful``, where
+    coincident pairs get weight 0 (they contribute 0).
     """
     n = pos.shape[0]
     n_recv = receivers.size
-    sums = np.empty((6, n_recv))
-    g = law.gains
+    sums = np.empty((3, 2, n_recv))
     target_kind = law.kind == 'target'
-    weights = None if target_kind else _pair_weights(law, receivers, lam, q0, leaders, careful)
+    weights = None if target_kind else _pair_weights(law, lam, q0, leaders, recv_leader, careful)
+    redo = None
     if n_recv == 0:
-        return sums, weights is not None
-    xy = pos.T.copy()                                           # (2, N): x and y rows
+        return sums, weights is not None, redo
+    xy = pos.T                                                  # (2, N): x and y rows
     xy_recv = xy[:, receivers, None]
     block = min(n_recv, max(1, DENSE_BLOCK // max(1, n)))
-    scratch = _scratch.get(block, n)
+    G_, M_, D2_, WB_ = _scratch.get(block, n)
+    g = law.gains
     w2 = law.cutoff_radius * law.cutoff_radius
     a_r0 = g.alpha * g.r0 * g.r0
     self_pair = receivers + _row_starts(n_recv, n)              # flat index of (k, k) in a block
+    starts = _row_starts(block, n)
+    gain = leader_rows = None
     if weights is not None:
-        far, follower, boost = weights
-        far = far[:, None]
-        sin_cos = np.array((sin_t, cos_t))[:, None, :]
-        if follower is not None:
-            follower_leader = l_of_k[follower]
+        far, gain, leader_rows = weights
+        table_sin_cos = sin_cos[:, None, :]
     for a in range(0, n_recv, block):
         b = min(block, n_recv - a)
         rows = slice(a, a + b)
         if b == block:
-            d, d2, rr, h, mom, wb = scratch
+            G, M, d2, wb = G_, M_, D2_, WB_
         else:
-            d, d2, rr, h, mom, wb = scratch[0][:, :b], scratch[1][:, :b], scratch[2][:b], \
-                scratch[3][:b], scratch[4][:, :b], scratch[5][:b]
+            G, M, d2, wb = G_[:, :, :b], M_[:, :b], D2_[:, :b], WB_[:b]
+        d = G[1]
+        rr = M[0]
         np.subtract(xy_recv[:, rows], xy[:, None, :], out=d)    # r_jk = r_k − r_j
         np.multiply(d, d, out=d2)
         np.add(d2[0], d2[1], out=rr)                             # ρ²
         rr.put(self_pair[rows] - a * n if a else self_pair[rows], np.inf)   # self: 1/ρ² = 0
+        if gain is not None:                                     # l(k), eq. 8: the nearest leader
+            l_flat = leader_rows[rr[:, leader_rows].argmin(axis=1)]
+            l_flat += starts[:b]
         if target_kind or weights is not None:
             np.less(rr, w2, out=wb)                              # ρ < w
-        if careful:
+        coincident = None
+        if not rr.all():                                         # a coincident pair (ρ = 0, j ≠ k)
             coincident = rr == 0.0
             rr[coincident] = np.inf
-        if not target_kind:
-            np.subtract(d2[1], d2[0], out=mom[1])                # dy² − dx²
+            if not careful:                                      # its row is redone by the caller
+                bad = a + np.flatnonzero(coincident.any(axis=1))
+                redo = bad if redo is None else np.concatenate((redo, bad))
+        h = M[1]
         np.divide(1.0, rr, out=rr)                               # 1/ρ²
         np.multiply(rr, a_r0, out=h)
         h -= g.alpha                                             # −α(1 − r0²/ρ²)
@@ -286,48 +299,51 @@ def _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k
             if law.target_normalised:
                 h *= np.sqrt(rr, out=d2[0])
             h *= wb
-            np.multiply(d[0], h, out=mom[2])
-            np.multiply(d[1], h, out=mom[3])
-            np.add.reduce(mom[2:4], axis=2, out=sums[2:4, rows])
+            d *= h
+            np.add.reduce(d, axis=2, out=sums[1, :, rows])
             continue
+        np.subtract(d2[1], d2[0], out=G[0, 1])                   # dy² − dx²
+        np.multiply(d[0], d[1], out=G[0, 0])                     # dx·dy
         h *= np.sqrt(rr, out=d2[0])                              # h = −α(1 − r0²/ρ²)/ρ
-        top = 4
+        top = 2
         if weights is not None:
-            wm = d2[0]
-            np.copyto(wm, far[rows])
+            wm = M[2]
+            np.copyto(wm, far if gain is None else far[rows])
             np.copyto(wm, 1.0, where=wb)                         # c(ρ, q, w), eq. 6
-            if follower is not None:                             # (ℓc − 1)λ + 1 with l(k), eq. 11
-                if b == n_recv:
-                    wm[follower, follower_leader] *= boost
-                else:
-                    lo, hi = np.searchsorted(follower, (a, a + b))
-                    wm[follower[lo:hi] - a, follower_leader[lo:hi]] *= boost
-            if careful:
+            if gain is not None:                                 # (ℓc − 1)λ + 1 with l(k), eq. 11
+                wm.put(l_flat, wm.take(l_flat) * gain[rows])
+            if coincident is not None and careful:
                 wm[coincident] = 0.0
-            rr *= wm
-            h *= wm
-            np.multiply(wm, sin_cos, out=mom[4:6])
-            top = 6
-        np.multiply(d[0], d[1], out=mom[0])
-        mom[0] *= rr
-        mom[1] *= rr
-        np.multiply(d[0], h, out=mom[2])
-        np.multiply(d[1], h, out=mom[3])
-        np.add.reduce(mom[:top], axis=2, out=sums[:top, rows])
-    return sums, weights is not None
+            M[:2] *= wm
+            np.copyto(G[2], table_sin_cos)
+            top = 3
+        G[:top] *= M[:top, None]                                 # A, B, Hx, Hy (and S, C)
+        np.add.reduce(G[:top], axis=3, out=sums[:top, :, rows])
+    return sums, weights is not None, redo
 
 
-def _combine(m, weighted, c, s, cos_t, sin_t, law):
-    """Σ_j W_jk u_jk of each receiver (frame c, s) from its moments (see `_pair_sums_dense`)."""
+def _combine(m, weighted, F, sin_cos, law):
+    """Σ_j W_jk u_jk of each receiver from its moments m (3, 2, K) (see `_pair_sums_dense`);
+    F (2, K): the receivers' (sin θ_k, cos θ_k); sin_cos (2, N): the table's."""
     if law.kind == 'target':
-        return c * m[3] - s * m[2]
+        p = m[1] * F                                             # s·Hx, c·Hy
+        return p[1] - p[0]
     g = law.gains
     if weighted:
-        sin_sum, cos_sum = m[4], m[5]
+        al = m[2] * g.mu                                         # μS, μC
     else:
-        sin_sum, cos_sum = np.add.reduce(sin_t), np.add.reduce(cos_t)
-    return (c * (m[3] + g.mu * sin_sum) - s * (m[2] + g.mu * cos_sum)
-            - g.eta * ((c * c - s * s) * m[0] + (c * s) * m[1]))
+        al = np.add.reduce(sin_cos, axis=1)[:, None] * g.mu
+    y = m[1] + al[::-1]                                          # Hx + μC, Hy + μS
+    y *= F
+    q = F * F                                                    # s², c²
+    np.subtract(q[1], q[0], out=q[0])                            # c² − s²
+    np.multiply(F[1], F[0], out=q[1])                            # c·s
+    q *= m[0]
+    base = q[0] + q[1]
+    base *= g.eta
+    u = y[1] - y[0]                                              # c(Hy + μS) − s(Hx + μC)
+    u -= base
+    return u
 
 
 def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, k, j, careful=False):
@@ -358,7 +374,7 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
         h *= within
         m[2] = np.bincount(k, weights=h * dx, minlength=n_recv)
         m[3] = np.bincount(k, weights=h * dy, minlength=n_recv)
-        return m, False
+        return m.reshape(3, 2, n_recv), False
     h *= np.sqrt(rr)                                            # h = −α(1 − r0²/ρ²)/ρ
     # c(ρ, q, w) with q = q0(1 − λ) (followers, none) or q0 (leaders), eq. 6, 11, 12
     if q0 == 0.0:
@@ -386,32 +402,35 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
         w = t[j]
         w *= weight
         m[i] = np.bincount(k, weights=w, minlength=n_recv)
-    return m, True
+    return m.reshape(3, 2, n_recv), True
 
 
-def _pair_sum(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, pairs):
+def _pair_sum(pos, cos_t, sin_t, sin_cos, F, receivers, law, lam, q0, leaders, recv_leader, pairs):
     """Σ_j weight_jk·u_jk of each receiver: densely over the table or over a pair list.  A row
-    with coincident agents (non-finite in the fast form) is redone with explicit masks."""
-    c, s = cos_t[receivers], sin_t[receivers]
+    with coincident agents is redone with explicit masks (dense: the rows the fast form
+    flags; pair list: the rows non-finite in the fast form)."""
+    if pairs is None:
+        m, weighted, redo = _pair_sums_dense(pos, sin_cos, receivers, law, lam, q0, leaders, recv_leader)
+        sums = _combine(m, weighted, F, sin_cos, law)
+        if redo is not None:
+            m, weighted, _ = _pair_sums_dense(pos, sin_cos, receivers[redo], law, lam, q0, leaders,
+                                              None if recv_leader is None else recv_leader[redo],
+                                              careful=True)
+            sums[redo] = _combine(m, weighted, F[:, redo], sin_cos, law)
+        return sums
+    l_of_k = nearest_leader(pos, receivers, leaders.nonzero()[0]) if leaders is not None else None
     with np.errstate(divide='ignore', invalid='ignore'):
-        if pairs is None:
-            m, weighted = _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k)
-        else:
-            m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders,
-                                            l_of_k, *pairs)
-        sums = _combine(m, weighted, c, s, cos_t, sin_t, law)
+        m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders,
+                                        l_of_k, *pairs)
+        sums = _combine(m, weighted, F, sin_cos, law)
     if not math.isfinite(np.add.reduce(sums)):
         idx = np.flatnonzero(~np.isfinite(sums))
         lk = None if l_of_k is None else l_of_k[idx]
-        if pairs is None:
-            m, weighted = _pair_sums_dense(pos, cos_t, sin_t, receivers[idx], law, lam, q0, leaders,
-                                           lk, careful=True)
-        else:
-            keep = np.isin(pairs[0], idx)
-            k_sub = np.searchsorted(idx, pairs[0][keep])
-            m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers[idx], law, lam, q0, leaders,
-                                            lk, k_sub, pairs[1][keep], careful=True)
-        sums[idx] = _combine(m, weighted, c[idx], s[idx], cos_t, sin_t, law)
+        keep = np.isin(pairs[0], idx)
+        k_sub = np.searchsorted(idx, pairs[0][keep])
+        m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers[idx], law, lam, q0, leaders,
+                                        lk, k_sub, pairs[1][keep], careful=True)
+        sums[idx] = _combine(m, weighted, F[:, idx], sin_cos, law)
     return sums
 
 
@@ -436,24 +455,24 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
     receivers = np.asarray(receivers, dtype=np.intp)
     n_recv = receivers.size
     lam, q0 = law.effective_lambda_q0(lambda_) if law.kind != 'target' else (0.0, 0.0)
-    leaders = None
+    leaders = recv_leader = None
     if law.uses_leaders and is_leader is not None:
         is_leader = np.asarray(is_leader, dtype=bool)
         if np.count_nonzero(is_leader):
             leaders = is_leader
-    l_of_k = nearest_leader(pos, receivers, leaders.nonzero()[0]) if leaders is not None else None
+            recv_leader = leaders[receivers]
+    sin_cos = np.array((sin_t, cos_t), dtype=float)             # (2, N): the table's frames
+    F = sin_cos[:, receivers]                                   # (2, K): the receivers'
 
-    sums = _pair_sum(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, pairs)
+    sums = _pair_sum(pos, cos_t, sin_t, sin_cos, F, receivers, law, lam, q0, leaders, recv_leader, pairs)
 
     if leaders is not None:
         s = np.zeros(n_recv) if steering is None else np.asarray(steering, dtype=float)
-        u = np.where(leaders[receivers], (1.0 - lam) * sums + lam * s, sums)
+        u = np.where(recv_leader, (1.0 - lam) * sums + lam * s, sums)
     else:
         u = sums
-    if (target is not None and law.target_gain != 0.0) or (barrier is not None and law.barrier_gain != 0.0):
-        cos_k, sin_k = cos_t[receivers], sin_t[receivers]
     if target is not None and law.target_gain != 0.0:
-        u = u + target_term(pos[receivers], cos_k, sin_k, np.asarray(target, float), law)
+        u = u + target_term(pos[receivers], F[1], F[0], np.asarray(target, float), law)
     if barrier is not None and law.barrier_gain != 0.0 and len(barrier):
-        u = u + barrier_term(pos[receivers], cos_k, sin_k, np.asarray(barrier, float), law)
+        u = u + barrier_term(pos[receivers], F[1], F[0], np.asarray(barrier, float), law)
     return u
