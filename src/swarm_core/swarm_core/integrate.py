@@ -12,6 +12,8 @@ import numpy as np
 def sinc(z):
     """sin(z)/z with sinc(0) = 1 (unnormalised), as (sin z + [z = 0]) / (z + [z = 0])."""
     z = np.asarray(z, dtype=float)
+    if np.count_nonzero(z) == z.size:       # no zero: the same numbers in two numpy calls
+        return np.sin(z) / z
     zero = z == 0.0
     return (np.sin(z) + zero) / (z + zero)
 
@@ -26,13 +28,12 @@ def zoh_step(pos, theta, u, dt):
     mid = theta + half
     chord = sinc(half)
     chord *= dt                                                 # dt sinc(u dt/2)
-    step = np.empty((2, len(half)))
-    np.cos(mid, out=step[0])
-    np.sin(mid, out=step[1])
-    step *= chord
-    new_pos = np.empty_like(pos, dtype=float)
-    np.add(pos, step.T, out=new_pos)
-    return new_pos, theta + 2.0 * half
+    step = np.empty((len(half), 2))
+    np.cos(mid, out=step[:, 0])
+    np.sin(mid, out=step[:, 1])
+    step *= chord[:, None]
+    step += pos
+    return step, theta + 2.0 * half
 
 
 def rk4_step(pos, theta, t, dt, control):

@@ -168,24 +168,48 @@ def own_neighbour_pairs(pos, row: int, radius: float):
 DENSE_BLOCK = 8192
 
 
+class _Block:
+    """Scratch arrays of one row block of the dense path (b rows of n pairs) and named views of
+    them, made once: at n = 6 the cost of a step is numpy's per-call overhead, so the loop body
+    makes only same-shape calls on ready views (a broadcast call costs several plain ones)."""
+
+    __slots__ = ('d', 'dx', 'dy', 'd2', 'd2x', 'd2y', 'rr', 'h', 'wm', 'wb', 'mom', 'A', 'B',
+                 'Hx', 'Hy', 'CS')
+
+    def __init__(self, d, d2, rr, h, wm, wb, mom):
+        self.d, self.dx, self.dy = d, d[0], d[1]               # r_jk = (dx, dy)
+        self.d2, self.d2x, self.d2y = d2, d2[0], d2[1]         # dx², dy² (then work space)
+        self.rr, self.h, self.wm, self.wb = rr, h, wm, wb      # ρ² → 1/ρ², h, weights, ρ < w
+        self.mom = mom                                          # the six moments' terms
+        self.A, self.B, self.Hx, self.Hy, self.CS = mom[0], mom[1], mom[2], mom[3], mom[4:6]
+
+    @classmethod
+    def new(cls, rows: int, n: int):
+        return cls(np.empty((2, rows, n)), np.empty((2, rows, n)), np.empty((rows, n)),
+                   np.empty((rows, n)), np.empty((rows, n)), np.empty((rows, n), dtype=bool),
+                   np.empty((6, rows, n)))
+
+    def head(self, b: int):
+        """The same views on the first b rows (a partial last block)."""
+        return _Block(self.d[:, :b], self.d2[:, :b], self.rr[:b], self.h[:b], self.wm[:b],
+                      self.wb[:b], self.mom[:, :b])
+
+
 class _Scratch(threading.local):
-    """Per-thread scratch arrays of the dense path, kept from call to call (no allocation per
+    """Per-thread scratch blocks of the dense path, kept from call to call (no allocation per
     step; an agent node and the batch engine each keep their own shape)."""
 
     def __init__(self):
-        self.arrays = {}
+        self.blocks = {}
 
-    def get(self, rows: int, n: int):
-        """Arrays for blocks of ``rows`` rows of n pairs: the pair factors G (3, 2, rows, n),
-        their multipliers M (3, rows, n), (dx², dy²) (2, rows, n) and a bool array (rows, n)."""
+    def get(self, rows: int, n: int) -> _Block:
         key = (rows, n)
-        arrays = self.arrays.get(key)
-        if arrays is None:
-            if len(self.arrays) >= 4:
-                self.arrays.clear()
-            arrays = self.arrays[key] = (np.empty((3, 2, rows, n)), np.empty((3, rows, n)),
-                                         np.empty((2, rows, n)), np.empty((rows, n), dtype=bool))
-        return arrays
+        block = self.blocks.get(key)
+        if block is None:
+            if len(self.blocks) >= 4:
+                self.blocks.clear()
+            block = self.blocks[key] = _Block.new(rows, n)
+        return block
 
 
 _scratch = _Scratch()
@@ -216,7 +240,7 @@ def _pair_weights(law, lam, q0, leaders, recv_leader, careful):
     return far, gain, leaders.nonzero()[0]
 
 
-def _pair_sums_dense(pos, sin_cos, receivers, law, lam, q0, leaders, recv_leader, careful=False):
+def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader, careful=False):
     """Row sums ("moments") from which Σ_j weight_jk·u_jk follows for each receiver, over the
     whole table, in blocks of receiver rows (no Python loop over pairs).
 
@@ -227,36 +251,33 @@ def _pair_sums_dense(pos, sin_cos, receivers, law, lam, q0, leaders, recv_leader
         Σ_j W_jk u_jk = −η[(c² − s²)·A + c·s·B] + (c·Hy − s·Hx) + μ(c·S − s·C)
 
     A = Σ W dx dy/ρ², B = Σ W (dy² − dx²)/ρ², (Hx, Hy) = Σ W h·(dx, dy), h = −α(1 − r0²/ρ²)/ρ,
-    S = Σ W sin θ_j, C = Σ W cos θ_j.  The self pair adds exactly 0 to A, B, Hx, Hy (its ρ² is
+    C = Σ W cos θ_j, S = Σ W sin θ_j.  The self pair adds exactly 0 to A, B, Hx, Hy (its ρ² is
     set to ∞) and its alignment c·s_k − s·c_k cancels.  With unit weights (no cutoff weight or
-    leader gain differs from 1) S and C are the plain table sums and are not formed per row.
+    leader gain differs from 1) C and S are the plain table sums and are not formed per row.
     The target law (eq. 13) needs only (Hx, Hy) with h = −α(1 − r0²/ρ²) (·1/ρ if normalised)
-    within w.  The nearest leader l(k) (eq. 8) is read off the block's ρ² (the same numbers
+    within w.  The nearest leader l(k) (eq. 8) is read off the block's ρ² (the numbers
     `nearest_leader` forms; ties to the lower row).
 
-    Few numpy calls per block (at n = 6 their overhead, not the arithmetic, is the cost): the
-    pair factors G = [dx·dy, dy² − dx²], [dx, dy], [sin θ_j, cos θ_j] times their multipliers
-    M = W/ρ², W·h, W in one broadcast product, then one row reduction.
-
-    Returns (moments (3, 2, K): [A, B], [Hx, Hy], [S, C] (S, C only if weighted), weighted,
-    redo).  Each moment is numpy's row reduction of a contiguous row, whose result does not
-    depend on how many rows a block holds, so one receiver alone (an agent node) gets the batch
-    value bit for bit.  A row with a coincident pair (ρ = 0, j ≠ k) is not valid here; redo
-    (None or receiver positions) lists them for the caller to redo with ``careful``, where
-    coincident pairs get weight 0 (they contribute 0).
+    cos_sin (2, N): the table's cos θ and sin θ.  Returns (moments (6, K): rows A, B, Hx, Hy,
+    C, S (C, S only if weighted), weighted, redo).  Each moment is numpy's row reduction of a
+    contiguous row, whose result does not depend on how many rows a block holds, so one
+    receiver alone (an agent node) gets the batch value bit for bit.  A row with a coincident
+    pair (ρ = 0, j ≠ k) is not valid here: redo (None, or receiver positions) lists them for the
+    caller to redo with ``careful``, where coincident pairs get weight 0 (they contribute 0).
     """
     n = pos.shape[0]
     n_recv = receivers.size
-    sums = np.empty((3, 2, n_recv))
+    sums = np.empty((6, n_recv))
     target_kind = law.kind == 'target'
     weights = None if target_kind else _pair_weights(law, lam, q0, leaders, recv_leader, careful)
     redo = None
     if n_recv == 0:
         return sums, weights is not None, redo
     xy = pos.T                                                  # (2, N): x and y rows
-    xy_recv = xy[:, receivers, None]
+    xy_recv = xy.take(receivers, axis=1)[:, :, None]
+    xy_table = xy[:, None, :]
     block = min(n_recv, max(1, DENSE_BLOCK // max(1, n)))
-    G_, M_, D2_, WB_ = _scratch.get(block, n)
+    full = _scratch.get(block, n)
     g = law.gains
     w2 = law.cutoff_radius * law.cutoff_radius
     a_r0 = g.alpha * g.r0 * g.r0
@@ -265,80 +286,82 @@ def _pair_sums_dense(pos, sin_cos, receivers, law, lam, q0, leaders, recv_leader
     gain = leader_rows = None
     if weights is not None:
         far, gain, leader_rows = weights
-        table_sin_cos = sin_cos[:, None, :]
+        table_cos_sin = cos_sin[:, None, :]
+    top = 4 if weights is None else 6
     for a in range(0, n_recv, block):
         b = min(block, n_recv - a)
+        z = full if b == block else full.head(b)
         rows = slice(a, a + b)
-        if b == block:
-            G, M, d2, wb = G_, M_, D2_, WB_
-        else:
-            G, M, d2, wb = G_[:, :, :b], M_[:, :b], D2_[:, :b], WB_[:b]
-        d = G[1]
-        rr = M[0]
-        np.subtract(xy_recv[:, rows], xy[:, None, :], out=d)    # r_jk = r_k − r_j
-        np.multiply(d, d, out=d2)
-        np.add(d2[0], d2[1], out=rr)                             # ρ²
-        rr.put(self_pair[rows] - a * n if a else self_pair[rows], np.inf)   # self: 1/ρ² = 0
+        single = b == n_recv
+        rr = z.rr
+        np.subtract(xy_recv if single else xy_recv[:, rows], xy_table, out=z.d)   # r_jk = r_k − r_j
+        np.multiply(z.d, z.d, out=z.d2)
+        np.add(z.d2x, z.d2y, out=rr)                             # ρ²
+        rr.put(self_pair if single else self_pair[rows] - a * n, np.inf)   # self: 1/ρ² = 0
         if gain is not None:                                     # l(k), eq. 8: the nearest leader
-            l_flat = leader_rows[rr[:, leader_rows].argmin(axis=1)]
-            l_flat += starts[:b]
+            l_flat = leader_rows.take(rr.take(leader_rows, axis=1).argmin(axis=1))
+            l_flat += starts if b == block else starts[:b]
         if target_kind or weights is not None:
-            np.less(rr, w2, out=wb)                              # ρ < w
+            np.less(rr, w2, out=z.wb)                            # ρ < w
         coincident = None
-        if not rr.all():                                         # a coincident pair (ρ = 0, j ≠ k)
+        if np.count_nonzero(rr) != rr.size:                      # a coincident pair (ρ = 0, j ≠ k)
             coincident = rr == 0.0
             rr[coincident] = np.inf
             if not careful:                                      # its row is redone by the caller
                 bad = a + np.flatnonzero(coincident.any(axis=1))
                 redo = bad if redo is None else np.concatenate((redo, bad))
-        h = M[1]
+        h = z.h
         np.divide(1.0, rr, out=rr)                               # 1/ρ²
         np.multiply(rr, a_r0, out=h)
-        h -= g.alpha                                             # −α(1 − r0²/ρ²)
+        np.subtract(h, g.alpha, out=h)                           # −α(1 − r0²/ρ²)
         if target_kind:
             if law.target_normalised:
-                h *= np.sqrt(rr, out=d2[0])
-            h *= wb
-            d *= h
-            np.add.reduce(d, axis=2, out=sums[1, :, rows])
+                np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)
+            np.multiply(h, z.wb, out=h)
+            np.multiply(z.dx, h, out=z.Hx)
+            np.multiply(z.dy, h, out=z.Hy)
+            np.add.reduce(z.mom[2:4], axis=2, out=sums[2:4] if single else sums[2:4, rows])
             continue
-        np.subtract(d2[1], d2[0], out=G[0, 1])                   # dy² − dx²
-        np.multiply(d[0], d[1], out=G[0, 0])                     # dx·dy
-        h *= np.sqrt(rr, out=d2[0])                              # h = −α(1 − r0²/ρ²)/ρ
-        top = 2
+        np.subtract(z.d2y, z.d2x, out=z.B)                       # dy² − dx²
+        np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)            # h = −α(1 − r0²/ρ²)/ρ
         if weights is not None:
-            wm = M[2]
-            np.copyto(wm, far if gain is None else far[rows])
-            np.copyto(wm, 1.0, where=wb)                         # c(ρ, q, w), eq. 6
+            wm = z.wm
+            np.copyto(wm, far if gain is None else far if single else far[rows])
+            np.copyto(wm, 1.0, where=z.wb)                       # c(ρ, q, w), eq. 6
             if gain is not None:                                 # (ℓc − 1)λ + 1 with l(k), eq. 11
-                wm.put(l_flat, wm.take(l_flat) * gain[rows])
+                wm.put(l_flat, wm.take(l_flat) * (gain if single else gain[rows]))
             if coincident is not None and careful:
                 wm[coincident] = 0.0
-            M[:2] *= wm
-            np.copyto(G[2], table_sin_cos)
-            top = 3
-        G[:top] *= M[:top, None]                                 # A, B, Hx, Hy (and S, C)
-        np.add.reduce(G[:top], axis=3, out=sums[:top, :, rows])
+            np.multiply(rr, wm, out=rr)
+            np.multiply(h, wm, out=h)
+            np.multiply(wm, table_cos_sin, out=z.CS)
+        np.multiply(z.dx, z.dy, out=z.A)
+        np.multiply(z.A, rr, out=z.A)
+        np.multiply(z.B, rr, out=z.B)
+        np.multiply(z.dx, h, out=z.Hx)
+        np.multiply(z.dy, h, out=z.Hy)
+        np.add.reduce(z.mom if top == 6 else z.mom[:4], axis=2,
+                      out=(sums if top == 6 else sums[:4]) if single else sums[:top, rows])
     return sums, weights is not None, redo
 
 
-def _combine(m, weighted, F, sin_cos, law):
-    """Σ_j W_jk u_jk of each receiver from its moments m (3, 2, K) (see `_pair_sums_dense`);
-    F (2, K): the receivers' (sin θ_k, cos θ_k); sin_cos (2, N): the table's."""
+def _combine(m, weighted, F, cos_sin, law):
+    """Σ_j W_jk u_jk of each receiver from its moments m (6, K) (see `_pair_sums_dense`);
+    F (2, K): the receivers' (sin θ_k, cos θ_k); cos_sin (2, N): the table's (cos θ, sin θ)."""
     if law.kind == 'target':
-        p = m[1] * F                                             # s·Hx, c·Hy
+        p = m[2:4] * F                                           # s·Hx, c·Hy
         return p[1] - p[0]
     g = law.gains
     if weighted:
-        al = m[2] * g.mu                                         # μS, μC
+        y = m[4:6] * g.mu                                        # μC, μS
+        y += m[2:4]
     else:
-        al = np.add.reduce(sin_cos, axis=1)[:, None] * g.mu
-    y = m[1] + al[::-1]                                          # Hx + μC, Hy + μS
-    y *= F
+        y = m[2:4] + (np.add.reduce(cos_sin, axis=1) * g.mu)[:, None]
+    y *= F                                                       # s(Hx + μC), c(Hy + μS)
     q = F * F                                                    # s², c²
     np.subtract(q[1], q[0], out=q[0])                            # c² − s²
     np.multiply(F[1], F[0], out=q[1])                            # c·s
-    q *= m[0]
+    q *= m[0:2]
     base = q[0] + q[1]
     base *= g.eta
     u = y[1] - y[0]                                              # c(Hy + μS) − s(Hx + μC)
@@ -374,7 +397,7 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
         h *= within
         m[2] = np.bincount(k, weights=h * dx, minlength=n_recv)
         m[3] = np.bincount(k, weights=h * dy, minlength=n_recv)
-        return m.reshape(3, 2, n_recv), False
+        return m, False
     h *= np.sqrt(rr)                                            # h = −α(1 − r0²/ρ²)/ρ
     # c(ρ, q, w) with q = q0(1 − λ) (followers, none) or q0 (leaders), eq. 6, 11, 12
     if q0 == 0.0:
@@ -398,31 +421,31 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
     dy *= h
     for i, w in enumerate((dy2, dx2, dx, dy)):
         m[i] = np.bincount(k, weights=w, minlength=n_recv)
-    for i, t in ((4, sin_t), (5, cos_t)):
+    for i, t in ((4, cos_t), (5, sin_t)):
         w = t[j]
         w *= weight
         m[i] = np.bincount(k, weights=w, minlength=n_recv)
-    return m.reshape(3, 2, n_recv), True
+    return m, True
 
 
-def _pair_sum(pos, cos_t, sin_t, sin_cos, F, receivers, law, lam, q0, leaders, recv_leader, pairs):
+def _pair_sum(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, leaders, recv_leader, pairs):
     """Σ_j weight_jk·u_jk of each receiver: densely over the table or over a pair list.  A row
     with coincident agents is redone with explicit masks (dense: the rows the fast form
     flags; pair list: the rows non-finite in the fast form)."""
     if pairs is None:
-        m, weighted, redo = _pair_sums_dense(pos, sin_cos, receivers, law, lam, q0, leaders, recv_leader)
-        sums = _combine(m, weighted, F, sin_cos, law)
+        m, weighted, redo = _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader)
+        sums = _combine(m, weighted, F, cos_sin, law)
         if redo is not None:
-            m, weighted, _ = _pair_sums_dense(pos, sin_cos, receivers[redo], law, lam, q0, leaders,
+            m, weighted, _ = _pair_sums_dense(pos, cos_sin, receivers[redo], law, lam, q0, leaders,
                                               None if recv_leader is None else recv_leader[redo],
                                               careful=True)
-            sums[redo] = _combine(m, weighted, F[:, redo], sin_cos, law)
+            sums[redo] = _combine(m, weighted, F[:, redo], cos_sin, law)
         return sums
     l_of_k = nearest_leader(pos, receivers, leaders.nonzero()[0]) if leaders is not None else None
     with np.errstate(divide='ignore', invalid='ignore'):
         m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders,
                                         l_of_k, *pairs)
-        sums = _combine(m, weighted, F, sin_cos, law)
+        sums = _combine(m, weighted, F, cos_sin, law)
     if not math.isfinite(np.add.reduce(sums)):
         idx = np.flatnonzero(~np.isfinite(sums))
         lk = None if l_of_k is None else l_of_k[idx]
@@ -430,7 +453,7 @@ def _pair_sum(pos, cos_t, sin_t, sin_cos, F, receivers, law, lam, q0, leaders, r
         k_sub = np.searchsorted(idx, pairs[0][keep])
         m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers[idx], law, lam, q0, leaders,
                                         lk, k_sub, pairs[1][keep], careful=True)
-        sums[idx] = _combine(m, weighted, F[:, idx], sin_cos, law)
+        sums[idx] = _combine(m, weighted, F[:, idx], cos_sin, law)
     return sums
 
 
@@ -461,10 +484,11 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
         if np.count_nonzero(is_leader):
             leaders = is_leader
             recv_leader = leaders[receivers]
-    sin_cos = np.array((sin_t, cos_t), dtype=float)             # (2, N): the table's frames
-    F = sin_cos[:, receivers]                                   # (2, K): the receivers'
+    frames = np.array((cos_t, sin_t, cos_t), dtype=float)
+    cos_sin = frames[:2]                                        # (2, N): the table's cos θ, sin θ
+    F = frames[1:].take(receivers, axis=1)                      # (2, K): the receivers' sin θ, cos θ
 
-    sums = _pair_sum(pos, cos_t, sin_t, sin_cos, F, receivers, law, lam, q0, leaders, recv_leader, pairs)
+    sums = _pair_sum(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, leaders, recv_leader, pairs)
 
     if leaders is not None:
         s = np.zeros(n_recv) if steering is None else np.asarray(steering, dtype=float)
