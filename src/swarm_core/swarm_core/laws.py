@@ -174,14 +174,26 @@ class _Block:
     makes only same-shape calls on ready views (a broadcast call costs several plain ones)."""
 
     __slots__ = ('d', 'dx', 'dy', 'd2', 'd2x', 'd2y', 'rr', 'h', 'wm', 'wb', 'mom', 'A', 'B',
-                 'Hx', 'Hy', 'CS')
+                 'Hx', 'Hy', 'C', 'S', 'consts')
 
     def __init__(self, d, d2, rr, h, wm, wb, mom):
         self.d, self.dx, self.dy = d, d[0], d[1]               # r_jk = (dx, dy)
         self.d2, self.d2x, self.d2y = d2, d2[0], d2[1]         # dx², dy² (then work space)
         self.rr, self.h, self.wm, self.wb = rr, h, wm, wb      # ρ² → 1/ρ², h, weights, ρ < w
         self.mom = mom                                          # the six moments' terms
-        self.A, self.B, self.Hx, self.Hy, self.CS = mom[0], mom[1], mom[2], mom[3], mom[4:6]
+        self.A, self.B, self.Hx, self.Hy, self.C, self.S = mom
+        self.consts = {}
+
+    def const(self, value: float):
+        """A (rows, n) array filled with ``value`` (numpy's call with a Python number and out=
+        costs about three times one with two arrays)."""
+        a = self.consts.get(value)
+        if a is None:
+            if len(self.consts) >= 16:
+                self.consts.clear()
+            a = self.consts[value] = np.full(self.rr.shape, value)
+            a.flags.writeable = False
+        return a
 
     @classmethod
     def new(cls, rows: int, n: int):
@@ -221,6 +233,19 @@ def _row_starts(rows: int, n: int):
     starts = np.arange(0, rows * n, n)
     starts.flags.writeable = False
     return starts
+
+
+#: at most this many pairs: the dense path gathers r_j and the frames of the senders with
+#: take() (cheaper than numpy's broadcasting machinery on tiny arrays)
+GATHER_LIMIT = 512
+
+
+@functools.lru_cache(maxsize=8)
+def _senders(rows: int, n: int):
+    """0 … n−1 repeated ``rows`` times: the sender row of each entry of a (rows, n) block."""
+    j = np.tile(np.arange(n), rows)
+    j.flags.writeable = False
+    return j
 
 
 def _pair_weights(law, lam, q0, leaders, recv_leader, careful):
@@ -274,19 +299,30 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
     if n_recv == 0:
         return sums, weights is not None, redo
     xy = pos.T                                                  # (2, N): x and y rows
-    xy_recv = xy.take(receivers, axis=1)[:, :, None]
-    xy_table = xy[:, None, :]
     block = min(n_recv, max(1, DENSE_BLOCK // max(1, n)))
     full = _scratch.get(block, n)
+    gather = block == n_recv and n_recv * n <= GATHER_LIMIT     # one small block
+    if gather:
+        senders = _senders(n_recv, n)
+        xy_recv = xy.take(receivers.repeat(n), axis=1)
+        xy_table = xy.take(senders, axis=1)
+        d_flat = full.d.reshape(2, n_recv * n)
+    else:
+        xy_recv = xy.take(receivers, axis=1)[:, :, None]
+        xy_table = xy[:, None, :]
     g = law.gains
-    w2 = law.cutoff_radius * law.cutoff_radius
-    a_r0 = g.alpha * g.r0 * g.r0
+    const = full.const
     self_pair = receivers + _row_starts(n_recv, n)              # flat index of (k, k) in a block
     starts = _row_starts(block, n)
     gain = leader_rows = None
     if weights is not None:
         far, gain, leader_rows = weights
-        table_cos_sin = cos_sin[:, None, :]
+        if gain is None:
+            far = const(far)
+        if gather:
+            table_cos, table_sin = cos_sin.take(senders, axis=1).reshape(2, n_recv, n)
+        else:
+            table_cos, table_sin = cos_sin[:, None, :]
     top = 4 if weights is None else 6
     for a in range(0, n_recv, block):
         b = min(block, n_recv - a)
@@ -294,7 +330,10 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
         rows = slice(a, a + b)
         single = b == n_recv
         rr = z.rr
-        np.subtract(xy_recv if single else xy_recv[:, rows], xy_table, out=z.d)   # r_jk = r_k − r_j
+        if gather:
+            np.subtract(xy_recv, xy_table, out=d_flat)          # r_jk = r_k − r_j
+        else:
+            np.subtract(xy_recv if single else xy_recv[:, rows], xy_table, out=z.d)
         np.multiply(z.d, z.d, out=z.d2)
         np.add(z.d2x, z.d2y, out=rr)                             # ρ²
         rr.put(self_pair if single else self_pair[rows] - a * n, np.inf)   # self: 1/ρ² = 0
@@ -302,7 +341,7 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
             l_flat = leader_rows.take(rr.take(leader_rows, axis=1).argmin(axis=1))
             l_flat += starts if b == block else starts[:b]
         if target_kind or weights is not None:
-            np.less(rr, w2, out=z.wb)                            # ρ < w
+            np.less(rr, z.const(law.cutoff_radius * law.cutoff_radius), out=z.wb)   # ρ < w
         coincident = None
         if np.count_nonzero(rr) != rr.size:                      # a coincident pair (ρ = 0, j ≠ k)
             coincident = rr == 0.0
@@ -311,9 +350,9 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
                 bad = a + np.flatnonzero(coincident.any(axis=1))
                 redo = bad if redo is None else np.concatenate((redo, bad))
         h = z.h
-        np.divide(1.0, rr, out=rr)                               # 1/ρ²
-        np.multiply(rr, a_r0, out=h)
-        np.subtract(h, g.alpha, out=h)                           # −α(1 − r0²/ρ²)
+        np.reciprocal(rr, out=rr)                                # 1/ρ²
+        np.multiply(rr, z.const(g.alpha * g.r0 * g.r0), out=h)
+        np.subtract(h, z.const(g.alpha), out=h)                  # −α(1 − r0²/ρ²)
         if target_kind:
             if law.target_normalised:
                 np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)
@@ -326,15 +365,19 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
         np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)            # h = −α(1 − r0²/ρ²)/ρ
         if weights is not None:
             wm = z.wm
-            np.copyto(wm, far if gain is None else far if single else far[rows])
-            np.copyto(wm, 1.0, where=z.wb)                       # c(ρ, q, w), eq. 6
+            if gain is None:                                     # far: a (block, n) constant
+                np.copyto(wm, far if b == block else far[:b])
+            else:                                                # far: (K, 1), per receiver
+                np.copyto(wm, far if single else far[rows])
+            np.copyto(wm, z.const(1.0), where=z.wb)              # c(ρ, q, w), eq. 6
             if gain is not None:                                 # (ℓc − 1)λ + 1 with l(k), eq. 11
                 wm.put(l_flat, wm.take(l_flat) * (gain if single else gain[rows]))
             if coincident is not None and careful:
                 wm[coincident] = 0.0
             np.multiply(rr, wm, out=rr)
             np.multiply(h, wm, out=h)
-            np.multiply(wm, table_cos_sin, out=z.CS)
+            np.multiply(wm, table_cos, out=z.C)
+            np.multiply(wm, table_sin, out=z.S)
         np.multiply(z.dx, z.dy, out=z.A)
         np.multiply(z.A, rr, out=z.A)
         np.multiply(z.B, rr, out=z.B)
@@ -362,8 +405,7 @@ def _combine(m, weighted, F, cos_sin, law):
     np.subtract(q[1], q[0], out=q[0])                            # c² − s²
     np.multiply(F[1], F[0], out=q[1])                            # c·s
     q *= m[0:2]
-    base = q[0] + q[1]
-    base *= g.eta
+    base = (q[0] + q[1]) * g.eta
     u = y[1] - y[0]                                              # c(Hy + μS) − s(Hx + μC)
     u -= base
     return u
