@@ -26,13 +26,13 @@ def zoh_step(pos, theta, u, dt):
     """
     half = np.multiply(u, 0.5 * dt)                             # u dt/2
     mid = theta + half
-    chord = sinc(half)
-    chord *= dt                                                 # dt sinc(u dt/2)
+    chord = sinc(half) * dt                                     # dt sinc(u dt/2)
     step = np.empty((len(half), 2))
     np.cos(mid, out=step[:, 0])
     np.sin(mid, out=step[:, 1])
-    step *= chord[:, None]
-    step += pos
+    flat = step.reshape(-1)                                     # (cos, sin) · chord, without
+    np.multiply(flat, chord.repeat(2), out=flat)                # numpy's broadcasting (n = 6)
+    np.add(step, pos, out=step)
     return step, theta + 2.0 * half
 
 

@@ -311,7 +311,7 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
         xy_recv = xy.take(receivers, axis=1)[:, :, None]
         xy_table = xy[:, None, :]
     g = law.gains
-    const = full.const
+    const = full.const if gather else float                   # constants: arrays only when tiny
     self_pair = receivers + _row_starts(n_recv, n)              # flat index of (k, k) in a block
     starts = _row_starts(block, n)
     gain = leader_rows = None
@@ -341,7 +341,7 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
             l_flat = leader_rows.take(rr.take(leader_rows, axis=1).argmin(axis=1))
             l_flat += starts if b == block else starts[:b]
         if target_kind or weights is not None:
-            np.less(rr, z.const(law.cutoff_radius * law.cutoff_radius), out=z.wb)   # ρ < w
+            np.less(rr, const(law.cutoff_radius * law.cutoff_radius), out=z.wb)   # ρ < w
         coincident = None
         if np.count_nonzero(rr) != rr.size:                      # a coincident pair (ρ = 0, j ≠ k)
             coincident = rr == 0.0
@@ -351,8 +351,8 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
                 redo = bad if redo is None else np.concatenate((redo, bad))
         h = z.h
         np.reciprocal(rr, out=rr)                                # 1/ρ²
-        np.multiply(rr, z.const(g.alpha * g.r0 * g.r0), out=h)
-        np.subtract(h, z.const(g.alpha), out=h)                  # −α(1 − r0²/ρ²)
+        np.multiply(rr, const(g.alpha * g.r0 * g.r0), out=h)
+        np.subtract(h, const(g.alpha), out=h)                  # −α(1 − r0²/ρ²)
         if target_kind:
             if law.target_normalised:
                 np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)
@@ -365,11 +365,8 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
         np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)            # h = −α(1 − r0²/ρ²)/ρ
         if weights is not None:
             wm = z.wm
-            if gain is None:                                     # far: a (block, n) constant
-                np.copyto(wm, far if b == block else far[:b])
-            else:                                                # far: (K, 1), per receiver
-                np.copyto(wm, far if single else far[rows])
-            np.copyto(wm, z.const(1.0), where=z.wb)              # c(ρ, q, w), eq. 6
+            np.copyto(wm, far if gain is None or single else far[rows])   # far: q, or (K, 1)
+            np.copyto(wm, const(1.0), where=z.wb)              # c(ρ, q, w), eq. 6
             if gain is not None:                                 # (ℓc − 1)λ + 1 with l(k), eq. 11
                 wm.put(l_flat, wm.take(l_flat) * (gain if single else gain[rows]))
             if coincident is not None and careful:
