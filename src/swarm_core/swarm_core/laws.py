@@ -284,7 +284,7 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
     `nearest_leader` forms; ties to the lower row).
 
     cos_sin (2, N): the table's cos θ and sin θ.  Returns (moments (6, K): rows A, B, Hx, Hy,
-    C, S (C, S only if weighted), weighted, redo).  Each moment is numpy's row reduction of a
+    C, S (C, S only if weighted or the block is small), whether C, S are there, redo).  Each moment is numpy's row reduction of a
     contiguous row, whose result does not depend on how many rows a block holds, so one
     receiver alone (an agent node) gets the batch value bit for bit.  A row with a coincident
     pair (ρ = 0, j ≠ k) is not valid here: redo (None, or receiver positions) lists them for the
@@ -315,15 +315,15 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
     self_pair = receivers + _row_starts(n_recv, n)              # flat index of (k, k) in a block
     starts = _row_starts(block, n)
     gain = leader_rows = None
+    if gather and not target_kind:   # the senders' cos θ_j, sin θ_j in the C, S rows (weighted below)
+        cos_sin.take(senders, axis=1, out=full.mom[4:6].reshape(2, n_recv * n))
     if weights is not None:
         far, gain, leader_rows = weights
         if gain is None:
             far = const(far)
-        if gather:
-            table_cos, table_sin = cos_sin.take(senders, axis=1).reshape(2, n_recv, n)
-        else:
+        if not gather:
             table_cos, table_sin = cos_sin[:, None, :]
-    top = 4 if weights is None else 6
+    top = 6 if weights is not None or gather else 4
     for a in range(0, n_recv, block):
         b = min(block, n_recv - a)
         z = full if b == block else full.head(b)
@@ -373,8 +373,12 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
                 wm[coincident] = 0.0
             np.multiply(rr, wm, out=rr)
             np.multiply(h, wm, out=h)
-            np.multiply(wm, table_cos, out=z.C)
-            np.multiply(wm, table_sin, out=z.S)
+            if gather:
+                np.multiply(z.C, wm, out=z.C)
+                np.multiply(z.S, wm, out=z.S)
+            else:
+                np.multiply(wm, table_cos, out=z.C)
+                np.multiply(wm, table_sin, out=z.S)
         np.multiply(z.dx, z.dy, out=z.A)
         np.multiply(z.A, rr, out=z.A)
         np.multiply(z.B, rr, out=z.B)
@@ -382,7 +386,7 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
         np.multiply(z.dy, h, out=z.Hy)
         np.add.reduce(z.mom if top == 6 else z.mom[:4], axis=2,
                       out=(sums if top == 6 else sums[:4]) if single else sums[:top, rows])
-    return sums, weights is not None, redo
+    return sums, top == 6, redo
 
 
 def _combine(m, weighted, F, cos_sin, law):
