@@ -21,6 +21,7 @@ nonzero ``barrier_gain`` are given.
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import threading
@@ -225,6 +226,7 @@ class _Scratch(threading.local):
 
 
 _scratch = _Scratch()
+_NO_ERRSTATE = contextlib.nullcontext()
 
 
 @functools.lru_cache(maxsize=8)
@@ -284,11 +286,18 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
     `nearest_leader` forms; ties to the lower row).
 
     cos_sin (2, N): the table's cos θ and sin θ.  Returns (moments (6, K): rows A, B, Hx, Hy,
-    C, S (C, S only if weighted or the block is small), whether C, S are there, redo).  Each moment is numpy's row reduction of a
-    contiguous row, whose result does not depend on how many rows a block holds, so one
-    receiver alone (an agent node) gets the batch value bit for bit.  A row with a coincident
-    pair (ρ = 0, j ≠ k) is not valid here: redo (None, or receiver positions) lists them for the
-    caller to redo with ``careful``, where coincident pairs get weight 0 (they contribute 0).
+    C, S; whether the C, S rows are there (weighted, or a small block, where taking the
+    senders' frames costs less than a separate table sum); redo).  Each moment is numpy's row
+    reduction of a contiguous row, whose result does not depend on how many rows a block
+    holds, so one receiver alone (an agent node) gets the batch value bit for bit.  A row with
+    a coincident pair (ρ = 0, j ≠ k) is not valid here: redo (None, or receiver positions)
+    lists them for the caller to redo with ``careful``, where coincident pairs get weight 0
+    (they contribute 0).
+
+    At n = 6 the cost is numpy's per-call overhead, not arithmetic: a small block (at most
+    GATHER_LIMIT pairs) gathers r_j and the senders' frames with take() instead of
+    broadcasting, uses constant arrays instead of Python numbers, and looks for ρ = 0 before
+    dividing; large blocks keep scalar operands and flag non-finite rows after the sums.
     """
     n = pos.shape[0]
     n_recv = receivers.size
@@ -324,68 +333,76 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
         if not gather:
             table_cos, table_sin = cos_sin[:, None, :]
     top = 6 if weights is not None or gather else 4
-    for a in range(0, n_recv, block):
-        b = min(block, n_recv - a)
-        z = full if b == block else full.head(b)
-        rows = slice(a, a + b)
-        single = b == n_recv
-        rr = z.rr
-        if gather:
-            np.subtract(xy_recv, xy_table, out=d_flat)          # r_jk = r_k − r_j
-        else:
-            np.subtract(xy_recv if single else xy_recv[:, rows], xy_table, out=z.d)
-        np.multiply(z.d, z.d, out=z.d2)
-        np.add(z.d2x, z.d2y, out=rr)                             # ρ²
-        rr.put(self_pair if single else self_pair[rows] - a * n, np.inf)   # self: 1/ρ² = 0
-        if gain is not None:                                     # l(k), eq. 8: the nearest leader
-            l_flat = leader_rows.take(rr.take(leader_rows, axis=1).argmin(axis=1))
-            l_flat += starts if b == block else starts[:b]
-        if target_kind or weights is not None:
-            np.less(rr, const(law.cutoff_radius * law.cutoff_radius), out=z.wb)   # ρ < w
-        coincident = None
-        if np.count_nonzero(rr) != rr.size:                      # a coincident pair (ρ = 0, j ≠ k)
-            coincident = rr == 0.0
-            rr[coincident] = np.inf
-            if not careful:                                      # its row is redone by the caller
-                bad = a + np.flatnonzero(coincident.any(axis=1))
-                redo = bad if redo is None else np.concatenate((redo, bad))
-        h = z.h
-        np.reciprocal(rr, out=rr)                                # 1/ρ²
-        np.multiply(rr, const(g.alpha * g.r0 * g.r0), out=h)
-        np.subtract(h, const(g.alpha), out=h)                  # −α(1 − r0²/ρ²)
-        if target_kind:
-            if law.target_normalised:
-                np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)
-            np.multiply(h, z.wb, out=h)
+    # coincident pairs: a small block (or a careful pass) looks for ρ = 0 before dividing; a
+    # large one divides anyway (no check pass over every block) and flags non-finite rows after
+    look = gather or careful
+    with _NO_ERRSTATE if look else np.errstate(divide='ignore', invalid='ignore'):
+        for a in range(0, n_recv, block):
+            b = min(block, n_recv - a)
+            z = full if b == block else full.head(b)
+            rows = slice(a, a + b)
+            single = b == n_recv
+            rr = z.rr
+            if gather:
+                np.subtract(xy_recv, xy_table, out=d_flat)       # r_jk = r_k − r_j
+            else:
+                np.subtract(xy_recv if single else xy_recv[:, rows], xy_table, out=z.d)
+            np.multiply(z.d, z.d, out=z.d2)
+            np.add(z.d2x, z.d2y, out=rr)                         # ρ²
+            rr.put(self_pair if single else self_pair[rows] - a * n, np.inf)  # self: 1/ρ² = 0
+            if gain is not None:                                 # l(k), eq. 8: the nearest leader
+                l_flat = leader_rows.take(rr.take(leader_rows, axis=1).argmin(axis=1))
+                l_flat += starts if b == block else starts[:b]
+            if target_kind or weights is not None:
+                np.less(rr, const(law.cutoff_radius * law.cutoff_radius), out=z.wb)  # ρ < w
+            coincident = None
+            if look and np.count_nonzero(rr) != rr.size:         # a coincident pair (ρ = 0, j ≠ k)
+                coincident = rr == 0.0
+                rr[coincident] = np.inf
+                if not careful:                                  # its row is redone by the caller
+                    bad = a + np.flatnonzero(coincident.any(axis=1))
+                    redo = bad if redo is None else np.concatenate((redo, bad))
+            h = z.h
+            np.reciprocal(rr, out=rr)                            # 1/ρ²
+            np.multiply(rr, const(g.alpha * g.r0 * g.r0), out=h)
+            np.subtract(h, const(g.alpha), out=h)                # −α(1 − r0²/ρ²)
+            if target_kind:
+                if law.target_normalised:
+                    np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)
+                np.multiply(h, z.wb, out=h)
+                np.multiply(z.dx, h, out=z.Hx)
+                np.multiply(z.dy, h, out=z.Hy)
+                np.add.reduce(z.mom[2:4], axis=2, out=sums[2:4] if single else sums[2:4, rows])
+                continue
+            np.subtract(z.d2y, z.d2x, out=z.B)                   # dy² − dx²
+            np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)        # h = −α(1 − r0²/ρ²)/ρ
+            if weights is not None:
+                wm = z.wm
+                np.copyto(wm, far if gain is None or single else far[rows])  # far: q, or (K, 1)
+                np.copyto(wm, const(1.0), where=z.wb)            # c(ρ, q, w), eq. 6
+                if gain is not None:                             # (ℓc − 1)λ + 1 with l(k), eq. 11
+                    wm.put(l_flat, wm.take(l_flat) * (gain if single else gain[rows]))
+                if coincident is not None and careful:
+                    wm[coincident] = 0.0
+                np.multiply(rr, wm, out=rr)
+                np.multiply(h, wm, out=h)
+                if gather:
+                    np.multiply(z.C, wm, out=z.C)
+                    np.multiply(z.S, wm, out=z.S)
+                else:
+                    np.multiply(wm, table_cos, out=z.C)
+                    np.multiply(wm, table_sin, out=z.S)
+            np.multiply(z.dx, z.dy, out=z.A)
+            np.multiply(z.A, rr, out=z.A)
+            np.multiply(z.B, rr, out=z.B)
             np.multiply(z.dx, h, out=z.Hx)
             np.multiply(z.dy, h, out=z.Hy)
-            np.add.reduce(z.mom[2:4], axis=2, out=sums[2:4] if single else sums[2:4, rows])
-            continue
-        np.subtract(z.d2y, z.d2x, out=z.B)                       # dy² − dx²
-        np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)            # h = −α(1 − r0²/ρ²)/ρ
-        if weights is not None:
-            wm = z.wm
-            np.copyto(wm, far if gain is None or single else far[rows])   # far: q, or (K, 1)
-            np.copyto(wm, const(1.0), where=z.wb)              # c(ρ, q, w), eq. 6
-            if gain is not None:                                 # (ℓc − 1)λ + 1 with l(k), eq. 11
-                wm.put(l_flat, wm.take(l_flat) * (gain if single else gain[rows]))
-            if coincident is not None and careful:
-                wm[coincident] = 0.0
-            np.multiply(rr, wm, out=rr)
-            np.multiply(h, wm, out=h)
-            if gather:
-                np.multiply(z.C, wm, out=z.C)
-                np.multiply(z.S, wm, out=z.S)
-            else:
-                np.multiply(wm, table_cos, out=z.C)
-                np.multiply(wm, table_sin, out=z.S)
-        np.multiply(z.dx, z.dy, out=z.A)
-        np.multiply(z.A, rr, out=z.A)
-        np.multiply(z.B, rr, out=z.B)
-        np.multiply(z.dx, h, out=z.Hx)
-        np.multiply(z.dy, h, out=z.Hy)
-        np.add.reduce(z.mom if top == 6 else z.mom[:4], axis=2,
-                      out=(sums if top == 6 else sums[:4]) if single else sums[:top, rows])
+            np.add.reduce(z.mom if top == 6 else z.mom[:4], axis=2,
+                          out=(sums if top == 6 else sums[:4]) if single else sums[:top, rows])
+    if not look:
+        lo = 2 if target_kind else 0
+        if not math.isfinite(np.add.reduce(sums[lo:4], axis=None)):
+            redo = np.flatnonzero(~np.isfinite(sums[lo:4]).all(axis=0))
     return sums, top == 6, redo
 
 
