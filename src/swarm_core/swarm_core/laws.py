@@ -262,9 +262,10 @@ def _pair_weights(law, lam, q0, leaders, recv_leader, careful):
         return far, None, None
     if q0 == 1.0 and lam == 0.0 and not careful:
         return None                     # every cutoff weight and the leader gain are 1
-    far = np.where(recv_leader, q0, q0 * (1.0 - lam))[:, None]
-    gain = np.where(recv_leader, 1.0, (law.leader_gain - 1.0) * lam + 1.0)
-    return far, gain, leaders.nonzero()[0]
+    # (far, gain) of a follower and of a leader, picked per receiver (exact copies)
+    far_gain = np.array(((q0 * (1.0 - lam), (law.leader_gain - 1.0) * lam + 1.0), (q0, 1.0)))
+    far_gain = far_gain.take(recv_leader.astype(np.intp), axis=0)
+    return far_gain[:, :1], far_gain[:, 1], leaders.nonzero()[0]
 
 
 def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader, careful=False):
@@ -488,19 +489,9 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
     return m, True
 
 
-def _pair_sum(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, leaders, recv_leader, pairs):
-    """Σ_j weight_jk·u_jk of each receiver: densely over the table or over a pair list.  A row
-    with coincident agents is redone with explicit masks (dense: the rows the fast form
-    flags; pair list: the rows non-finite in the fast form)."""
-    if pairs is None:
-        m, weighted, redo = _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader)
-        sums = _combine(m, weighted, F, cos_sin, law)
-        if redo is not None:
-            m, weighted, _ = _pair_sums_dense(pos, cos_sin, receivers[redo], law, lam, q0, leaders,
-                                              None if recv_leader is None else recv_leader[redo],
-                                              careful=True)
-            sums[redo] = _combine(m, weighted, F[:, redo], cos_sin, law)
-        return sums
+def _pair_sum_sparse(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, leaders, pairs):
+    """Σ_j weight_jk·u_jk of each receiver over a pair list; a row with coincident agents
+    (non-finite in the fast form) is redone with explicit masks."""
     l_of_k = nearest_leader(pos, receivers, leaders.nonzero()[0]) if leaders is not None else None
     with np.errstate(divide='ignore', invalid='ignore'):
         m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders,
@@ -548,7 +539,16 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
     cos_sin = frames[:2]                                        # (2, N): the table's cos θ, sin θ
     F = frames[1:].take(receivers, axis=1)                      # (2, K): the receivers' sin θ, cos θ
 
-    sums = _pair_sum(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, leaders, recv_leader, pairs)
+    if pairs is None:               # densely over the table; rows with coincident agents redone
+        m, has_cs, redo = _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader)
+        sums = _combine(m, has_cs, F, cos_sin, law)
+        if redo is not None:
+            m, has_cs, _ = _pair_sums_dense(pos, cos_sin, receivers[redo], law, lam, q0, leaders,
+                                            None if recv_leader is None else recv_leader[redo],
+                                            careful=True)
+            sums[redo] = _combine(m, has_cs, F[:, redo], cos_sin, law)
+    else:
+        sums = _pair_sum_sparse(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, leaders, pairs)
 
     if leaders is not None:
         s = np.zeros(n_recv) if steering is None else np.asarray(steering, dtype=float)
