@@ -97,11 +97,40 @@ def law_call(receivers, lam, min_seconds):
             return el / calls * 1e6, (time.process_time() - c0) / calls * 1e6
 
 
+def agent_call(min_seconds):
+    """µs (wall, CPU) per `AgentCore.control` (an agent node's own arithmetic for one step:
+    the table from the received states, then swarm_control with itself as the only receiver)
+    on homotopy_global's states at t = 450, agent 2."""
+    from swarm_agent.core import AgentCore
+    from swarm_core import engine, model, scenario
+    st = engine.SwarmStepper(scenario.load('homotopy_global'))
+    for _ in range(9000):
+        st.step()
+    t, lam, is_leader, steering, _ = st.inputs()
+    qz, qw = model.quaternion_from_heading(st.theta)
+    x, y = st.pos[:, 0].copy(), st.pos[:, 1].copy()
+    core = AgentCore(2, st.n, x[2], y[2], st.theta[2], st.law, st.dt)
+    core.control(x, y, qz, qw, lam, is_leader, steering[2])
+    calls, t0, c0 = 0, time.perf_counter(), time.process_time()
+    while True:
+        for _ in range(200):
+            core.control(x, y, qz, qw, lam, is_leader, steering[2])
+        calls += 200
+        el = time.perf_counter() - t0
+        if el >= min_seconds:
+            return el / calls * 1e6, (time.process_time() - c0) / calls * 1e6
+
+
 def worker(spec):
     import swarm_core
+    out = {}
     if spec['what'] == 'law':
         wall, cpu = law_call(spec['receivers'], spec['lam'], spec['min_seconds'])
         out = dict(wall=wall, cpu=cpu)
+    elif spec['what'] == 'agent':
+        import swarm_agent
+        wall, cpu = agent_call(spec['min_seconds'])
+        out = dict(wall=wall, cpu=cpu, agent_module=swarm_agent.__file__)
     elif spec['what'] == 'sps':
         wall, cpu, search = steps_per_second(spec['n'], spec['kind'], spec['min_seconds'])
         out = dict(wall=wall, cpu=cpu, search=search)
@@ -116,19 +145,24 @@ def worker(spec):
 
 def run_worker(spec, src=None):
     env = dict(os.environ)
-    if src is not None:            # a baseline swarm_core first on the path
-        env['PYTHONPATH'] = src + os.pathsep + env.get('PYTHONPATH', '')
+    if src is not None:            # a baseline swarm_core (and swarm_agent) first on the path
+        env['PYTHONPATH'] = os.pathsep.join([src, str(Path(src).parent / 'swarm_agent'),
+                                             env.get('PYTHONPATH', '')])
     r = subprocess.run([sys.executable, __file__, '--worker', json.dumps(spec)], env=env,
                        capture_output=True, text=True, check=True)
     out = json.loads(r.stdout.strip().splitlines()[-1])
     if src is not None and not out['module'].startswith(src):
         raise SystemExit(f'baseline not imported: got {out["module"]}')
+    if src is not None and 'agent_module' in out and not out['agent_module'].startswith(str(Path(src).parent)):
+        raise SystemExit(f'baseline swarm_agent not imported: got {out["agent_module"]}')
     return out
 
 
 def extract(rev, into):
-    """swarm_core of git revision ``rev`` into directory ``into``; returns its import root."""
-    r = subprocess.run(['git', '-C', str(ROOT), 'archive', rev, 'src/swarm_core'], capture_output=True)
+    """swarm_core and swarm_agent of git revision ``rev`` into directory ``into``; returns
+    swarm_core's import root (swarm_agent's is beside it)."""
+    r = subprocess.run(['git', '-C', str(ROOT), 'archive', rev, 'src/swarm_core', 'src/swarm_agent'],
+                       capture_output=True)
     if r.returncode:
         raise SystemExit(f'bench_core: cannot read src/swarm_core at {rev!r}: '
                          f'{r.stderr.decode(errors="replace").strip()}')
@@ -172,6 +206,7 @@ def main(argv=None):
     min_s = 0.5 if a.quick else 1.5
     specs = [dict(what='law', receivers=r, lam=lam, min_seconds=min_s)
              for r in ('one', 'all') for lam in (None, 0.0)]
+    specs += [dict(what='agent', min_seconds=min_s)]
     specs += [dict(what='sps', kind=kind, n=n, min_seconds=min_s) for kind, ns in sizes.items() for n in ns]
     if not a.no_runs:
         specs += [dict(what='run', name='homotopy_global', dt=dt) for dt in (0.05, 0.1)]
@@ -196,7 +231,7 @@ def main(argv=None):
                     if 'search' in rr[0]:
                         row['search'] = rr[0]['search']
                     res[side][key] = row
-                unit = {'sps': 'steps/s', 'run': 's', 'law': 'µs/call'}[spec['what']]
+                unit = {'sps': 'steps/s', 'run': 's', 'law': 'µs/call', 'agent': 'µs/call'}[spec['what']]
                 line = f'{key:28s} current {res["current"][key]["wall"]:9.2f} {unit} (cpu {res["current"][key]["cpu"]:.2f})'
                 if base_src:
                     line += f'   baseline {res["baseline"][key]["wall"]:9.2f} (cpu {res["baseline"][key]["cpu"]:.2f})'
@@ -219,6 +254,8 @@ def spec_key(spec):
     if spec['what'] == 'law':
         lam = 'λ=0.97' if spec['lam'] is None else f'λ={spec["lam"]:g}'
         return f'law {spec["receivers"]} {lam}'
+    if spec['what'] == 'agent':
+        return 'AgentCore.control'
     return f'{spec["name"]} dt={spec["dt"]}'
 
 
@@ -250,16 +287,20 @@ def table(res):
             b = res['baseline'][key]
             line += f' {b["wall"]:.2f} | {b["cpu"]:.2f} | {b["cpu"] / row["cpu"]:.2f}× |'
         lines.append(line)
-    head = '| swarm_control call, n = 6 (homotopy_global, t = 450) | µs/call | µs CPU/call |'
+    head = '| one call, n = 6 (homotopy_global states at t = 450) | µs/call | µs CPU/call |'
     if cmp_:
         head += ' before: µs/call | before: µs CPU/call | speed-up (CPU) |'
     lines += ['', head, '|' + '---|' * (head.count('|') - 1)]
     for key, row in res['current'].items():
-        if row['what'] != 'law':
+        if row['what'] not in ('law', 'agent'):
             continue
-        who = 'one receiver (an agent)' if row['receivers'] == 'one' else 'all 6 receivers (batch)'
-        lam = 'λ ≈ 0.97, two leaders' if row['lam'] is None else f'λ = {row["lam"]:g}'
-        line = f'| {who}, {lam} | {row["wall"]:.1f} | {row["cpu"]:.1f} |'
+        if row['what'] == 'agent':
+            line = '| `AgentCore.control`: an agent\'s table + its own u, λ ≈ 0.97 |'
+        else:
+            who = 'one receiver (an agent)' if row['receivers'] == 'one' else 'all 6 receivers (batch)'
+            lam = 'λ ≈ 0.97, two leaders' if row['lam'] is None else f'λ = {row["lam"]:g}'
+            line = f'| {who}, {lam} |'
+        line += f' {row["wall"]:.1f} | {row["cpu"]:.1f} |'
         if cmp_ and key in res['baseline']:
             b = res['baseline'][key]
             line += f' {b["wall"]:.1f} | {b["cpu"]:.1f} | {b["cpu"] / row["cpu"]:.2f}× |'
