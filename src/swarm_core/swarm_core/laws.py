@@ -175,7 +175,7 @@ class _Block:
     makes only same-shape calls on ready views (a broadcast call costs several plain ones)."""
 
     __slots__ = ('d', 'dx', 'dy', 'd2', 'd2x', 'd2y', 'rr', 'h', 'wm', 'wb', 'mom', 'A', 'B',
-                 'Hx', 'Hy', 'C', 'S', 'consts')
+                 'Hx', 'Hy', 'C', 'S', 'consts', 'd_flat', 'cs_flat')
 
     def __init__(self, d, d2, rr, h, wm, wb, mom):
         self.d, self.dx, self.dy = d, d[0], d[1]               # r_jk = (dx, dy)
@@ -184,6 +184,7 @@ class _Block:
         self.mom = mom                                          # the six moments' terms
         self.A, self.B, self.Hx, self.Hy, self.C, self.S = mom
         self.consts = {}
+        self.d_flat = self.cs_flat = None                       # (2, rows·n) views, whole blocks
 
     def const(self, value: float):
         """A (rows, n) array filled with ``value`` (numpy's call with a Python number and out=
@@ -198,9 +199,14 @@ class _Block:
 
     @classmethod
     def new(cls, rows: int, n: int):
-        return cls(np.empty((2, rows, n)), np.empty((2, rows, n)), np.empty((rows, n)),
-                   np.empty((rows, n)), np.empty((rows, n)), np.empty((rows, n), dtype=bool),
-                   np.empty((6, rows, n)))
+        block = cls(np.empty((2, rows, n)), np.empty((2, rows, n)), np.empty((rows, n)),
+                    np.empty((rows, n)), np.empty((rows, n)), np.empty((rows, n), dtype=bool),
+                    np.empty((6, rows, n)))
+        block.d_flat = block.d.view()
+        block.d_flat.shape = (2, rows * n)                      # a view, never a copy
+        block.cs_flat = block.mom[4:6].view()
+        block.cs_flat.shape = (2, rows * n)
+        return block
 
     def head(self, b: int):
         """The same views on the first b rows (a partial last block)."""
@@ -316,7 +322,7 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
         senders = _senders(n_recv, n)
         xy_recv = xy.take(receivers.repeat(n), axis=1)
         xy_table = xy.take(senders, axis=1)
-        d_flat = full.d.reshape(2, n_recv * n)
+        d_flat = full.d_flat
     else:
         xy_recv = xy.take(receivers, axis=1)[:, :, None]
         xy_table = xy[:, None, :]
@@ -326,7 +332,7 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
     starts = _row_starts(block, n)
     gain = leader_rows = None
     if gather and not target_kind:   # the senders' cos θ_j, sin θ_j in the C, S rows (weighted below)
-        cos_sin.take(senders, axis=1, out=full.mom[4:6].reshape(2, n_recv * n))
+        cos_sin.take(senders, axis=1, out=full.cs_flat)
     if weights is not None:
         far, gain, leader_rows = weights
         if gain is None:
