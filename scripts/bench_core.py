@@ -7,7 +7,7 @@ the paper's homotopy_global run to t = 1000.
 Writes bench/core.json and bench/core.png (steps/s vs n, log-log) and prints Markdown tables.
 Also measures one call of the control law `swarm_control` on the paper's n = 6 table
 (homotopy_global at t = 450, λ ≈ 0.97, and at λ = 0), for the whole swarm and for ONE receiver
-(what every ROS agent computes per step).  ``--global-n`` / ``--local-n`` choose the swarm
+(what every ROS agent computes per step; median over batches of 200 calls).  ``--global-n`` / ``--local-n`` choose the swarm
 sizes (comma lists; empty: none), ``--no-runs`` skips the full homotopy_global runs.
 Every measurement runs in a fresh worker process.  With ``--compare REV`` (a git revision,
 e.g. a commit before a change) the same measurements also run on REV's swarm_core
@@ -86,15 +86,24 @@ def law_call(receivers, lam, min_seconds):
     recv = np.array([2]) if receivers == 'one' else np.arange(st.n)
     steer = steering[recv]
     pos, law = st.pos.copy(), st.law
-    laws.swarm_control(pos, c, s, recv, law, lambda_=lam, is_leader=is_leader, steering=steer)
-    calls, t0, c0 = 0, time.perf_counter(), time.process_time()
-    while True:
-        for _ in range(200):
-            laws.swarm_control(pos, c, s, recv, law, lambda_=lam, is_leader=is_leader, steering=steer)
-        calls += 200
-        el = time.perf_counter() - t0
-        if el >= min_seconds:
-            return el / calls * 1e6, (time.process_time() - c0) / calls * 1e6
+    return per_call(lambda: laws.swarm_control(pos, c, s, recv, law, lambda_=lam, is_leader=is_leader,
+                                               steering=steer), min_seconds)
+
+
+def per_call(f, min_seconds, batch=200):
+    """µs (wall, CPU) per call of f: the median over batches of ``batch`` calls for
+    ``min_seconds`` (a burst of load from other processes spoils a few batches, not the median)."""
+    import statistics
+    f()
+    walls, cpus = [], []
+    start = time.perf_counter()
+    while time.perf_counter() - start < min_seconds or len(walls) < 5:
+        t0, c0 = time.perf_counter(), time.process_time()
+        for _ in range(batch):
+            f()
+        walls.append((time.perf_counter() - t0) / batch * 1e6)
+        cpus.append((time.process_time() - c0) / batch * 1e6)
+    return statistics.median(walls), statistics.median(cpus)
 
 
 def agent_call(min_seconds):
@@ -110,15 +119,7 @@ def agent_call(min_seconds):
     qz, qw = model.quaternion_from_heading(st.theta)
     x, y = st.pos[:, 0].copy(), st.pos[:, 1].copy()
     core = AgentCore(2, st.n, x[2], y[2], st.theta[2], st.law, st.dt)
-    core.control(x, y, qz, qw, lam, is_leader, steering[2])
-    calls, t0, c0 = 0, time.perf_counter(), time.process_time()
-    while True:
-        for _ in range(200):
-            core.control(x, y, qz, qw, lam, is_leader, steering[2])
-        calls += 200
-        el = time.perf_counter() - t0
-        if el >= min_seconds:
-            return el / calls * 1e6, (time.process_time() - c0) / calls * 1e6
+    return per_call(lambda: core.control(x, y, qz, qw, lam, is_leader, steering[2]), min_seconds)
 
 
 def worker(spec):
