@@ -6,16 +6,10 @@ the paper's homotopy_global run to t = 1000.
 
 Writes bench/core.json and bench/core.png (steps/s vs n, log-log) and prints Markdown tables.
 Also measures one call of the control law `swarm_control` on the paper's n = 6 table
-(homotopy_global at t = 450, λ ≈ 0.97, and at λ = 0), for the whole swarm and for ONE receiver
-(what every ROS agent computes per step; median over batches of 200 calls).  ``--global-n`` / ``--local-n`` choose the swarm
-sizes (comma lists; empty: none), ``--no-runs`` skips the full homotopy_global runs.
-Every measurement runs in a fresh worker process.  With ``--compare REV`` (a git revision,
-e.g. a commit before a change) the same measurements also run on REV's swarm_core
-(extracted with ``git archive`` into a temporary directory), alternating REV and this
-checkout measurement by measurement, so both see the same machine load: compare the ratio,
-not absolute numbers across runs.  Each number is the median of ``--repeats`` runs; the
-process CPU time is reported beside the wall time (on a shared machine CPU time is the less
-load-dependent of the two).  The load average is recorded at the start and at the end.
+(homotopy_global at t = 450, λ ≈ 0.97, and at λ = 0), for the whole swarm and for ONE
+receiver (what every ROS agent computes per step), and `AgentCore.control`; each the median
+over batches of 200 calls.  ``--global-n`` / ``--local-n`` choose the swarm sizes (comma
+lists; empty: none), ``--no-runs`` skips the full homotopy_global runs.
 """
 from __future__ import annotations
 
