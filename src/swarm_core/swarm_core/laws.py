@@ -499,20 +499,6 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
     return m, True
 
 
-def _combine_one(m, has_cs, f, cos_sin, law):
-    """`_combine` for ONE receiver on Python floats: m, the six moments (list), f = (sin θ_k,
-    cos θ_k).  The same operations in the same order on IEEE doubles, so the same bits as the
-    batch's numpy arrays, without a dozen numpy calls on 1-element arrays (an agent's step)."""
-    A, B, Hx, Hy, C, S = m
-    s, c = f
-    if law.kind == 'target':
-        return c * Hy - s * Hx
-    g = law.gains
-    if not has_cs:
-        C, S = np.add.reduce(cos_sin, axis=1).tolist()
-    return c * (Hy + S * g.mu) - s * (Hx + C * g.mu) - g.eta * ((c * c - s * s) * A + (c * s) * B)
-
-
 def _pair_sum_sparse(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, leaders, pairs):
     """Σ_j weight_jk·u_jk of each receiver over a pair list; a row with coincident agents
     (non-finite in the fast form) is redone with explicit masks."""
@@ -563,17 +549,6 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
     cos_sin = frames[:2]                                        # (2, N): the table's cos θ, sin θ
     F = frames[1:].take(receivers, axis=1)                      # (2, K): the receivers' sin θ, cos θ
 
-    if pairs is None and n_recv == 1:     # one receiver (an agent node): the tail on floats
-        m, has_cs, redo = _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader)
-        if redo is not None:
-            m, has_cs, _ = _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders,
-                                            recv_leader, careful=True)
-        u = _combine_one(m[:, 0].tolist(), has_cs, F[:, 0].tolist(), cos_sin, law)
-        if recv_leader is not None and recv_leader[0]:
-            s = 0.0 if steering is None else float(np.asarray(steering, dtype=float)[0])
-            u = (1.0 - lam) * u + lam * s
-        u = np.array([u])
-        return _add_world_terms(u, pos, F, receivers, law, target, barrier)
     if pairs is None:               # densely over the table; rows with coincident agents redone
         m, has_cs, redo = _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader)
         sums = _combine(m, has_cs, F, cos_sin, law)
