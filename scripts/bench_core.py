@@ -5,13 +5,11 @@ the paper's homotopy_global run to t = 1000.
     .venv/bin/python scripts/bench_core.py [--quick] [--out bench/core] [--compare REV]
 
 Writes bench/core.json and bench/core.png (steps/s vs n, log-log) and prints Markdown tables.
-Every measurement runs in a fresh worker process.  With ``--compare REV`` (a git revision,
-e.g. a commit before a change) the same measurements also run on REV's swarm_core
-(extracted with ``git archive`` into a temporary directory), alternating REV and this
-checkout measurement by measurement, so both see the same machine load: compare the ratio,
-not absolute numbers across runs.  Each number is the median of ``--repeats`` runs; the
-process CPU time is reported beside the wall time (on a shared machine CPU time is the less
-load-dependent of the two).  The load average is recorded at the start and at the end.
+Also measures one call of the control law `swarm_control` on the paper's n = 6 table
+(homotopy_global at t = 450, λ ≈ 0.97, and at λ = 0), for the whole swarm and for ONE
+receiver (what every ROS agent computes per step), and `AgentCore.control`; each the median
+over batches of 200 calls.  ``--global-n`` / ``--local-n`` choose the swarm sizes (comma
+lists; empty: none), ``--no-runs`` skips the full homotopy_global runs.
 """
 from __future__ import annotations
 
@@ -69,9 +67,66 @@ def full_run(name, dt):
     return time.perf_counter() - t0, time.process_time() - c0
 
 
+def law_call(receivers, lam, min_seconds):
+    """µs (wall, CPU) per swarm_control call on homotopy_global's n = 6 table at t = 450
+    (two leaders; λ ≈ 0.97, or ``lam``), for receivers 'one' (agent 2) or 'all'."""
+    import numpy as np
+    from swarm_core import engine, laws, scenario
+    st = engine.SwarmStepper(scenario.load('homotopy_global'))
+    for _ in range(9000):
+        st.step()
+    t, lam_t, is_leader, steering, (c, s) = st.inputs()
+    lam = lam_t if lam is None else lam
+    recv = np.array([2]) if receivers == 'one' else np.arange(st.n)
+    steer = steering[recv]
+    pos, law = st.pos.copy(), st.law
+    return per_call(lambda: laws.swarm_control(pos, c, s, recv, law, lambda_=lam, is_leader=is_leader,
+                                               steering=steer), min_seconds)
+
+
+def per_call(f, min_seconds, batch=200):
+    """µs (wall, CPU) per call of f: the median over batches of ``batch`` calls for
+    ``min_seconds`` (a burst of load from other processes spoils a few batches, not the median)."""
+    import statistics
+    f()
+    walls, cpus = [], []
+    start = time.perf_counter()
+    while time.perf_counter() - start < min_seconds or len(walls) < 5:
+        t0, c0 = time.perf_counter(), time.process_time()
+        for _ in range(batch):
+            f()
+        walls.append((time.perf_counter() - t0) / batch * 1e6)
+        cpus.append((time.process_time() - c0) / batch * 1e6)
+    return statistics.median(walls), statistics.median(cpus)
+
+
+def agent_call(min_seconds):
+    """µs (wall, CPU) per `AgentCore.control` (an agent node's own arithmetic for one step:
+    the table from the received states, then swarm_control with itself as the only receiver)
+    on homotopy_global's states at t = 450, agent 2."""
+    from swarm_agent.core import AgentCore
+    from swarm_core import engine, model, scenario
+    st = engine.SwarmStepper(scenario.load('homotopy_global'))
+    for _ in range(9000):
+        st.step()
+    t, lam, is_leader, steering, _ = st.inputs()
+    qz, qw = model.quaternion_from_heading(st.theta)
+    x, y = st.pos[:, 0].copy(), st.pos[:, 1].copy()
+    core = AgentCore(2, st.n, x[2], y[2], st.theta[2], st.law, st.dt)
+    return per_call(lambda: core.control(x, y, qz, qw, lam, is_leader, steering[2]), min_seconds)
+
+
 def worker(spec):
     import swarm_core
-    if spec['what'] == 'sps':
+    out = {}
+    if spec['what'] == 'law':
+        wall, cpu = law_call(spec['receivers'], spec['lam'], spec['min_seconds'])
+        out = dict(wall=wall, cpu=cpu)
+    elif spec['what'] == 'agent':
+        import swarm_agent
+        wall, cpu = agent_call(spec['min_seconds'])
+        out = dict(wall=wall, cpu=cpu, agent_module=swarm_agent.__file__)
+    elif spec['what'] == 'sps':
         wall, cpu, search = steps_per_second(spec['n'], spec['kind'], spec['min_seconds'])
         out = dict(wall=wall, cpu=cpu, search=search)
     else:
@@ -85,19 +140,24 @@ def worker(spec):
 
 def run_worker(spec, src=None):
     env = dict(os.environ)
-    if src is not None:            # a baseline swarm_core first on the path
-        env['PYTHONPATH'] = src + os.pathsep + env.get('PYTHONPATH', '')
+    if src is not None:            # a baseline swarm_core (and swarm_agent) first on the path
+        env['PYTHONPATH'] = os.pathsep.join([src, str(Path(src).parent / 'swarm_agent'),
+                                             env.get('PYTHONPATH', '')])
     r = subprocess.run([sys.executable, __file__, '--worker', json.dumps(spec)], env=env,
                        capture_output=True, text=True, check=True)
     out = json.loads(r.stdout.strip().splitlines()[-1])
     if src is not None and not out['module'].startswith(src):
         raise SystemExit(f'baseline not imported: got {out["module"]}')
+    if src is not None and 'agent_module' in out and not out['agent_module'].startswith(str(Path(src).parent)):
+        raise SystemExit(f'baseline swarm_agent not imported: got {out["agent_module"]}')
     return out
 
 
 def extract(rev, into):
-    """swarm_core of git revision ``rev`` into directory ``into``; returns its import root."""
-    r = subprocess.run(['git', '-C', str(ROOT), 'archive', rev, 'src/swarm_core'], capture_output=True)
+    """swarm_core and swarm_agent of git revision ``rev`` into directory ``into``; returns
+    swarm_core's import root (swarm_agent's is beside it)."""
+    r = subprocess.run(['git', '-C', str(ROOT), 'archive', rev, 'src/swarm_core', 'src/swarm_agent'],
+                       capture_output=True)
     if r.returncode:
         raise SystemExit(f'bench_core: cannot read src/swarm_core at {rev!r}: '
                          f'{r.stderr.decode(errors="replace").strip()}')
@@ -119,6 +179,9 @@ def main(argv=None):
     p.add_argument('--out', default='bench/core', help='output path stem (default bench/core)')
     p.add_argument('--compare', metavar='REV', help='also measure git revision REV, side by side')
     p.add_argument('--repeats', type=int, default=None, help='runs per measurement (median; default 3, quick 1)')
+    p.add_argument('--global-n', help='swarm sizes of the global law, comma list (default: a sweep 6 … 4000)')
+    p.add_argument('--local-n', help='swarm sizes of the local law, comma list (default: a sweep 6 … 30000)')
+    p.add_argument('--no-runs', action='store_true', help='skip the full homotopy_global runs')
     p.add_argument('--worker', help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.worker:
@@ -128,10 +191,20 @@ def main(argv=None):
              'local': [6, 100, 1000, 3000, 10000, 30000]}
     if a.quick:
         sizes = {'global': [6, 100, 1000, 2000], 'local': [100, 1000, 10000]}
+    for kind, arg in (('global', a.global_n), ('local', a.local_n)):
+        if arg is not None:
+            try:
+                sizes[kind] = [int(v) for v in arg.split(',') if v.strip()]
+            except ValueError:
+                p.error(f'--{kind}-n: a comma list of integers, got {arg!r}')
     repeats = a.repeats or (1 if a.quick else 3)
     min_s = 0.5 if a.quick else 1.5
-    specs = [dict(what='sps', kind=kind, n=n, min_seconds=min_s) for kind, ns in sizes.items() for n in ns]
-    specs += [dict(what='run', name='homotopy_global', dt=dt) for dt in (0.05, 0.1)]
+    specs = [dict(what='law', receivers=r, lam=lam, min_seconds=min_s)
+             for r in ('one', 'all') for lam in (None, 0.0)]
+    specs += [dict(what='agent', min_seconds=min_s)]
+    specs += [dict(what='sps', kind=kind, n=n, min_seconds=min_s) for kind, ns in sizes.items() for n in ns]
+    if not a.no_runs:
+        specs += [dict(what='run', name='homotopy_global', dt=dt) for dt in (0.05, 0.1)]
     res = dict(command='scripts/bench_core.py ' + ' '.join(sys.argv[1:] if argv is None else argv),
                load_before=loadavg(), cpus=os.cpu_count(), repeats=repeats, compare=a.compare,
                current={}, baseline={})
@@ -139,7 +212,7 @@ def main(argv=None):
         base_src = extract(a.compare, tmp) if a.compare else None
         try:
             for spec in specs:
-                key = f'{spec["kind"]} n={spec["n"]}' if spec['what'] == 'sps' else f'{spec["name"]} dt={spec["dt"]}'
+                key = spec_key(spec)
                 runs = {'current': [], 'baseline': []}
                 for _ in range(repeats):
                     if base_src:
@@ -153,7 +226,7 @@ def main(argv=None):
                     if 'search' in rr[0]:
                         row['search'] = rr[0]['search']
                     res[side][key] = row
-                unit = 'steps/s' if spec['what'] == 'sps' else 's'
+                unit = {'sps': 'steps/s', 'run': 's', 'law': 'µs/call', 'agent': 'µs/call'}[spec['what']]
                 line = f'{key:28s} current {res["current"][key]["wall"]:9.2f} {unit} (cpu {res["current"][key]["cpu"]:.2f})'
                 if base_src:
                     line += f'   baseline {res["baseline"][key]["wall"]:9.2f} (cpu {res["baseline"][key]["cpu"]:.2f})'
@@ -168,6 +241,17 @@ def main(argv=None):
     plot(res, out.with_suffix('.png'))
     print(table(res))
     return 0
+
+
+def spec_key(spec):
+    if spec['what'] == 'sps':
+        return f'{spec["kind"]} n={spec["n"]}'
+    if spec['what'] == 'law':
+        lam = 'λ=0.97' if spec['lam'] is None else f'λ={spec["lam"]:g}'
+        return f'law {spec["receivers"]} {lam}'
+    if spec['what'] == 'agent':
+        return 'AgentCore.control'
+    return f'{spec["name"]} dt={spec["dt"]}'
 
 
 def table(res):
@@ -188,7 +272,7 @@ def table(res):
         lines.append(line)
     head = '| run | steps | wall (s) | CPU (s) |'
     if cmp_:
-        head += ' before: wall (s) | before: CPU (s) |'
+        head += ' before: wall (s) | before: CPU (s) | speed-up (CPU) |'
     lines += ['', head, '|' + '---|' * (head.count('|') - 1)]
     for key, row in res['current'].items():
         if row['what'] != 'run':
@@ -196,7 +280,25 @@ def table(res):
         line = f'| {key} to t = 1000 | {int(round(1000 / row["dt"]))} | {row["wall"]:.2f} | {row["cpu"]:.2f} |'
         if cmp_ and key in res['baseline']:
             b = res['baseline'][key]
-            line += f' {b["wall"]:.2f} | {b["cpu"]:.2f} |'
+            line += f' {b["wall"]:.2f} | {b["cpu"]:.2f} | {b["cpu"] / row["cpu"]:.2f}× |'
+        lines.append(line)
+    head = '| one call, n = 6 (homotopy_global states at t = 450) | µs/call | µs CPU/call |'
+    if cmp_:
+        head += ' before: µs/call | before: µs CPU/call | speed-up (CPU) |'
+    lines += ['', head, '|' + '---|' * (head.count('|') - 1)]
+    for key, row in res['current'].items():
+        if row['what'] not in ('law', 'agent'):
+            continue
+        if row['what'] == 'agent':
+            line = '| `AgentCore.control`: an agent\'s table + its own u, λ ≈ 0.97 |'
+        else:
+            who = 'one receiver (an agent)' if row['receivers'] == 'one' else 'all 6 receivers (batch)'
+            lam = 'λ ≈ 0.97, two leaders' if row['lam'] is None else f'λ = {row["lam"]:g}'
+            line = f'| {who}, {lam} |'
+        line += f' {row["wall"]:.1f} | {row["cpu"]:.1f} |'
+        if cmp_ and key in res['baseline']:
+            b = res['baseline'][key]
+            line += f' {b["wall"]:.1f} | {b["cpu"]:.1f} | {b["cpu"] / row["cpu"]:.2f}× |'
         lines.append(line)
     return '\n'.join(lines)
 

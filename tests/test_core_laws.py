@@ -1,5 +1,6 @@
 """Pure tests of the model and the control laws (no ROS)."""
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -215,12 +216,15 @@ def test_one_agent_view_equals_batch_with_many_row_blocks(kind, lam, q0):
         assert one[0] == batch[k], k
 
 
+@pytest.mark.parametrize('n', [9, 80])
 @pytest.mark.parametrize('kind', laws.LAW_KINDS)
-def test_coincident_agents_equal_pair_loop(kind):
-    """Agents at the same point contribute exactly nothing to each other (the loop skips them)."""
+def test_coincident_agents_equal_pair_loop(kind, n):
+    """Agents at the same point contribute exactly nothing to each other (the loop skips them),
+    and no floating-point warning escapes: in a small table (the dense path looks for ρ = 0
+    before dividing) and in a larger one (it divides and redoes the non-finite rows)."""
+    assert 9 * 9 <= laws.GATHER_LIMIT < 80 * 80 <= laws.DENSE_BLOCK
     rng = np.random.default_rng(8)
-    n = 9
-    pos = rng.uniform(-4, 4, (n, 2))
+    pos = rng.uniform(-4, 4, (n, 2)) * math.sqrt(n / 9)
     pos[2] = pos[6]
     pos[7] = pos[6]
     th = rng.uniform(-math.pi, math.pi, n)
@@ -229,9 +233,14 @@ def test_coincident_agents_equal_pair_loop(kind):
     law = LawConfig(kind=kind, q0=0.05, leader_gain=15.0)
     steering = np.full(n, 0.01)
     c, s = heading_frame(th)
-    u = swarm_control(pos, c, s, np.arange(n), law, lambda_=0.6, is_leader=leaders, steering=steering)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        u = swarm_control(pos, c, s, np.arange(n), law, lambda_=0.6, is_leader=leaders, steering=steering)
+        one = swarm_control(pos, c, s, np.array([7]), law, lambda_=0.6, is_leader=leaders,
+                            steering=steering[[7]])
     ref = _law_loop(pos, th, law, 0.6, leaders, steering, None, None)
     np.testing.assert_allclose(u, ref, rtol=0, atol=1e-12)
+    assert one[0] == u[7]
 
 
 def test_homotopy_limits():

@@ -65,6 +65,7 @@ class AgentCore:
         self.u_last = 0.0
         self.comms = None
         self.beliefs = None
+        self._frame = None                  # own (cos θ, sin θ), see `_own_frame`
 
     def attach_comms(self, model: CommModel):
         """Receive through ``model`` from now on (lockstep: `comms_control`)."""
@@ -101,30 +102,38 @@ class AgentCore:
         rendezvous: the reunion of this step (`faults.reunion_law`), or None."""
         k = self.index
         law = self.law
-        if alive is not None and not np.all(alive):
+        if alive is not None and np.count_nonzero(alive) != len(alive):
             rows = np.flatnonzero(alive)
             x, y, qz, qw = (np.asarray(v, float)[rows] for v in (x, y, qz, qw))
             is_leader = np.asarray(is_leader, bool)[rows]
             k = int(np.searchsorted(rows, self.index))
         law, target = reunion_law(law, target, rendezvous)
-        pos = np.stack([np.asarray(x, float), np.asarray(y, float)], axis=1)
-        cos_t, sin_t = frame_from_quaternion(np.asarray(qz, float), np.asarray(qw, float))
+        pos = np.empty((len(x), 2))
+        pos[:, 0] = x
+        pos[:, 1] = y
+        cos_t, sin_t = frame_from_quaternion(qz, qw)            # new arrays
         pos[k] = self.pos[0]
-        oz, ow = quaternion_from_heading(self.theta)
-        c, s = frame_from_quaternion(oz, ow)
-        cos_t = np.array(cos_t)
-        sin_t = np.array(sin_t)
-        cos_t[k], sin_t[k] = c[0], s[0]
+        c, s = self._own_frame()
+        cos_t[k], sin_t[k] = c, s
         u = swarm_control(pos, cos_t, sin_t, np.array([k]), law, lambda_=float(lam),
                           is_leader=np.asarray(is_leader, bool), steering=np.array([float(steering_own)]),
                           target=target, barrier=barrier)
         return float(u[0])
+
+    def _own_frame(self):
+        """(cos θ, sin θ) of the agent's own heading through its quaternion, as its neighbours
+        see it (cached until the next `advance`)."""
+        if self._frame is None:
+            c, s = frame_from_quaternion(*quaternion_from_heading(self.theta))
+            self._frame = (c[0], s[0])
+        return self._frame
 
     def advance(self, u: float):
         """One ZOH step with the held control u (a non-finite u is replaced by 0)."""
         if not math.isfinite(u):
             u = 0.0
         self.pos, self.theta = zoh_step(self.pos, self.theta, np.array([u]), self.dt)
+        self._frame = None
         if self.noisy:
             draw = self.rng.uniform(-1.0, 1.0, size=3) * self.noise_scale
             self.pos = self.pos + draw[None, :2]

@@ -21,7 +21,7 @@ from scipy.spatial import cKDTree
 
 from .faults import event_names, reunion_law
 from .integrate import rk4_step, zoh_step
-from .laws import sparse_coupling, swarm_control
+from .laws import DENSE_LIMIT, sparse_coupling, swarm_control
 from .comms import Beliefs, belief_control, delay_stats
 from .model import heading_frame, quaternion_from_heading
 from .scenario import Scenario
@@ -95,6 +95,10 @@ class SwarmStepper:
         if neighbour_search not in ('auto', 'all', 'kdtree'):
             raise ValueError(f'neighbour_search must be auto, all or kdtree, got {neighbour_search!r}')
         self.neighbour_search = neighbour_search
+        # a table of at most DENSE_LIMIT rows is summed densely whatever λ (`sparse_coupling`)
+        self._always_dense = neighbour_search == 'all' or (neighbour_search == 'auto'
+                                                          and self.n <= DENSE_LIMIT)
+        self._is_leader = (None, None)      # (leader indices, flags) of the last step
         noise = scn.spec.noise
         self.noise_scale = np.array([noise.position, noise.position, noise.heading])
         self.noisy = bool(np.any(self.noise_scale > 0))
@@ -106,7 +110,7 @@ class SwarmStepper:
 
     def _pairs(self, pos, lam):
         """None (all pairs, dense) or the KD-tree pairs within w where only those carry weight."""
-        if self.neighbour_search == 'all' or self.law.couples_globally(lam):
+        if self._always_dense or self.law.couples_globally(lam):
             return None
         if self.neighbour_search == 'auto' and not sparse_coupling(len(pos), self.law, lam):
             return None
@@ -117,13 +121,12 @@ class SwarmStepper:
             return self._comms_control(pos, theta, lam, is_leader, steering)
         cos_t, sin_t = heading_frame(theta) if frame is None else frame
         law, target = self._law_target()
-        alive = self.faults.alive
-        if alive.all():
+        if self.faults.all_alive:
             return swarm_control(pos, cos_t, sin_t, self.receivers, law, lambda_=lam,
                                  is_leader=is_leader, steering=steering, target=target,
                                  barrier=self.barrier, pairs=self._pairs(pos, lam))
         # --- faults: the table holds only the agents heard this step, in index order
-        rows = np.flatnonzero(alive)
+        rows = np.flatnonzero(self.faults.alive)
         u = np.zeros(self.n)
         p = pos[rows]
         u[rows] = swarm_control(p, cos_t[rows], sin_t[rows], np.arange(rows.size), law, lambda_=lam,
@@ -146,8 +149,12 @@ class SwarmStepper:
         lam, leaders, steering = self.plan.update(t, self.pos, *frame, heard=self.faults.alive)
         for ev in self.plan.events:
             self.events.append(event_names(ev, names))
-        is_leader = np.zeros(self.n, dtype=bool)
-        is_leader[leaders] = True
+        last, is_leader = self._is_leader
+        if leaders != last:                 # the flags are rebuilt only when the leaders change
+            is_leader = np.zeros(self.n, dtype=bool)
+            is_leader[leaders] = True
+            is_leader.flags.writeable = False
+            self._is_leader = (leaders, is_leader)
         return t, lam, is_leader, steering, frame
 
     def step(self):
@@ -158,8 +165,11 @@ class SwarmStepper:
         return t, lam, is_leader, u
 
     def advance(self, t, u, lam, is_leader, steering):
-        still = ~self.faults.alive
-        held = (self.pos[still], self.theta[still]) if still.any() else None
+        if self.faults.all_alive:
+            still, held = None, None
+        else:
+            still = ~self.faults.alive
+            held = (self.pos[still], self.theta[still])
         if self.integrator == 'zoh':
             self.pos, self.theta = zoh_step(self.pos, self.theta, u, self.dt)
         else:
@@ -173,10 +183,11 @@ class SwarmStepper:
                 return self.control(tt, p, th, lam_s, is_leader, steer)
             self.pos, self.theta = rk4_step(self.pos, self.theta, t, self.dt, control)
         if self.comms is not None:          # faults: the dead and frozen keep the u they last flew
-            self.u_prev = np.where(still, self.u_prev, np.asarray(u, dtype=float))
+            self.u_prev = np.array(u, dtype=float) if still is None else \
+                np.where(still, self.u_prev, np.asarray(u, dtype=float))
         if self.noisy:
-            draws = np.stack([rng.uniform(-1.0, 1.0, size=3) if not s else np.zeros(3)
-                              for rng, s in zip(self._rngs, still)])
+            draws = np.stack([rng.uniform(-1.0, 1.0, size=3) if still is None or not s else np.zeros(3)
+                              for rng, s in zip(self._rngs, still if still is not None else self._rngs)])
             noise = draws * self.noise_scale
             self.pos = self.pos + noise[:, :2]
             self.theta = self.theta + noise[:, 2]
@@ -247,10 +258,14 @@ def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int 
             if i % record_every == 0:
                 s = i // record_every
                 t_rec[s], r_rec[s], th_rec[s], u_rec[s] = t, stepper.pos, stepper.theta, u
-                lam_rec[s], lead_rec[s] = lam, is_leader & stepper.faults.alive
-                dead = stepper.faults.dead
-                if dead.any():               # faults: a dead agent's rows are NaN
-                    r_rec[s, dead], th_rec[s, dead], u_rec[s, dead] = np.nan, np.nan, np.nan
+                lam_rec[s] = lam
+                if stepper.faults.all_alive:
+                    lead_rec[s] = is_leader
+                else:
+                    lead_rec[s] = is_leader & stepper.faults.alive
+                    dead = stepper.faults.dead
+                    if dead.any():           # faults: a dead agent's rows are NaN
+                        r_rec[s, dead], th_rec[s, dead], u_rec[s, dead] = np.nan, np.nan, np.nan
                 recorded = s + 1
             if i == steps:
                 break

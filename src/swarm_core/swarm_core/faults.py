@@ -93,6 +93,7 @@ class FaultTimeline:
         self.frozen_until = np.full(self.n, -1, dtype=np.int64)   # step at which it resumes
         self.frozen_at = np.full(self.n, -1, dtype=np.int64)
         self._alive = None                     # cached ~dead & ~frozen (None: recompute)
+        self._all_alive = True                 # cached _alive.all()
         for f in faults:
             self.add(f)
 
@@ -117,7 +118,15 @@ class FaultTimeline:
         if self._alive is None:
             self._alive = ~self.dead & ~self.frozen
             self._alive.flags.writeable = False
+            self._all_alive = bool(self._alive.all())
         return self._alive
+
+    @property
+    def all_alive(self) -> bool:
+        """Every agent is heard this step (no agent dead or frozen); cached like ``alive``."""
+        if self._alive is None:
+            self.alive
+        return self._all_alive
 
     @property
     def any_fault(self) -> bool:
@@ -131,7 +140,7 @@ class FaultTimeline:
 
     def apply(self, k: int, leader_slots=None) -> list:
         if not (self.pending and self.pending[0][0] <= k) and self._alive is not None \
-                and self._alive.all():
+                and self._all_alive:
             return []                          # nothing due, nobody frozen: nothing changes
         self._alive = None
         t = k * self.dt

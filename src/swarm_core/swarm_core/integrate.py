@@ -12,6 +12,8 @@ import numpy as np
 def sinc(z):
     """sin(z)/z with sinc(0) = 1 (unnormalised), as (sin z + [z = 0]) / (z + [z = 0])."""
     z = np.asarray(z, dtype=float)
+    if np.count_nonzero(z) == z.size:       # no zero: the same numbers in two numpy calls
+        return np.sin(z) / z
     zero = z == 0.0
     return (np.sin(z) + zero) / (z + zero)
 
@@ -24,15 +26,14 @@ def zoh_step(pos, theta, u, dt):
     """
     half = np.multiply(u, 0.5 * dt)                             # u dt/2
     mid = theta + half
-    chord = sinc(half)
-    chord *= dt                                                 # dt sinc(u dt/2)
-    step = np.empty((2, len(half)))
-    np.cos(mid, out=step[0])
-    np.sin(mid, out=step[1])
-    step *= chord
-    new_pos = np.empty_like(pos, dtype=float)
-    np.add(pos, step.T, out=new_pos)
-    return new_pos, theta + 2.0 * half
+    chord = sinc(half) * dt                                     # dt sinc(u dt/2)
+    step = np.empty((len(half), 2))
+    np.cos(mid, out=step[:, 0])
+    np.sin(mid, out=step[:, 1])
+    flat = step.reshape(-1)                                     # (cos, sin) · chord, without
+    np.multiply(flat, chord.repeat(2), out=flat)                # numpy's broadcasting (n = 6)
+    np.add(step, pos, out=step)
+    return step, theta + 2.0 * half
 
 
 def rk4_step(pos, theta, t, dt, control):

@@ -21,6 +21,7 @@ nonzero ``barrier_gain`` are given.
 """
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import threading
@@ -168,28 +169,70 @@ def own_neighbour_pairs(pos, row: int, radius: float):
 DENSE_BLOCK = 8192
 
 
+class _Block:
+    """Scratch arrays of one row block of the dense path (b rows of n pairs) and named views of
+    them, made once: at n = 6 the cost of a step is numpy's per-call overhead, so the loop body
+    makes only same-shape calls on ready views (a broadcast call costs several plain ones)."""
+
+    __slots__ = ('d', 'dx', 'dy', 'd2', 'd2x', 'd2y', 'rr', 'h', 'wm', 'wb', 'mom', 'A', 'B',
+                 'Hx', 'Hy', 'C', 'S', 'consts', 'd_flat', 'cs_flat')
+
+    def __init__(self, d, d2, rr, h, wm, wb, mom):
+        self.d, self.dx, self.dy = d, d[0], d[1]               # r_jk = (dx, dy)
+        self.d2, self.d2x, self.d2y = d2, d2[0], d2[1]         # dx², dy² (then work space)
+        self.rr, self.h, self.wm, self.wb = rr, h, wm, wb      # ρ² → 1/ρ², h, weights, ρ < w
+        self.mom = mom                                          # the six moments' terms
+        self.A, self.B, self.Hx, self.Hy, self.C, self.S = mom
+        self.consts = {}
+        self.d_flat = self.cs_flat = None                       # (2, rows·n) views, whole blocks
+
+    def const(self, value: float):
+        """A (rows, n) array filled with ``value`` (numpy's call with a Python number and out=
+        costs about three times one with two arrays)."""
+        a = self.consts.get(value)
+        if a is None:
+            if len(self.consts) >= 16:
+                self.consts.clear()
+            a = self.consts[value] = np.full(self.rr.shape, value)
+            a.flags.writeable = False
+        return a
+
+    @classmethod
+    def new(cls, rows: int, n: int):
+        block = cls(np.empty((2, rows, n)), np.empty((2, rows, n)), np.empty((rows, n)),
+                    np.empty((rows, n)), np.empty((rows, n)), np.empty((rows, n), dtype=bool),
+                    np.empty((6, rows, n)))
+        block.d_flat = block.d.view()
+        block.d_flat.shape = (2, rows * n)                      # a view, never a copy
+        block.cs_flat = block.mom[4:6].view()
+        block.cs_flat.shape = (2, rows * n)
+        return block
+
+    def head(self, b: int):
+        """The same views on the first b rows (a partial last block)."""
+        return _Block(self.d[:, :b], self.d2[:, :b], self.rr[:b], self.h[:b], self.wm[:b],
+                      self.wb[:b], self.mom[:, :b])
+
+
 class _Scratch(threading.local):
-    """Per-thread scratch arrays of the dense path, kept from call to call (no allocation per
+    """Per-thread scratch blocks of the dense path, kept from call to call (no allocation per
     step; an agent node and the batch engine each keep their own shape)."""
 
     def __init__(self):
-        self.arrays = {}
+        self.blocks = {}
 
-    def get(self, rows: int, n: int):
-        """Arrays for blocks of ``rows`` rows of n pairs: (dx, dy), (dx², dy²), two work
-        arrays, the six moments and a bool array; each also as views of its first rows."""
+    def get(self, rows: int, n: int) -> _Block:
         key = (rows, n)
-        arrays = self.arrays.get(key)
-        if arrays is None:
-            if len(self.arrays) >= 4:
-                self.arrays.clear()
-            arrays = self.arrays[key] = (np.empty((2, rows, n)), np.empty((2, rows, n)),
-                                         np.empty((rows, n)), np.empty((rows, n)),
-                                         np.empty((6, rows, n)), np.empty((rows, n), dtype=bool))
-        return arrays
+        block = self.blocks.get(key)
+        if block is None:
+            if len(self.blocks) >= 4:
+                self.blocks.clear()
+            block = self.blocks[key] = _Block.new(rows, n)
+        return block
 
 
 _scratch = _Scratch()
+_NO_ERRSTATE = contextlib.nullcontext()
 
 
 @functools.lru_cache(maxsize=8)
@@ -200,23 +243,42 @@ def _row_starts(rows: int, n: int):
     return starts
 
 
-def _pair_weights(law, receivers, lam, q0, leaders, careful):
-    """Per-receiver far weight q of c(ρ, q, w) and the leader gain (eq. 6, 11, 12), or None
-    where every weight is 1 (then no weight matrix is built)."""
-    n_recv = receivers.size
+#: at most this many pairs: the dense path gathers r_j and the frames of the senders with
+#: take() (cheaper than numpy's broadcasting machinery on tiny arrays)
+GATHER_LIMIT = 512
+
+
+@functools.lru_cache(maxsize=8)
+def _senders(rows: int, n: int):
+    """0 … n−1 repeated ``rows`` times: the sender row of each entry of a (rows, n) block."""
+    j = np.tile(np.arange(n), rows)
+    j.flags.writeable = False
+    return j
+
+
+def _pair_weights(law, lam, q0, leaders, recv_leader, careful):
+    """The weights of eq. 6, 11, 12, or None where every weight is 1 (then no weight matrix is
+    built): (far, gain, leader rows) with far the weight q of c(ρ, q, w) beyond w (a number, or
+    (K, 1) per receiver) and, for leader laws, gain (K,) the factor of the pair with the
+    nearest leader l(k), (ℓc − 1)λ + 1 for a follower and 1 for a leader."""
     if leaders is None:
         far = q0 * (1.0 - lam)
         if far == 1.0 and not careful:
             return None
-        return np.full(n_recv, far), None, 1.0
+        return far, None, None
     if q0 == 1.0 and lam == 0.0 and not careful:
         return None                     # every cutoff weight and the leader gain are 1
-    recv_leader = leaders[receivers]
-    far = np.where(recv_leader, q0, q0 * (1.0 - lam))
-    return far, (~recv_leader).nonzero()[0], (law.leader_gain - 1.0) * lam + 1.0
+    if recv_leader.size == 1:           # one receiver (an agent node): plain numbers
+        if recv_leader[0]:
+            return q0, 1.0, leaders.nonzero()[0]
+        return q0 * (1.0 - lam), (law.leader_gain - 1.0) * lam + 1.0, leaders.nonzero()[0]
+    # (far, gain) of a follower and of a leader, picked per receiver (exact copies)
+    far_gain = np.array(((q0 * (1.0 - lam), (law.leader_gain - 1.0) * lam + 1.0), (q0, 1.0)))
+    far_gain = far_gain.take(recv_leader.astype(np.intp), axis=0)
+    return far_gain[:, :1], far_gain[:, 1], leaders.nonzero()[0]
 
 
-def _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, careful=False):
+def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader, careful=False):
     """Row sums ("moments") from which Σ_j weight_jk·u_jk follows for each receiver, over the
     whole table, in blocks of receiver rows (no Python loop over pairs).
 
@@ -227,107 +289,155 @@ def _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k
         Σ_j W_jk u_jk = −η[(c² − s²)·A + c·s·B] + (c·Hy − s·Hx) + μ(c·S − s·C)
 
     A = Σ W dx dy/ρ², B = Σ W (dy² − dx²)/ρ², (Hx, Hy) = Σ W h·(dx, dy), h = −α(1 − r0²/ρ²)/ρ,
-    S = Σ W sin θ_j, C = Σ W cos θ_j.  The self pair adds exactly 0 to A, B, Hx, Hy (its ρ² is
+    C = Σ W cos θ_j, S = Σ W sin θ_j.  The self pair adds exactly 0 to A, B, Hx, Hy (its ρ² is
     set to ∞) and its alignment c·s_k − s·c_k cancels.  With unit weights (no cutoff weight or
-    leader gain differs from 1) S and C are the plain table sums and are not formed per row.
+    leader gain differs from 1) C and S are the plain table sums and are not formed per row.
     The target law (eq. 13) needs only (Hx, Hy) with h = −α(1 − r0²/ρ²) (·1/ρ if normalised)
-    within w.
+    within w.  The nearest leader l(k) (eq. 8) is read off the block's ρ² (the numbers
+    `nearest_leader` forms; ties to the lower row).
 
-    Returns (moments (6, K), weighted): rows A, B, Hx, Hy, S, C (S, C only if weighted).
-    Each moment is numpy's row reduction of a contiguous row, whose result does not depend on
-    how many rows a block holds, so one receiver alone (an agent node) gets the batch value
-    bit for bit.  A coincident pair (ρ = 0, j ≠ k) makes its row non-finite; the caller redoes
-    such rows with ``careful``, where coincident pairs get weight 0 (they contribute 0).
+    cos_sin (2, N): the table's cos θ and sin θ.  Returns (moments (6, K): rows A, B, Hx, Hy,
+    C, S; whether the C, S rows are there (weighted, or a small block, where taking the
+    senders' frames costs less than a separate table sum); redo).  Each moment is numpy's row
+    reduction of a contiguous row, whose result does not depend on how many rows a block
+    holds, so one receiver alone (an agent node) gets the batch value bit for bit.  A row with
+    a coincident pair (ρ = 0, j ≠ k) is not valid here: redo (None, or receiver positions)
+    lists them for the caller to redo with ``careful``, where coincident pairs get weight 0
+    (they contribute 0).
+
+    At n = 6 the cost is numpy's per-call overhead, not arithmetic: a small block (at most
+    GATHER_LIMIT pairs) gathers r_j and the senders' frames with take() instead of
+    broadcasting, uses constant arrays instead of Python numbers, and looks for ρ = 0 before
+    dividing; large blocks keep scalar operands and flag non-finite rows after the sums.
     """
     n = pos.shape[0]
     n_recv = receivers.size
     sums = np.empty((6, n_recv))
-    g = law.gains
     target_kind = law.kind == 'target'
-    weights = None if target_kind else _pair_weights(law, receivers, lam, q0, leaders, careful)
+    weights = None if target_kind else _pair_weights(law, lam, q0, leaders, recv_leader, careful)
+    redo = None
     if n_recv == 0:
-        return sums, weights is not None
-    xy = pos.T.copy()                                           # (2, N): x and y rows
-    xy_recv = xy[:, receivers, None]
+        return sums, weights is not None, redo
+    xy = pos.T                                                  # (2, N): x and y rows
     block = min(n_recv, max(1, DENSE_BLOCK // max(1, n)))
-    scratch = _scratch.get(block, n)
-    w2 = law.cutoff_radius * law.cutoff_radius
-    a_r0 = g.alpha * g.r0 * g.r0
+    full = _scratch.get(block, n)
+    gather = block == n_recv and n_recv * n <= GATHER_LIMIT     # one small block
+    if gather:
+        senders = _senders(n_recv, n)
+        xy_recv = xy.take(receivers.repeat(n), axis=1)
+        xy_table = xy.take(senders, axis=1)
+        d_flat = full.d_flat
+    else:
+        xy_recv = xy.take(receivers, axis=1)[:, :, None]
+        xy_table = xy[:, None, :]
+    g = law.gains
+    const = full.const if gather else float                   # constants: arrays only when tiny
     self_pair = receivers + _row_starts(n_recv, n)              # flat index of (k, k) in a block
+    starts = _row_starts(block, n)
+    gain = leader_rows = None
+    if gather and not target_kind:   # the senders' cos θ_j, sin θ_j in the C, S rows (weighted below)
+        cos_sin.take(senders, axis=1, out=full.cs_flat)
     if weights is not None:
-        far, follower, boost = weights
-        far = far[:, None]
-        sin_cos = np.array((sin_t, cos_t))[:, None, :]
-        if follower is not None:
-            follower_leader = l_of_k[follower]
-    for a in range(0, n_recv, block):
-        b = min(block, n_recv - a)
-        rows = slice(a, a + b)
-        if b == block:
-            d, d2, rr, h, mom, wb = scratch
-        else:
-            d, d2, rr, h, mom, wb = scratch[0][:, :b], scratch[1][:, :b], scratch[2][:b], \
-                scratch[3][:b], scratch[4][:, :b], scratch[5][:b]
-        np.subtract(xy_recv[:, rows], xy[:, None, :], out=d)    # r_jk = r_k − r_j
-        np.multiply(d, d, out=d2)
-        np.add(d2[0], d2[1], out=rr)                             # ρ²
-        rr.put(self_pair[rows] - a * n if a else self_pair[rows], np.inf)   # self: 1/ρ² = 0
-        if target_kind or weights is not None:
-            np.less(rr, w2, out=wb)                              # ρ < w
-        if careful:
-            coincident = rr == 0.0
-            rr[coincident] = np.inf
-        if not target_kind:
-            np.subtract(d2[1], d2[0], out=mom[1])                # dy² − dx²
-        np.divide(1.0, rr, out=rr)                               # 1/ρ²
-        np.multiply(rr, a_r0, out=h)
-        h -= g.alpha                                             # −α(1 − r0²/ρ²)
-        if target_kind:
-            if law.target_normalised:
-                h *= np.sqrt(rr, out=d2[0])
-            h *= wb
-            np.multiply(d[0], h, out=mom[2])
-            np.multiply(d[1], h, out=mom[3])
-            np.add.reduce(mom[2:4], axis=2, out=sums[2:4, rows])
-            continue
-        h *= np.sqrt(rr, out=d2[0])                              # h = −α(1 − r0²/ρ²)/ρ
-        top = 4
-        if weights is not None:
-            wm = d2[0]
-            np.copyto(wm, far[rows])
-            np.copyto(wm, 1.0, where=wb)                         # c(ρ, q, w), eq. 6
-            if follower is not None:                             # (ℓc − 1)λ + 1 with l(k), eq. 11
-                if b == n_recv:
-                    wm[follower, follower_leader] *= boost
+        far, gain, leader_rows = weights
+        if gain is None:
+            far = const(far)
+        if not gather:
+            table_cos, table_sin = cos_sin[:, None, :]
+    top = 6 if weights is not None or gather else 4
+    # coincident pairs: a small block (or a careful pass) looks for ρ = 0 before dividing; a
+    # large one divides anyway (no check pass over every block) and flags non-finite rows after
+    look = gather or careful
+    with _NO_ERRSTATE if look else np.errstate(divide='ignore', invalid='ignore'):
+        for a in range(0, n_recv, block):
+            b = min(block, n_recv - a)
+            z = full if b == block else full.head(b)
+            rows = slice(a, a + b)
+            single = b == n_recv
+            rr = z.rr
+            if gather:
+                np.subtract(xy_recv, xy_table, out=d_flat)       # r_jk = r_k − r_j
+            else:
+                np.subtract(xy_recv if single else xy_recv[:, rows], xy_table, out=z.d)
+            np.multiply(z.d, z.d, out=z.d2)
+            np.add(z.d2x, z.d2y, out=rr)                         # ρ²
+            rr.put(self_pair if single else self_pair[rows] - a * n, np.inf)  # self: 1/ρ² = 0
+            if gain is not None:                                 # l(k), eq. 8: the nearest leader
+                l_flat = leader_rows.take(rr.take(leader_rows, axis=1).argmin(axis=1))
+                l_flat += starts if b == block else starts[:b]
+            if target_kind or weights is not None:
+                np.less(rr, const(law.cutoff_radius * law.cutoff_radius), out=z.wb)  # ρ < w
+            coincident = None
+            if look and np.count_nonzero(rr) != rr.size:         # a coincident pair (ρ = 0, j ≠ k)
+                coincident = rr == 0.0
+                rr[coincident] = np.inf
+                if not careful:                                  # its row is redone by the caller
+                    bad = a + np.flatnonzero(coincident.any(axis=1))
+                    redo = bad if redo is None else np.concatenate((redo, bad))
+            h = z.h
+            np.reciprocal(rr, out=rr)                            # 1/ρ²
+            np.multiply(rr, const(g.alpha * g.r0 * g.r0), out=h)
+            np.subtract(h, const(g.alpha), out=h)                # −α(1 − r0²/ρ²)
+            if target_kind:
+                if law.target_normalised:
+                    np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)
+                np.multiply(h, z.wb, out=h)
+                np.multiply(z.dx, h, out=z.Hx)
+                np.multiply(z.dy, h, out=z.Hy)
+                np.add.reduce(z.mom[2:4], axis=2, out=sums[2:4] if single else sums[2:4, rows])
+                continue
+            np.subtract(z.d2y, z.d2x, out=z.B)                   # dy² − dx²
+            np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)        # h = −α(1 − r0²/ρ²)/ρ
+            if weights is not None:
+                wm = z.wm
+                np.copyto(wm, far if gain is None or single else far[rows])  # far: q, or (K, 1)
+                np.copyto(wm, const(1.0), where=z.wb)            # c(ρ, q, w), eq. 6
+                if gain is not None:                             # (ℓc − 1)λ + 1 with l(k), eq. 11
+                    wm.put(l_flat, wm.take(l_flat) * (gain if single else gain[rows]))
+                if coincident is not None and careful:
+                    wm[coincident] = 0.0
+                np.multiply(rr, wm, out=rr)
+                np.multiply(h, wm, out=h)
+                if gather:
+                    np.multiply(z.C, wm, out=z.C)
+                    np.multiply(z.S, wm, out=z.S)
                 else:
-                    lo, hi = np.searchsorted(follower, (a, a + b))
-                    wm[follower[lo:hi] - a, follower_leader[lo:hi]] *= boost
-            if careful:
-                wm[coincident] = 0.0
-            rr *= wm
-            h *= wm
-            np.multiply(wm, sin_cos, out=mom[4:6])
-            top = 6
-        np.multiply(d[0], d[1], out=mom[0])
-        mom[0] *= rr
-        mom[1] *= rr
-        np.multiply(d[0], h, out=mom[2])
-        np.multiply(d[1], h, out=mom[3])
-        np.add.reduce(mom[:top], axis=2, out=sums[:top, rows])
-    return sums, weights is not None
+                    np.multiply(wm, table_cos, out=z.C)
+                    np.multiply(wm, table_sin, out=z.S)
+            np.multiply(z.dx, z.dy, out=z.A)
+            np.multiply(z.A, rr, out=z.A)
+            np.multiply(z.B, rr, out=z.B)
+            np.multiply(z.dx, h, out=z.Hx)
+            np.multiply(z.dy, h, out=z.Hy)
+            np.add.reduce(z.mom if top == 6 else z.mom[:4], axis=2,
+                          out=(sums if top == 6 else sums[:4]) if single else sums[:top, rows])
+    if not look:
+        lo = 2 if target_kind else 0
+        if not math.isfinite(np.add.reduce(sums[lo:4], axis=None)):
+            redo = np.flatnonzero(~np.isfinite(sums[lo:4]).all(axis=0))
+    return sums, top == 6, redo
 
 
-def _combine(m, weighted, c, s, cos_t, sin_t, law):
-    """Σ_j W_jk u_jk of each receiver (frame c, s) from its moments (see `_pair_sums_dense`)."""
+def _combine(m, weighted, F, cos_sin, law):
+    """Σ_j W_jk u_jk of each receiver from its moments m (6, K) (see `_pair_sums_dense`);
+    F (2, K): the receivers' (sin θ_k, cos θ_k); cos_sin (2, N): the table's (cos θ, sin θ)."""
     if law.kind == 'target':
-        return c * m[3] - s * m[2]
+        p = m[2:4] * F                                           # s·Hx, c·Hy
+        return p[1] - p[0]
     g = law.gains
     if weighted:
-        sin_sum, cos_sum = m[4], m[5]
+        y = m[4:6] * g.mu                                        # μC, μS
+        y += m[2:4]
     else:
-        sin_sum, cos_sum = np.add.reduce(sin_t), np.add.reduce(cos_t)
-    return (c * (m[3] + g.mu * sin_sum) - s * (m[2] + g.mu * cos_sum)
-            - g.eta * ((c * c - s * s) * m[0] + (c * s) * m[1]))
+        y = m[2:4] + (np.add.reduce(cos_sin, axis=1) * g.mu)[:, None]
+    y *= F                                                       # s(Hx + μC), c(Hy + μS)
+    q = F * F                                                    # s², c²
+    np.subtract(q[1], q[0], out=q[0])                            # c² − s²
+    np.multiply(F[1], F[0], out=q[1])                            # c·s
+    q *= m[0:2]
+    base = (q[0] + q[1]) * g.eta
+    u = y[1] - y[0]                                              # c(Hy + μS) − s(Hx + μC)
+    u -= base
+    return u
 
 
 def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, k, j, careful=False):
@@ -382,36 +492,29 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
     dy *= h
     for i, w in enumerate((dy2, dx2, dx, dy)):
         m[i] = np.bincount(k, weights=w, minlength=n_recv)
-    for i, t in ((4, sin_t), (5, cos_t)):
+    for i, t in ((4, cos_t), (5, sin_t)):
         w = t[j]
         w *= weight
         m[i] = np.bincount(k, weights=w, minlength=n_recv)
     return m, True
 
 
-def _pair_sum(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, pairs):
-    """Σ_j weight_jk·u_jk of each receiver: densely over the table or over a pair list.  A row
-    with coincident agents (non-finite in the fast form) is redone with explicit masks."""
-    c, s = cos_t[receivers], sin_t[receivers]
+def _pair_sum_sparse(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, leaders, pairs):
+    """Σ_j weight_jk·u_jk of each receiver over a pair list; a row with coincident agents
+    (non-finite in the fast form) is redone with explicit masks."""
+    l_of_k = nearest_leader(pos, receivers, leaders.nonzero()[0]) if leaders is not None else None
     with np.errstate(divide='ignore', invalid='ignore'):
-        if pairs is None:
-            m, weighted = _pair_sums_dense(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k)
-        else:
-            m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders,
-                                            l_of_k, *pairs)
-        sums = _combine(m, weighted, c, s, cos_t, sin_t, law)
+        m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders,
+                                        l_of_k, *pairs)
+        sums = _combine(m, weighted, F, cos_sin, law)
     if not math.isfinite(np.add.reduce(sums)):
         idx = np.flatnonzero(~np.isfinite(sums))
         lk = None if l_of_k is None else l_of_k[idx]
-        if pairs is None:
-            m, weighted = _pair_sums_dense(pos, cos_t, sin_t, receivers[idx], law, lam, q0, leaders,
-                                           lk, careful=True)
-        else:
-            keep = np.isin(pairs[0], idx)
-            k_sub = np.searchsorted(idx, pairs[0][keep])
-            m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers[idx], law, lam, q0, leaders,
-                                            lk, k_sub, pairs[1][keep], careful=True)
-        sums[idx] = _combine(m, weighted, c[idx], s[idx], cos_t, sin_t, law)
+        keep = np.isin(pairs[0], idx)
+        k_sub = np.searchsorted(idx, pairs[0][keep])
+        m, weighted = _pair_sums_sparse(pos, cos_t, sin_t, receivers[idx], law, lam, q0, leaders,
+                                        lk, k_sub, pairs[1][keep], careful=True)
+        sums[idx] = _combine(m, weighted, F[:, idx], cos_sin, law)
     return sums
 
 
@@ -436,24 +539,39 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
     receivers = np.asarray(receivers, dtype=np.intp)
     n_recv = receivers.size
     lam, q0 = law.effective_lambda_q0(lambda_) if law.kind != 'target' else (0.0, 0.0)
-    leaders = None
+    leaders = recv_leader = None
     if law.uses_leaders and is_leader is not None:
         is_leader = np.asarray(is_leader, dtype=bool)
         if np.count_nonzero(is_leader):
             leaders = is_leader
-    l_of_k = nearest_leader(pos, receivers, leaders.nonzero()[0]) if leaders is not None else None
+            recv_leader = leaders[receivers]
+    frames = np.array((cos_t, sin_t, cos_t), dtype=float)
+    cos_sin = frames[:2]                                        # (2, N): the table's cos θ, sin θ
+    F = frames[1:].take(receivers, axis=1)                      # (2, K): the receivers' sin θ, cos θ
 
-    sums = _pair_sum(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k, pairs)
+    if pairs is None:               # densely over the table; rows with coincident agents redone
+        m, has_cs, redo = _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader)
+        sums = _combine(m, has_cs, F, cos_sin, law)
+        if redo is not None:
+            m, has_cs, _ = _pair_sums_dense(pos, cos_sin, receivers[redo], law, lam, q0, leaders,
+                                            None if recv_leader is None else recv_leader[redo],
+                                            careful=True)
+            sums[redo] = _combine(m, has_cs, F[:, redo], cos_sin, law)
+    else:
+        sums = _pair_sum_sparse(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, leaders, pairs)
 
     if leaders is not None:
         s = np.zeros(n_recv) if steering is None else np.asarray(steering, dtype=float)
-        u = np.where(leaders[receivers], (1.0 - lam) * sums + lam * s, sums)
+        u = np.where(recv_leader, (1.0 - lam) * sums + lam * s, sums)
     else:
         u = sums
-    if (target is not None and law.target_gain != 0.0) or (barrier is not None and law.barrier_gain != 0.0):
-        cos_k, sin_k = cos_t[receivers], sin_t[receivers]
+    return _add_world_terms(u, pos, F, receivers, law, target, barrier)
+
+
+def _add_world_terms(u, pos, F, receivers, law, target, barrier):
+    """u plus the target term (eq. 13) and the barrier term (eq. 14) where they apply."""
     if target is not None and law.target_gain != 0.0:
-        u = u + target_term(pos[receivers], cos_k, sin_k, np.asarray(target, float), law)
+        u = u + target_term(pos[receivers], F[1], F[0], np.asarray(target, float), law)
     if barrier is not None and law.barrier_gain != 0.0 and len(barrier):
-        u = u + barrier_term(pos[receivers], cos_k, sin_k, np.asarray(barrier, float), law)
+        u = u + barrier_term(pos[receivers], F[1], F[0], np.asarray(barrier, float), law)
     return u
