@@ -89,6 +89,31 @@ def test_partial_run_is_kept_on_interrupt():
     assert np.all(np.isfinite(tr.r))
 
 
+
+def test_a_run_shorter_than_its_checks_leaves_them_not_judged():
+    """homotopy_global to t = 20: its windows (t = 300-600) and the end are not reached; an
+    interrupted run judges nothing about the end; what a short run settles still counts."""
+    from swarm_core.simulate_cli import behaviour_ok, sweep_table
+    scn = scenario.load('homotopy_global', duration=20)
+    _, checks = analyse(scn, engine.simulate(scn))
+    assert checks['one_cluster_at']['passed'] is None and checks['split_between']['passed'] is None
+    assert 'needs t = 310' in checks['one_cluster_at']['not_judged']
+    assert checks['one_cluster_at_end']['passed'] is True           # the end of the run asked for
+    assert behaviour_ok(checks) is None
+    full = scenario.load('homotopy_global')                          # the file's t = 1000, cut at t = 20
+    part = engine.simulate(scenario.load('homotopy_global', duration=20))
+    _, cut = analyse(full, part)
+    assert all(v['passed'] is None for v in cut.values()), cut
+    table = sweep_table('homotopy_global', [dict(seed=0, ok=None, checks=cut)])
+    assert '0/1 (1 not judged' in table and 'failing seeds: []' in table
+    # settled by what ran: a second cluster inside a one-cluster window fails at once
+    series = dict(t=np.arange(0.0, 21.0), clusters=np.r_[np.ones(15, int), [2] * 6],
+                  one_leader_per_cluster=np.zeros(21, bool))
+    from swarm_core.outcomes import evaluate
+    got = evaluate({'one_cluster_at': [10, 300]}, series, scn=full)
+    assert got['one_cluster_at']['passed'] is False and behaviour_ok(got) is False
+
+
 # ------------------------------------------------------------------ bad scenario files
 
 def _base():

@@ -25,6 +25,11 @@ assert them.  Checks:
                                   of the group's mean heading (a line fit).  Without a leader
                                   the subswarm flies straight (turn rate ≈ 0) and fails.
 Dead agents (NaN rows) are left out of every sample (metrics.time_series).
+
+A run that ends before the scenario's duration (``--duration``, Ctrl-C) cannot settle every
+check: a check that needs time the run did not reach is reported ``passed: None`` with
+``not_judged`` saying why, unless what ran already settles it (a split that happened, an
+intrusion or a second cluster inside a window that must have one cluster).
 """
 from __future__ import annotations
 
@@ -148,10 +153,36 @@ def check_trajectory(name, arg, traj, scn):
     raise ValueError(f'unknown expectation {name!r}')
 
 
+#: checks settled by one sample (a pass stands once seen) and checks that a single sample
+#: can break (a failure stands once seen), when the run is shorter than the scenario
+_PASS_STANDS = ('split_between', 'split_near_x', 'rejoins_after_x', 'arrives_within')
+_FAIL_STANDS = {'one_cluster_at': 'max_clusters', 'stays_split_from': 'min_clusters_after',
+                'one_cluster_from': 'max_clusters_after', 'no_intrusion': 'intrusions_total'}
+
+
+def needs_until(name, arg, duration):
+    """The time up to which a check looks at the run (the scenario's ``duration`` for the
+    checks about the end, and for the spatial ones, whose time is not known beforehand)."""
+    if name in ('one_cluster_at', 'split_between'):
+        return float(arg[1])
+    if name == 'polarisation_above':
+        return float(arg['at'])
+    if name == 'split_at':
+        return float(arg)
+    if name == 'follows_program':
+        return float(arg['to'])
+    return float(duration)
+
+
 def evaluate(expect: dict, series, traj=None, scn=None) -> dict:
-    """{check name: {'passed': bool, ...details}} for every check in ``expect``; checks in
-    TRAJECTORY_CHECKS need the trajectory (with its events) and the scenario."""
+    """{check name: {'passed': bool or None, ...details}} for every check in ``expect``;
+    checks in TRAJECTORY_CHECKS need the trajectory (with its events) and the scenario.  With
+    the scenario given, a run that ends before its duration leaves unsettled checks
+    ``passed: None`` (module docstring)."""
     out = {}
+    t_end = float(series['t'][-1]) if len(series['t']) else 0.0
+    if traj is not None and len(traj.t):
+        t_end = float(traj.t[-1])
     for name, arg in expect.items():
         if name in TRAJECTORY_CHECKS:
             if traj is None:
@@ -159,5 +190,12 @@ def evaluate(expect: dict, series, traj=None, scn=None) -> dict:
             passed, details = check_trajectory(name, arg, traj, scn)
         else:
             passed, details = check(name, arg, series)
-        out[name] = {'passed': bool(passed), **details}
+        res = {'passed': bool(passed), **details}
+        if scn is not None:
+            need = needs_until(name, arg, scn.duration)
+            settled = ((passed and name in _PASS_STANDS) or           # seen in the samples that ran
+                       (not passed and details.get(_FAIL_STANDS.get(name)) is not None))
+            if need > t_end + 0.5 * scn.dt and not settled:
+                res = {'passed': None, 'not_judged': f'the run ends at t = {t_end:g}, the check needs t = {need:g}'}
+        out[name] = res
     return out

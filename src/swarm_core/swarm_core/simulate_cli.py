@@ -34,6 +34,14 @@ def _jsonable(x):
     raise TypeError(type(x))
 
 
+def behaviour_ok(checks):
+    """True if every check passed, False if one failed, None if none failed but some could not
+    be judged (a run shorter than the scenario) or there are no checks."""
+    if not checks or any(v['passed'] is False for v in checks.values()):
+        return False if checks else None
+    return None if any(v['passed'] is None for v in checks.values()) else True
+
+
 def summary_of(scn, traj, series, checks) -> dict:
     c = series['clusters']
     changes = [(float(series['t'][0]), int(c[0]))]
@@ -47,7 +55,7 @@ def summary_of(scn, traj, series, checks) -> dict:
                min_distance=float(np.min(series['min_distance'])),
                final_polarisation=float(series['polarisation'][-1]),
                cluster_changes=changes, checks=checks,
-               behaviour_ok=all(v['passed'] for v in checks.values()) if checks else None,
+               behaviour_ok=behaviour_ok(checks),
                interrupted=bool(traj.meta.get('interrupted', False)),
                wall_seconds=round(traj.meta.get('wall_seconds', 0.0), 3))
     if 'intrusions_total' in series:
@@ -162,8 +170,9 @@ def simulate_main(argv) -> int:
         det = ', '.join(f'{k}={v}' for k, v in ev.items() if k not in ('t', 'kind', 'step'))
         print(f'  event t={ev["t"]:g}: {ev["kind"]} ({det})')
     for name, res in checks.items():
-        det = ', '.join(f'{k}={v}' for k, v in res.items() if k != 'passed')
-        print(f'  {"PASS" if res["passed"] else "FAIL"} {name}: {det}')
+        det = res.get('not_judged') or ', '.join(f'{k}={v}' for k, v in res.items() if k != 'passed')
+        verdict = {True: 'PASS', False: 'FAIL', None: 'NOT JUDGED'}[res['passed']]
+        print(f'  {verdict} {name}: {det}')
     print(f'  wrote {out}/trajectory.npz, metrics.json' + ('' if a.no_figure else f', {scn.name}.png'))
     return 130 if interrupted else 0
 
@@ -263,17 +272,19 @@ def sweep_table(name, results) -> str:
     lines = [f'### {name} ({n} seeds: {results[0]["seed"]}..{results[-1]["seed"]})' if results else f'### {name}',
              '', '| check | passed | median detail |', '|---|---|---|']
     for c in names:
-        passed = sum(r['checks'][c]['passed'] for r in results)
-        keys = [k for k in results[0]['checks'][c] if k != 'passed']
+        passed = sum(r['checks'][c]['passed'] is True for r in results)
+        unjudged = sum(r['checks'][c]['passed'] is None for r in results)
+        keys = list(dict.fromkeys(k for r in results for k in r['checks'][c] if k not in ('passed', 'not_judged')))
         det = []
         for k in keys:
-            vals = [r['checks'][c][k] for r in results]
+            vals = [r['checks'][c].get(k) for r in results]
             if all(isinstance(v, (int, float)) or v is None for v in vals):
                 med = _median(vals)
                 det.append(f'{k} {med:.4g}' if med is not None else f'{k} n/a')
-        lines.append(f'| {c} | {passed}/{n} | {", ".join(det)} |')
+        note = f' ({unjudged} not judged: run shorter than the scenario)' if unjudged else ''
+        lines.append(f'| {c} | {passed}/{n}{note} | {", ".join(det)} |')
     ok = sum(bool(r['ok']) for r in results)
-    lines.append(f'| **all checks** | **{ok}/{n}** | failing seeds: {[r["seed"] for r in results if not r["ok"]]} |')
+    lines.append(f'| **all checks** | **{ok}/{n}** | failing seeds: {[r["seed"] for r in results if r["ok"] is False]} |')
     return '\n'.join(lines)
 
 
