@@ -167,8 +167,10 @@ def test_cli_simulate_writes_outputs(tmp_path):
     r = _swarm('simulate', 'homotopy_global', '--duration', '120', '--seed', '4', '--out', str(tmp_path), '--quiet')
     assert r.returncode == 0, r.stderr
     z = np.load(tmp_path / 'trajectory.npz')
-    assert z['r'].shape == (2401, 6, 2) and z['t'].shape == (2401,) and z['theta'].shape == (2401, 6)
-    assert z['u'].shape == (2401, 6) and z['lam'].shape == (2401,) and list(z['names'])[0] == 'agent_0'
+    T = int(round(120 / scenario.load('homotopy_global').dt)) + 1
+    assert z['r'].shape == (T, 6, 2) and z['t'].shape == (T,) and z['theta'].shape == (T, 6)
+    assert z['u'].shape == (T, 6) and z['lam'].shape == (T,) and list(z['names'])[0] == 'agent_0'
+    assert z['t'][-1] == pytest.approx(120.0)
     doc = json.loads((tmp_path / 'metrics.json').read_text())
     assert doc['summary']['seed'] == 4 and doc['summary']['final_clusters'] == 1
     assert len(doc['series']['clusters']) == len(doc['series']['t'])

@@ -106,8 +106,9 @@ def test_lockstep_reaches_agents_over_dds(rclpy_context):
     assert got[0].child_frame_id == 'agent_2' and got[0].header.stamp.sec == 0
     lam, flags, steer = 0.7, np.array([0, 0, 1, 0, 0, 0], bool), np.full(6, 0.03)
     pub.publish(step_message(scn, scn.pos0, scn.theta0, lam, flags, steer))
-    assert spin_for(ex, lambda: any(m.header.stamp.nanosec == 50_000_000 for m in got))
-    m = [m for m in got if m.header.stamp.nanosec == 50_000_000][0]
+    stamp = P.time_to_stamp(scn.dt)                      # the state of step 1
+    assert spin_for(ex, lambda: any((m.header.stamp.sec, m.header.stamp.nanosec) == stamp for m in got))
+    m = [m for m in got if (m.header.stamp.sec, m.header.stamp.nanosec) == stamp][0]
     cos_t, sin_t = frame_from_quaternion(*quaternion_from_heading(scn.theta0))
     u = swarm_control(scn.pos0, cos_t, sin_t, [2], scn.law, lambda_=lam, is_leader=flags, steering=[0.03])[0]
     assert m.twist.twist.angular.z == u
