@@ -133,3 +133,12 @@ def test_run_and_record_refuse_unwritable_outputs_before_starting(tmp_path):
         assert 'processes' not in r.stdout          # nothing was started
     r = _swarm('record', '--out', blocker / 'x.mcap', '--duration', '1')
     _one_clean_line(r, 'swarm record: cannot write')
+
+
+@pytest.mark.parametrize('args', [('lambda', '0.5'), ('steer', 'agent_0', '0.01'), ('kill', 'agent_0'),
+                                  ('pause', 'agent_0', '3'), ('drop', '0.5'), ('partition', 'agent_0')])
+def test_live_verbs_refuse_a_negative_or_nonnumeric_wait(args):
+    """`--wait -1` was accepted (and waited no time at all); every live verb shares one type."""
+    for bad in ('-1', 'nan', 'soon'):
+        r = _swarm(*args, '--wait', bad, timeout=60)
+        assert r.returncode == 2 and '--wait' in r.stderr and 'Traceback' not in r.stderr, (args, bad, r.stderr)

@@ -17,6 +17,8 @@ import math
 import sys
 import time
 
+from swarm_world.cliutil import add_wait
+
 SETPOINT = '/commander/lambda_setpoint'
 
 
@@ -60,7 +62,7 @@ def lambda_main(argv) -> int:
         'Set the homotopy parameter λ of a running swarm: the commander ramps smoothly to it.'))
     p.add_argument('value', type=float, help='λ in [0, 1]')
     p.add_argument('--ramp', type=float, default=20.0, help='ramp duration in sim seconds (default 20; 0 = jump)')
-    p.add_argument('--wait', type=float, default=10.0, help='wall seconds to wait for the swarm to be found (default 10)')
+    add_wait(p, 'the swarm')
     a = p.parse_args(argv)
     if not (math.isfinite(a.value) and 0.0 <= a.value <= 1.0):
         print(f'swarm lambda: λ={a.value!r} rejected: must be finite and in [0, 1]', file=sys.stderr)
@@ -86,7 +88,7 @@ def steer_main(argv) -> int:
         "Set a leader's steering program (a constant curvature s_k) in a running swarm."))
     p.add_argument('agent', help='agent name, e.g. agent_0')
     p.add_argument('value', type=float, help='curvature s_k (finite; + turns anticlockwise)')
-    p.add_argument('--wait', type=float, default=10.0, help='wall seconds to wait for the agent to be found (default 10)')
+    add_wait(p, 'the agent')
     a = p.parse_args(argv)
     if not math.isfinite(a.value):
         print(f'swarm steer: steering {a.value!r} rejected: not finite', file=sys.stderr)

@@ -22,6 +22,8 @@ import math
 import sys
 import time
 
+from .cliutil import add_wait
+
 
 def _agents_in_graph(node):
     """Agent names of the running swarm (nodes ``/<name>/agent``)."""
@@ -100,7 +102,7 @@ def drop_main(argv) -> int:
         '(on top of the configured loss), for --for sim seconds or until the next `swarm drop`.'))
     p.add_argument('loss', type=float, help='loss probability P in [0, 1] (0 ends a burst)')
     p.add_argument('--for', dest='duration', type=float, help='duration in sim seconds (default: until changed)')
-    p.add_argument('--wait', type=float, default=10.0, help='wall seconds to wait for the swarm to be found (default 10)')
+    add_wait(p, 'the swarm')
     a = p.parse_args(argv)
     if not (math.isfinite(a.loss) and 0.0 <= a.loss <= 1.0):
         print(f'swarm drop: loss {a.loss!r} rejected: must be in [0, 1]', file=sys.stderr)
@@ -118,7 +120,7 @@ def partition_main(argv) -> int:
         '(agents named in no group form one more group), or heal it.'))
     p.add_argument('groups', nargs='*', help='groups of agent names, comma-separated, e.g. agent_0,agent_1 agent_2')
     p.add_argument('--heal', action='store_true', help='remove the partition')
-    p.add_argument('--wait', type=float, default=10.0, help='wall seconds to wait for the swarm to be found (default 10)')
+    add_wait(p, 'the swarm')
     a = p.parse_args(argv)
     if a.heal == bool(a.groups):
         print('swarm partition: give groups (a,b,c d,e) or --heal, not both / neither', file=sys.stderr)

@@ -15,6 +15,7 @@ import math
 import sys
 
 from . import protocol as P
+from .cliutil import add_wait
 
 
 def _agent_name(text):
@@ -42,7 +43,7 @@ def kill_main(argv) -> int:
         'Kill an agent of a running swarm: the world drops it from the roster at its next step '
         'and SIGKILLs its process (swarm run --processes).'))
     p.add_argument('agent', help='agent name, e.g. agent_3')
-    p.add_argument('--wait', type=float, default=10.0, help='wall seconds to wait for the world to be found (default 10)')
+    add_wait(p, 'the world')
     a = p.parse_args(argv)
     name = _agent_name(a.agent)
     if name is None:
@@ -60,7 +61,7 @@ def pause_main(argv) -> int:
         'heard, its process is stopped (SIGSTOP) and resumed (SIGCONT) with the state it had.'))
     p.add_argument('agent', help='agent name, e.g. agent_3')
     p.add_argument('seconds', type=float, help='sim seconds (> 0)')
-    p.add_argument('--wait', type=float, default=10.0, help='wall seconds to wait for the world to be found (default 10)')
+    add_wait(p, 'the world')
     a = p.parse_args(argv)
     name = _agent_name(a.agent)
     if name is None:
