@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 from conftest import Lines
@@ -142,3 +143,13 @@ def test_live_verbs_refuse_a_negative_or_nonnumeric_wait(args):
     for bad in ('-1', 'nan', 'soon'):
         r = _swarm(*args, '--wait', bad, timeout=60)
         assert r.returncode == 2 and '--wait' in r.stderr and 'Traceback' not in r.stderr, (args, bad, r.stderr)
+
+
+def test_rk4_reference_run_does_not_overwrite_the_zoh_run(tmp_path):
+    for extra in ((), ('--integrator', 'rk4')):
+        r = subprocess.run([sys.executable, '-m', 'swarm_core.cli', 'simulate', 'global_alignment', '--duration', '2',
+                            '--quiet', '--no-figure', *extra], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+        assert r.returncode == 0, r.stderr
+    zoh = np.load(tmp_path / 'runs' / 'global_alignment-seed0' / 'trajectory.npz')['r']
+    rk4 = np.load(tmp_path / 'runs' / 'global_alignment-seed0-rk4' / 'trajectory.npz')['r']
+    assert zoh.shape == rk4.shape and not np.array_equal(zoh, rk4)

@@ -138,7 +138,7 @@ def simulate_main(argv) -> int:
     p.add_argument('--seed', type=int, help='random seed (initial headings, noise); default: the file\'s')
     p.add_argument('--duration', type=float, help='simulated time to run (default: the file\'s)')
     p.add_argument('--dt', type=float, help='control/integration step (default: the file\'s)')
-    p.add_argument('--integrator', choices=['zoh', 'rk4'], help='zero-order-hold exact arc (default) or RK4 reference')
+    p.add_argument('--integrator', choices=['zoh', 'rk4'], help='zero-order-hold exact arc (default) or RK4 reference (default --out: runs/SCENARIO-seedN-rk4)')
     p.add_argument('--out', default=None, help='output directory (default: runs/SCENARIO-seedN)')
     p.add_argument('--record-every', type=int, default=1, metavar='K', help='keep every K-th step (default 1)')
     p.add_argument('--no-figure', action='store_true', help='skip the PNG figure')
@@ -150,7 +150,9 @@ def simulate_main(argv) -> int:
     if a.integrator:
         over['integrator'] = a.integrator
     scn = _load_or_exit(a.scenario, **over)
-    out = a.out or os.path.join('runs', f'{scn.name}-seed{scn.seed}')
+    # the RK4 reference run gets its own default directory (it overwrote the ZOH run's)
+    rk4 = '-rk4' if scn.spec.integrator == 'rk4' else ''
+    out = a.out or os.path.join('runs', f'{scn.name}-seed{scn.seed}{rk4}')
     _make_dir_or_exit('swarm simulate', out)
     if not a.quiet:
         src = scn.source if scn.source.startswith(scn.name) else f'{scn.name} ({scn.source})'
