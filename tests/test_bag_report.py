@@ -16,7 +16,7 @@ import pytest
 from swarm_core import engine, metrics, scenario
 from swarm_core.model import quaternion_from_heading
 
-RECORD_EVERY = 5          # 0.25 time units between recorded states: 4001 steps x 6 agents
+RECORD_EVERY = 5          # every 5th step: 0.5 time units between recorded states at dt = 0.1, 2001 x 6 agents
 
 
 @pytest.fixture(scope='module')
