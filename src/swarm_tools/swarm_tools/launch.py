@@ -100,17 +100,8 @@ def run_in_process(params: dict, domain_id=None) -> int:
     from rclpy.context import Context
     from rclpy.signals import SignalHandlerOptions
 
-    from swarm_world.rosutil import ParameterError, make_executor, spin_until
-    from rclpy.task import Future
-    stop, wake = [], Future()
-
-    def on_signal(signum, _frame):
-        stop.append(signum)
-        if not wake.done():
-            wake.set_result(signum)
-    old = {}
-    if threading.current_thread() is threading.main_thread():
-        old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    from swarm_world.rosutil import ParameterError, make_executor, spin_until, stop_on_signals
+    stop, wake, restore_signals = stop_on_signals()
     ctx = Context()
     rclpy.init(context=ctx, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
     try:
@@ -132,8 +123,7 @@ def run_in_process(params: dict, domain_id=None) -> int:
     finally:
         if ctx.ok():
             rclpy.shutdown(context=ctx)
-        for sig, handler in old.items():
-            signal.signal(sig, handler)
+        restore_signals()
 
 
 # ---------------------------------------------------------------- processes

@@ -174,6 +174,31 @@ def node_help(node_class, exe) -> str:
     return '\n'.join(lines)
 
 
+def stop_on_signals():
+    """SIGINT / SIGTERM set a flag instead of rclpy's handler (which shuts the context down
+    under a running callback): returns (stop, wake, restore) — ``stop`` (a list) gets the
+    signal number, ``wake`` (a Future, `spin_until`'s ``wake``) completes at once, ``restore()``
+    puts the previous handlers back.  Installed only in the main thread (signals go there)."""
+    import signal
+    import threading
+
+    from rclpy.task import Future
+    stop, wake = [], Future()
+
+    def on_signal(signum, _frame):
+        stop.append(signum)
+        if not wake.done():
+            wake.set_result(signum)
+    old = {}
+    if threading.current_thread() is threading.main_thread():
+        old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+    def restore():
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+    return stop, wake, restore
+
+
 def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, on_stop=None) -> int:
     """The ``main()`` of a node executable: init rclpy from ``argv``, build ``node_class()``
     (a bad parameter -> one error line, exit 2), spin until ``done(node)`` or SIGINT / SIGTERM,
@@ -184,7 +209,6 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
     callback that is running finishes (rclpy's own handler shut the context down under it, and
     every node logged a traceback on Ctrl-C), then ``on_stop(node)`` runs (e.g. the world
     saves the steps done so far) and the node is cleaned up."""
-    import signal
     import sys
 
     import rclpy
@@ -193,15 +217,7 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
     if wants_help(args):
         print(node_help(node_class, logger_name))
         return 0
-    from rclpy.task import Future
-    stop, wake = [], Future()
-
-    def on_signal(signum, _frame):
-        stop.append(signum)
-        if not wake.done():
-            wake.set_result(signum)
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, on_signal)
+    stop, wake, _ = stop_on_signals()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     ctx = rclpy.get_default_context()
     try:
