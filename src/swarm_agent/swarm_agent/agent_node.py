@@ -354,6 +354,7 @@ class AgentNode(Node):
         self.t = t_new
         self.publish_state()
 
+
 def main(argv=None):
     return run_node(AgentNode, 'swarm_agent', argv)
 

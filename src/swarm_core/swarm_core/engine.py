@@ -186,8 +186,9 @@ class SwarmStepper:
             self.u_prev = np.array(u, dtype=float) if still is None else \
                 np.where(still, self.u_prev, np.asarray(u, dtype=float))
         if self.noisy:
-            draws = np.stack([rng.uniform(-1.0, 1.0, size=3) if still is None or not s else np.zeros(3)
-                              for rng, s in zip(self._rngs, still if still is not None else self._rngs)])
+            quiet = np.zeros(self.n, dtype=bool) if still is None else still   # dead or frozen: no draw
+            draws = np.stack([np.zeros(3) if q else rng.uniform(-1.0, 1.0, size=3)
+                              for rng, q in zip(self._rngs, quiet)])
             noise = draws * self.noise_scale
             self.pos = self.pos + noise[:, :2]
             self.theta = self.theta + noise[:, 2]
