@@ -257,49 +257,40 @@ def spec_key(spec):
 def table(res):
     cmp_ = bool(res['baseline'])
     lines = [f'load average (1, 5, 15 min): before {fmt_load(res["load_before"])}, after {fmt_load(res["load_after"])}; '
-             f'{res["cpus"]} CPUs; median of {res["repeats"]} run(s)', '']
-    head = '| law | n | pair search | steps/s | steps/s per CPU s |'
-    if cmp_:
-        head += f' before ({res["compare"]}) steps/s | before, per CPU s | speed-up (wall) |'
-    lines += [head, '|' + '---|' * (head.count('|') - 1)]
-    for key, row in res['current'].items():
-        if row['what'] != 'sps':
-            continue
-        line = f'| {row["kind"]} | {row["n"]} | {row.get("search", "")} | {row["wall"]:.1f} | {row["cpu"]:.1f} |'
-        if cmp_ and key in res['baseline']:
-            b = res['baseline'][key]
-            line += f' {b["wall"]:.1f} | {b["cpu"]:.1f} | {row["wall"] / b["wall"]:.1f}× |'
-        lines.append(line)
-    head = '| run | steps | wall (s) | CPU (s) |'
-    if cmp_:
-        head += ' before: wall (s) | before: CPU (s) | speed-up (CPU) |'
-    lines += ['', head, '|' + '---|' * (head.count('|') - 1)]
-    for key, row in res['current'].items():
-        if row['what'] != 'run':
-            continue
-        line = f'| {key} to t = 1000 | {int(round(1000 / row["dt"]))} | {row["wall"]:.2f} | {row["cpu"]:.2f} |'
-        if cmp_ and key in res['baseline']:
-            b = res['baseline'][key]
-            line += f' {b["wall"]:.2f} | {b["cpu"]:.2f} | {b["cpu"] / row["cpu"]:.2f}× |'
-        lines.append(line)
-    head = '| one call, n = 6 (homotopy_global states at t = 450) | µs/call | µs CPU/call |'
-    if cmp_:
-        head += ' before: µs/call | before: µs CPU/call | speed-up (CPU) |'
-    lines += ['', head, '|' + '---|' * (head.count('|') - 1)]
-    for key, row in res['current'].items():
-        if row['what'] not in ('law', 'agent'):
-            continue
+             f'{res["cpus"]} CPUs; median of {res["repeats"]} run(s)']
+
+    def section(whats, head, base_head, label, digits, speed_up):
+        """One Markdown table: the rows of kinds ``whats``, label cells, wall and CPU numbers,
+        and with a baseline its numbers and ``speed_up(row, baseline row)``."""
+        head += base_head if cmp_ else ''
+        lines.extend(['', head, '|' + '---|' * (head.count('|') - 1)])
+        for key, row in res['current'].items():
+            if row['what'] not in whats:
+                continue
+            line = f'{label(key, row)} {row["wall"]:.{digits}f} | {row["cpu"]:.{digits}f} |'
+            if cmp_ and key in res['baseline']:
+                b = res['baseline'][key]
+                line += f' {b["wall"]:.{digits}f} | {b["cpu"]:.{digits}f} | {speed_up(row, b)} |'
+            lines.append(line)
+
+    def call_label(key, row):
         if row['what'] == 'agent':
-            line = '| `AgentCore.control`: an agent\'s table + its own u, λ ≈ 0.97 |'
-        else:
-            who = 'one receiver (an agent)' if row['receivers'] == 'one' else 'all 6 receivers (batch)'
-            lam = 'λ ≈ 0.97, two leaders' if row['lam'] is None else f'λ = {row["lam"]:g}'
-            line = f'| {who}, {lam} |'
-        line += f' {row["wall"]:.1f} | {row["cpu"]:.1f} |'
-        if cmp_ and key in res['baseline']:
-            b = res['baseline'][key]
-            line += f' {b["wall"]:.1f} | {b["cpu"]:.1f} | {b["cpu"] / row["cpu"]:.2f}× |'
-        lines.append(line)
+            return '| `AgentCore.control`: an agent\'s table + its own u, λ ≈ 0.97 |'
+        who = 'one receiver (an agent)' if row['receivers'] == 'one' else 'all 6 receivers (batch)'
+        lam = 'λ ≈ 0.97, two leaders' if row['lam'] is None else f'λ = {row["lam"]:g}'
+        return f'| {who}, {lam} |'
+
+    section(('sps',), '| law | n | pair search | steps/s | steps/s per CPU s |',
+            f' before ({res["compare"]}) steps/s | before, per CPU s | speed-up (wall) |',
+            lambda key, row: f'| {row["kind"]} | {row["n"]} | {row.get("search", "")} |', 1,
+            lambda row, b: f'{row["wall"] / b["wall"]:.1f}×')
+    section(('run',), '| run | steps | wall (s) | CPU (s) |',
+            ' before: wall (s) | before: CPU (s) | speed-up (CPU) |',
+            lambda key, row: f'| {key} to t = 1000 | {int(round(1000 / row["dt"]))} |', 2,
+            lambda row, b: f'{b["cpu"] / row["cpu"]:.2f}×')
+    section(('law', 'agent'), '| one call, n = 6 (homotopy_global states at t = 450) | µs/call | µs CPU/call |',
+            ' before: µs/call | before: µs CPU/call | speed-up (CPU) |', call_label, 1,
+            lambda row, b: f'{b["cpu"] / row["cpu"]:.2f}×')
     return '\n'.join(lines)
 
 
