@@ -2,7 +2,9 @@
 processes, lockstep), the bag read back with two readers and reported on.
 
 The scenario is homotopy_global with the split brought forward (λ rises at t = 8, leaders
-steer harder), so that a 30 s run shows one swarm becoming two subswarms.
+steer harder), so that a 30 s run shows one swarm becoming two subswarms. Its cutoff radius
+(5) is not the law's default (4), so a report that did not read it from the bag would count
+other clusters.
 """
 from __future__ import annotations
 
@@ -24,7 +26,7 @@ duration: 30
 agents:
   positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
   headings: {rule: cone, half_width: 0.7853981633974483}
-law: {kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0,
+law: {kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 5.0,
       leader_gain: 30.0, q0: 1.0}
 lambda: {kind: tanh_window, rise_at: 8, fall_at: 1000, tau: 2}
 leaders:
@@ -96,13 +98,15 @@ def test_recorded_lockstep_run(recorded_run, swarm_cmd, tmp_path):
         assert np.abs(np.angle(np.exp(1j * (yaw - live.theta[:, k])))).max() < 1e-9
     assert per_topic['/swarm/leaders'] >= 1 and per_topic['/clock'] >= steps
 
-    # the report from the bag alone: the live run's cluster history (one swarm, then two)
+    # the report from the bag alone (no --cutoff-radius: the bag's /world/metrics carries it):
+    # the live run's cluster history (one swarm, then two)
     rep = tmp_path / 'report'
     res = subprocess.run([swarm_cmd, 'report', str(bag), '--out', str(rep)],
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
     mine = json.loads((rep / 'metrics.json').read_text())
     theirs = json.loads((live_dir / 'metrics.json').read_text())
+    assert mine['summary']['cutoff_radius'] == 5.0, res.stderr
     assert theirs['summary']['cluster_changes'][-1][1] == 2, 'the run should split'
     assert mine['summary']['cluster_changes'] == theirs['summary']['cluster_changes']
     n = len(theirs['series']['clusters'])

@@ -111,7 +111,7 @@ def read_run(path, *, cutoff_radius=None) -> dict:
             try:
                 for st in decode(m).status:
                     for kv in st.values:
-                        if kv.key in ('cutoff_radius', 'w'):
+                        if kv.key == 'cutoff_radius':
                             w_from_bag = float(kv.value)
             except (AttributeError, ValueError):
                 pass
@@ -334,7 +334,7 @@ def parse_args(argv):
     p.add_argument('--out', default=None, help='output directory (default: BAG without .mcap + _report)')
     p.add_argument('--cutoff-radius', '-w', type=float, default=None,
                    help='cluster radius w: agents closer than w are connected (default: from '
-                        '/world/metrics if it says, else 4.0)')
+                        'the cutoff_radius on the bag\'s /world/metrics, else the law\'s default)')
     p.add_argument('--every', type=float, default=1.0,
                    help='metric sampling interval in sim time units (default 1.0)')
     p.add_argument('--animate', action='store_true', help='also write an animation (GIF)')
@@ -360,7 +360,12 @@ def main(argv=None) -> int:
     except ValueError as err:
         print(f'swarm report: {bag}: {err}', file=sys.stderr)
         return 2
-    w = run['w'] if run['w'] is not None else 4.0
+    w = run['w']
+    if w is None:
+        from swarm_core.laws import LawConfig
+        w = LawConfig.cutoff_radius
+        print(f'swarm report: {bag}: no cutoff_radius on /world/metrics; using the default '
+              f'{w:g} (pass --cutoff-radius to choose)', file=sys.stderr)
     series, summary = analyse(traj, w, target=run['target'], barrier=run['barrier'],
                               every_time=a.every)
     summary['bag'] = str(bag)

@@ -511,7 +511,8 @@ class WorldNode(Node):
         vals = dict(t=t, clusters=c, polarisation=M.polarisation(theta), min_distance=md, **{'lambda': self.lam_now},
                     leaders=','.join(self.names[i] for i in np.flatnonzero(self.leaders_now)),
                     agents=len(idx),
-                    intrusions=self.intrusions, collisions=self.collisions)
+                    intrusions=self.intrusions, collisions=self.collisions,
+                    cutoff_radius=self.w)            # what `swarm report` needs to count clusters
         if self.target is not None:
             vals['centroid_target_distance'] = float(np.hypot(*(pos.mean(0) - self.target)))
         st.values = [KeyValue(key=k_, value=str(v)) for k_, v in vals.items()]
