@@ -90,8 +90,11 @@ class Publishers:
         m.twist.twist.angular.z = float(0.001 * k - 0.01 * i)
         return m
 
-    def publish_run(self, steps, pace=0.0):
+    def publish_run(self, steps, pace=0.0, until=None):
+        """Publish ``steps`` steps, or fewer once ``until()`` is true; returns the steps published."""
         for k in range(steps):
+            if until is not None and until():
+                return k
             c = self.Clock()
             t_ns = int(round(k * 0.05 * 1e9))
             c.clock.sec, c.clock.nanosec = divmod(t_ns, 1_000_000_000)
@@ -102,10 +105,24 @@ class Publishers:
             self.spin()
             if pace:
                 time.sleep(pace)
+        return steps
 
     def close(self):
         self.ex.shutdown()
         self.node.destroy_node()
+
+
+def _on_disk(out, want, counts=False):
+    """True once the (possibly unfinished) file at ``out`` holds ``want`` {topic: count}."""
+    from collections import Counter
+
+    from swarm_tools.bag import iter_messages
+    got = Counter()
+    if out.is_file():
+        got.update(m.topic for m in iter_messages(out, stats={}))
+    if counts:
+        return dict(got)
+    return all(got[t] >= n for t, n in want.items())
 
 
 def _start_recorder(processes, swarm_cmd, out, *extra):
@@ -121,7 +138,10 @@ def _record(rclpy_context, processes, swarm_cmd, out, steps, *, stop_signal=sign
         assert _wait(pubs.matched, 30, pubs.spin), 'recorder never subscribed'
         # the recorder has subscribed to the volatile topics: the run starts
         pubs.publish_run(steps, pace)
-        _wait(lambda: False, 1.0, pubs.spin)      # let the last messages arrive
+        # stop only once everything published is in the file (chunks are closed every 0.5 s)
+        want = {'/swarm/states': steps * N_AGENTS, '/swarm/lambda': steps, '/clock': steps}
+        assert _wait(lambda: _on_disk(out, want), 60, pubs.spin), \
+            f'the recorder never wrote {want}: {_on_disk(out, want, counts=True)}'
         os.killpg(rec.pid, stop_signal)
         out_text, err_text = rec.communicate(timeout=30)
         return rec.returncode, out_text, err_text, pubs
@@ -300,16 +320,20 @@ def test_sigint_mid_run_gives_complete_indexed_file(rclpy_context, processes, sw
     try:
         rec = _start_recorder(processes, swarm_cmd, out)
         assert _wait(pubs.matched, 30, pubs.spin)
-        done = threading.Event()
+        done, sent = threading.Event(), []
 
-        def stop_soon():
-            time.sleep(1.0)
-            os.killpg(rec.pid, signal.SIGINT)
+        def stop_once_writing():
+            # SIGINT once some states are in the file, while the test is still publishing
+            if _wait(lambda: _on_disk(out, {'/swarm/states': 1}), 60):
+                os.killpg(rec.pid, signal.SIGINT)
+                sent.append(True)
             done.set()
-        threading.Thread(target=stop_soon, daemon=True).start()
-        pubs.publish_run(150, pace=0.01)     # ≥ 3 s of publishing; SIGINT lands in the middle
+        threading.Thread(target=stop_once_writing, daemon=True).start()
+        # publishing goes on until the SIGINT was sent, so it lands in the middle of the run
+        published = pubs.publish_run(100000, pace=0.01, until=done.is_set)
+        assert sent, 'no state reached the file in 60 s'
         stdout, stderr = rec.communicate(timeout=30)
-        assert done.is_set()
+        assert done.is_set() and published < 100000
     finally:
         pubs.close()
     assert rec.returncode == 0, stderr
@@ -319,7 +343,7 @@ def test_sigint_mid_run_gives_complete_indexed_file(rclpy_context, processes, sw
         summary = reader.get_summary()
         n_states = sum(1 for _ in reader.iter_messages(topics=['/swarm/states']))
     assert summary is not None and summary.statistics.message_count > 0
-    assert 0 < n_states < 150 * N_AGENTS
+    assert 0 < n_states <= published * N_AGENTS
     with Reader(out) as r:
         counts = {c.topic: c.msgcount for c in r.connections}
     assert counts['/swarm/states'] == n_states
