@@ -1,4 +1,4 @@
-"""Outcomes do not depend on the step or the integrator (MODEL.md: trajectories are chaotic
+"""Outcomes do not depend on the step or the integrator (docs/model.md: trajectories are chaotic
 over t = 1000, so outcomes are compared, not positions).  Slow: several full runs."""
 import pytest
 

@@ -74,7 +74,7 @@ def test_two_agent_equilibrium_is_reached_and_stable():
 
 @pytest.mark.parametrize('seed', [0, 5])
 def test_two_agent_lyapunov_function_never_increases(seed):
-    """V = −ln(1 + x1·x2) + α(ρ + r0²/ρ) has dV/dt ≤ 0 when η < 2μ (MODEL.md)."""
+    """V = −ln(1 + x1·x2) + α(ρ + r0²/ρ) has dV/dt ≤ 0 when η < 2μ (docs/model.md)."""
     scn = _two_agents(seed=seed, duration=200, integrator='rk4', dt=0.05, eta=0.02, mu=0.02)
     tr = engine.simulate(scn)
     rho = np.hypot(*(tr.r[:, 0] - tr.r[:, 1]).T)

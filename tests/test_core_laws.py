@@ -68,7 +68,7 @@ def test_frame_from_quaternion_is_orthonormal_and_matches_heading():
 # ------------------------------------------------------------------ vectorised == per-pair loop
 
 def _u_pair_loop(rk, thk, rj, thj, g):
-    """eq. 4-5 written out with math, straight from MODEL.md."""
+    """eq. 4-5 written out with math, straight from docs/model.md."""
     dx, dy = rk[0] - rj[0], rk[1] - rj[1]
     rho = math.hypot(dx, dy)
     if rho == 0.0:
@@ -83,7 +83,7 @@ def _u_pair_loop(rk, thk, rj, thj, g):
 
 
 def _law_loop(pos, th, law, lam, leaders, steering, target, barrier):
-    """Every law of MODEL.md as a plain double loop over agent pairs."""
+    """Every law of docs/model.md as a plain double loop over agent pairs."""
     n = len(th)
     g = law.gains
     w = law.cutoff_radius

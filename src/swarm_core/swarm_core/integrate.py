@@ -19,7 +19,7 @@ def sinc(z):
 
 
 def zoh_step(pos, theta, u, dt):
-    """One zero-order-hold step (exact arc for constant u, MODEL.md):
+    """One zero-order-hold step (exact arc for constant u, docs/model.md):
 
     θ' = θ + u dt,  r' = r + dt sinc(u dt/2) (cos(θ + u dt/2), sin(θ + u dt/2)).
     Works for any number of agents (arrays (N, 2), (N,), (N,)); returns new (pos, theta).

@@ -44,7 +44,7 @@ class LawConfig:
     q0             far-coupling weight at λ = 0 (1: the paper's homotopy law, Fig. 3;
                    0: local coupling throughout, Fig. 4)
     target_gain    γ (eq. 13); target_normalised uses unit vectors in eq. 13
-    barrier_gain   s_b (eq. 14); barrier_mode 'ahead' (default) or 'literal', see MODEL.md
+    barrier_gain   s_b (eq. 14); barrier_mode 'ahead' (default) or 'literal', see docs/model.md
     """
 
     kind: str = 'homotopy'

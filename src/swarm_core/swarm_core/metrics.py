@@ -1,4 +1,4 @@
-"""Swarm metrics (MODEL.md, 'Metrics'), no ROS: per snapshot and as time series."""
+"""Swarm metrics (docs/model.md, 'Metrics'), no ROS: per snapshot and as time series."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,7 +1,8 @@
 """Frenet-Serret agent model and the Justh-Krishnaprasad pair term (no ROS).
 
-Equation numbers are those of Morgan & Schwartz, "Dynamic coordinated control laws in
-multiple agent models"; see ../shared/MODEL.md for the fixes applied to the paper's text.
+The model is that of Morgan & Schwartz, "Dynamic coordinated control laws in multiple agent
+models".  docs/model.md states it, lists the fixes applied to the paper's text, and maps the
+equation numbers in these comments to the paper's.
 
 Headings travel between agents as a planar quaternion (z = sin(θ/2), w = cos(θ/2)), the
 orientation of a ``nav_msgs/Odometry`` pose.  Every frame vector in this package is computed

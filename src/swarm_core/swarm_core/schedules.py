@@ -48,7 +48,7 @@ class ConstantLambda(LambdaSchedule):
 @dataclass(frozen=True)
 class TanhWindow(LambdaSchedule):
     """λ(t) = low + (high − low)·½[tanh((t − rise_at)/τ) − tanh((t − fall_at)/τ)]: smooth,
-    up near t = rise_at, down near t = fall_at (MODEL.md: τ = 30 gives a clean split)."""
+    up near t = rise_at, down near t = fall_at (docs/model.md: τ = 30 gives a clean split)."""
 
     rise_at: float = 400.0
     fall_at: float = 600.0

@@ -68,7 +68,7 @@ class TopicFilter:
         return not any(p.fullmatch(topic) or p.pattern == topic for p in self.exclude)
 
 
-#: the project's fixed topics whose first messages matter (DESIGN.md), with the durability
+#: the project's fixed topics whose first messages matter (docs/ros-graph.md), with the durability
 #: their publishers offer (rmw enum: 1 transient-local, 2 volatile): subscribed at start-up,
 #: before any publisher exists, with the QoS the publishers will offer, so that step 0 of a
 #: run is not missed while the graph is polled and no subscription has to be made again (a
@@ -278,7 +278,7 @@ def main(argv=None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     import rclpy
     from rclpy.signals import SignalHandlerOptions
-    try:    # ~10x cheaper per message than the SingleThreadedExecutor (DESIGN.md, measured)
+    try:    # ~10x cheaper per message than the SingleThreadedExecutor (measured)
         from rclpy.experimental import EventsExecutor as Executor
     except ImportError:
         from rclpy.executors import SingleThreadedExecutor as Executor

@@ -1,7 +1,7 @@
 """The lockstep protocol of the ROS 2 swarm: topics, QoS, packed message layouts.
 
-Fixed, user-facing topics (DESIGN.md)
--------------------------------------
+Fixed, user-facing topics (docs/ros-graph.md)
+---------------------------------------------
 ``/swarm/states``  nav_msgs/Odometry, every agent. header.stamp = sim time t of the state,
     header.frame_id = ``world``, child_frame_id = agent name, pose = (x, y, 0) and the planar
     quaternion (0, 0, sin θ/2, cos θ/2), twist.linear.x = 1 (unit speed),
