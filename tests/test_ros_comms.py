@@ -1,5 +1,5 @@
 """The communication model in the ROS nodes: a lockstep run with loss, latency, jitter, a
-per-link override and a scheduled partition equals the batch engine to 1e-9 (and the world
+per-link override and a scheduled partition equals the batch engine (positions and u exactly; headings, rebuilt from quaternions, to 1e-9) (and the world
 publishes the scheduled events on /swarm/events), also with faults (a frozen follower, a
 killed leader and failover) on top; a realtime agent delays incoming states by
 the latency, and ``swarm drop`` (a CLI process) cuts what it receives, after which the silent
@@ -75,9 +75,9 @@ def test_lockstep_with_a_lossy_delayed_radio_equals_the_batch_engine(tmp_path, r
     ref = simulate(scn)
     assert ref.leader.any() and ref.lam.max() > 0.9
     assert 0.5 < ref.meta['comms']['delivered_fraction'] < 0.8
-    assert np.abs(got.r - ref.r).max() <= 1e-9
-    assert np.abs(got.theta - ref.theta).max() <= 1e-9
-    assert np.abs(got.u - ref.u).max() <= 1e-9
+    np.testing.assert_array_equal(got.r, ref.r)                # exact: the same law, the same order
+    np.testing.assert_array_equal(got.u, ref.u)
+    assert np.abs(got.theta - ref.theta).max() <= 1e-9         # θ comes back through the quaternion
     # the radio mattered: the perfect radio flies differently
     perfect = simulate(_perfect(path))
     assert np.abs(perfect.r - ref.r).max() > 1e-3
@@ -104,7 +104,7 @@ reunion:
 def test_lockstep_radio_with_faults_failover_and_reunion_equals_the_batch_engine(tmp_path, rclpy_context):
     """Nodes in one executor (no processes to signal: a dead or frozen agent obeys the table's
     alive mask): the radio hears nothing from agents out of the table, a frozen agent hears
-    nothing while frozen, and the run equals the batch engine to 1e-9, dead rows and all."""
+    nothing while frozen, and the run equals the batch engine (positions and u exactly), dead rows and all."""
     path = tmp_path / 'comms_faults.yaml'
     path.write_text(SCN + FAULTS)
     scn = load(str(path))
@@ -119,10 +119,10 @@ def test_lockstep_radio_with_faults_failover_and_reunion_equals_the_batch_engine
     got = Trajectory.load(out / 'trajectory.npz')
     assert np.array_equal(np.isfinite(got.r), np.isfinite(ref.r))
     fin = np.isfinite(ref.r)
-    assert np.abs(got.r[fin] - ref.r[fin]).max() <= 1e-9
-    assert np.nanmax(np.abs(got.theta - ref.theta)) <= 1e-9
+    np.testing.assert_array_equal(got.r[fin], ref.r[fin])      # exact
+    assert np.nanmax(np.abs(got.theta - ref.theta)) <= 1e-9    # θ comes back through the quaternion
     both = np.isfinite(got.u) & np.isfinite(ref.u)
-    assert np.abs(got.u[both] - ref.u[both]).max() <= 1e-9
+    np.testing.assert_array_equal(got.u[both], ref.u[both])
     assert np.array_equal(got.leader, ref.leader)
     for nd in nodes:
         nd.destroy_node()
