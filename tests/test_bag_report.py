@@ -25,8 +25,9 @@ def run():
     return scn, engine.simulate(scn, record_every=RECORD_EVERY)
 
 
-def write_bag(traj, path, *, leaders=True, lam=True, cut_after=None):
-    """The run as the ROS nodes would have published it, written with BagWriter."""
+def write_bag(traj, path, *, leaders=True, lam=True, cut_after=None, metrics_cutoff=None):
+    """The run as the ROS nodes would have published it, written with BagWriter (with
+    ``metrics_cutoff``: one /world/metrics message carrying it, as the world publishes)."""
     from nav_msgs.msg import Odometry
     from rclpy.serialization import serialize_message
     from std_msgs.msg import Float64, String
@@ -37,6 +38,12 @@ def write_bag(traj, path, *, leaders=True, lam=True, cut_after=None):
     latched = [qos_dict(history=1, depth=1, reliability=1, durability=1)]
     w = BagWriter(path, flush_interval=3600)
     w.add_topic('/swarm/states', 'nav_msgs/msg/Odometry', vol)
+    if metrics_cutoff is not None:
+        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+        w.add_topic('/world/metrics', 'diagnostic_msgs/msg/DiagnosticArray', vol)
+        st = DiagnosticStatus(name='swarm', hardware_id='world', values=[
+            KeyValue(key='clusters', value='1'), KeyValue(key='cutoff_radius', value=str(metrics_cutoff))])
+        w.write('/world/metrics', serialize_message(DiagnosticArray(status=[st])), 1_700_000_000 * 10**9)
     if lam:
         w.add_topic('/swarm/lambda', 'std_msgs/msg/Float64', vol)
     if leaders:
@@ -144,3 +151,27 @@ def test_report_without_lambda_or_leaders_and_bad_input(run, tmp_path, capsys):
     assert report.main([str(tmp_path / 'missing.mcap')]) == 2
     with pytest.raises(SystemExit):
         report.main([str(bag), '--cutoff-radius', '-1'])
+
+
+def test_report_takes_the_cutoff_radius_from_the_bag(run, tmp_path, capsys):
+    """No --cutoff-radius: the report counts clusters with the cutoff_radius on /world/metrics;
+    a bag without it gets the law's default and a warning."""
+    from swarm_core.laws import LawConfig
+    from swarm_tools import report
+
+    _scn, traj = run
+    short = engine.Trajectory(traj.names, traj.t[:50], traj.r[:50], traj.theta[:50],
+                              traj.u[:50], traj.lam[:50], traj.leader[:50])
+    bag = write_bag(short, tmp_path / 'w.mcap', metrics_cutoff=0.5)
+    assert report.main([str(bag), '--out', str(tmp_path / 'r'), '--no-figure']) == 0
+    doc = json.loads((tmp_path / 'r' / 'metrics.json').read_text())
+    assert doc['summary']['cutoff_radius'] == 0.5
+    # agents 1 apart at the start: one swarm at w = 4, six singletons at w = 0.5
+    assert doc['series']['clusters'][0] == 6
+    assert 'no cutoff_radius' not in capsys.readouterr().err
+    bare = write_bag(short, tmp_path / 'bare.mcap')
+    assert report.main([str(bare), '--out', str(tmp_path / 'b'), '--no-figure']) == 0
+    doc = json.loads((tmp_path / 'b' / 'metrics.json').read_text())
+    assert doc['summary']['cutoff_radius'] == LawConfig.cutoff_radius
+    assert doc['series']['clusters'][0] == 1
+    assert 'no cutoff_radius on /world/metrics' in capsys.readouterr().err
