@@ -56,7 +56,7 @@ def test_recorded_lockstep_run(recorded_run, swarm_cmd, tmp_path):
     from mcap_ros2.reader import read_ros2_messages
     from rosbags.highlevel import AnyReader
 
-    from swarm_core.engine import Trajectory
+    from swarm_core.trajectory import Trajectory
     from swarm_core.model import yaw_from_quaternion
 
     bag, live_dir, text = recorded_run

@@ -19,7 +19,8 @@ from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode  # noqa: E402
-from swarm_core.engine import Trajectory, simulate  # noqa: E402
+from swarm_core.engine import simulate
+from swarm_core.trajectory import Trajectory  # noqa: E402
 from swarm_core.scenario import load  # noqa: E402
 from swarm_tools.launch import agent_parameters, build_nodes, node_parameters  # noqa: E402
 from swarm_world import protocol as P  # noqa: E402

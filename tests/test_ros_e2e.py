@@ -7,7 +7,8 @@ import time
 import numpy as np
 import pytest
 
-from swarm_core.engine import Trajectory, simulate
+from swarm_core.engine import simulate
+from swarm_core.trajectory import Trajectory
 from swarm_core.metrics import cluster_labels
 from swarm_core.scenario import load
 

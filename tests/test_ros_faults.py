@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from swarm_core import outcomes
-from swarm_core.engine import Trajectory, simulate
+from swarm_core.engine import simulate
+from swarm_core.trajectory import Trajectory
 from swarm_core.scenario import load
 
 from conftest import Lines

@@ -14,7 +14,8 @@ from std_msgs.msg import Float64, Float64MultiArray  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode  # noqa: E402
-from swarm_core.engine import Trajectory, simulate  # noqa: E402
+from swarm_core.engine import simulate
+from swarm_core.trajectory import Trajectory  # noqa: E402
 from swarm_core.laws import swarm_control  # noqa: E402
 from swarm_core.model import frame_from_quaternion, quaternion_from_heading  # noqa: E402
 from swarm_core.scenario import load  # noqa: E402
@@ -288,9 +289,9 @@ def test_bad_states_are_rejected_by_the_world(rclpy_context):
     assert any("'agent_4'" in ln and 'non-finite' in ln for ln in lines)
     assert any("'agent_3'" in ln and 'duplicate agent name' in ln for ln in lines)
     assert any("'agent_5'" in ln and 'stamp from the past' in ln for ln in lines)
-    assert world.have.tolist() == [False, False, False, True, False, False]
-    assert np.all(np.isfinite(world.buf))
-    assert world.buf[0, 3] == 1.0 and world.buf[1, 3] == 2.0
+    assert world.lock.have.tolist() == [False, False, False, True, False, False]
+    assert np.all(np.isfinite(world.lock.buf))
+    assert world.lock.buf[0, 3] == 1.0 and world.lock.buf[1, 3] == 2.0
     probe.destroy_node()
 
 

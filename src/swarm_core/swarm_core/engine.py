@@ -13,8 +13,6 @@ noise).  ``simulate`` records NaN for dead agents and the events in ``meta['even
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -25,33 +23,8 @@ from .laws import DENSE_LIMIT, sparse_coupling, swarm_control
 from .comms import Beliefs, belief_control, delay_stats
 from .model import heading_frame, quaternion_from_heading
 from .scenario import Scenario
+from .trajectory import Trajectory
 
-
-
-@dataclass
-class Trajectory:
-    """A run: samples at t = n·dt (every ``record_every`` steps), n = 0 … steps."""
-
-    names: list
-    t: np.ndarray          # (T,)
-    r: np.ndarray          # (T, n, 2) positions
-    theta: np.ndarray      # (T, n)    headings
-    u: np.ndarray          # (T, n)    the control applied from that sample on
-    lam: np.ndarray        # (T,)      λ
-    leader: np.ndarray     # (T, n)    bool, leader flags
-    meta: dict = field(default_factory=dict)
-
-    def save(self, path):
-        path = Path(path)
-        np.savez_compressed(path, t=self.t, r=self.r, theta=self.theta, u=self.u, lam=self.lam,
-                            leader=self.leader, names=np.array(self.names))
-        return path
-
-    @classmethod
-    def load(cls, path):
-        with np.load(path) as z:
-            return cls(names=[str(s) for s in z['names']], t=z['t'], r=z['r'], theta=z['theta'],
-                       u=z['u'], lam=z['lam'], leader=z['leader'])
 
 
 def neighbour_pairs(pos, radius):

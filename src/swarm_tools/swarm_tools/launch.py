@@ -405,7 +405,7 @@ def main(argv=None) -> int:
     wall = time.monotonic() - t0
     if code in (0, 130) and traj_file.exists():      # 130: Ctrl-C; the world saved the steps done
         try:
-            from swarm_core.engine import Trajectory
+            from swarm_core.trajectory import Trajectory
             from swarm_core.simulate_cli import analyse, write_outputs
             traj = Trajectory.load(traj_file)
             traj.meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration, source='ros',

@@ -130,7 +130,7 @@ def rebuild_trajectory(run: dict):
     Faults (``/swarm/events``): an agent killed or lost has NaN rows from that time on and its
     missing stamps do not count against lockstep alignment; a frozen agent holds its state
     over the freeze (its stamps there are not missing either)."""
-    from swarm_core.engine import Trajectory
+    from swarm_core.trajectory import Trajectory
     from swarm_core.model import yaw_from_quaternion
 
     names = sorted(run['per_agent'], key=natural_key)

@@ -1,0 +1,207 @@
+"""The world's lockstep barrier, without ROS: which states a step needs, when it is complete,
+and what the world sends then.
+
+One step n (the cycle in docs/ros-graph.md):
+
+1. `on_state` takes each agent's state of t_n; once every agent in the table has sent one
+   (`complete`), the barrier records the step and asks the node to send ``/clock`` and the
+   packed states to the commander;
+2. `on_decision` takes the commander's decision for step n; the barrier records λ and the
+   leaders and asks the node to relay ONE ``/lockstep/step`` message to every agent;
+3. `begin_step` applies the faults of step n + 1 (scheduled and live) before its states are
+   awaited.
+
+Every method returns a list of actions for the node, in order:
+
+- ``('clock', t)``: publish ``/clock``;
+- ``('states', data)``: publish the packed states (``protocol.pack_states``);
+- ``('observe', k)``: step k's states are recorded (metrics, markers, progress);
+- ``('comms', k, event)``: publish a scheduled radio event (a dict) at step k on ``/swarm/events``;
+- ``('step', data)``: publish the packed step (``protocol.pack_step``);
+- ``('event', ev)``: a world event (log it, publish it, write it to the events file);
+- ``('signal', i, what)``: signal agent i's process, ``what`` in ``kill``/``stop``/``cont``;
+- ``('finish',)``: the last u is known; the run is over.
+
+The node keeps the wall clock (stalls, time-outs), the messages and the files.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import protocol as P
+
+
+class LockstepBarrier:
+    """The lockstep state of a world: step ``cur`` and the states, u and decision it holds.
+
+    ``faults`` is the scenario's `swarm_core.faults.FaultTimeline`, ``recorder`` a
+    `swarm_core.trajectory.TrajectoryRecorder`; ``comms_events`` is a list of (step, event)
+    sorted by step; ``geometry()`` returns the (target, barrier) to put in each step."""
+
+    def __init__(self, names, steps, dt, faults, recorder, *, comms_events=(), clock_every=1,
+                 geometry=lambda: (None, None)):
+        self.names = list(names)
+        self.n = len(self.names)
+        self.steps = steps
+        self.dt = dt
+        self.faults = faults
+        self.rec = recorder
+        self.comms_events = list(comms_events)
+        self.clock_every = clock_every
+        self.geometry = geometry
+        self.cur = 0
+        self.buf = np.zeros((4, self.n))          # x, y, qz, qw of step cur
+        self.buf_u = np.zeros(self.n)             # u_{cur-1} the states carry
+        self.have = np.zeros(self.n, bool)
+        self.fresh = np.zeros(self.n, bool)       # stamped at the current step (not held)
+        self.want = np.zeros(self.n, dtype=np.int64)   # the stamp step wanted from each agent
+        self.states_out = False
+        self.decision = None
+        self.slots = {}                           # leader slot → agent index (last decision)
+        self.stop_pending = set()                 # frozen agents to stop once their state is held
+        self.started = False
+        self.done = False
+        self.lam = 0.0
+        self.leaders = np.zeros(self.n, bool)
+
+    # ------------------------------------------------------------------ inputs
+    def on_state(self, i, k, vals, u):
+        """Agent i's state (x, y, qz, qw) stamped at step k, carrying u_{k-1}.
+
+        Returns (reason, actions): reason None if the state was taken, else why not (the
+        state was for another step).  A dead or frozen agent's state is kept only if it is
+        the state of its freeze step."""
+        if not self.faults.alive[i]:
+            acts = []
+            if self.faults.frozen[i] and k == self.faults.frozen_at[i]:
+                self.rec.hold(i, k, vals, u)
+                if i in self.stop_pending:
+                    self.stop_pending.discard(i)
+                    acts.append(('signal', i, 'stop'))
+            return None, acts
+        if k != self.want[i]:
+            return f'state of {self.names[i]!r} for step {k} while the world is at step {self.cur}', []
+        self.buf[:, i] = vals
+        self.buf_u[i] = u
+        self.have[i] = True
+        self.fresh[i] = k == self.cur
+        if k != self.cur and 0 < k <= self.steps:     # a resumed agent's held state
+            self.rec.u[k - 1, i] = u
+        return None, self.advance()
+
+    def on_decision(self, n, lam, flags, steering, slots, rendezvous):
+        """The commander's decision for step n; ignored unless it is the one awaited."""
+        if n != self.cur or self.decision is not None:
+            return []
+        self.decision = (lam, np.array(flags, bool), np.array(steering, float), rendezvous)
+        self.slots = {int(sl): int(i) for i, sl in enumerate(slots) if sl >= 0}
+        return self.advance()
+
+    # ------------------------------------------------------------------ the cycle
+    def start(self):
+        """Everyone is matched: apply step 0's faults and go."""
+        self.started = True
+        return self.begin_step(0) + self.advance()
+
+    def complete(self):
+        """Every agent in the table of the current step has its state here."""
+        return bool(np.all(self.have | ~self.faults.alive))
+
+    def missing(self):
+        """Indices of the agents in the table whose state of the current step has not come."""
+        return np.flatnonzero(self.faults.alive & ~self.have)
+
+    def advance(self):
+        if not self.started or self.done:
+            return []
+        acts = []
+        alive = self.faults.alive
+        if self.complete() and not self.states_out:
+            k = self.cur
+            if k > self.steps:                         # the final u_{steps}
+                self.rec.record_u(self.steps, alive, self.buf_u)
+                self.done = True
+                return [('finish',)]
+            x, y, qz, qw = self.buf
+            self.rec.record_states(k, alive, x, y, qz, qw)
+            if k > 0:
+                self.rec.record_u(k - 1, self.fresh & alive, self.buf_u)
+            t = k * self.dt
+            if k % self.clock_every == 0 or k == self.steps:
+                acts.append(('clock', t))
+            acts.append(('states', P.pack_states(k, t, x, y, qz, qw, alive)))
+            self.states_out = True
+            acts.append(('observe', k))
+        if self.states_out and self.decision is not None:
+            k = self.cur
+            lam, flags, steering, rdv = self.decision
+            self.lam, self.leaders = lam, flags & alive
+            self.rec.record_decision(k, lam, self.leaders)
+            x, y, qz, qw = self.buf
+            target, barrier = self.geometry()
+            data = P.pack_step(k, k * self.dt, lam, flags, steering, x, y, qz, qw, target, barrier,
+                               self.buf_u, alive=alive, rendezvous=rdv)
+            while self.comms_events and self.comms_events[0][0] <= k:
+                acts.append(('comms', k, self.comms_events.pop(0)[1]))
+            acts.append(('step', data))
+            self.cur += 1
+            self.have[:] = False
+            self.fresh[:] = False
+            self.want[:] = self.cur
+            self.states_out = False
+            self.decision = None
+            acts += self.begin_step(self.cur)
+        return acts
+
+    # ------------------------------------------------------------------ faults
+    def begin_step(self, k):
+        """Apply the faults of step k (scheduled and live) before its states are awaited."""
+        if k > self.steps:
+            return []
+        acts = []
+        row = {nm: i for i, nm in enumerate(self.names)}
+        for ev in self.faults.apply(k, self.slots):
+            i = row.get(ev['agent'])
+            acts.append(('event', ev))          # first: the launcher reads it when the agent dies
+            if ev['kind'] == 'kill':
+                acts.append(('signal', i, 'kill'))
+                self.stop_pending.discard(i)
+                self.rec.lose(i, k)
+            elif ev['kind'] == 'freeze':
+                self.rec.freeze(i, self.faults.frozen_at[i], self.faults.frozen_until[i])
+                held = self.rec.held.get(i)
+                if held is not None and held[0] == self.faults.frozen_at[i]:
+                    acts.append(('signal', i, 'stop'))
+                else:
+                    self.stop_pending.add(i)
+            elif ev['kind'] == 'resume':
+                self.stop_pending.discard(i)
+                acts.append(('signal', i, 'cont'))
+                k0 = int(self.faults.frozen_at[i])
+                held = self.rec.held.pop(i, None)
+                if held is not None and held[0] == k0:
+                    self.buf[:, i] = held[1]
+                    self.buf_u[i] = held[2]
+                    self.have[i] = True
+                else:
+                    self.want[i] = k0
+        return acts
+
+    def drop_missing(self):
+        """Give up on the agents whose state has not come: they are lost (event ``lost``)."""
+        acts = []
+        for i in self.missing():
+            self.faults.lose(i)
+            self.rec.lose(i, self.cur)
+            acts.append(('event', dict(t=self.cur * self.dt, step=self.cur, kind='lost', agent=self.names[i])))
+        return acts + self.advance()
+
+    def add_fault(self, fault):
+        """A live fault request: applied at the next step (the current one is under way)."""
+        k = self.cur + 1
+        self.faults.add(fault, not_before=k)
+        return k
+
+    def rows_done(self):
+        """Rows whose state, λ, leaders and u are all known (u_{k-1} comes with step k)."""
+        return min(self.cur if self.states_out else self.cur - 1, self.steps + 1)

@@ -1,0 +1,187 @@
+"""The world's lockstep barrier and trajectory record, without ROS (swarm_world.lockstep,
+swarm_core.trajectory): what a step needs, when it is complete, what goes out, and faults."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarm_core.faults import Fault, FaultTimeline
+from swarm_core.model import quaternion_from_heading
+from swarm_core.trajectory import TrajectoryRecorder, unwrap_headings
+from swarm_world import protocol as P
+from swarm_world.lockstep import LockstepBarrier
+
+NAMES = ['a', 'b', 'c']
+DT = 0.5
+
+
+def make(steps=3, faults=(), comms=()):
+    tl = FaultTimeline(list(faults), NAMES, DT)
+    rec = TrajectoryRecorder(NAMES, steps, DT, theta0=np.zeros(3))
+    return LockstepBarrier(NAMES, steps, DT, tl, rec, comms_events=comms,
+                           geometry=lambda: (np.array([5.0, 6.0]), None))
+
+
+def state(i, k, theta=0.0):
+    qz, qw = quaternion_from_heading(theta)
+    return (float(i), float(k), float(qz), float(qw))
+
+
+def kinds(acts):
+    return [a[0] for a in acts]
+
+
+def feed_states(b, k, agents=range(3), u=0.1):
+    acts = []
+    for i in agents:
+        reason, a = b.on_state(i, k, state(i, k), u * (i + 1))
+        assert reason is None
+        acts += a
+    return acts
+
+
+def decide(b, n, lam=0.5, flags=(False, True, False)):
+    return b.on_decision(n, lam, list(flags), [0.0, 0.2, 0.0], [-1, 0, -1], None)
+
+
+def test_a_step_waits_for_every_state_then_for_the_decision():
+    b = make()
+    assert b.on_state(0, 0, state(0, 0), 0.0) == (None, [])     # not started: nothing goes out
+    assert b.start() == []                                          # b and c not here yet
+    assert not b.complete() and list(b.missing()) == [1, 2]
+    acts = feed_states(b, 0, [1, 2])
+    assert kinds(acts) == ['clock', 'states', 'observe']
+    assert acts[0] == ('clock', 0.0)
+    n, t, x, y, qz, qw = P.unpack_states(acts[1][1])
+    assert (n, t) == (0, 0.0) and list(x) == [0.0, 1.0, 2.0]
+    assert decide(b, 1) == []                                        # not the step awaited
+    acts = decide(b, 0)
+    assert kinds(acts) == ['step']
+    step = P.Step(acts[0][1])
+    assert step.n == 0 and step.lam == 0.5 and list(step.flags) == [False, True, False]
+    assert list(step.target) == [5.0, 6.0]
+    assert b.cur == 1 and not b.have.any()
+    assert decide(b, 0) == []                                        # a repeat is ignored
+
+
+def test_states_of_another_step_are_refused_and_named():
+    b = make()
+    b.start()
+    reason, acts = b.on_state(2, 1, state(2, 1), 0.0)
+    assert acts == [] and reason == "state of 'c' for step 1 while the world is at step 0"
+    assert not b.have[2]
+
+
+def test_the_run_records_each_step_and_finishes_after_the_last_u():
+    b = make(steps=2)
+    b.start()
+    for k in range(3):
+        feed_states(b, k, u=0.1 * (k + 1))
+        decide(b, k, lam=0.25 * k)
+    acts = feed_states(b, 3, u=0.9)
+    assert kinds(acts) == ['finish'] and b.done
+    tr = b.rec.trajectory()
+    assert tr.r.shape == (3, 3, 2) and np.allclose(tr.r[:, :, 1], [[0] * 3, [1] * 3, [2] * 3])
+    assert list(tr.lam) == [0.0, 0.25, 0.5]
+    # u_k comes with the states of step k+1: agent i sent u·(i+1) with the step-(k+1) state
+    assert np.allclose(tr.u[:, 0], [0.2, 0.3, 0.9])
+    assert np.allclose(tr.u[:, 2], [0.6, 0.9, 2.7])
+    assert tr.leader[:, 1].all() and not tr.leader[:, 0].any()
+
+
+def test_rows_done_counts_rows_whose_u_is_known():
+    b = make(steps=3)
+    b.start()
+    feed_states(b, 0)
+    decide(b, 0)
+    assert b.rows_done() == 0            # u_0 comes with the states of step 1
+    feed_states(b, 1)
+    assert b.rows_done() == 1
+    decide(b, 1)
+    assert b.rows_done() == 1
+
+
+def test_a_kill_signals_the_agent_leaves_it_out_and_its_rows_are_nan():
+    b = make(steps=3, faults=[Fault(1.0, 'kill', 'b')])        # t = 1.0: step 2
+    b.start()
+    for k in range(2):
+        feed_states(b, k)
+        acts = decide(b, k)
+    assert kinds(acts) == ['step', 'event', 'signal']
+    assert acts[1][1]['kind'] == 'kill' and acts[1][1]['agent'] == 'b'
+    assert acts[2] == ('signal', 1, 'kill')
+    acts = feed_states(b, 2, [0, 2])              # b is not awaited
+    assert kinds(acts) == ['clock', 'states', 'observe']
+    assert list(P.states_alive(acts[1][1])) == [True, False, True]
+    tr = b.rec.trajectory()
+    assert np.isnan(tr.u[1:, 1]).all() and np.isnan(tr.r[2:, 1]).all()
+
+
+def test_a_freeze_stops_the_agent_once_its_state_is_held_and_resumes_it():
+    b = make(steps=6, faults=[Fault(1.0, 'freeze', 'c', 1.0)])    # steps 2..4
+    b.start()
+    for k in range(2):
+        feed_states(b, k)
+        acts = decide(b, k)
+    assert kinds(acts) == ['step', 'event']           # no stop yet: its step-2 state not held
+    assert 2 in b.stop_pending
+    acts = feed_states(b, 2, [0, 1])                  # the step completes without c
+    assert kinds(acts) == ['clock', 'states', 'observe']
+    reason, acts = b.on_state(2, 2, state(2, 2), 0.7)  # c's state of its freeze step
+    assert reason is None and acts == [('signal', 2, 'stop')]
+    decide(b, 2)
+    feed_states(b, 3, [0, 1])
+    acts = decide(b, 3)
+    assert kinds(acts) == ['step', 'event', 'signal'] and acts[2] == ('signal', 2, 'cont')
+    assert b.have[2]                                  # resumes with the held state
+    feed_states(b, 4, [0, 1])
+    tr = b.rec.trajectory()
+    assert np.allclose(tr.r[4, 2], [2.0, 2.0]) and tr.u[1, 2] == pytest.approx(0.7)
+    assert np.allclose(tr.r[2:4, 2], [[2.0, 2.0]] * 2)   # held at its freeze-step state
+
+
+def test_a_live_fault_applies_at_the_next_step():
+    b = make(steps=4)
+    b.start()
+    feed_states(b, 0)
+    assert b.add_fault(Fault(0.0, 'kill', 'a', source='live')) == 1
+    acts = decide(b, 0)
+    assert ('signal', 0, 'kill') in acts
+
+
+def test_drop_missing_loses_the_silent_agents_and_goes_on():
+    b = make()
+    b.start()
+    feed_states(b, 0, [0, 2])
+    acts = b.drop_missing()
+    assert kinds(acts) == ['event', 'clock', 'states', 'observe']
+    assert acts[0][1] == dict(t=0.0, step=0, kind='lost', agent='b')
+    assert not b.faults.alive[1]
+
+
+def test_scheduled_radio_events_go_out_with_their_step():
+    b = make(comms=[(1, {'kind': 'drop', 'loss': 0.5})])
+    b.start()
+    feed_states(b, 0)
+    assert kinds(decide(b, 0)) == ['step']
+    feed_states(b, 1)
+    acts = decide(b, 1)
+    assert acts[0] == ('comms', 1, {'kind': 'drop', 'loss': 0.5}) and kinds(acts) == ['comms', 'step']
+
+
+def test_realtime_record_holds_states_between_stamps():
+    rec = TrajectoryRecorder(['a'], 3, DT, theta0=np.zeros(1), realtime=True)
+    rec.record_realtime(0, 0, state(0, 0), 0.0, 0.0, np.array([False]))
+    rec.record_realtime(0, 2, (3.0, 4.0, *quaternion_from_heading(0.5)), 0.3, 1.0, np.array([True]))
+    tr = rec.trajectory()
+    assert np.allclose(tr.r[:, 0], [[0, 0], [0, 0], [3, 4], [3, 4]])
+    assert list(tr.lam) == [0.0, 0.0, 1.0, 1.0] and list(tr.leader[:, 0]) == [False, False, True, True]
+    assert tr.u[1, 0] == 0.3 and np.allclose(tr.theta[2:, 0], 0.5)
+
+
+def test_headings_unwrap_in_time_from_the_initial_heading():
+    th = np.array([[3.1, 0.0], [-3.1, np.nan], [-3.0, 0.1]])
+    out = unwrap_headings(th, np.array([3.1 + 2 * np.pi, 0.0]))
+    assert out[1, 0] == pytest.approx(2 * np.pi - 3.1 + 2 * np.pi)
+    assert out[0, 0] == pytest.approx(3.1 + 2 * np.pi)
+    assert np.isnan(out[1, 1]) and out[2, 1] == pytest.approx(0.1)
