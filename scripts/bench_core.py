@@ -104,8 +104,13 @@ def agent_call(min_seconds):
     """µs (wall, CPU) per `AgentCore.control` (an agent node's own arithmetic for one step:
     the table from the received states, then swarm_control with itself as the only receiver)
     on homotopy_global's states at t = 450, agent 2."""
-    from swarm_agent.core import AgentCore
-    from swarm_core import engine, model, scenario
+    try:                      # module names since the layout change, then older revisions'
+        from swarm_agent.agent_core import AgentCore
+        from swarm_core import frenet as model
+    except ImportError:
+        from swarm_agent.core import AgentCore
+        from swarm_core import model
+    from swarm_core import engine, scenario
     st = engine.SwarmStepper(scenario.load('homotopy_global'))
     for _ in range(9000):
         st.step()

@@ -31,7 +31,10 @@ def produce(out, quick):
     import numpy as np
     from swarm_core import engine, laws, scenario
     from swarm_core.laws import LawConfig, swarm_control
-    from swarm_core.model import PairGains, heading_frame
+    try:                      # the module's name since the layout change, then older revisions'
+        from swarm_core.frenet import PairGains, heading_frame
+    except ImportError:
+        from swarm_core.model import PairGains, heading_frame
     res = {}
     rng = np.random.default_rng(0)
     for n in ((1, 3, 6, 40) if quick else (1, 2, 3, 6, 9, 40, 300)):

@@ -207,8 +207,8 @@ def odom(name, x, y, theta, t, u=0.0):
     """An agent's state as the nodes publish it (nav_msgs/Odometry; stamp = sim time t)."""
     from nav_msgs.msg import Odometry
 
-    from swarm_core.model import quaternion_from_heading
-    from swarm_world import protocol as P
+    from swarm_core.frenet import quaternion_from_heading
+    from swarm_ros import protocol as P
     m = Odometry()
     m.header.frame_id, m.child_frame_id = 'world', name
     m.header.stamp.sec, m.header.stamp.nanosec = P.time_to_stamp(t)
@@ -223,7 +223,7 @@ def run_nodes(params, ctx, timeout):
     """World, commander and agents from `node_parameters`' output, in one executor on ``ctx``,
     spun until the world is done (at most ``timeout`` s); returns (done?, world, [all nodes])."""
     from swarm_tools.launch import build_nodes
-    from swarm_world.rosutil import make_executor
+    from swarm_ros.rosutil import make_executor
     world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
     ex = make_executor(ctx)
     nodes = [world, commander, *agents]

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from swarm_core import engine, metrics, scenario
-from swarm_core.model import quaternion_from_heading
+from swarm_core.frenet import quaternion_from_heading
 
 RECORD_EVERY = 5          # every 5th step: 0.5 time units between recorded states at dt = 0.1, 2001 x 6 agents
 

@@ -57,7 +57,7 @@ def test_recorded_lockstep_run(recorded_run, swarm_cmd, tmp_path):
     from rosbags.highlevel import AnyReader
 
     from swarm_core.trajectory import Trajectory
-    from swarm_core.model import yaw_from_quaternion
+    from swarm_core.frenet import yaw_from_quaternion
 
     bag, live_dir, text = recorded_run
     assert 'lost: 0' in text, text

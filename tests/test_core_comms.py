@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from swarm_agent.core import AgentCore
+from swarm_agent.agent_core import AgentCore
 from swarm_core.comms import Beliefs, CommModel, StreamRadio, change_from_event, dead_reckon, link_uniforms
 from swarm_core.engine import SwarmStepper, simulate
 from swarm_core.integrate import zoh_step
-from swarm_core.model import frame_from_quaternion, quaternion_from_heading
+from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.scenario import ScenarioError, load, parse
 
 #: family-wise false-alarm rate of each statistical assertion

@@ -7,7 +7,7 @@ import pytest
 from swarm_core import engine, scenario
 from swarm_core.integrate import rk4_step, zoh_step
 from swarm_core.laws import swarm_control
-from swarm_core.model import heading_frame
+from swarm_core.frenet import heading_frame
 
 
 def test_zoh_is_exact_for_constant_curvature():
@@ -107,7 +107,7 @@ def test_kdtree_neighbour_search_equals_all_pairs():
 def _per_agent_run(scn, steps):
     """What a swarm of agent nodes does: each agent computes only its own u from the table of
     states it received (frames through the quaternion) and integrates only itself."""
-    from swarm_core.model import frame_from_quaternion, quaternion_from_heading
+    from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
     pos, th = scn.pos0.copy(), scn.theta0.copy()
     plan = scn.command_plan()
     n = len(th)
@@ -158,7 +158,7 @@ def test_realtime_catch_up_moves_by_the_elapsed_periods():
     """A realtime agent integrates round((now − t)/dt) periods (u held), none when no period
     has passed (a second timer call for the same /clock time), and at most `limit` after a
     long gap (a stopped process), restarting its time at now; no rounding drift."""
-    from swarm_agent.core import catch_up
+    from swarm_agent.agent_core import catch_up
     dt = 0.05
     assert catch_up(0.1, 0.0, dt, 4) == (2, 0.1)
     assert catch_up(0.1, 0.1, dt, 4) == (0, 0.1)            # same time again: nothing moves

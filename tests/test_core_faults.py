@@ -4,12 +4,12 @@ import copy
 import numpy as np
 import pytest
 
-from swarm_agent.core import AgentCore
+from swarm_agent.agent_core import AgentCore
 from swarm_core import outcomes
 from swarm_core.engine import simulate
 from swarm_core.faults import Fault, FaultTimeline, elect_successor, followers_of, track_slots
 from swarm_core.laws import swarm_control
-from swarm_core.model import frame_from_quaternion, heading_frame
+from swarm_core.frenet import frame_from_quaternion, heading_frame
 from swarm_core.scenario import ScenarioError, load, parse
 from swarm_core.schedules import CommandPlan, ConstantSteering
 from swarm_core.simulate_cli import analyse

@@ -5,9 +5,9 @@ import warnings
 import numpy as np
 import pytest
 
-from swarm_core import laws, model
+from swarm_core import laws, frenet as model
 from swarm_core.laws import LawConfig, swarm_control
-from swarm_core.model import PairGains, heading_frame
+from swarm_core.frenet import PairGains, heading_frame
 
 
 # ------------------------------------------------------------------ pair term by hand

@@ -23,8 +23,8 @@ from swarm_core.engine import simulate
 from swarm_core.trajectory import Trajectory  # noqa: E402
 from swarm_core.scenario import load  # noqa: E402
 from swarm_tools.launch import agent_parameters, build_nodes, node_parameters  # noqa: E402
-from swarm_world import protocol as P  # noqa: E402
-from swarm_world.rosutil import make_executor  # noqa: E402
+from swarm_ros import protocol as P  # noqa: E402
+from swarm_ros.rosutil import make_executor  # noqa: E402
 
 from conftest import odom, overrides, run_nodes, spin_for  # noqa: E402
 

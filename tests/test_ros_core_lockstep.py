@@ -4,7 +4,7 @@ nav_msgs/Odometry), reproduces `swarm_core.engine.simulate` bit for bit."""
 import numpy as np
 import pytest
 
-from swarm_agent.core import AgentCore
+from swarm_agent.agent_core import AgentCore
 from swarm_core.engine import simulate
 from swarm_core.scenario import load
 
@@ -26,7 +26,7 @@ def test_agents_reproduce_batch_engine(name, duration):
         x = np.array([a.pos[0, 0] for a in agents])
         y = np.array([a.pos[0, 1] for a in agents])
         q = np.array([a.quaternion for a in agents])
-        from swarm_core.model import frame_from_quaternion
+        from swarm_core.frenet import frame_from_quaternion
         c, s = frame_from_quaternion(q[:, 0], q[:, 1])
         lam, leaders, steering = plan.update(t, np.stack([x, y], 1), c, s)
         flags = np.zeros(n, bool)

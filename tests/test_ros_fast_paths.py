@@ -10,7 +10,7 @@ import pytest
 from swarm_core.engine import simulate
 from swarm_core.trajectory import Trajectory
 from swarm_core.scenario import load
-from swarm_world import protocol as P
+from swarm_ros import protocol as P
 
 SHORT = """
 name: dds_short

@@ -56,7 +56,7 @@ PROGRAM = 0.05
 def bag_view(bag, names, dt, steps):
     """(t, r (T, n, 2), θ (T, n), events) from the bag: each agent's published states on the
     step grid (NaN where it published none) and the /swarm/events objects."""
-    from swarm_core.model import yaw_from_quaternion
+    from swarm_core.frenet import yaw_from_quaternion
     from swarm_tools.bag import iter_messages, parse_float64, parse_odometry, parse_string
     T = steps + 1
     r = np.full((T, len(names), 2), np.nan)

@@ -17,11 +17,11 @@ from swarm_agent.agent_node import AgentNode  # noqa: E402
 from swarm_core.engine import simulate
 from swarm_core.trajectory import Trajectory  # noqa: E402
 from swarm_core.laws import swarm_control  # noqa: E402
-from swarm_core.model import frame_from_quaternion, quaternion_from_heading  # noqa: E402
+from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading  # noqa: E402
 from swarm_core.scenario import load  # noqa: E402
 from swarm_tools.launch import agent_parameters, node_parameters, run_in_process  # noqa: E402
-from swarm_world import protocol as P  # noqa: E402
-from swarm_world.rosutil import ParameterError, make_executor  # noqa: E402
+from swarm_ros import protocol as P  # noqa: E402
+from swarm_ros.rosutil import ParameterError, make_executor  # noqa: E402
 from swarm_world.world_node import WorldNode  # noqa: E402
 
 from conftest import odom, overrides, run_nodes, short_homotopy, spin_for  # noqa: E402

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from swarm_core.faults import Fault, FaultTimeline
-from swarm_core.model import quaternion_from_heading
+from swarm_core.frenet import quaternion_from_heading
 from swarm_core.trajectory import TrajectoryRecorder, unwrap_headings
-from swarm_world import protocol as P
+from swarm_ros import protocol as P
 from swarm_world.lockstep import LockstepBarrier
 
 NAMES = ['a', 'b', 'c']

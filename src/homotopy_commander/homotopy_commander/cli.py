@@ -17,7 +17,7 @@ import math
 import sys
 import time
 
-from swarm_world.cliutil import add_wait
+from swarm_ros.cliutil import add_wait
 
 SETPOINT = '/commander/lambda_setpoint'
 

@@ -33,11 +33,11 @@ from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_core.faults import event_names
-from swarm_core.model import frame_from_quaternion
+from swarm_core.frenet import frame_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 from swarm_core.schedules import ConstantSteering
-from swarm_world import protocol as P
-from swarm_world.rosutil import ParameterError, RejectLog, declare, run_node, when_matched
+from swarm_ros import protocol as P
+from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node, when_matched
 
 from .live import LiveSchedule
 

@@ -1,4 +1,4 @@
-"""AgentNode: one agent of the swarm; integrates its own Frenet frame (see swarm_world.protocol).
+"""AgentNode: one agent of the swarm; integrates its own Frenet frame (see swarm_ros.protocol).
 
 Lockstep: reads one packed ``/lockstep/step`` message per step (states of all agents, λ,
 leader flags, s_k, target, barrier of that step), computes u with the core law, integrates,
@@ -32,12 +32,12 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_core.comms import CommModel, StreamRadio, change_from_event
 from swarm_core.laws import BARRIER_MODES, LAW_KINDS, LawConfig
-from swarm_core.model import PairGains
-from swarm_world import protocol as P
-from swarm_world.checks import check_state
-from swarm_world.rosutil import ParameterError, RejectLog, declare, run_node, when_matched
+from swarm_core.frenet import PairGains
+from swarm_ros import protocol as P
+from swarm_ros.msg_checks import check_state
+from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node, when_matched
 
-from .core import AgentCore, catch_up
+from .agent_core import AgentCore, catch_up
 
 MODES = ('lockstep', 'realtime')
 
@@ -257,7 +257,7 @@ class AgentNode(Node):
 
     # ------------------------------------------------------------ radio (communication model)
     def _on_event(self, msg):
-        """Runtime radio changes from /swarm/events (see swarm_world.protocol)."""
+        """Runtime radio changes from /swarm/events (see swarm_ros.protocol)."""
         try:
             change = change_from_event(json.loads(msg.data))
         except (ValueError, TypeError) as err:

@@ -29,7 +29,7 @@ own state and that table with THE law (`laws.swarm_control`).
 Changes in time: ``events`` at sim times (``loss``/``latency``/``jitter`` set the base values,
 ``drop`` + ``duration`` a burst loss, ``partition`` new groups, ``[]`` heals), applied from the
 first step n with n·dt ≥ at; at runtime the same events arrive as JSON (see
-swarm_world.protocol EVENTS) and are applied with `CommModel.apply`.
+swarm_ros.protocol EVENTS) and are applied with `CommModel.apply`.
 
 The model is configured by a plain mapping (the scenario's ``comms`` section, validated by
 `scenario.CommsSpec`; agents get it as JSON), so this module needs neither pydantic nor ROS.
@@ -43,7 +43,7 @@ import numpy as np
 
 from .integrate import zoh_step
 from .laws import LawConfig, swarm_control
-from .model import frame_from_quaternion, heading_frame, quaternion_from_heading, yaw_from_quaternion
+from .frenet import frame_from_quaternion, heading_frame, quaternion_from_heading, yaw_from_quaternion
 
 DEFAULTS = dict(seed=None, radio_range=None, loss=0.0, latency=0.0, jitter=0.0, timeout=2.0,
                 dead_reckoning=True, links=(), partition=(), events=())
@@ -359,7 +359,7 @@ RADIO_EVENT_KINDS = ('drop', 'partition', 'comms')
 
 
 def change_from_event(ev) -> dict | None:
-    """The radio change of a ``/swarm/events`` object (see swarm_world.protocol), None if the
+    """The radio change of a ``/swarm/events`` object (see swarm_ros.protocol), None if the
     event is not for the radio (other kinds, or the scenario's own scheduled events, which
     agents apply from their copy); ValueError naming the field if it is malformed."""
     if not isinstance(ev, dict):

@@ -21,7 +21,7 @@ from .faults import event_names, reunion_law
 from .integrate import rk4_step, zoh_step
 from .laws import DENSE_LIMIT, sparse_coupling, swarm_control
 from .comms import Beliefs, belief_control, delay_stats
-from .model import heading_frame, quaternion_from_heading
+from .frenet import heading_frame, quaternion_from_heading
 from .scenario import Scenario
 from .trajectory import Trajectory
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model import PairGains
+from .frenet import PairGains
 
 LAW_KINDS = ('global', 'local', 'leader_following', 'homotopy', 'target')
 BARRIER_MODES = ('ahead', 'literal')

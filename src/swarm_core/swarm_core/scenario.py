@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from .faults import Fault, FaultTimeline, Rendezvous
 from .laws import LawConfig
-from .model import PairGains
+from .frenet import PairGains
 from .schedules import (CommandPlan, ConstantLambda, ConstantSteering, RampSchedule,
                         SinusoidSteering, TanhWindow, WaypointSteering)
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import yaw_from_quaternion
+from .frenet import yaw_from_quaternion
 
 
 @dataclass

@@ -100,7 +100,7 @@ def run_in_process(params: dict, domain_id=None) -> int:
     from rclpy.context import Context
     from rclpy.signals import SignalHandlerOptions
 
-    from swarm_world.rosutil import ParameterError, make_executor, spin_until, stop_on_signals
+    from swarm_ros.rosutil import ParameterError, make_executor, spin_until, stop_on_signals
     stop, wake, restore_signals = stop_on_signals()
     ctx = Context()
     rclpy.init(context=ctx, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)

@@ -2,7 +2,7 @@
 
 The trajectory is rebuilt from ``/swarm/states`` (``nav_msgs/Odometry``: ``child_frame_id`` =
 agent, stamp = sim time, pose = position + planar quaternion, ``twist.angular.z`` = the u held
-over the step that ENDED at that stamp (see `swarm_world.protocol`), so the u applied from the
+over the step that ENDED at that stamp (see `swarm_ros.protocol`), so the u applied from the
 state of t_n on is read from the state of t_(n+1); the newest state's u is not known yet (NaN)), λ from ``/swarm/lambda`` and the
 leaders from ``/swarm/leaders`` where the bag has them (each message belongs to the newest step
 whose states were received before it, and holds until the next), the target and barrier from
@@ -131,7 +131,7 @@ def rebuild_trajectory(run: dict):
     missing stamps do not count against lockstep alignment; a frozen agent holds its state
     over the freeze (its stamps there are not missing either)."""
     from swarm_core.trajectory import Trajectory
-    from swarm_core.model import yaw_from_quaternion
+    from swarm_core.frenet import yaw_from_quaternion
 
     names = sorted(run['per_agent'], key=natural_key)
     if not names:

@@ -1,6 +1,6 @@
 """``swarm drop`` and ``swarm partition``: change the radio of a running swarm.
 
-Both publish one event on ``/swarm/events`` (std_msgs/String JSON, see swarm_world.protocol;
+Both publish one event on ``/swarm/events`` (std_msgs/String JSON, see swarm_ros.protocol;
 reliable + transient-local, so ``swarm record`` keeps it in the bag), stamped with the sim time
 read from ``/clock``.  Every agent applies it on its receive side (swarm_core.comms) from the
 step it is at when the event arrives:
@@ -22,7 +22,7 @@ import math
 import sys
 import time
 
-from .cliutil import add_wait
+from swarm_ros.cliutil import add_wait
 
 
 def _agents_in_graph(node):
@@ -39,7 +39,7 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
     from rosgraph_msgs.msg import Clock
     from std_msgs.msg import String
 
-    from . import protocol as P
+    from swarm_ros import protocol as P
     ctx = Context()
     rclpy.init(context=ctx)
     node = ex = None

@@ -1,7 +1,7 @@
 """``swarm kill AGENT`` and ``swarm pause AGENT SECONDS``: inject a fault into a running swarm.
 
 Both publish a JSON request on ``/swarm/fault_request`` (std_msgs/String, see
-`swarm_world.protocol`); the world applies it at its next step, deterministically: the agent
+`swarm_ros.protocol`); the world applies it at its next step, deterministically: the agent
 leaves every table (killed for good, or frozen for SECONDS of sim time, then back with the
 state it had), the event goes out on ``/swarm/events`` (recorded by ``swarm record``), and
 in a ``swarm run --processes`` run the world also signals the agent's process (SIGKILL, or
@@ -14,8 +14,8 @@ import json
 import math
 import sys
 
-from . import protocol as P
-from .cliutil import add_wait
+from swarm_ros import protocol as P
+from swarm_ros.cliutil import add_wait
 
 
 def _agent_name(text):

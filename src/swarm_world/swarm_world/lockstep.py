@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import protocol as P
+from swarm_ros import protocol as P
 
 
 class LockstepBarrier:

@@ -15,7 +15,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from swarm_core import metrics as M
 
-from . import protocol as P
+from swarm_ros import protocol as P
 
 PALETTE = [(0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16),
            (0.58, 0.4, 0.74), (0.55, 0.34, 0.29)]

@@ -1,6 +1,6 @@
 """WorldNode: sim time, the lockstep barrier, target and barrier, swarm view and metrics.
 
-See `swarm_world.protocol` for the message flow.  The world loads the same scenario as the
+See `swarm_ros.protocol` for the message flow.  The world loads the same scenario as the
 other nodes (for the roster, duration, target and barrier), records what the agents publish
 and, at the end, writes ``trajectory.npz`` (the batch engine's format) to ``output_dir``.
 Target and barrier can be moved during a run: ``ros2 param set /world target "400,0"``,
@@ -38,15 +38,15 @@ from visualization_msgs.msg import MarkerArray
 
 from swarm_core import metrics as M
 from swarm_core.faults import FAULT_KINDS, Fault, track_slots
-from swarm_core.model import yaw_from_quaternion
+from swarm_core.frenet import yaw_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
-from . import protocol as P
-from .checks import check_values
+from swarm_ros import protocol as P
+from swarm_ros.msg_checks import check_values
 from .lockstep import LockstepBarrier
 from .markers import Trails, markers_message, metrics_message, stamp, view_values
-from .rosutil import ParameterError, RejectLog, declare, run_node, steady_clock
+from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node, steady_clock
 
 
 SIGNALS = {'kill': signal.SIGKILL, 'stop': signal.SIGSTOP, 'cont': signal.SIGCONT}

@@ -30,7 +30,7 @@ from swarm_core.faults import reunion_law
 from swarm_core.comms import Beliefs, CommModel, belief_control
 from swarm_core.integrate import zoh_step
 from swarm_core.laws import LawConfig, swarm_control
-from swarm_core.model import frame_from_quaternion, quaternion_from_heading
+from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
 
 
 def catch_up(now: float, t_state: float, dt: float, limit: int) -> tuple[int, float]:
