@@ -249,7 +249,7 @@ def test_lockstep_in_process_equals_simulate(tmp_path, ros_domain):
 
 def test_bad_startup_parameters_are_named(rclpy_context):
     scn = load('homotopy_global')
-    cases = {'w': -1.0, 'dt': 0.0, 'law': 'nonsense', 'x': float('nan'), 'q0': 2.0,
+    cases = {'cutoff_radius': -1.0, 'dt': 0.0, 'law': 'nonsense', 'x': float('nan'), 'q0': 2.0,
              'agent_name': 'ghost', 'leader_gain': 0.5}
     for name, value in cases.items():
         prm = agent_parameters(scn, 0, 'lockstep')

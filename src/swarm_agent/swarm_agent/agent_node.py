@@ -31,8 +31,8 @@ from rclpy.node import Node
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_core.comms import CommModel, StreamRadio, change_from_event
-from swarm_core.laws import BARRIER_MODES, LAW_KINDS, LawConfig
-from swarm_core.frenet import PairGains
+from swarm_core.laws import LAW_PARAMETERS, LawConfig
+from swarm_core.scenario import noise_rng
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import check_state
 from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node, when_matched
@@ -56,19 +56,16 @@ class AgentNode(Node):
         x = d('x', 0.0, 'initial x position')
         y = d('y', 0.0, 'initial y position')
         theta = d('theta', 0.0, 'initial heading θ (rad)')
-        kind = d('law', 'homotopy', 'control law', choices=LAW_KINDS)
-        gains = PairGains(d('alpha', 0.02, 'spacing gain α', lo=0.0, hi=1e6),
-                          d('eta', 0.02, 'baseline gain η', lo=0.0, hi=1e6),
-                          d('mu', 0.02, 'alignment gain μ', lo=0.0, hi=1e6),
-                          d('r0', 1.5, 'preferred spacing r0', lo=1e-9, hi=1e6))
-        w = d('w', 4.0, 'cutoff (communication) radius w', lo=1e-9, hi=1e9)
-        self.law = LawConfig(kind=kind, gains=gains, cutoff_radius=w,
-                             leader_gain=d('leader_gain', 30.0, 'leader coupling ℓc', lo=1.0, hi=1e6),
-                             q0=d('q0', 1.0, 'far-coupling weight at λ = 0', lo=0.0, hi=1.0),
-                             target_gain=d('target_gain', 0.0, 'target gain γ', lo=0.0, hi=1e6),
-                             target_normalised=d('target_normalised', False, 'normalised target term'),
-                             barrier_gain=d('barrier_gain', 0.0, 'barrier gain s_b', lo=0.0, hi=1e6),
-                             barrier_mode=d('barrier_mode', 'ahead', 'barrier term reading', choices=BARRIER_MODES))
+        defaults = LawConfig().parameters()          # one place for the defaults: the core's types
+        law = {}
+        for name, (text, limits) in LAW_PARAMETERS.items():
+            if isinstance(limits, tuple) and isinstance(limits[0], str):
+                law[name] = d(name, defaults[name], text, choices=limits)
+            elif limits is None:
+                law[name] = d(name, defaults[name], text)
+            else:
+                law[name] = d(name, defaults[name], text, lo=limits[0], hi=limits[1])
+        self.law = LawConfig.from_parameters(law)
         self.dt = d('dt', 0.05, 'control period / integration step (sim s)', lo=1e-6, hi=10.0)
         self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=MODES)
         noise = (d('noise_position', 0.0, 'uniform noise half-width on x, y per step', lo=0.0, hi=1e6),
@@ -94,7 +91,7 @@ class AgentNode(Node):
             raise ParameterError(f'parameter agent_index: {self.index} does not name {self.agent_name!r} in agent_names')
         self.n = len(self.roster)
         self.row = {nm: i for i, nm in enumerate(self.roster)}
-        rng = np.random.default_rng([seed, 7919, self.index])
+        rng = noise_rng(seed, self.index)
         self.core = AgentCore(self.index, self.n, x, y, theta, self.law, self.dt, noise, rng)
         self.reject = RejectLog(self.get_logger())
         try:

@@ -63,6 +63,22 @@ class LawConfig:
         if self.barrier_mode not in BARRIER_MODES:
             raise ValueError(f'barrier_mode must be one of {BARRIER_MODES}, got {self.barrier_mode!r}')
 
+    def parameters(self) -> dict:
+        """The law as flat parameters with the paper's names (an agent node's ROS parameters)."""
+        g = self.gains
+        return dict(law=self.kind, alpha=g.alpha, eta=g.eta, mu=g.mu, r0=g.r0,
+                    cutoff_radius=self.cutoff_radius, leader_gain=self.leader_gain, q0=self.q0,
+                    target_gain=self.target_gain, target_normalised=self.target_normalised,
+                    barrier_gain=self.barrier_gain, barrier_mode=self.barrier_mode)
+
+    @classmethod
+    def from_parameters(cls, p: dict) -> 'LawConfig':
+        """The inverse of `parameters`."""
+        return cls(kind=p['law'], gains=PairGains(p['alpha'], p['eta'], p['mu'], p['r0']),
+                   cutoff_radius=p['cutoff_radius'], leader_gain=p['leader_gain'], q0=p['q0'],
+                   target_gain=p['target_gain'], target_normalised=p['target_normalised'],
+                   barrier_gain=p['barrier_gain'], barrier_mode=p['barrier_mode'])
+
     @property
     def uses_leaders(self) -> bool:
         return self.kind in ('leader_following', 'homotopy')
@@ -83,6 +99,25 @@ class LawConfig:
             return False
         lam, q0 = self.effective_lambda_q0(lambda_)
         return q0 > 0.0
+
+
+# name → (description, (lowest, highest)) of each law parameter; defaults: `LawConfig()`.
+# Equation numbers are the paper's (docs/model.md maps them to the code comments').
+# A choice parameter has its choices instead of a range; booleans have None.
+LAW_PARAMETERS = {
+    'law': ('control law', LAW_KINDS),
+    'alpha': ('spacing gain α of the pair term (eq. 5)', (0.0, 1e6)),
+    'eta': ('baseline gain η of the pair term (eq. 5)', (0.0, 1e6)),
+    'mu': ('alignment gain μ of the pair term (eq. 5)', (0.0, 1e6)),
+    'r0': ('preferred spacing r0 in f(ρ) (eq. 6)', (1e-9, 1e6)),
+    'cutoff_radius': ('cutoff (communication and sensing) radius w (eq. 8)', (1e-9, 1e9)),
+    'leader_gain': ('leader coupling ℓc ≫ 1 (eq. 10, 11)', (1.0, 1e6)),
+    'q0': ('far-coupling weight q0 at λ = 0 (eq. 12-14)', (0.0, 1.0)),
+    'target_gain': ('target gain γ (eq. 15)', (0.0, 1e6)),
+    'target_normalised': ('use unit vectors in the target term (eq. 15)', None),
+    'barrier_gain': ('barrier gain s_b (eq. 16)', (0.0, 1e6)),
+    'barrier_mode': ('barrier term reading', BARRIER_MODES),
+}
 
 
 def all_pairs(receivers, n: int):

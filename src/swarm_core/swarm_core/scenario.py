@@ -88,13 +88,13 @@ class AgentsSpec(_Strict):
 
 class LawSpec(_Strict):
     kind: Literal['global', 'local', 'leader_following', 'homotopy', 'target'] = 'homotopy'
-    alpha: NonNeg = 0.02
-    eta: NonNeg = 0.02
-    mu: NonNeg = 0.02
-    r0: Positive = 1.5
-    cutoff_radius: Positive = 4.0
-    leader_gain: Annotated[float, Field(ge=1, allow_inf_nan=False)] = 30.0
-    q0: Annotated[float, Field(ge=0, le=1)] = 1.0
+    alpha: NonNeg = PairGains.alpha          # defaults: the core's config types (laws.py, frenet.py)
+    eta: NonNeg = PairGains.eta
+    mu: NonNeg = PairGains.mu
+    r0: Positive = PairGains.r0
+    cutoff_radius: Positive = LawConfig.cutoff_radius
+    leader_gain: Annotated[float, Field(ge=1, allow_inf_nan=False)] = LawConfig.leader_gain
+    q0: Annotated[float, Field(ge=0, le=1)] = LawConfig.q0
 
 
 # ------------------------------------------------------------------ λ schedules
@@ -393,7 +393,12 @@ class Scenario:
 
     def noise_rng(self, index: int) -> np.random.Generator:
         """Agent ``index``'s own noise stream (the same in the batch engine and its node)."""
-        return np.random.default_rng([self.spec.seed, 7919, index])
+        return noise_rng(self.spec.seed, index)
+
+
+def noise_rng(seed: int, index: int) -> np.random.Generator:
+    """Agent ``index``'s own noise stream of a run with ``seed``: one place for its key."""
+    return np.random.default_rng([seed, 7919, index])
 
 
 def build_schedule(spec):

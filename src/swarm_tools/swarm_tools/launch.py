@@ -41,15 +41,10 @@ STOP_GRACE = 4.0
 
 
 def agent_parameters(scn, i: int, mode: str) -> dict:
-    law = scn.law
-    g = law.gains
     noise = scn.spec.noise
     return dict(agent_name=scn.names[i], agent_index=i, agent_names=list(scn.names), leader=False,
                 x=float(scn.pos0[i, 0]), y=float(scn.pos0[i, 1]), theta=float(scn.theta0[i]),
-                law=law.kind, alpha=g.alpha, eta=g.eta, mu=g.mu, r0=g.r0, w=law.cutoff_radius,
-                leader_gain=law.leader_gain, q0=law.q0, target_gain=law.target_gain,
-                target_normalised=law.target_normalised, barrier_gain=law.barrier_gain,
-                barrier_mode=law.barrier_mode, dt=scn.dt, mode=mode,
+                **scn.law.parameters(), dt=scn.dt, mode=mode,
                 noise_position=float(noise.position), noise_heading=float(noise.heading),
                 seed=int(scn.seed), use_sim_time=True,
                 comms=json.dumps(scn.comms_config()) if scn.comms_config() is not None else '')
