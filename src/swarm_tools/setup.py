@@ -11,7 +11,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
     ],
-    package_data={package_name: []},
+    package_data={package_name: ['foxglove_layout.json']},
     include_package_data=True,
     install_requires=['setuptools'],
     zip_safe=True,
