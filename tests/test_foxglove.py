@@ -135,22 +135,24 @@ def _talk(c):
     c.until(lambda: c.info is not None, 30, 'serverInfo')
     assert {'clientPublish', 'time'} <= set(c.info['capabilities']), c.info
     assert 'cdr' in c.info.get('supportedEncodings', []), c.info
-    wanted = ('/swarm/states', '/world/markers', '/swarm/lambda')
-    c.until(lambda: all(t in c.channels for t in wanted), 120, f'channels {wanted}; got {sorted(c.channels)}')
+    wanted = ('/swarm/states', '/world/markers', '/swarm/lambda', '/agent_0/steering')
+    c.until(lambda: all(t in c.channels for t in wanted + ('/foxglove/metrics',)), 120,
+            f'channels {wanted}; got {sorted(c.channels)}')
     stores = {t: _typestore(c.channels[t]) for t in wanted}
     # full definitions: dependencies concatenated in the ros2msg layout
     assert 'MSG: geometry_msgs/Pose' in c.channels['/swarm/states']['schema']
     assert 'MSG: visualization_msgs/Marker' in c.channels['/world/markers']['schema']
     c.send({'op': 'subscribe', 'subscriptions': [
-        {'id': i + 1, 'channelId': c.channels[t]['id']} for i, t in enumerate(wanted)]})
+        {'id': i + 1, 'channelId': c.channels[t]['id']} for i, t in enumerate(wanted)]
+        + [{'id': 99, 'channelId': c.channels['/foxglove/metrics']['id']}]})
 
     def decoded(i):
         t = wanted[i]
         return [(ts, stores[t].deserialize_cdr(raw, c.channels[t]['schemaName']))
                 for ts, raw in c.messages.get(i + 1, [])]
 
-    c.until(lambda: len(c.messages.get(1, [])) >= 30 and c.messages.get(2) and c.messages.get(3), 120,
-            'states, markers and λ')
+    c.until(lambda: len(c.messages.get(1, [])) >= 30 and c.messages.get(2) and c.messages.get(3)
+            and c.messages.get(99), 120, 'states, markers, λ and metrics')
     states = decoded(0)
     names = {m.child_frame_id for _, m in states}
     assert names <= {f'agent_{i}' for i in range(6)} and len(names) >= 3, names
@@ -164,6 +166,11 @@ def _talk(c):
     assert ts == agents[0].header.stamp.sec * 1_000_000_000 + agents[0].header.stamp.nanosec
     assert c.times and max(c.times) < 3000 * 1_000_000_000
     assert all(m.data == 0.0 for _, m in decoded(2)), [m.data for _, m in decoded(2)]
+    assert c.channels['/foxglove/metrics']['encoding'] == 'json'
+    ts, metrics = c.messages[99][-1]
+    metrics = json.loads(metrics)
+    assert metrics['clusters'] >= 1 and 0 <= metrics['polarisation'] <= 1 and metrics['lambda'] == 0.0
+    assert abs(ts - metrics['t'] * 1e9) < 1e3, (ts, metrics)      # logged at the metrics' sim time
 
     # a topic clients may not publish on is refused with a status
     c.send({'op': 'advertise', 'channels': [{'id': 7, 'topic': '/swarm/states', 'encoding': 'cdr',
@@ -180,3 +187,11 @@ def _talk(c):
     c.until(lambda: any(0.001 < m.data < 0.999 for _, m in decoded(2)), 120,
             'the commander to publish a rising λ')
     assert any(m.data == 1.0 for _, m in decoded(2)), 'the client λ itself, republished on ROS'
+
+    # steering as JSON (Foxglove's fallback encoding): agent_0 becomes a leader, and the
+    # commander publishes its new program value on every tick (the client sent it once)
+    c.send({'op': 'advertise', 'channels': [{'id': 2, 'topic': '/agent_0/steering', 'encoding': 'json',
+                                             'schemaName': 'std_msgs/msg/Float64'}]})
+    c.ws.send(struct.pack('<BI', 1, 2) + b'{"data": 0.02}')
+    c.until(lambda: sum(m.data == 0.02 for _, m in decoded(3)) >= 3, 120,
+            'the commander to steer agent_0 with 0.02')

@@ -16,6 +16,9 @@ every event to ``events.jsonl`` in ``--out``.  An agent that exits is not a run 
 the events name it as killed the launcher says so; otherwise it warns, and the world drops the
 agent after its ``missing_timeout``.  Stopping a run first sends SIGCONT to every child (a
 stopped process cannot handle SIGINT).
+
+``--foxglove [PORT]`` also starts ``swarm view`` (`swarm_tools.view`), the live Foxglove
+WebSocket bridge, as one more process of the run; it stops with the run.
 """
 from __future__ import annotations
 
