@@ -12,7 +12,6 @@ import re
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 SWARM = str(Path(sys.executable).parent / 'swarm')

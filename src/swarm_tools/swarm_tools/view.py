@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import queue
 import re
 import sys
@@ -40,6 +39,7 @@ DEFAULT_PORT = 8765
 LAYOUT_FILE = Path(__file__).with_name('foxglove_layout.json')
 LAMBDA_TOPIC = '/swarm/lambda'
 METRICS_TOPIC = '/world/metrics'
+METRICS_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
 #: numbers of ``/world/metrics`` as a JSON channel (the Plot panel needs numbers, not strings)
 METRICS_CHANNEL = '/foxglove/metrics'
 METRICS_KEYS = ('t', 'lambda', 'clusters', 'polarisation', 'min_distance')
@@ -157,7 +157,8 @@ class Bridge:
         self.server = server_factory(_Listener(self))
         self.port = self.server.port
         self._client_publisher(LAMBDA_TOPIC)
-        self._read(METRICS_TOPIC, always=True)
+        self._advertise(METRICS_TOPIC, METRICS_TYPE)     # read always: numbers and sim time
+        self._read(METRICS_TOPIC)
         self.poll()
 
     # ---------------------------------------------------------------- graph
@@ -196,18 +197,14 @@ class Bridge:
             schema=self.fg.Schema(name=type_name, encoding='ros2msg', data=text.encode()))
 
     # ---------------------------------------------------------------- ROS -> clients
-    def _read(self, topic, always=False):
+    def _read(self, topic):
+        """Subscribe to an advertised topic as its publishers offer (no publisher yet:
+        reliable, volatile), as the recorder does."""
         from .record import message_class, offered_profiles, request_qos
-        if topic in self.subs:
+        if topic in self.subs or topic not in self.channels:
             return
-        if topic not in self.channels:
-            if not always:
-                return
-            self._advertise(topic, 'diagnostic_msgs/msg/DiagnosticArray')
         infos = [i for i in self.node.get_publishers_info_by_topic(topic) if not self._own(i)]
         qos = request_qos(offered_profiles([i for i in infos if i.topic_type == self.types[topic]]))
-        if not infos and always:
-            qos = request_qos([])          # reliable, volatile: matches what the world offers
         self.subs[topic] = self.node.create_subscription(
             message_class(self.types[topic]), topic, self._callback(topic), qos, raw=True)
 
