@@ -23,5 +23,6 @@ setup(
         'swarm_record = swarm_tools.record:main',
         'swarm_report = swarm_tools.report:main',
         'swarm_play = swarm_tools.play:main',
+        'swarm_view = swarm_tools.view:main',
     ]},
 )
