@@ -11,7 +11,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
     ],
-    package_data={package_name: []},
+    package_data={package_name: ['foxglove_layout.json']},
     include_package_data=True,
     install_requires=['setuptools'],
     zip_safe=True,
@@ -23,5 +23,6 @@ setup(
         'swarm_record = swarm_tools.record:main',
         'swarm_report = swarm_tools.report:main',
         'swarm_play = swarm_tools.play:main',
+        'swarm_view = swarm_tools.view:main',
     ]},
 )

@@ -15,6 +15,7 @@ ROS_VERBS = {
     'lambda': ('homotopy_commander.cli:lambda_main', 'set the homotopy parameter λ of a running swarm'),
     'steer': ('homotopy_commander.cli:steer_main', "set a leader's steering program in a running swarm"),
     'record': ('swarm_tools.record:main', 'record a running swarm to an MCAP bag'),
+    'view': ('swarm_tools.view:main', 'serve a running swarm live to the Foxglove app (WebSocket)'),
     'report': ('swarm_tools.report:main', 'metrics and figures from an MCAP bag'),
     'play': ('swarm_tools.play:main', 'republish an MCAP bag with its /clock'),
     'kill': ('swarm_world.fault_cli:kill_main', 'kill an agent of a running swarm (fault injection)'),

@@ -16,6 +16,9 @@ every event to ``events.jsonl`` in ``--out``.  An agent that exits is not a run 
 the events name it as killed the launcher says so; otherwise it warns, and the world drops the
 agent after its ``missing_timeout``.  Stopping a run first sends SIGCONT to every child (a
 stopped process cannot handle SIGINT).
+
+``--foxglove [PORT]`` also starts ``swarm view`` (`swarm_tools.view`), the live Foxglove
+WebSocket bridge, as one more process of the run; it stops with the run.
 """
 from __future__ import annotations
 
@@ -220,7 +223,7 @@ def killed_agents(events_file) -> set:
 
 
 def run_processes(params: dict, params_file: Path, names, env, record=None, out_dir=None,
-                  pid_file=None, events_file=None) -> int:
+                  pid_file=None, events_file=None, foxglove=None) -> int:
     sup = Supervisor()
     stopping = {'sig': None}
 
@@ -241,6 +244,8 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
         sup.start('commander', [_exe('homotopy_commander')] + ros + ['-r', '__node:=commander'], env)
         for nm in names:
             sup.start(nm, [_exe('swarm_agent')] + ros + ['-r', '__node:=agent', '-r', f'__ns:=/{nm}'], env)
+        if foxglove is not None:        # the live view (swarm view), a process of the run
+            sup.start('view', [_exe('swarm'), 'view', '--port', str(foxglove)], env)
         if pid_file is not None:
             tmp = Path(str(pid_file) + '.tmp')
             tmp.write_text(json.dumps({nm: sup.procs[nm].pid for nm in names}))
@@ -307,6 +312,9 @@ def _parser():
         'clock at --rtf)'))
     p.add_argument('--rtf', type=float, default=1.0, help='realtime: sim seconds per wall second (default 1)')
     p.add_argument('--record', metavar='BAG.mcap', help='also record the run (swarm record)')
+    p.add_argument('--foxglove', metavar='PORT', nargs='?', type=int, const=8765, default=None, help=(
+        'also serve the run live to the Foxglove app (swarm view) on ws://127.0.0.1:PORT '
+        '(default 8765; 0: a free port, printed)'))
     p.add_argument('--duration', type=float, help="sim seconds (default: the scenario's)")
     p.add_argument('--seed', type=int, help="seed (default: the scenario's)")
     p.add_argument('--dt', type=float, help="step (default: the scenario's)")
@@ -335,6 +343,9 @@ def main(argv=None) -> int:
         return 2
     if a.clock_every < 1:
         print(f'swarm run: --clock-every {a.clock_every}: must be ≥ 1', file=sys.stderr)
+        return 2
+    if a.foxglove is not None and not 0 <= a.foxglove <= 65535:
+        print(f'swarm run: --foxglove {a.foxglove}: must be a port in 0..65535', file=sys.stderr)
         return 2
     if a.rtf is not None and not (a.rtf > 0 and a.rtf < 1e4):
         print(f'swarm run: --rtf {a.rtf}: must be in (0, 1e4)', file=sys.stderr)
@@ -380,7 +391,7 @@ def main(argv=None) -> int:
             params[f'/{nm}/agent']['state_subscribers'] = 2
         params['/world']['wait_for_recorder'] = True          # ... every /clock
         params['/commander']['wait_for_recorder'] = True      # ... and every λ and steering message
-    n_proc = len(scn.names) + 2 + (1 if a.record else 0)
+    n_proc = len(scn.names) + 2 + (1 if a.record else 0) + (1 if a.foxglove is not None else 0)
     print(f'swarm run: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '
           f'{"one process" if a.in_process else f"{n_proc} processes"}, t = {scn.duration:g}, dt = {scn.dt:g}',
           flush=True)
@@ -388,6 +399,8 @@ def main(argv=None) -> int:
     if a.in_process:
         if a.record:
             print('swarm run: --record needs --processes (the recorder is a process); ignored', file=sys.stderr)
+        if a.foxglove is not None:
+            print('swarm run: --foxglove needs --processes (the view is a process); ignored', file=sys.stderr)
         code = run_in_process(params)
     else:
         with tempfile.TemporaryDirectory(prefix='swarm_run_') as tmp:
@@ -396,7 +409,7 @@ def main(argv=None) -> int:
             pfile = write_params_file(params, Path(tmp) / 'params.yaml')
             env = dds.environment(n_proc, Path(tmp), choice=a.dds)
             code = run_processes(params, pfile, scn.names, env, record=a.record, out_dir=out,
-                                 pid_file=pid_file, events_file=out / 'events.jsonl')
+                                 pid_file=pid_file, events_file=out / 'events.jsonl', foxglove=a.foxglove)
     wall = time.monotonic() - t0
     if code in (0, 130) and traj_file.exists():      # 130: Ctrl-C; the world saved the steps done
         try:
