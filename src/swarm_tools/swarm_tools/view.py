@@ -245,7 +245,7 @@ class Bridge:
     def _client_publisher(self, topic):
         from std_msgs.msg import Float64
 
-        from swarm_world import protocol as P
+        from swarm_ros import protocol as P
         # reliable, volatile, keep last 10: what `ros2 topic pub` offers
         self.pubs[topic] = self.node.create_publisher(Float64, topic, P.qos_reliable(10))
 
@@ -373,7 +373,7 @@ def main(argv=None) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from swarm_world.rosutil import make_executor, stop_on_signals
+    from swarm_ros.rosutil import make_executor, stop_on_signals
 
     def factory(listener):
         return foxglove.start_server(
