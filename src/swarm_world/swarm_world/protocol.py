@@ -25,6 +25,10 @@ Fixed, user-facing topics (DESIGN.md)
     ``agent``, plus ``node`` (who published it).  Kinds: ``kill``, ``freeze``, ``resume``,
     ``lost`` (the world gave up waiting for an agent), ``fault_skipped`` (world);
     ``leaders_chosen``, ``failover``, ``leader_lost``, ``rendezvous_on``/``_off`` (commander).
+``/swarm/run``  std_msgs/String, reliable + transient-local depth 1, world: JSON ``{"run_id",
+    "scenario", "mode", "agents": [names]}`` of the run (`swarm_world.runinfo`); the live verbs
+    (``swarm lambda``, ``swarm kill``, ...) read it to say which run they reached, check agent
+    names, and refuse when two runs share the domain.
 ``/swarm/fault_request``  std_msgs/String, reliable + transient-local depth 10: JSON ``{"kind": "kill"|"freeze",
     "agent": NAME, "for": SECONDS}`` (``swarm kill`` / ``swarm pause``); the world applies it
     at its next step (see swarm_core.faults for the semantics) and signals the agent process.
@@ -61,7 +65,11 @@ gets the last message; every node answers a repeated message for a step it alrea
 re-publishing its answer (stall recovery: the world repeats its last message after
 ``stall_timeout`` seconds without progress).
 
-Packed layouts (std_msgs/Float64MultiArray, empty ``layout``, ``data`` as below; N agents)
+Run identity: ``swarm run`` gives every node a ``run_id``; the lockstep messages carry it as the
+label ``run:<id>`` of one ``layout`` dimension of size 0 (``data`` unchanged), and a node with a
+``run_id`` rejects lockstep messages of another run (a second run on the same ROS_DOMAIN_ID).
+
+Packed layouts (std_msgs/Float64MultiArray, ``layout`` empty or the run label, ``data`` as below; N agents)
 ``/lockstep/states``    [n, t_n, N,  x(N), y(N), qz(N), qw(N), alive(N)]
 ``/lockstep/decision``  [n, t_n, N,  λ, leader flags(N) (0/1), s(N), slot(N), R]
 ``/lockstep/step``      [n, t_n, N,  λ, leader flags(N), s(N), x(N), y(N), qz(N), qw(N),
@@ -100,6 +108,7 @@ LOCK_DECISION = '/lockstep/decision'
 LOCK_STEP = '/lockstep/step'
 EVENTS = '/swarm/events'
 FAULT_REQUEST = '/swarm/fault_request'
+RUN = '/swarm/run'
 #: publisher depth of /swarm/states (transient-local): history a late or slow reader can get
 STATES_DEPTH = 100
 
@@ -258,10 +267,29 @@ def event_json(kind: str, t, **fields) -> str:
 _HEADER = b'\x00\x01\x00\x00'   # CDR little endian
 
 
-def float64_array_to_cdr(data: np.ndarray) -> bytes:
-    """Serialized std_msgs/Float64MultiArray with an empty layout (what publish() accepts)."""
+def float64_array_to_cdr(data: np.ndarray, run_id: str = '') -> bytes:
+    """Serialized std_msgs/Float64MultiArray (what publish() accepts): an empty layout, or with
+    ``run_id`` one dimension labelled ``run:<run_id>`` (size 0; ``data`` is unchanged)."""
     data = np.ascontiguousarray(data, dtype='<f8')
-    return _HEADER + struct.pack('<IIII', 0, 0, data.size, 0) + data.tobytes()
+    if not run_id:
+        return _HEADER + struct.pack('<IIII', 0, 0, data.size, 0) + data.tobytes()
+    label = f'run:{run_id}'.encode() + b'\0'
+    body = struct.pack('<II', 1, len(label)) + label
+    body += b'\0' * ((-len(body)) % 4) + struct.pack('<IIII', 0, 0, 0, data.size)
+    body += b'\0' * ((-len(body)) % 8)
+    return _HEADER + body + data.tobytes()
+
+
+def cdr_run_id(raw: bytes) -> str:
+    """The run id of a serialized Float64MultiArray (its first dimension's label
+    ``run:<id>``), '' if it has none."""
+    end = '<' if raw[1] == 1 else '>'
+    ndim, = struct.unpack_from(end + 'I', raw, 4)
+    if ndim == 0:
+        return ''
+    ln, = struct.unpack_from(end + 'I', raw, 8)
+    label = raw[12:12 + max(ln - 1, 0)].decode('utf-8', 'replace')
+    return label[4:] if label.startswith('run:') else ''
 
 
 def cdr_to_float64_array(raw: bytes) -> np.ndarray:
