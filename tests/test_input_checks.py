@@ -11,7 +11,7 @@ import numpy as np
 
 from swarm_world import protocol as P
 from swarm_world.checks import (MAX_BARRIER_POINTS, RejectLog, Senders, check_barrier, check_values,
-                                may_signal, message_sender)
+                                may_signal, new_sender_tag)
 from swarm_world.runinfo import describe, one_run, parse_run, run_json, unknown_agent
 
 ROW = {'agent_0': 0, 'agent_1': 1}
@@ -40,21 +40,19 @@ def test_kinds_carry_no_values():
 
 def test_a_name_is_bound_to_its_first_publisher():
     s = Senders()
-    assert s.check('agent_3', b'A' * 16, 1) is None
-    s.accept('agent_3', 1)
-    why = s.check('agent_3', b'B' * 16, 7)
-    assert why.kind == 'second-publisher' and 'agent_3' in why
-    assert s.check('agent_3', b'A' * 16, 2) is None
-    # without gids (the Jazzy rclpy has none): a sequence number that does not increase is
-    # another writer using the name
-    s = Senders()
-    for seq in (1, 2, 3):
-        assert s.check('agent_3', None, seq) is None
-        s.accept('agent_3', seq)
-    assert s.check('agent_3', None, 1).kind == 'second-publisher'
-    assert s.check('agent_4', None, 1) is None
-    assert message_sender({'publication_sequence_number': 5}) == (None, 5)
-    assert message_sender({'publisher_gid': {'data': [1] * 16}, 'publication_sequence_number': 2}) == (bytes([1] * 16), 2)
+    assert s.check('agent_3', 17.0) is None          # nothing bound yet
+    s.accept('agent_3', 17.0)
+    why = s.check('agent_3', 99.0)
+    assert why.kind == 'second-publisher' and "'agent_3'" in why and '17' in why
+    assert s.check('agent_3', 17.0) is None
+    assert s.check('agent_3', None) is None          # unknown sender: not checked
+    s.accept('agent_3', 99.0)                        # binding stays with the first
+    assert s.check('agent_3', 99.0).kind == 'second-publisher'
+    assert s.check('agent_4', 99.0) is None
+    s.accept('agent_5', bytes(16))                   # gids (rclpy >= 9.1) work the same
+    assert s.check('agent_5', bytes([1] * 16)).kind == 'second-publisher'
+    tags = {new_sender_tag() for _ in range(100)}
+    assert len(tags) > 95 and all(t >= 1 and t.is_integer() for t in tags)
 
 
 class Logger:
@@ -126,6 +124,16 @@ def test_run_id_rides_in_the_layout_and_data_is_unchanged():
             again = serialize_message(msg)                      # rclpy's bytes, read by ours
             assert P.cdr_run_id(again) == rid and np.array_equal(P.cdr_to_float64_array(again), data)
     assert P.cdr_run_id(serialize_message(Float64MultiArray(data=list(data)))) == ''
+
+
+def test_sender_tag_rides_in_the_odometry():
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message, serialize_message
+    raw = P.OdometryWriter('agent_2', tag=12345.0)(3, 0, 1.0, 2.0, 0.0, 1.0, 0.1)
+    m = deserialize_message(raw, Odometry)
+    assert m.pose.covariance[P.SENDER_TAG_INDEX] == 12345.0
+    assert P.cdr_to_odometry_tagged(serialize_message(m))[-1] == 12345.0
+    assert P.cdr_to_odometry(raw) == P.cdr_to_odometry_tagged(raw)[:5]
 
 
 def test_run_announcements():

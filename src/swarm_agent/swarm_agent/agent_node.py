@@ -34,7 +34,7 @@ from swarm_core.comms import CommModel, StreamRadio, change_from_event
 from swarm_core.laws import BARRIER_MODES, LAW_KINDS, LawConfig
 from swarm_core.model import PairGains
 from swarm_world import protocol as P
-from swarm_world.checks import FUTURE_TOLERANCE, RejectLog, Senders, check_barrier, check_state, message_sender
+from swarm_world.checks import FUTURE_TOLERANCE, RejectLog, Senders, check_barrier, check_state, new_sender_tag
 from swarm_world.rosutil import ParameterError, declare, run_node, when_matched
 from swarm_world.runinfo import valid_run_id
 
@@ -137,7 +137,8 @@ class AgentNode(Node):
         self.create_subscription(PointStamped, P.TARGET, self._on_target, P.qos_latched())
         self.create_subscription(PolygonStamped, P.BARRIER, self._on_barrier, P.qos_latched())
         self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
-        self.serialize_state = P.OdometryWriter(self.agent_name)
+        self.sender_tag = new_sender_tag()     # who we are on /swarm/states (protocol.SENDER_TAG_INDEX)
+        self.serialize_state = P.OdometryWriter(self.agent_name, tag=self.sender_tag)
         self.own = None          # (sec, nanosec, x, y, qz, qw, u) last published
         if self.mode == 'lockstep':
             self.create_subscription(Float64MultiArray, P.LOCK_STEP, self._on_step, P.qos_latched(), raw=True)
@@ -168,6 +169,7 @@ class AgentNode(Node):
         o = Odometry()
         o.header.frame_id, o.child_frame_id = 'world', self.agent_name
         o.twist.twist.linear.x = 1.0
+        o.pose.covariance[P.SENDER_TAG_INDEX] = self.sender_tag
         if self.own is not None:
             sec, nsec, x, y, qz, qw, u = self.own
             o.header.stamp.sec, o.header.stamp.nanosec = sec, nsec
@@ -305,25 +307,23 @@ class AgentNode(Node):
         flags = np.array([self.roster[j] in self.leaders for j in rows])
         return int(np.searchsorted(rows, self.index)), states, flags
 
-    def _on_state(self, msg, info):
+    def _on_state(self, msg):
         name = msg.child_frame_id
         if name == self.agent_name:
-            p = msg.pose.pose
-            sec, nsec, x, y, qz = self.own[:5]
-            if (p.position.x, p.position.y, p.orientation.z) != (x, y, qz) \
-                    and (msg.header.stamp.sec, msg.header.stamp.nanosec) == (sec, nsec):
-                self.reject('dup-self', f'state claiming to be {name!r} (this agent): duplicate agent name')
+            if msg.pose.covariance[P.SENDER_TAG_INDEX] != self.sender_tag:
+                self.reject('dup-self', f'state claiming to be {name!r} (this agent) from another publisher: '
+                            'duplicate agent name')
             return
         why = check_state(msg, self.row, self.heard if self.radio_on else self.neigh, self._now(),
                           self.future_tolerance)
-        gid, seq = message_sender(info)
+        tag = msg.pose.covariance[P.SENDER_TAG_INDEX]
         if why is None:
-            why = self.senders.check(name, gid, seq)
+            why = self.senders.check(name, tag)
         if why is not None:
             if why != 'repeat':
                 self.reject(why.kind, why)
             return
-        self.senders.accept(name, seq)
+        self.senders.accept(name, tag)
         p = msg.pose.pose
         vals = (P.stamp_to_time(msg.header.stamp), p.position.x, p.position.y,
                 p.orientation.z, p.orientation.w, msg.twist.twist.angular.z)

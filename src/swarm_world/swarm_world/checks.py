@@ -70,43 +70,40 @@ def check_values(name, t, pose, wz, row, newest, now=None, tolerance=FUTURE_TOLE
 
 
 class Senders:
-    """Binds each agent name to the first publisher heard for it and rejects the others.
+    """Binds each agent name to the first sender heard for it and rejects the others.
 
-    ``gid``: the publisher's id from the message info (rclpy ≥ 9.1 has
-    ``MessageInfo['publisher_gid']``; the Jazzy wheels have none, then None).  ``seq``: the
-    info's ``publication_sequence_number``: every writer numbers its samples 1, 2, 3, ..., so the
-    states of one agent (one writer, one name) come with increasing numbers; a number that does
-    not increase comes from another writer using that name.  `accept` records a state taken."""
+    ``sender``: what identifies the publisher: its DDS gid where rclpy's message info has one
+    (``publisher_gid``, rclpy ≥ 9.1), else the sender tag the agents put in their states
+    (`protocol.SENDER_TAG_INDEX`); None = unknown (not checked)."""
 
     def __init__(self):
-        self.gid = {}
-        self.seq = {}
+        self.bound = {}
 
-    def check(self, name, gid=None, seq=None):
-        if gid is not None:
-            first = self.gid.setdefault(name, gid)
-            if first != gid:
-                return reason('second-publisher', f'state of {name!r} from a second publisher '
-                              f'(gid {bytes(gid).hex()[:12]}…; the name is bound to '
-                              f'{bytes(first).hex()[:12]}…)')
-        if seq is not None and name in self.seq and seq <= self.seq[name]:
-            return reason('second-publisher', f'state of {name!r} with publication sequence number {seq} '
-                          f'after {self.seq[name]}: from a second publisher using that name')
-        return None
+    def check(self, name, sender):
+        first = self.bound.get(name)
+        if sender is None or first is None or first == sender:
+            return None
+        return reason('second-publisher', f'state of {name!r} from a second publisher (sender '
+                      f'{_show(sender)}; the name is bound to {_show(first)}, its first)')
 
-    def accept(self, name, seq=None):
-        if seq is not None:
-            self.seq[name] = seq
+    def accept(self, name, sender):
+        """A state of ``name`` from ``sender`` was taken: bind the name if it is not yet."""
+        if sender is not None:
+            self.bound.setdefault(name, sender)
 
 
-def message_sender(info):
-    """(gid bytes or None, sequence number or None) of an rclpy message info dict."""
-    if not info:
-        return None, None
-    gid = info.get('publisher_gid')
-    if isinstance(gid, dict):
-        gid = gid.get('data')
-    return (bytes(bytearray(gid)) if gid is not None else None), info.get('publication_sequence_number')
+def _show(sender):
+    if isinstance(sender, (bytes, bytearray)):
+        return bytes(sender).hex()[:12] + '…'
+    if isinstance(sender, float) and sender.is_integer():
+        return str(int(sender))
+    return repr(sender)
+
+
+def new_sender_tag() -> float:
+    """A random sender tag (an integer 1..2^31 as a float: exact in a float64)."""
+    import secrets
+    return float(secrets.randbits(31) + 1)
 
 
 def check_barrier(points):

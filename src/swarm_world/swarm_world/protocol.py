@@ -322,6 +322,13 @@ _ODOM_DOUBLES = 7 + 36 + 6 + 36
 _I_X, _I_Y, _I_QX, _I_QY, _I_QZ, _I_QW = 0, 1, 3, 4, 5, 6
 _I_VX = 43
 _I_WZ = 48
+#: pose.covariance[35] (the yaw variance, unused by a planar agent that reports none): the
+#: agent's SENDER TAG, a random integer 1..2^31 each agent process draws once (0 = untagged).
+#: The world and realtime agents bind each agent name to the first tag heard for it and reject
+#: states of that name with another tag (swarm_world.checks.Senders): rclpy Jazzy gives no
+#: publisher gid in its message info, and its EventsExecutor cannot call message-info callbacks.
+SENDER_TAG_INDEX = 35
+_I_TAG = 7 + SENDER_TAG_INDEX
 
 
 def _cdr_string(s: str, off: int) -> tuple[bytes, int]:
@@ -334,9 +341,10 @@ def _cdr_string(s: str, off: int) -> tuple[bytes, int]:
 
 class OdometryWriter:
     """Serialized ``nav_msgs/Odometry`` of one agent (what ``publish()`` accepts as bytes):
-    frame_id ``world``, fixed child_frame_id, twist.linear.x = 1, zero covariances."""
+    frame_id ``world``, fixed child_frame_id, twist.linear.x = 1, zero covariances but the
+    sender ``tag`` in pose.covariance[`SENDER_TAG_INDEX`]."""
 
-    def __init__(self, child_frame_id: str, frame_id: str = 'world'):
+    def __init__(self, child_frame_id: str, frame_id: str = 'world', tag: float = 0.0):
         off = 8                                          # after the stamp
         frame, off = _cdr_string(frame_id, off)
         child, off = _cdr_string(child_frame_id, off)
@@ -344,6 +352,7 @@ class OdometryWriter:
         self._names = frame + child + b'\0' * pad
         self._body = np.zeros(_ODOM_DOUBLES, dtype='<f8')
         self._body[_I_VX] = 1.0
+        self._body[_I_TAG] = tag
 
     def __call__(self, sec: int, nanosec: int, x: float, y: float, qz: float, qw: float, wz: float) -> bytes:
         b = self._body
@@ -354,6 +363,12 @@ class OdometryWriter:
 def cdr_to_odometry(raw: bytes):
     """(child_frame_id, sec, nanosec, (x, y, qx, qy, qz, qw), angular.z) of a serialized
     ``nav_msgs/Odometry`` (either byte order, any frame_id)."""
+    name, sec, nsec, pose, wz, _ = cdr_to_odometry_tagged(raw)
+    return name, sec, nsec, pose, wz
+
+
+def cdr_to_odometry_tagged(raw: bytes):
+    """`cdr_to_odometry` and the sender tag (pose.covariance[`SENDER_TAG_INDEX`])."""
     end = '<' if raw[1] & 1 else '>'
     sec, nsec, n = struct.unpack_from(end + 'iII', raw, 4)
     o = 16 + n                                       # after header.frame_id
@@ -364,7 +379,8 @@ def cdr_to_odometry(raw: bytes):
     o = (o - 4 + 7) // 8 * 8 + 4
     x, y, _, qx, qy, qz, qw = struct.unpack_from(end + '7d', raw, o)
     wz, = struct.unpack_from(end + 'd', raw, o + 8 * _I_WZ)
-    return name, sec, nsec, (x, y, qx, qy, qz, qw), wz
+    tag, = struct.unpack_from(end + 'd', raw, o + 8 * _I_TAG)
+    return name, sec, nsec, (x, y, qx, qy, qz, qw), wz, tag
 
 
 def clock_to_cdr(t: float) -> bytes:

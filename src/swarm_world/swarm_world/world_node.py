@@ -44,7 +44,7 @@ from swarm_core.model import yaw_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 
 from . import protocol as P
-from .checks import FUTURE_TOLERANCE, RejectLog, Senders, check_values, may_signal, message_sender, reason
+from .checks import FUTURE_TOLERANCE, RejectLog, Senders, check_values, may_signal, reason
 from .rosutil import ParameterError, declare, run_node, steady_clock
 from .runinfo import RunWatch, run_json, valid_run_id
 
@@ -253,26 +253,25 @@ class WorldNode(Node):
         self.pub_barrier.publish(bs)
 
     # ------------------------------------------------------------ inputs
-    def _on_state(self, raw, info):
+    def _on_state(self, raw):
         """A serialized /swarm/states message (decoded without building an Odometry)."""
         try:
-            name, sec, nsec, pose, wz = P.cdr_to_odometry(raw)
+            name, sec, nsec, pose, wz, tag = P.cdr_to_odometry_tagged(raw)
         except Exception as err:
             self.reject('state-decode', f'{P.STATES} message that does not decode: {err}')
             return
         t = sec + nsec * 1e-9
         now = self.sim_t if self.mode == 'realtime' else None     # lockstep: the step check below
         why = check_values(name, t, pose, wz, self.row, self.newest, now, self.future_tolerance)
-        gid, seq = message_sender(info)
         if why is None:
-            why = self.senders.check(name, gid, seq)
+            why = self.senders.check(name, tag)
         if why is not None:
             if why != 'repeat':
                 self.reject(why.kind, why)
             return
         i = self.row[name]
         vals = (pose[0], pose[1], pose[4], pose[5])
-        self.senders.accept(name, seq)
+        self.senders.accept(name, tag)
         if self.mode == 'realtime':
             self.newest[name] = (t, *vals)
             self.rt_record(i, t, vals, wz)
@@ -292,7 +291,7 @@ class WorldNode(Node):
         if k != self.want[i]:
             self.reject('step', f'state of {name!r} for step {k} while the world is at step {self.cur}')
             return
-        self.senders.accept(name, seq)
+        self.senders.accept(name, tag)
         self.newest[name] = (t, *vals)
         self.buf[:, i] = vals
         self.buf_u[i] = u
