@@ -63,7 +63,7 @@ def _publish_once(msg_type, topic, msg, wait, qos_depth=10, for_node=None, prog=
             return False
         settle = time.monotonic() + 0.2          # let the subscribers' side of the match settle
         if watch is not None:                    # ... and hear the run (every run on the domain)
-            limit = max(end, time.monotonic() + 3.0)
+            limit = time.monotonic() + 2.0
             while not watch.runs and time.monotonic() < limit:
                 ex.spin_once(timeout_sec=0.05)
             settle = time.monotonic() + 0.5

@@ -37,7 +37,7 @@ from swarm_core.model import frame_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 from swarm_core.schedules import ConstantSteering
 from swarm_world import protocol as P
-from swarm_world.checks import RejectLog
+from swarm_world.checks import FUTURE_TOLERANCE, RejectLog, Senders
 from swarm_world.rosutil import ParameterError, declare, run_node, when_matched
 from swarm_world.runinfo import valid_run_id
 
@@ -83,6 +83,7 @@ class CommanderNode(Node):
         self.schedule = LiveSchedule(self.plan.schedule)
         self.plan.schedule = self.schedule
         self.reject = RejectLog(self.get_logger())
+        self.senders = Senders()     # realtime: each agent name bound to its first publisher
         self.t = 0.0
         self.lam = float(self.schedule.value(0.0))
         self.leaders_sent = None
@@ -258,6 +259,12 @@ class CommanderNode(Node):
         vals = (p.position.x, p.position.y, p.orientation.z, p.orientation.w)
         if i is None or not all(math.isfinite(v) for v in vals):
             return        # agents and the world log these
+        tag = msg.pose.covariance[P.SENDER_TAG_INDEX]
+        now = self.get_clock().now().nanoseconds * 1e-9
+        if self.senders.check(msg.child_frame_id, tag) is not None \
+                or P.stamp_to_time(msg.header.stamp) > now + FUTURE_TOLERANCE:
+            return        # a second publisher of that name, or a stamp from the future (logged there too)
+        self.senders.accept(msg.child_frame_id, tag)
         self.pos[i] = vals[:2]
         c, s = frame_from_quaternion(vals[2], vals[3])
         self.cos[i], self.sin[i] = c, s

@@ -76,8 +76,11 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
         limit = max(end, time.monotonic() + 3.0)
         while time.monotonic() < limit:
             unknown = [nm for nm in check_names if nm not in _agents_in_graph(node)]
-            if not unknown and 't' in clock and watch.runs:
+            if not unknown and 't' in clock:
                 break
+            ex.spin_once(timeout_sec=0.05)
+        limit = time.monotonic() + (0.5 if watch.runs else 2.0)   # the run's announcement(s)
+        while time.monotonic() < limit:
             ex.spin_once(timeout_sec=0.05)
         run, err = one_run(watch.runs, prog)
         if err:
