@@ -202,3 +202,50 @@ def test_live_verbs_that_cannot_act_exit_nonzero_and_name_the_run(rclpy_context,
         assert '2 runs share this ROS_DOMAIN_ID' in out and 'c0ffee00' in out and 'deadbeef' in out, out
     finally:
         sp.close()
+
+
+TWO = """
+name: two_agents
+seed: 0
+dt: 0.05
+duration: 20
+agents:
+  positions: [[0, 0], [1, 0]]
+  headings: {rule: cone, half_width: 0.5}
+law: {kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0, leader_gain: 30.0, q0: 1.0}
+lambda: {kind: constant, value: 0.0}
+"""
+
+
+def test_a_second_swarm_run_on_the_domain_refuses_and_the_first_is_not_mixed(tmp_path, ros_domain, processes,
+                                                                             swarm_cmd):
+    """Run A (in one process) is going; run B (processes) on the same ROS_DOMAIN_ID refuses to
+    start with one line naming A (it used to follow A's world and fail with "discovery timed
+    out"); A goes on, equal to `swarm simulate` bit for bit, so nothing of B got in."""
+    from swarm_core.engine import Trajectory, simulate
+
+    from conftest import Lines
+    a = processes.start([swarm_cmd, 'run', 'homotopy_global', '--in-process', '--out', tmp_path / 'a',
+                         '--no-figure', '--progress-every', '5'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(a)
+    assert lines.wait_for('[world] t=    5.00', 180), ''.join(lines.lines)
+    run_a = next(ln.split()[3].rstrip(':') for ln in lines.lines if ln.startswith('swarm run: run '))
+    (tmp_path / 'two.yaml').write_text(TWO)
+    b = processes.start([swarm_cmd, 'run', tmp_path / 'two.yaml', '--out', tmp_path / 'b', '--no-figure'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    out = processes.communicate(b, 180)
+    assert b.returncode == 1, out
+    assert f'another swarm run is on ROS_DOMAIN_ID={ros_domain} (run {run_a} (homotopy_global' in out, out
+    assert 'discovery timed out' not in out
+    n_seen = len(lines.lines)                    # A goes on: one more progress line
+    assert a.poll() is None
+    end = time.monotonic() + 120
+    while len([ln for ln in lines.lines[n_seen:] if ln.startswith('[world] t=')]) < 1 and time.monotonic() < end:
+        time.sleep(0.2)
+    os.kill(a.pid, signal.SIGINT)
+    assert a.wait(timeout=60) == 130, ''.join(lines.lines[-20:])
+    got = Trajectory.load(tmp_path / 'a' / 'trajectory.npz')
+    n = len(got.t)
+    ref = simulate(load('homotopy_global', duration=(n - 1) * load('homotopy_global').dt))
+    assert np.abs(got.r - ref.r[:n]).max() <= 1e-9 and np.abs(got.u - ref.u[:n]).max() <= 1e-9
