@@ -16,7 +16,7 @@ import pytest
 import rclpy
 from geometry_msgs.msg import Point32, PointStamped, PolygonStamped
 from nav_msgs.msg import Odometry
-from std_msgs.msg import Float64, Float64MultiArray, String
+from std_msgs.msg import Float64, String
 
 from swarm_agent.agent_node import AgentNode
 from swarm_core.scenario import load

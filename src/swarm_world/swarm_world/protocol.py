@@ -10,7 +10,8 @@ Fixed, user-facing topics (DESIGN.md)
     applies from t_n on is decided only after every agent's state of t_n is known, so it is
     carried by the agent's next message (t_{n+1}); realtime agents use the same convention.
     QoS: reliable, transient-local, depth `STATES_DEPTH` (a late joiner gets each agent's
-    newest states; a reader one step behind loses none).  Agents publish it pre-serialised
+    newest states; a reader one step behind loses none).  pose.covariance[35] is the agent's
+    sender tag (`SENDER_TAG_INDEX`; all other covariances 0).  Agents publish it pre-serialised
     (`OdometryWriter`) and the world reads it raw (`cdr_to_odometry`): the same bytes as
     rclpy's serializer, without building message objects each step.
 ``/swarm/lambda``  std_msgs/Float64, commander (or a user): λ ∈ [0, 1].
