@@ -63,10 +63,11 @@ def _publish_once(msg_type, topic, msg, wait, qos_depth=10, for_node=None, prog=
             return False
         settle = time.monotonic() + 0.2          # let the subscribers' side of the match settle
         if watch is not None:                    # ... and hear the run (every run on the domain)
-            limit = time.monotonic() + 2.0
+            limit = time.monotonic() + (2.0 if runinfo.has_world(node) else 0.0)
             while not watch.runs and time.monotonic() < limit:
                 ex.spin_once(timeout_sec=0.05)
-            settle = time.monotonic() + 0.5
+            if watch.runs:                       # a second run's announcement may come just after
+                settle = time.monotonic() + 0.5
         while time.monotonic() < settle:
             ex.spin_once(timeout_sec=0.05)
         if watch is not None:

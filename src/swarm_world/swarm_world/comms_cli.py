@@ -79,7 +79,8 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
             if not unknown and 't' in clock:
                 break
             ex.spin_once(timeout_sec=0.05)
-        limit = time.monotonic() + (0.5 if watch.runs else 2.0)   # the run's announcement(s)
+        from .runinfo import has_world      # the run's announcement(s), if a world is there
+        limit = time.monotonic() + (0.5 if watch.runs else 2.0 if has_world(node) else 0.0)
         while time.monotonic() < limit:
             ex.spin_once(timeout_sec=0.05)
         run, err = one_run(watch.runs, prog)

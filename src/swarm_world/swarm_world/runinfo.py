@@ -64,6 +64,11 @@ def unknown_agent(run, name: str, prog: str):
     return f'{prog}: unknown agent {name!r} in {describe(run)}: agents are {shown}'
 
 
+def has_world(node) -> bool:
+    """A ``/world`` node is in the graph (then its ``/swarm/run`` is worth waiting for)."""
+    return any(nm == 'world' for nm, _ in node.get_node_names_and_namespaces())
+
+
 class RunWatch:
     """Collects the ``/swarm/run`` announcements heard on ``node`` ({run id: dict})."""
 
