@@ -249,3 +249,21 @@ def test_a_second_swarm_run_on_the_domain_refuses_and_the_first_is_not_mixed(tmp
     n = len(got.t)
     ref = simulate(load('homotopy_global', duration=(n - 1) * load('homotopy_global').dt))
     assert np.abs(got.r - ref.r[:n]).max() <= 1e-9 and np.abs(got.u - ref.u[:n]).max() <= 1e-9
+
+
+def test_world_rejects_future_and_second_publisher_states(rclpy_context):
+    """The two reproduced take-overs, at the world (realtime, states fed as raw bytes): a state
+    stamped far in the future made every true state after it "older" (rejected for 30 s); a
+    second publisher of agent_3 with a slightly later stamp replaced its true position."""
+    world = WorldNode(context=rclpy_context, parameter_overrides=overrides(dict(
+        scenario='homotopy_global', duration=5.0, mode='realtime')), log=lambda *a, **k: None)
+    real = P.OdometryWriter('agent_3', tag=1234.0)
+    spoof = P.OdometryWriter('agent_3', tag=99.0)
+    world._on_state(real(0, 0, 1.0, 2.0, 0.0, 1.0, 0.0))
+    world._on_state(P.OdometryWriter('agent_4', tag=77.0)(500, 0, 9.0, 9.0, 0.0, 1.0, 0.0))   # t = 500
+    world._on_state(spoof(0, 50_000_000, 777.0, 777.0, 0.0, 1.0, 0.0))                        # t = 0.05
+    world._on_state(P.OdometryWriter('agent_4', tag=5.0)(0, 100_000_000, 3.0, 4.0, 0.0, 1.0, 0.0))
+    assert world.newest['agent_3'][:3] == (0.0, 1.0, 2.0)
+    assert world.newest['agent_4'][:3] == (0.1, 3.0, 4.0)
+    assert {'future-stamp', 'second-publisher'} <= set(world.reject.kinds), world.reject.lines
+    world.destroy_node()
