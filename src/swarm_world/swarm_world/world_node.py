@@ -271,8 +271,8 @@ class WorldNode(Node):
             return
         i = self.row[name]
         vals = (pose[0], pose[1], pose[4], pose[5])
-        self.senders.accept(name, tag)
         if self.mode == 'realtime':
+            self.senders.accept(name, tag)
             self.newest[name] = (t, *vals)
             self.rt_record(i, t, vals, wz)
             return
