@@ -37,7 +37,9 @@ from swarm_core.frenet import frame_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 from swarm_core.schedules import ConstantSteering
 from swarm_ros import protocol as P
-from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node, when_matched
+from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders
+from swarm_ros.rosutil import ParameterError, declare, run_node, when_matched
+from swarm_ros.runinfo import valid_run_id
 
 from .live import LiveSchedule
 
@@ -65,6 +67,10 @@ class CommanderNode(Node):
                                    f'(at most {P.RECORDER_MATCH_WAIT:g} s)')
         self.publish_every = d('publish_every', 10, 'lockstep: publish /swarm/lambda every this many steps',
                                lo=1, hi=10**9)
+        self.run_id = d('run_id', '', "this run's id (swarm run sets it; '' = none): lockstep states of "
+                        'another run are rejected, decisions carry it')
+        if not valid_run_id(self.run_id):
+            raise ParameterError(f'parameter run_id: {self.run_id!r} is not 1-32 letters, digits, _ or -')
         try:
             self.scn = load(scenario, seed=None if seed < 0 else seed, dt=dt or None)
         except ScenarioError as err:
@@ -77,6 +83,7 @@ class CommanderNode(Node):
         self.schedule = LiveSchedule(self.plan.schedule)
         self.plan.schedule = self.schedule
         self.reject = RejectLog(self.get_logger())
+        self.senders = Senders()     # realtime: each agent name bound to its first publisher
         self.t = 0.0
         self.lam = float(self.schedule.value(0.0))
         self.leaders_sent = None
@@ -148,17 +155,17 @@ class CommanderNode(Node):
 
     def _on_setpoint(self, msg):
         if len(msg.data) not in (1, 2):
-            self.reject(('setpoint', len(msg.data)), f'{SETPOINT} with {len(msg.data)} values (want [λ, ramp])')
+            self.reject('setpoint', f'{SETPOINT} with {len(msg.data)} values (want [λ, ramp])')
             return
         ramp = msg.data[1] if len(msg.data) == 2 else self.default_ramp
         if not (math.isfinite(ramp) and ramp >= 0):
-            self.reject(('ramp', repr(ramp)), f'ramp duration {ramp!r}: must be finite and ≥ 0')
+            self.reject('ramp', f'ramp duration {ramp!r}: must be finite and ≥ 0')
             return
         self.set_lambda(msg.data[0], ramp, SETPOINT)
 
     def set_lambda(self, value, ramp, source):
         if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-            self.reject(('lambda', repr(value)), f'λ={value!r} from {source}: must be finite and in [0, 1]')
+            self.reject('lambda', f'λ={value!r} from {source}: must be finite and in [0, 1]')
             return
         self.pending.append(('lambda', float(value), float(ramp)))
         self.get_logger().info(f'λ set-point {value:g} over {ramp:g} s (from {source})')
@@ -168,7 +175,7 @@ class CommanderNode(Node):
             return
         v = msg.data
         if not math.isfinite(v):
-            self.reject(('steer', name, repr(v)), f'steering s={v!r} for {name}: not finite')
+            self.reject('steer', f'steering s={v!r} for {name}: not finite')
             return
         self.pending.append(('steer', name, float(v)))
         self.get_logger().info(f'steering of {name} set to {v:g}')
@@ -221,6 +228,10 @@ class CommanderNode(Node):
             self.get_logger().info(f'leaders: {", ".join(leaders)}')
 
     def _on_states(self, raw):
+        if self.run_id and P.cdr_run_id(raw) != self.run_id:
+            self.reject('other-run', f'{P.LOCK_STATES} of run {P.cdr_run_id(raw) or "(none)"!r}, not this run '
+                        f'{self.run_id!r}: another swarm run on this ROS_DOMAIN_ID?')
+            return
         data = P.cdr_to_float64_array(raw)
         n, t, x, y, qz, qw = P.unpack_states(data)
         if self.last_decision is not None and n == self.last_decision[0]:
@@ -237,7 +248,7 @@ class CommanderNode(Node):
         for sl, i in self.plan.slots.items():
             slots[i] = sl
         raw_out = P.float64_array_to_cdr(P.pack_decision(n, t, lam, flags, steering, slots,
-                                                         self.plan.rendezvous_now))
+                                                         self.plan.rendezvous_now), self.run_id)
         self.pub_decision.publish(raw_out)
         self.last_decision = (n, raw_out)
         self.publish_outputs(lam, flags, steering, force=(n % self.publish_every == 0))
@@ -248,6 +259,12 @@ class CommanderNode(Node):
         vals = (p.position.x, p.position.y, p.orientation.z, p.orientation.w)
         if i is None or not all(math.isfinite(v) for v in vals):
             return        # agents and the world log these
+        tag = msg.pose.covariance[P.SENDER_TAG_INDEX]
+        now = self.get_clock().now().nanoseconds * 1e-9
+        if self.senders.check(msg.child_frame_id, tag) is not None \
+                or P.stamp_to_time(msg.header.stamp) > now + FUTURE_TOLERANCE:
+            return        # a second publisher of that name, or a stamp from the future (logged there too)
+        self.senders.accept(msg.child_frame_id, tag)
         self.pos[i] = vals[:2]
         c, s = frame_from_quaternion(vals[2], vals[3])
         self.cos[i], self.sin[i] = c, s

@@ -34,8 +34,9 @@ from swarm_core.comms import CommModel, StreamRadio, change_from_event
 from swarm_core.laws import LAW_PARAMETERS, LawConfig
 from swarm_core.scenario import noise_rng
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import check_state
-from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node, when_matched
+from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, check_barrier, check_state, new_sender_tag
+from swarm_ros.rosutil import ParameterError, declare, run_node, when_matched
+from swarm_ros.runinfo import valid_run_id
 
 from .agent_core import AgentCore, catch_up
 
@@ -79,6 +80,12 @@ class AgentNode(Node):
                                 'integrates when the sim clock jumped (u held); a longer gap (a stopped '
                                 'or starved process) moves the agent this many', lo=1, hi=10**6)
         comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect)")
+        self.run_id = d('run_id', '', "this run's id (swarm run sets it; '' = none): lockstep steps of "
+                        'another run are rejected')
+        if not valid_run_id(self.run_id):
+            raise ParameterError(f'parameter run_id: {self.run_id!r} is not 1-32 letters, digits, _ or -')
+        self.future_tolerance = d('future_tolerance', FUTURE_TOLERANCE, 'realtime: reject neighbour states '
+                                  'stamped more than this many sim s ahead of this clock', lo=0.0, hi=1e9)
         if self.roster == ['']:
             self.roster = [self.agent_name]
         if len(set(self.roster)) != len(self.roster):
@@ -94,6 +101,7 @@ class AgentNode(Node):
         rng = noise_rng(seed, self.index)
         self.core = AgentCore(self.index, self.n, x, y, theta, self.law, self.dt, noise, rng)
         self.reject = RejectLog(self.get_logger())
+        self.senders = Senders()     # realtime: each neighbour name bound to its first publisher
         try:
             cfg = json.loads(comms) if comms.strip() else None
             if cfg is not None and not isinstance(cfg, dict):
@@ -126,7 +134,8 @@ class AgentNode(Node):
         self.create_subscription(PointStamped, P.TARGET, self._on_target, P.qos_latched())
         self.create_subscription(PolygonStamped, P.BARRIER, self._on_barrier, P.qos_latched())
         self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
-        self.serialize_state = P.OdometryWriter(self.agent_name)
+        self.sender_tag = new_sender_tag()     # who we are on /swarm/states (protocol.SENDER_TAG_INDEX)
+        self.serialize_state = P.OdometryWriter(self.agent_name, tag=self.sender_tag)
         self.own = None          # (sec, nanosec, x, y, qz, qw, u) last published
         if self.mode == 'lockstep':
             self.create_subscription(Float64MultiArray, P.LOCK_STEP, self._on_step, P.qos_latched(), raw=True)
@@ -157,6 +166,7 @@ class AgentNode(Node):
         o = Odometry()
         o.header.frame_id, o.child_frame_id = 'world', self.agent_name
         o.twist.twist.linear.x = 1.0
+        o.pose.covariance[P.SENDER_TAG_INDEX] = self.sender_tag
         if self.own is not None:
             sec, nsec, x, y, qz, qw, u = self.own
             o.header.stamp.sec, o.header.stamp.nanosec = sec, nsec
@@ -173,6 +183,10 @@ class AgentNode(Node):
 
     # ------------------------------------------------------------ lockstep
     def _on_step(self, raw):
+        if self.run_id and P.cdr_run_id(raw) != self.run_id:
+            self.reject('other-run', f'{P.LOCK_STEP} of run {P.cdr_run_id(raw) or "(none)"!r}, not this run '
+                        f'{self.run_id!r}: another swarm run on this ROS_DOMAIN_ID?')
+            return
         try:
             s = P.Step(P.cdr_to_float64_array(raw))
         except Exception as err:
@@ -192,7 +206,7 @@ class AgentNode(Node):
             self.get_logger().info(f'back in the table at step {s.n} (was frozen at step {self.step})')
             self.step = s.n
         if s.n != self.step:
-            self.reject(('step', s.n), f'/lockstep/step for step {s.n} (this agent is at step {self.step})')
+            self.reject('step', f'/lockstep/step for step {s.n} (this agent is at step {self.step})')
             return
         if len(s.x) != self.n:
             self.reject('step-n', f'/lockstep/step with {len(s.x)} agents (roster has {self.n})')
@@ -219,14 +233,14 @@ class AgentNode(Node):
     def _on_lambda(self, msg):
         v = msg.data
         if not (math.isfinite(v) and 0.0 <= v <= 1.0):
-            self.reject(('lambda', repr(v)), f'λ={v!r} on {P.LAMBDA}: must be finite and in [0, 1]')
+            self.reject('lambda', f'λ={v!r} on {P.LAMBDA}: must be finite and in [0, 1]')
             return
         self.lam = v
 
     def _on_steering(self, msg):
         v = msg.data
         if not math.isfinite(v):
-            self.reject(('steer', repr(v)), f'steering s={v!r} for {self.agent_name}: not finite')
+            self.reject('steer', f'steering s={v!r} for {self.agent_name}: not finite')
             return
         self.steering = v
 
@@ -234,21 +248,22 @@ class AgentNode(Node):
         names = [s.strip() for s in msg.data.split(',') if s.strip()]
         unknown = [s for s in names if s not in self.row]
         if unknown:
-            self.reject(('leaders', msg.data), f'{P.LEADERS} {msg.data!r}: unknown agent {unknown[0]!r}')
+            self.reject('leaders', f'{P.LEADERS} {msg.data[:80]!r}: unknown agent {unknown[0][:40]!r}')
             return
         self.leaders = set(names)
 
     def _on_target(self, msg):
         p = (msg.point.x, msg.point.y)
         if not all(math.isfinite(v) for v in p):
-            self.reject(('target', repr(p)), f'{P.TARGET} {p}: not finite')
+            self.reject('target', f'{P.TARGET} {p}: not finite')
             return
         self.target = np.array(p)
 
     def _on_barrier(self, msg):
         pts = [(q.x, q.y) for q in msg.polygon.points]
-        if not all(math.isfinite(v) for q in pts for v in q):
-            self.reject(('barrier', repr(pts)), f'{P.BARRIER}: a point is not finite')
+        why = check_barrier(pts)
+        if why is not None:
+            self.reject(why.kind, why)
             return
         self.barrier = np.array(pts, float) if pts else None
 
@@ -258,7 +273,7 @@ class AgentNode(Node):
         try:
             change = change_from_event(json.loads(msg.data))
         except (ValueError, TypeError) as err:
-            self.reject(('event', str(err)[:60]), f'{P.EVENTS} event {msg.data[:80]!r}: {err}')
+            self.reject('event', f'{P.EVENTS} event {msg.data[:80]!r}: {str(err)[:120]}')
             return
         if change is None:
             return                    # faults, or scheduled in the scenario (applied from our copy)
@@ -266,7 +281,7 @@ class AgentNode(Node):
         try:
             self.radio.apply(change, step)
         except ValueError as err:     # e.g. an unknown agent in a partition
-            self.reject(('event', str(err)[:60]), f'{P.EVENTS} event: {err}')
+            self.reject('event', f'{P.EVENTS} event: {str(err)[:120]}')
             return
         if not self.radio_on:
             self.radio_on = True
@@ -292,17 +307,20 @@ class AgentNode(Node):
     def _on_state(self, msg):
         name = msg.child_frame_id
         if name == self.agent_name:
-            p = msg.pose.pose
-            sec, nsec, x, y, qz = self.own[:5]
-            if (p.position.x, p.position.y, p.orientation.z) != (x, y, qz) \
-                    and (msg.header.stamp.sec, msg.header.stamp.nanosec) == (sec, nsec):
-                self.reject(('dup', name), f'state claiming to be {name!r} (this agent): duplicate agent name')
+            if msg.pose.covariance[P.SENDER_TAG_INDEX] != self.sender_tag:
+                self.reject('dup-self', f'state claiming to be {name!r} (this agent) from another publisher: '
+                            'duplicate agent name')
             return
-        reason = check_state(msg, self.row, self.heard if self.radio_on else self.neigh)
-        if reason is not None:
-            if reason != 'repeat':
-                self.reject((name, reason.split(':')[0]), reason)
+        why = check_state(msg, self.row, self.heard if self.radio_on else self.neigh, self._now(),
+                          self.future_tolerance)
+        tag = msg.pose.covariance[P.SENDER_TAG_INDEX]
+        if why is None:
+            why = self.senders.check(name, tag)
+        if why is not None:
+            if why != 'repeat':
+                self.reject(why.kind, why)
             return
+        self.senders.accept(name, tag)
         p = msg.pose.pose
         vals = (P.stamp_to_time(msg.header.stamp), p.position.x, p.position.y,
                 p.orientation.z, p.orientation.w, msg.twist.twist.angular.z)

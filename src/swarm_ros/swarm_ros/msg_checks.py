@@ -1,43 +1,209 @@
-"""Validation of incoming agent states (shared by the world and realtime agents)."""
+"""Validation of incoming inputs, shared by the world, the commander and the agents (no ROS
+import): agent states, who may speak for an agent, polygons, processes that may be signalled,
+and the rate-limited one-line-per-kind rejection log."""
 from __future__ import annotations
 
 import math
+import time
 
 from . import protocol as P
 
+#: most points a /world/barrier polygon may have (more is refused: the law reads the hull each step)
+MAX_BARRIER_POINTS = 1000
 
-def check_state(msg, row, newest):
-    """Why a /swarm/states message must be rejected (one line), 'repeat' for an exact repeat of
-    the newest accepted state of that agent, or None to accept it.
+#: sim seconds a state's stamp may be ahead of the receiver's clock (realtime)
+FUTURE_TOLERANCE = 2.0
+
+
+class Reason(str):
+    """Why an input is rejected: the one-line text; ``kind`` is the log key (no values in it)."""
+    kind = 'other'
+
+
+def reason(kind: str, text: str) -> Reason:
+    r = Reason(text)
+    r.kind = kind
+    return r
+
+
+def check_state(msg, row, newest, now=None, tolerance=FUTURE_TOLERANCE):
+    """Why a /swarm/states message must be rejected (a `Reason`), 'repeat' for an exact repeat
+    of the newest accepted state of that agent, or None to accept it.
 
     Rejected: an unknown agent name; a non-finite pose or twist; a pose that is not a planar
     unit quaternion; a stamp older than the newest one of that agent (a stamp from the past);
-    a different state with the same stamp as the newest one of that agent (two publishers
-    using one name: a duplicate agent name)."""
+    a stamp more than ``tolerance`` s ahead of the receiver's clock ``now`` (a stamp from the
+    future: it would make every true state after it look old); a different state with the
+    same stamp as the newest one of that agent (two publishers using one name)."""
     p = msg.pose.pose
     o = p.orientation
     return check_values(msg.child_frame_id, P.stamp_to_time(msg.header.stamp),
                         (p.position.x, p.position.y, o.x, o.y, o.z, o.w), msg.twist.twist.angular.z,
-                        row, newest)
+                        row, newest, now, tolerance)
 
 
-def check_values(name, t, pose, wz, row, newest):
+def check_values(name, t, pose, wz, row, newest, now=None, tolerance=FUTURE_TOLERANCE):
     """`check_state` on decoded values: pose = (x, y, qx, qy, qz, qw), wz = twist.angular.z."""
     if name not in row:
-        return f'state from unknown agent {name!r}'
+        return reason('unknown-agent', f'state from unknown agent {name[:40]!r}')
     x, y, qx, qy, qz, qw = pose
     vals = (x, y, qz, qw)
     isfinite = math.isfinite
-    if not (isfinite(x) and isfinite(y) and isfinite(qz) and isfinite(qw) and isfinite(wz)):
-        return f'state of {name!r} with a non-finite pose/twist {vals + (wz,)}'
+    if not (isfinite(x) and isfinite(y) and isfinite(qz) and isfinite(qw) and isfinite(wz) and isfinite(t)):
+        return reason('non-finite', f'state of {name!r} with a non-finite pose/twist/stamp {vals + (wz, t)}')
     if abs(qz ** 2 + qw ** 2 - 1.0) > 1e-6 or qx or qy:
-        return f'state of {name!r}: orientation is not a planar unit quaternion'
+        return reason('not-planar', f'state of {name!r}: orientation is not a planar unit quaternion')
+    if now is not None and t > now + tolerance:
+        return reason('future-stamp', f'state of {name!r} stamped t={t:.3f}, ahead of this clock '
+                      f't={now:.3f} by more than {tolerance:g} s (a stamp from the future)')
     if name in newest:
         t0 = newest[name][0]
         if t < t0:
-            return f'state of {name!r} stamped t={t:.3f}, older than its newest t={t0:.3f} (a stamp from the past)'
+            return reason('past-stamp', f'state of {name!r} stamped t={t:.3f}, older than its newest '
+                          f't={t0:.3f} (a stamp from the past)')
         if t == t0:
             if tuple(newest[name][1:5]) == vals:
                 return 'repeat'
-            return f'second, different state of {name!r} for t={t:.3f}: duplicate agent name (two publishers?)'
+            return reason('duplicate', f'second, different state of {name!r} for t={t:.3f}: duplicate '
+                          'agent name (two publishers?)')
+    return None
+
+
+class Senders:
+    """Binds each agent name to the first sender heard for it and rejects the others.
+
+    ``sender``: what identifies the publisher: its DDS gid where rclpy's message info has one
+    (``publisher_gid``, rclpy ≥ 9.1), else the sender tag the agents put in their states
+    (`protocol.SENDER_TAG_INDEX`); None = unknown (not checked)."""
+
+    def __init__(self):
+        self.bound = {}
+
+    def check(self, name, sender):
+        first = self.bound.get(name)
+        if sender is None or first is None or first == sender:
+            return None
+        return reason('second-publisher', f'state of {name!r} from a second publisher (sender '
+                      f'{_show(sender)}; the name is bound to {_show(first)}, its first)')
+
+    def accept(self, name, sender):
+        """A state of ``name`` from ``sender`` was taken: bind the name if it is not yet."""
+        if sender is not None:
+            self.bound.setdefault(name, sender)
+
+
+def _show(sender):
+    if isinstance(sender, (bytes, bytearray)):
+        return bytes(sender).hex()[:12] + '…'
+    if isinstance(sender, float) and sender.is_integer():
+        return str(int(sender))
+    return repr(sender)
+
+
+def new_sender_tag() -> float:
+    """A random sender tag (an integer 1..2^31 as a float: exact in a float64)."""
+    import secrets
+    return float(secrets.randbits(31) + 1)
+
+
+def check_barrier(points):
+    """Why a /world/barrier polygon must be rejected (a `Reason`), or None."""
+    if len(points) > MAX_BARRIER_POINTS:
+        return reason('barrier-size', f'{P.BARRIER} with {len(points)} points (at most {MAX_BARRIER_POINTS})')
+    if not all(math.isfinite(v) for q in points for v in q):
+        return reason('barrier-finite', f'{P.BARRIER}: a point is not finite')
+    return None
+
+
+# ------------------------------------------------------------------ rejection log
+
+class RejectLog:
+    """Logs rejected inputs, one line per KIND (the key: no values in it), rate-limited.
+
+    The first rejection of a kind is logged at once; later ones of that kind at most once every
+    ``interval`` s, saying how many were suppressed since.  At most ``max_kinds`` kinds are
+    tracked (any further kind counts as 'other'), so memory stays bounded whatever arrives.
+    ``count``: all rejections; ``lines``: the lines logged (at most 1000, for tests)."""
+
+    def __init__(self, logger, interval=10.0, max_kinds=64, clock=time.monotonic):
+        self.logger = logger
+        self.interval = interval
+        self.max_kinds = max_kinds
+        self.clock = clock
+        self.kinds = {}          # kind -> [time last logged, suppressed since, total]
+        self.count = 0
+        self.lines = []
+
+    def __call__(self, kind, text):
+        self.count += 1
+        if isinstance(kind, tuple):          # older callers: the first item is the kind
+            kind = kind[0]
+        kind = str(kind)
+        if kind not in self.kinds and len(self.kinds) >= self.max_kinds:
+            kind = 'other'
+        now = self.clock()
+        st = self.kinds.get(kind)
+        if st is None:
+            self.kinds[kind] = [now, 0, 1]
+            self._log(f'rejected {text}')
+            return
+        st[2] += 1
+        if now - st[0] >= self.interval:
+            self._log(f'rejected {text} ({st[1]} more of this kind in the last {now - st[0]:.0f} s)')
+            st[0], st[1] = now, 0
+        else:
+            st[1] += 1
+
+    def _log(self, line):
+        if len(self.lines) < 1000:
+            self.lines.append(line)
+        self.logger.warning(line)
+
+    def summary(self):
+        """One line with the count per kind ('' if nothing was rejected)."""
+        if not self.count:
+            return ''
+        return f'rejected {self.count} inputs in all: ' + ', '.join(
+            f'{k} {st[2]}' for k, st in sorted(self.kinds.items(), key=lambda kv: -kv[1][2]))
+
+
+# ------------------------------------------------------------------ processes
+
+def proc_info(pid: int, proc='/proc'):
+    """(parent pid, argv list) of a live process, or None (gone, or a zombie)."""
+    try:
+        with open(f'{proc}/{int(pid)}/stat', 'rb') as f:
+            stat = f.read().decode('utf-8', 'replace')
+        with open(f'{proc}/{int(pid)}/cmdline', 'rb') as f:
+            argv = [a.decode('utf-8', 'replace') for a in f.read().split(b'\0') if a]
+    except (OSError, ValueError):
+        return None
+    fields = stat[stat.rfind(')') + 2:].split()          # after "pid (comm) "
+    if not fields or fields[0] in ('Z', 'X'):
+        return None
+    return int(fields[1]), argv
+
+
+def may_signal(pid, agent: str, launcher: int, proc='/proc'):
+    """Why agent ``agent``'s pid ``pid`` (from the pid file) must NOT be signalled, or None.
+
+    Signalled are only live children of the run's launcher (``launcher``: the world's own parent
+    pid) whose command line is that agent's node: the ``swarm_agent`` executable with
+    ``__ns:=/<agent>``.  Anything else (a pid reused by another process, an edited pid file)
+    is refused."""
+    try:
+        pid = int(pid)
+    except (TypeError, ValueError):
+        return f'pid {pid!r} of {agent} is not a number'
+    if pid <= 1 or pid == launcher:
+        return f'pid {pid} of {agent} is not an agent process'
+    info = proc_info(pid, proc)
+    if info is None:
+        return f'pid {pid} of {agent} is not running'
+    ppid, argv = info
+    if ppid != launcher:
+        return f'pid {pid} of {agent} is not a child of this run\'s launcher (pid {launcher}; its parent is {ppid})'
+    exe = any(a.endswith('swarm_agent') or a.endswith('swarm_agent/agent_node.py') for a in argv[:3])
+    if not exe or f'__ns:=/{agent}' not in argv:
+        return f'pid {pid} is not the agent process of {agent} (command line {" ".join(argv)[:120]!r})'
     return None

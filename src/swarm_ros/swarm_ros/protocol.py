@@ -10,7 +10,8 @@ Fixed, user-facing topics (docs/ros-graph.md)
     applies from t_n on is decided only after every agent's state of t_n is known, so it is
     carried by the agent's next message (t_{n+1}); realtime agents use the same convention.
     QoS: reliable, transient-local, depth `STATES_DEPTH` (a late joiner gets each agent's
-    newest states; a reader one step behind loses none).  Agents publish it pre-serialised
+    newest states; a reader one step behind loses none).  pose.covariance[35] is the agent's
+    sender tag (`SENDER_TAG_INDEX`; all other covariances 0).  Agents publish it pre-serialised
     (`OdometryWriter`) and the world reads it raw (`cdr_to_odometry`): the same bytes as
     rclpy's serializer, without building message objects each step.
 ``/swarm/lambda``  std_msgs/Float64, commander (or a user): λ ∈ [0, 1].
@@ -25,6 +26,10 @@ Fixed, user-facing topics (docs/ros-graph.md)
     ``agent``, plus ``node`` (who published it).  Kinds: ``kill``, ``freeze``, ``resume``,
     ``lost`` (the world gave up waiting for an agent), ``fault_skipped`` (world);
     ``leaders_chosen``, ``failover``, ``leader_lost``, ``rendezvous_on``/``_off`` (commander).
+``/swarm/run``  std_msgs/String, reliable + transient-local depth 1, world: JSON ``{"run_id",
+    "scenario", "mode", "agents": [names]}`` of the run (`swarm_world.runinfo`); the live verbs
+    (``swarm lambda``, ``swarm kill``, ...) read it to say which run they reached, check agent
+    names, and refuse when two runs share the domain.
 ``/swarm/fault_request``  std_msgs/String, reliable + transient-local depth 10: JSON ``{"kind": "kill"|"freeze",
     "agent": NAME, "for": SECONDS}`` (``swarm kill`` / ``swarm pause``); the world applies it
     at its next step (see swarm_core.faults for the semantics) and signals the agent process.
@@ -61,7 +66,11 @@ gets the last message; every node answers a repeated message for a step it alrea
 re-publishing its answer (stall recovery: the world repeats its last message after
 ``stall_timeout`` seconds without progress).
 
-Packed layouts (std_msgs/Float64MultiArray, empty ``layout``, ``data`` as below; N agents)
+Run identity: ``swarm run`` gives every node a ``run_id``; the lockstep messages carry it as the
+label ``run:<id>`` of one ``layout`` dimension of size 0 (``data`` unchanged), and a node with a
+``run_id`` rejects lockstep messages of another run (a second run on the same ROS_DOMAIN_ID).
+
+Packed layouts (std_msgs/Float64MultiArray, ``layout`` empty or the run label, ``data`` as below; N agents)
 ``/lockstep/states``    [n, t_n, N,  x(N), y(N), qz(N), qw(N), alive(N)]
 ``/lockstep/decision``  [n, t_n, N,  λ, leader flags(N) (0/1), s(N), slot(N), R]
 ``/lockstep/step``      [n, t_n, N,  λ, leader flags(N), s(N), x(N), y(N), qz(N), qw(N),
@@ -100,6 +109,7 @@ LOCK_DECISION = '/lockstep/decision'
 LOCK_STEP = '/lockstep/step'
 EVENTS = '/swarm/events'
 FAULT_REQUEST = '/swarm/fault_request'
+RUN = '/swarm/run'
 #: publisher depth of /swarm/states (transient-local): history a late or slow reader can get
 STATES_DEPTH = 100
 
@@ -258,10 +268,29 @@ def event_json(kind: str, t, **fields) -> str:
 _HEADER = b'\x00\x01\x00\x00'   # CDR little endian
 
 
-def float64_array_to_cdr(data: np.ndarray) -> bytes:
-    """Serialized std_msgs/Float64MultiArray with an empty layout (what publish() accepts)."""
+def float64_array_to_cdr(data: np.ndarray, run_id: str = '') -> bytes:
+    """Serialized std_msgs/Float64MultiArray (what publish() accepts): an empty layout, or with
+    ``run_id`` one dimension labelled ``run:<run_id>`` (size 0; ``data`` is unchanged)."""
     data = np.ascontiguousarray(data, dtype='<f8')
-    return _HEADER + struct.pack('<IIII', 0, 0, data.size, 0) + data.tobytes()
+    if not run_id:
+        return _HEADER + struct.pack('<IIII', 0, 0, data.size, 0) + data.tobytes()
+    label = f'run:{run_id}'.encode() + b'\0'
+    body = struct.pack('<II', 1, len(label)) + label
+    body += b'\0' * ((-len(body)) % 4) + struct.pack('<IIII', 0, 0, 0, data.size)
+    body += b'\0' * ((-len(body)) % 8)
+    return _HEADER + body + data.tobytes()
+
+
+def cdr_run_id(raw: bytes) -> str:
+    """The run id of a serialized Float64MultiArray (its first dimension's label
+    ``run:<id>``), '' if it has none."""
+    end = '<' if raw[1] == 1 else '>'
+    ndim, = struct.unpack_from(end + 'I', raw, 4)
+    if ndim == 0:
+        return ''
+    ln, = struct.unpack_from(end + 'I', raw, 8)
+    label = raw[12:12 + max(ln - 1, 0)].decode('utf-8', 'replace')
+    return label[4:] if label.startswith('run:') else ''
 
 
 def cdr_to_float64_array(raw: bytes) -> np.ndarray:
@@ -294,6 +323,13 @@ _ODOM_DOUBLES = 7 + 36 + 6 + 36
 _I_X, _I_Y, _I_QX, _I_QY, _I_QZ, _I_QW = 0, 1, 3, 4, 5, 6
 _I_VX = 43
 _I_WZ = 48
+#: pose.covariance[35] (the yaw variance, unused by a planar agent that reports none): the
+#: agent's SENDER TAG, a random integer 1..2^31 each agent process draws once (0 = untagged).
+#: The world and realtime agents bind each agent name to the first tag heard for it and reject
+#: states of that name with another tag (swarm_ros.msg_checks.Senders): rclpy Jazzy gives no
+#: publisher gid in its message info, and its EventsExecutor cannot call message-info callbacks.
+SENDER_TAG_INDEX = 35
+_I_TAG = 7 + SENDER_TAG_INDEX
 
 
 def _cdr_string(s: str, off: int) -> tuple[bytes, int]:
@@ -306,9 +342,10 @@ def _cdr_string(s: str, off: int) -> tuple[bytes, int]:
 
 class OdometryWriter:
     """Serialized ``nav_msgs/Odometry`` of one agent (what ``publish()`` accepts as bytes):
-    frame_id ``world``, fixed child_frame_id, twist.linear.x = 1, zero covariances."""
+    frame_id ``world``, fixed child_frame_id, twist.linear.x = 1, zero covariances but the
+    sender ``tag`` in pose.covariance[`SENDER_TAG_INDEX`]."""
 
-    def __init__(self, child_frame_id: str, frame_id: str = 'world'):
+    def __init__(self, child_frame_id: str, frame_id: str = 'world', tag: float = 0.0):
         off = 8                                          # after the stamp
         frame, off = _cdr_string(frame_id, off)
         child, off = _cdr_string(child_frame_id, off)
@@ -316,6 +353,7 @@ class OdometryWriter:
         self._names = frame + child + b'\0' * pad
         self._body = np.zeros(_ODOM_DOUBLES, dtype='<f8')
         self._body[_I_VX] = 1.0
+        self._body[_I_TAG] = tag
 
     def __call__(self, sec: int, nanosec: int, x: float, y: float, qz: float, qw: float, wz: float) -> bytes:
         b = self._body
@@ -326,6 +364,12 @@ class OdometryWriter:
 def cdr_to_odometry(raw: bytes):
     """(child_frame_id, sec, nanosec, (x, y, qx, qy, qz, qw), angular.z) of a serialized
     ``nav_msgs/Odometry`` (either byte order, any frame_id)."""
+    name, sec, nsec, pose, wz, _ = cdr_to_odometry_tagged(raw)
+    return name, sec, nsec, pose, wz
+
+
+def cdr_to_odometry_tagged(raw: bytes):
+    """`cdr_to_odometry` and the sender tag (pose.covariance[`SENDER_TAG_INDEX`])."""
     end = '<' if raw[1] & 1 else '>'
     sec, nsec, n = struct.unpack_from(end + 'iII', raw, 4)
     o = 16 + n                                       # after header.frame_id
@@ -336,7 +380,8 @@ def cdr_to_odometry(raw: bytes):
     o = (o - 4 + 7) // 8 * 8 + 4
     x, y, _, qx, qy, qz, qw = struct.unpack_from(end + '7d', raw, o)
     wz, = struct.unpack_from(end + 'd', raw, o + 8 * _I_WZ)
-    return name, sec, nsec, (x, y, qx, qy, qz, qw), wz
+    tag, = struct.unpack_from(end + 'd', raw, o + 8 * _I_TAG)
+    return name, sec, nsec, (x, y, qx, qy, qz, qw), wz, tag
 
 
 def clock_to_cdr(t: float) -> bytes:

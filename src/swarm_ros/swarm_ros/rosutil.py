@@ -6,6 +6,8 @@ import math
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
+from .msg_checks import RejectLog  # noqa: F401  (the nodes' rejection log lives with the checks)
+
 
 class ParameterError(ValueError):
     """A bad start-up parameter; the message is one line naming it."""
@@ -39,25 +41,6 @@ def declare(node, name, default, description, lo=None, hi=None, choices=None, fi
     if choices and value not in choices:
         raise ParameterError(f'parameter {name}: {value!r} is not one of {", ".join(choices)}')
     return value
-
-
-class RejectLog:
-    """Logs each kind of rejected input once per key (one line naming it), counts them all."""
-
-    def __init__(self, logger):
-        self.logger = logger
-        self.seen = set()
-        self.count = 0
-        self.lines = []          # the lines logged (bounded), for tests and summaries
-
-    def __call__(self, key, text):
-        self.count += 1
-        if key not in self.seen:
-            self.seen.add(key)
-            line = f'rejected {text}'
-            if len(self.lines) < 1000:
-                self.lines.append(line)
-            self.logger.warning(line)
 
 
 def gid_key(gid) -> bytes:
@@ -232,6 +215,9 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
                wake=wake)
     if stop and on_stop is not None:
         on_stop(node)
+    reject = getattr(node, 'reject', None)
+    if reject is not None and reject.summary():
+        node.get_logger().info(reject.summary())
     code = exit_code(node) if exit_code is not None else 0
     # a DDS teardown that never returns (seen with Fast DDS after a peer process was SIGKILLed)
     # must not keep a finished node alive: its work is done and saved, so exit anyway

@@ -391,8 +391,12 @@ def main(argv=None) -> int:
             params[f'/{nm}/agent']['state_subscribers'] = 2
         params['/world']['wait_for_recorder'] = True          # ... every /clock
         params['/commander']['wait_for_recorder'] = True      # ... and every λ and steering message
+    from swarm_ros.runinfo import new_run_id
+    run_id = new_run_id()               # on the lockstep messages and /swarm/run (swarm_ros.runinfo)
+    for p in params.values():
+        p['run_id'] = run_id
     n_proc = len(scn.names) + 2 + (1 if a.record else 0) + (1 if a.foxglove is not None else 0)
-    print(f'swarm run: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '
+    print(f'swarm run: run {run_id}: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '
           f'{"one process" if a.in_process else f"{n_proc} processes"}, t = {scn.duration:g}, dt = {scn.dt:g}',
           flush=True)
     t0 = time.monotonic()

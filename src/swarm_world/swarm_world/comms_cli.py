@@ -48,6 +48,8 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
         clock = {}
         node.create_subscription(Clock, P.CLOCK, lambda m: clock.__setitem__('t', P.stamp_to_time(m.clock)), 10)
         pub = node.create_publisher(String, P.EVENTS, P.qos_latched(100))
+        from .runinfo import RunWatch, describe, one_run
+        watch = RunWatch(node)
         from rclpy.executors import SingleThreadedExecutor
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
@@ -77,6 +79,16 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
             if not unknown and 't' in clock:
                 break
             ex.spin_once(timeout_sec=0.05)
+        from .runinfo import has_world      # the run's announcement(s), if a world is there
+        limit = time.monotonic() + (0.5 if watch.runs else 2.0 if has_world(node) else 0.0)
+        while time.monotonic() < limit:
+            ex.spin_once(timeout_sec=0.05)
+        run, err = one_run(watch.runs, prog)
+        if err:
+            print(err, file=sys.stderr)
+            return 1
+        print(f'{prog}: reached {describe(run)}' if run else
+              f'{prog}: reached a swarm that does not announce a run on {P.RUN}', flush=True)
         unknown = [nm for nm in check_names if nm not in _agents_in_graph(node)]
         if unknown:
             print(f'{prog}: unknown agent {unknown[0]!r} (running: {", ".join(_agents_in_graph(node))})',

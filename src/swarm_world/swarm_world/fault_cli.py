@@ -26,16 +26,21 @@ def _agent_name(text):
 
 
 def _send(verb, request, wait):
+    """Send ``request`` to the world of the one run on the domain; an exit code (0: sent)."""
     from std_msgs.msg import String
 
-    from homotopy_commander.cli import _publish_once
+    from homotopy_commander.cli import RunRefused, _publish_once
     # transient-local: a world whose side of the match comes late still gets the request
-    if _publish_once(String, P.FAULT_REQUEST, String(data=json.dumps(request)), wait, P.qos_latched(10),
-                     for_node='world'):
-        return True
+    try:
+        if _publish_once(String, P.FAULT_REQUEST, String(data=json.dumps(request)), wait, P.qos_latched(10),
+                         for_node='world', prog=f'swarm {verb}', agent=request['agent']):
+            return 0
+    except RunRefused as err:            # two runs on the domain, or an agent the run lacks
+        print(err, file=sys.stderr)
+        return 2 if 'unknown agent' in str(err) else 1
     print(f'swarm {verb}: no running swarm found (no world subscribes {P.FAULT_REQUEST}); '
           "is ROS_DOMAIN_ID the same as the run's?", file=sys.stderr)
-    return False
+    return 1
 
 
 def kill_main(argv) -> int:
@@ -49,10 +54,10 @@ def kill_main(argv) -> int:
     if name is None:
         print(f'swarm kill: {a.agent!r} is not an agent name', file=sys.stderr)
         return 2
-    if not _send('kill', dict(kind='kill', agent=name), a.wait):
-        return 1
-    print(f'swarm kill: asked the world to kill {name} (an unknown name is rejected in the world\'s log)')
-    return 0
+    code = _send('kill', dict(kind='kill', agent=name), a.wait)
+    if code == 0:
+        print(f'swarm kill: asked the world to kill {name}')
+    return code
 
 
 def pause_main(argv) -> int:
@@ -70,7 +75,8 @@ def pause_main(argv) -> int:
     if not (math.isfinite(a.seconds) and a.seconds > 0):
         print(f'swarm pause: {a.seconds!r} seconds rejected: must be finite and > 0', file=sys.stderr)
         return 2
-    if not _send('pause', {'kind': 'freeze', 'agent': name, 'for': a.seconds}, a.wait):
-        return 1
+    code = _send('pause', {'kind': 'freeze', 'agent': name, 'for': a.seconds}, a.wait)
+    if code:
+        return code
     print(f'swarm pause: asked the world to freeze {name} for {a.seconds:g} s')
     return 0

@@ -43,10 +43,12 @@ from swarm_core.scenario import ScenarioError, load
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import check_values
+from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, check_values, may_signal, reason
+from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
+from swarm_ros.runinfo import RunWatch, describe, run_json, valid_run_id
+
 from .lockstep import LockstepBarrier
 from .markers import Trails, markers_message, metrics_message, stamp, view_values
-from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node, steady_clock
 
 
 SIGNALS = {'kill': signal.SIGKILL, 'stop': signal.SIGSTOP, 'cont': signal.SIGCONT}
@@ -106,6 +108,12 @@ class WorldNode(Node):
         self.pid_file = d('pid_file', '', 'JSON {agent: pid} of the agent processes, for kill/pause ("": none)')
         self.events_file = d('events_file', '', 'append every event here as JSON lines ("": output_dir/events.jsonl)')
         self.trail_length = d('trail_length', 200, 'trail points per agent in the markers', lo=0, hi=100000)
+        self.run_id = d('run_id', '', "this run's id (swarm run sets it; '' = none): carried on the lockstep "
+                        'messages, announced on /swarm/run; a second run on the domain makes the world refuse to start')
+        if not valid_run_id(self.run_id):
+            raise ParameterError(f'parameter run_id: {self.run_id!r} is not 1-32 letters, digits, _ or -')
+        self.future_tolerance = d('future_tolerance', FUTURE_TOLERANCE, 'realtime: reject states stamped more '
+                                  'than this many sim s ahead of the world clock', lo=0.0, hi=1e9)
         try:
             self.scn = load(scenario, seed=None if seed < 0 else seed,
                             duration=duration or None, dt=dt or None)
@@ -139,6 +147,7 @@ class WorldNode(Node):
             Path(self.events_file).write_text('')
         self.add_on_set_parameters_callback(self._on_params)
         self.reject = RejectLog(self.get_logger())
+        self.senders = Senders()            # each agent name bound to its first publisher
 
         self.pub_clock = self.create_publisher(Clock, P.CLOCK, P.qos_reliable(P.STEP_DEPTH))
         self.pub_target = self.create_publisher(PointStamped, P.TARGET, P.qos_latched())
@@ -149,6 +158,10 @@ class WorldNode(Node):
         self.create_subscription(String, P.FAULT_REQUEST, self._on_fault_request, P.qos_latched(10))
         self.sub_states = self.create_subscription(Odometry, P.STATES, self._on_state,
                                                    P.qos_latched(max(100, 4 * self.n)), raw=True)
+        # the run's identity; other runs on this domain are heard here (and refused before the start)
+        self.pub_run = self.create_publisher(String, P.RUN, P.qos_latched())
+        self.pub_run.publish(String(data=run_json(self.run_id, self.scn.name, self.mode, self.names)))
+        self.runs = RunWatch(self)
         if self.mode == 'realtime':
             self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
             # the leaders as the commander announces them (lockstep: in each decision)
@@ -227,31 +240,40 @@ class WorldNode(Node):
     def _on_state(self, raw):
         """A serialized /swarm/states message (decoded without building an Odometry)."""
         try:
-            name, sec, nsec, pose, wz = P.cdr_to_odometry(raw)
+            name, sec, nsec, pose, wz, tag = P.cdr_to_odometry_tagged(raw)
         except Exception as err:
             self.reject('state-decode', f'{P.STATES} message that does not decode: {err}')
             return
         t = sec + nsec * 1e-9
-        reason = check_values(name, t, pose, wz, self.row, self.newest)
-        if reason is not None:
-            if reason != 'repeat':
-                self.reject((name, reason.split(':')[0]), reason)
+        now = self.sim_t if self.mode == 'realtime' else None     # lockstep: the step check below
+        why = check_values(name, t, pose, wz, self.row, self.newest, now, self.future_tolerance)
+        if why is None:
+            why = self.senders.check(name, tag)
+        if why is not None:
+            if why != 'repeat':
+                self.reject(why.kind, why)
             return
         i = self.row[name]
         vals = (pose[0], pose[1], pose[4], pose[5])
         if self.mode == 'realtime':
+            self.senders.accept(name, tag)
             self.newest[name] = (t, *vals)
             self.rec.record_realtime(i, P.step_of(t, self.dt), vals, wz, self.lam_now, self.leaders_now)
             return
-        reason, acts = self.lock.on_state(i, P.step_of(t, self.dt), vals, wz)
-        if reason is not None:
-            self.reject((name, 'step'), reason)
+        why, acts = self.lock.on_state(i, P.step_of(t, self.dt), vals, wz)
+        if why is not None:
+            self.reject('step', why)
             return
+        self.senders.accept(name, tag)
         self.newest[name] = (t, *vals)
         self.last_progress = time.monotonic()
         self.act(acts)
 
     def _on_decision(self, raw):
+        if self.run_id and P.cdr_run_id(raw) != self.run_id:
+            self.reject('other-run', f'{P.LOCK_DECISION} of run {P.cdr_run_id(raw) or "(none)"!r}, not this '
+                        f'run {self.run_id!r}: another swarm run on this ROS_DOMAIN_ID?')
+            return
         data = P.cdr_to_float64_array(raw)
         n, t, lam, flags, steering = P.unpack_decision(data)
         if n != self.lock.cur or self.lock.decision is not None:
@@ -284,6 +306,21 @@ class WorldNode(Node):
                                           'starting anyway')
         return ok
 
+    def other_run(self):
+        """Before the start: another run on this domain (its /swarm/run, or a second /world node)
+        makes this world refuse to start (one error line, exit 1) instead of mixing with it."""
+        others = [r for rid, r in self.runs.runs.items() if rid != self.run_id]
+        worlds = sum(1 for nm, ns in self.get_node_names_and_namespaces() if nm == 'world' and ns == '/')
+        if not others and worlds <= 1:
+            return False
+        dom = os.environ.get('ROS_DOMAIN_ID', '0')
+        what = '; '.join(describe(r) for r in others) if others else 'a second /world node'
+        self.failed = (f'another swarm run is on ROS_DOMAIN_ID={dom} ({what}): refusing to start '
+                       'this one; give each run its own ROS_DOMAIN_ID')
+        self.get_logger().error(self.failed)
+        self.done = True
+        return True
+
     def act(self, actions):
         """Carry out what the lockstep barrier decided (swarm_world.lockstep), in order."""
         for a in actions:
@@ -293,7 +330,7 @@ class WorldNode(Node):
                 self.pub_clock.publish(P.clock_to_cdr(a[1]))
             elif kind == 'states':
                 self.sim_t = float(a[1][1])
-                raw = P.float64_array_to_cdr(a[1])
+                raw = P.float64_array_to_cdr(a[1], self.run_id)
                 self.pub_lock_states.publish(raw)
                 self.last_msg = (self.pub_lock_states, raw)
             elif kind == 'observe':
@@ -302,7 +339,7 @@ class WorldNode(Node):
                 self.pub_events.publish(String(data=P.event_json('comms', a[1] * self.dt, source='scenario', **a[2])))
             elif kind == 'step':
                 self.lam_now, self.leaders_now = self.lock.lam, self.lock.leaders
-                raw = P.float64_array_to_cdr(a[1])
+                raw = P.float64_array_to_cdr(a[1], self.run_id)
                 self.pub_step.publish(raw)
                 self.last_msg = (self.pub_step, raw)
                 self.step_wall = time.monotonic()
@@ -354,7 +391,7 @@ class WorldNode(Node):
                 k = self.rt_fault_step + 1
                 self.faults.add(fault, not_before=k)
         except (ValueError, KeyError, TypeError) as err:
-            self.reject(('fault-request', msg.data[:40]), f'{P.FAULT_REQUEST} {msg.data[:80]!r}: {err}')
+            self.reject('fault-request', f'{P.FAULT_REQUEST} {msg.data[:80]!r}: {err}')
             return
         self.get_logger().info(f'fault request: {kind} {agent}' + (f' for {dur:g} s' if kind == 'freeze' else '')
                                + f' at step {k}')
@@ -371,6 +408,11 @@ class WorldNode(Node):
                 self.pids = {}
         pid = self.pids.get(self.names[i])
         if pid is None:
+            return
+        # only a live child of our launcher running that agent's node (never any pid in a file)
+        refused = may_signal(pid, self.names[i], os.getppid())
+        if refused is not None:
+            self.reject('signal', reason('signal', f'{signal.Signals(sig).name} to {self.names[i]}: {refused}'))
             return
         try:
             os.kill(int(pid), sig)
@@ -392,12 +434,12 @@ class WorldNode(Node):
         md = M.min_distance(pos)
         if md < self.collision_distance:
             self.collisions += 1
-            self.reject(('collision', k // 2000), f'nothing: collision at t={k * self.dt:.2f} (min distance {md:.4f})')
+            self.reject('collision', f'nothing: collision at t={k * self.dt:.2f} (min distance {md:.4f})')
         if self.barrier_geom is not None:
             inside = self.barrier_geom.inside(pos)
             if inside.any():
                 self.intrusions += int(inside.sum())
-                self.reject(('intrusion', k // 2000), f'nothing: barrier intrusion at t={k * self.dt:.2f} by '
+                self.reject('intrusion', f'nothing: barrier intrusion at t={k * self.dt:.2f} by '
                             + ', '.join(self.names[idx[i]] for i in np.flatnonzero(inside)))
         t = k * self.dt
         if self.progress_every > 0 and t >= self.next_progress:
@@ -433,7 +475,7 @@ class WorldNode(Node):
         names = [nm.strip() for nm in msg.data.split(',') if nm.strip()]
         unknown = [nm for nm in names if nm not in self.row]
         if unknown:
-            self.reject(('leaders', tuple(unknown)), f'{P.LEADERS}: unknown agent(s) {", ".join(unknown)}')
+            self.reject('leaders', f'{P.LEADERS}: unknown agent(s) {", ".join(unknown)}')
         flags = np.zeros(self.n, bool)
         flags[[self.row[nm] for nm in names if nm in self.row]] = True
         self.leaders_now = flags
@@ -441,6 +483,8 @@ class WorldNode(Node):
     def rt_tick(self):
         now = time.monotonic()
         if not self.started:
+            if self.other_run():
+                return
             if len(self.newest) == self.n:
                 self.started, self.run_wall = True, now
                 self.log(f'[world] realtime: {self.n} agents discovered in {now - self.wall_start:.1f} s; '
@@ -492,6 +536,8 @@ class WorldNode(Node):
             return
         now = time.monotonic()
         if not self.started:
+            if self.other_run():
+                return
             if self.ready():
                 self.started = True
                 self.run_wall = now

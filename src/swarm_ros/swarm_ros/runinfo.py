@@ -1,0 +1,84 @@
+"""The identity of a run: ``run_id`` (given by ``swarm run`` to every node) and the world's
+``/swarm/run`` announcement, which the live verbs read to say which run they reached.
+
+Pure helpers (no ROS import) plus `RunWatch`, which subscribes ``/swarm/run`` on a node."""
+from __future__ import annotations
+
+import json
+import re
+import secrets
+
+from . import protocol as P
+
+_ID = re.compile(r'^[A-Za-z0-9_-]{1,32}$')
+
+
+def new_run_id() -> str:
+    """A fresh random run id (8 hex digits)."""
+    return secrets.token_hex(4)
+
+
+def valid_run_id(text: str) -> bool:
+    return text == '' or bool(_ID.match(text))
+
+
+def run_json(run_id: str, scenario: str, mode: str, agents) -> str:
+    """The text of a ``/swarm/run`` message."""
+    return json.dumps(dict(run_id=run_id, scenario=scenario, mode=mode, agents=list(agents)))
+
+
+def parse_run(text: str):
+    """The dict of a ``/swarm/run`` message, or None if it is not one."""
+    try:
+        d = json.loads(text)
+    except ValueError:
+        return None
+    if not (isinstance(d, dict) and isinstance(d.get('run_id'), str) and isinstance(d.get('agents'), list)):
+        return None
+    return d
+
+
+def describe(run) -> str:
+    """'run 1a2b3c4d (homotopy_global, lockstep, 6 agents)'."""
+    rid = run.get('run_id') or '(no id)'
+    return f'run {rid} ({run.get("scenario", "?")}, {run.get("mode", "?")}, {len(run.get("agents", []))} agents)'
+
+
+def one_run(runs: dict, prog: str):
+    """(run, None) if exactly one run was heard, else (None, the error line)."""
+    if len(runs) > 1:
+        return None, (f'{prog}: {len(runs)} runs share this ROS_DOMAIN_ID: '
+                      + '; '.join(describe(r) for r in runs.values())
+                      + '; refusing to act on an unknown one (give each run its own ROS_DOMAIN_ID)')
+    if not runs:
+        return None, None
+    return next(iter(runs.values())), None
+
+
+def unknown_agent(run, name: str, prog: str):
+    """The error line if ``name`` is not an agent of ``run`` (None if it is, or if unknown)."""
+    if run is None or name in run.get('agents', []):
+        return None
+    agents = run.get('agents', [])
+    shown = ', '.join(agents[:8]) + (', ...' if len(agents) > 8 else '')
+    return f'{prog}: unknown agent {name!r} in {describe(run)}: agents are {shown}'
+
+
+def has_world(node) -> bool:
+    """A ``/world`` node is in the graph (then its ``/swarm/run`` is worth waiting for)."""
+    return any(nm == 'world' for nm, _ in node.get_node_names_and_namespaces())
+
+
+class RunWatch:
+    """Collects the ``/swarm/run`` announcements heard on ``node`` ({run id: dict})."""
+
+    def __init__(self, node):
+        from std_msgs.msg import String
+        self.runs = {}
+        # depth 10: several worlds on one domain are each heard (transient-local, one sample each)
+        self.sub = node.create_subscription(String, P.RUN, self._on_run, P.qos_latched(10))
+
+    def _on_run(self, msg):
+        d = parse_run(msg.data)
+        if d is not None:
+            self.runs[d['run_id']] = d

@@ -1,0 +1,148 @@
+"""The pure input checks (swarm_ros.msg_checks, swarm_world.runinfo): future and stale stamps,
+publisher binding, the rate-limited rejection log, who may be signalled, the run id on the
+lockstep messages."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+from swarm_ros import protocol as P
+from swarm_ros.msg_checks import (MAX_BARRIER_POINTS, RejectLog, Senders, check_barrier, check_values,
+                                may_signal, new_sender_tag)
+from swarm_world.runinfo import describe, one_run, parse_run, run_json, unknown_agent
+
+ROW = {'agent_0': 0, 'agent_1': 1}
+POSE = (1.0, 2.0, 0.0, 0.0, 0.0, 1.0)
+
+
+def test_a_stamp_from_the_future_is_rejected_and_does_not_block_true_states():
+    newest = {}
+    why = check_values('agent_1', 500.0, POSE, 0.0, ROW, newest, now=10.0, tolerance=2.0)
+    assert why is not None and why.kind == 'future-stamp' and 'future' in why
+    assert check_values('agent_1', 11.5, POSE, 0.0, ROW, newest, now=10.0, tolerance=2.0) is None
+    # without a clock (lockstep: the world checks the step instead) the old behaviour
+    assert check_values('agent_1', 500.0, POSE, 0.0, ROW, newest) is None
+
+
+def test_kinds_carry_no_values():
+    newest = {'agent_0': (5.0, 1.0, 2.0, 0.0, 1.0)}
+    cases = [check_values('ghost', 0.0, POSE, 0.0, ROW, newest),
+             check_values('agent_0', 1.0, POSE, 0.0, ROW, newest),
+             check_values('agent_0', 5.0, (9.0, 2.0, 0.0, 0.0, 0.0, 1.0), 0.0, ROW, newest),
+             check_values('agent_1', float('nan'), POSE, 0.0, ROW, newest),
+             check_values('agent_1', 1.0, (float('inf'), 2.0, 0.0, 0.0, 0.0, 1.0), 0.0, ROW, newest)]
+    assert [c.kind for c in cases] == ['unknown-agent', 'past-stamp', 'duplicate', 'non-finite', 'non-finite']
+    assert check_values('agent_0', 5.0, POSE, 0.0, ROW, newest) == 'repeat'
+
+
+def test_a_name_is_bound_to_its_first_publisher():
+    s = Senders()
+    assert s.check('agent_3', 17.0) is None          # nothing bound yet
+    s.accept('agent_3', 17.0)
+    why = s.check('agent_3', 99.0)
+    assert why.kind == 'second-publisher' and "'agent_3'" in why and '17' in why
+    assert s.check('agent_3', 17.0) is None
+    assert s.check('agent_3', None) is None          # unknown sender: not checked
+    s.accept('agent_3', 99.0)                        # binding stays with the first
+    assert s.check('agent_3', 99.0).kind == 'second-publisher'
+    assert s.check('agent_4', 99.0) is None
+    s.accept('agent_5', bytes(16))                   # gids (rclpy >= 9.1) work the same
+    assert s.check('agent_5', bytes([1] * 16)).kind == 'second-publisher'
+    tags = {new_sender_tag() for _ in range(100)}
+    assert len(tags) > 95 and all(t >= 1 and t.is_integer() for t in tags)
+
+
+class Logger:
+    def __init__(self):
+        self.lines = []
+
+    def warning(self, line):
+        self.lines.append(line)
+
+
+def test_one_line_per_kind_rate_limited_and_bounded():
+    clock = [0.0]
+    log = Logger()
+    r = RejectLog(log, interval=10.0, max_kinds=5, clock=lambda: clock[0])
+    for i in range(10000):                       # a flood of different bad values within 10 s
+        r('lambda', f'λ={i + 2.0} must be in [0, 1]')
+        clock[0] += 0.0005
+    assert r.count == 10000 and len(log.lines) == 1 and 'λ=2.0' in log.lines[0]
+    clock[0] += 10.0
+    r('lambda', 'λ=7.0 must be in [0, 1]')                 # the next one after 10 s: with the count
+    assert len(log.lines) == 2 and '(9999 more of this kind in the last' in log.lines[1]
+    r('steer', 's=nan not finite')                         # another kind: its own first line
+    assert len(log.lines) == 3
+    for i in range(1000):                    # ever new kinds: the table stays bounded
+        r(f'kind{i}', 'x')
+    assert len(r.kinds) <= 6                 # 5 + 'other'
+    assert 'lambda 10001' in r.summary()
+
+
+def test_barrier_polygons_are_bounded():
+    assert check_barrier([(0.0, 0.0)] * (MAX_BARRIER_POINTS + 1)).kind == 'barrier-size'
+    assert check_barrier([(0.0, float('nan'))]).kind == 'barrier-finite'
+    assert check_barrier([(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)]) is None
+
+
+def test_only_the_launchers_live_agent_child_may_be_signalled(tmp_path):
+    """A live child of ours (we play the launcher) with the agent's command line may be signalled;
+    a pid of another process, a dead pid, the wrong agent, a non-number: refused."""
+    exe = tmp_path / 'swarm_agent'
+    exe.write_text('import time\ntime.sleep(60)\n')
+    p = subprocess.Popen([sys.executable, str(exe), '--ros-args', '-r', '__node:=agent', '-r', '__ns:=/agent_2'])
+    try:
+        me = os.getpid()
+        assert may_signal(p.pid, 'agent_2', me) is None
+        assert 'not the agent process of agent_3' in may_signal(p.pid, 'agent_3', me)
+        assert 'not a child' in may_signal(p.pid, 'agent_2', me + 1)
+        assert 'not a child' in may_signal(os.getppid(), 'agent_2', me) or 'not the agent' in may_signal(
+            os.getppid(), 'agent_2', me)
+        assert 'not a number' in may_signal('x', 'agent_2', me)
+        assert may_signal(1, 'agent_2', me) is not None
+    finally:
+        p.kill()
+        p.wait()
+    assert 'not running' in may_signal(p.pid, 'agent_2', os.getpid())
+
+
+def test_run_id_rides_in_the_layout_and_data_is_unchanged():
+    from rclpy.serialization import deserialize_message, serialize_message
+    from std_msgs.msg import Float64MultiArray
+    data = np.arange(7, dtype=float) * 0.1
+    for rid in ('', 'a', '1a2b3c4d', 'x' * 32):
+        raw = P.float64_array_to_cdr(data, rid)
+        assert np.array_equal(P.cdr_to_float64_array(raw), data)
+        assert P.cdr_run_id(raw) == rid
+        msg = deserialize_message(raw, Float64MultiArray)      # what rclpy reads from it
+        assert np.array_equal(msg.data, data)
+        if rid:
+            assert msg.layout.dim[0].label == f'run:{rid}' and msg.layout.dim[0].size == 0
+            again = serialize_message(msg)                      # rclpy's bytes, read by ours
+            assert P.cdr_run_id(again) == rid and np.array_equal(P.cdr_to_float64_array(again), data)
+    assert P.cdr_run_id(serialize_message(Float64MultiArray(data=list(data)))) == ''
+
+
+def test_sender_tag_rides_in_the_odometry():
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message, serialize_message
+    raw = P.OdometryWriter('agent_2', tag=12345.0)(3, 0, 1.0, 2.0, 0.0, 1.0, 0.1)
+    m = deserialize_message(raw, Odometry)
+    assert m.pose.covariance[P.SENDER_TAG_INDEX] == 12345.0
+    assert P.cdr_to_odometry_tagged(serialize_message(m))[-1] == 12345.0
+    assert P.cdr_to_odometry(raw) == P.cdr_to_odometry_tagged(raw)[:5]
+
+
+def test_run_announcements():
+    a = parse_run(run_json('aaaa', 'homotopy_global', 'lockstep', ['agent_0', 'agent_1']))
+    b = parse_run(run_json('bbbb', 'other', 'realtime', ['agent_0']))
+    assert parse_run('not json') is None and parse_run('{"run_id": 3}') is None
+    assert describe(a) == 'run aaaa (homotopy_global, lockstep, 2 agents)'
+    assert one_run({'aaaa': a}, 'swarm kill') == (a, None)
+    run, err = one_run({'aaaa': a, 'bbbb': b}, 'swarm kill')
+    assert run is None and 'aaaa' in err and 'bbbb' in err
+    assert "unknown agent 'ghost'" in unknown_agent(a, 'ghost', 'swarm kill')
+    assert unknown_agent(a, 'agent_1', 'swarm kill') is None
