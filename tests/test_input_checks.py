@@ -1,4 +1,4 @@
-"""The pure input checks (swarm_ros.msg_checks, swarm_world.runinfo): future and stale stamps,
+"""The pure input checks (swarm_ros.msg_checks, swarm_ros.runinfo): future and stale stamps,
 publisher binding, the rate-limited rejection log, who may be signalled, the run id on the
 lockstep messages."""
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import (MAX_BARRIER_POINTS, RejectLog, Senders, check_barrier, check_values,
                                 may_signal, new_sender_tag)
-from swarm_world.runinfo import describe, one_run, parse_run, run_json, unknown_agent
+from swarm_ros.runinfo import describe, one_run, parse_run, run_json, unknown_agent
 
 ROW = {'agent_0': 0, 'agent_1': 1}
 POSE = (1.0, 2.0, 0.0, 0.0, 0.0, 1.0)

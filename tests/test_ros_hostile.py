@@ -23,7 +23,7 @@ from swarm_core.scenario import load
 from swarm_tools.launch import agent_parameters, build_nodes, node_parameters
 from swarm_ros import protocol as P
 from swarm_ros.rosutil import make_executor
-from swarm_world.runinfo import run_json
+from swarm_ros.runinfo import run_json
 from swarm_world.world_node import WorldNode
 
 from conftest import odom, overrides, short_homotopy, spin_for

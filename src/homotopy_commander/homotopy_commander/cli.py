@@ -32,7 +32,7 @@ def _publish_once(msg_type, topic, msg, wait, qos_depth=10, for_node=None, prog=
     ``for_node``: the node the message is for (e.g. 'commander'): wait until a subscription of
     that node is in the graph too, not just any (a recorder may match first), then publish and
     wait for the acknowledgements.  ``prog``: also read the run's ``/swarm/run`` announcement
-    (swarm_world.runinfo) and say which run was reached; raise `RunRefused` (nothing is sent)
+    (swarm_ros.runinfo) and say which run was reached; raise `RunRefused` (nothing is sent)
     if two runs share the domain or ``agent`` is not one of the run's agents."""
     import rclpy
     from rclpy.context import Context

@@ -27,7 +27,7 @@ Fixed, user-facing topics (docs/ros-graph.md)
     ``lost`` (the world gave up waiting for an agent), ``fault_skipped`` (world);
     ``leaders_chosen``, ``failover``, ``leader_lost``, ``rendezvous_on``/``_off`` (commander).
 ``/swarm/run``  std_msgs/String, reliable + transient-local depth 1, world: JSON ``{"run_id",
-    "scenario", "mode", "agents": [names]}`` of the run (`swarm_world.runinfo`); the live verbs
+    "scenario", "mode", "agents": [names]}`` of the run (`swarm_ros.runinfo`); the live verbs
     (``swarm lambda``, ``swarm kill``, ...) read it to say which run they reached, check agent
     names, and refuse when two runs share the domain.
 ``/swarm/fault_request``  std_msgs/String, reliable + transient-local depth 10: JSON ``{"kind": "kill"|"freeze",

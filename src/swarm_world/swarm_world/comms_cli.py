@@ -48,7 +48,7 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
         clock = {}
         node.create_subscription(Clock, P.CLOCK, lambda m: clock.__setitem__('t', P.stamp_to_time(m.clock)), 10)
         pub = node.create_publisher(String, P.EVENTS, P.qos_latched(100))
-        from .runinfo import RunWatch, describe, one_run
+        from swarm_ros.runinfo import RunWatch, describe, one_run
         watch = RunWatch(node)
         from rclpy.executors import SingleThreadedExecutor
         ex = SingleThreadedExecutor(context=ctx)
@@ -79,7 +79,7 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
             if not unknown and 't' in clock:
                 break
             ex.spin_once(timeout_sec=0.05)
-        from .runinfo import has_world      # the run's announcement(s), if a world is there
+        from swarm_ros.runinfo import has_world      # the run's announcement(s), if a world is there
         limit = time.monotonic() + (0.5 if watch.runs else 2.0 if has_world(node) else 0.0)
         while time.monotonic() < limit:
             ex.spin_once(timeout_sec=0.05)
