@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import os
 import subprocess
+import time
+from pathlib import Path
 import sys
 
 import numpy as np
@@ -96,6 +98,10 @@ def test_only_the_launchers_live_agent_child_may_be_signalled(tmp_path):
     p = subprocess.Popen([sys.executable, str(exe), '--ros-args', '-r', '__node:=agent', '-r', '__ns:=/agent_2'])
     try:
         me = os.getpid()
+        deadline = time.monotonic() + 10       # the child's command line exists once it has exec'd
+        while (b'__ns:=/agent_2' not in Path(f'/proc/{p.pid}/cmdline').read_bytes()
+               and time.monotonic() < deadline):
+            time.sleep(0.01)
         assert may_signal(p.pid, 'agent_2', me) is None
         assert 'not the agent process of agent_3' in may_signal(p.pid, 'agent_3', me)
         assert 'not a child' in may_signal(p.pid, 'agent_2', me + 1)

@@ -73,7 +73,7 @@ def test_hostile_publisher_during_a_realtime_run(tmp_path, rclpy_context):
     assert world.failed is None
     # the spoofs never got in: agent_4's newest is the true one, agent_3 never at 777
     assert world.newest['agent_4'][0] < 100.0
-    assert not np.any(world.rec_r == 777.0) and not np.any(world.rec_r == 900.0)
+    assert not np.any(world.rec.r == 777.0) and not np.any(world.rec.r == 900.0)
     assert not np.any(np.abs(commander.pos) > 700.0)          # the commander's view neither
     tr = world.trajectory()
     assert np.all(np.isfinite(tr.r)) and np.all(np.isfinite(tr.theta))

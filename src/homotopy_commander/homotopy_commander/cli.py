@@ -39,7 +39,7 @@ def _publish_once(msg_type, topic, msg, wait, qos_depth=10, for_node=None, prog=
     from rclpy.duration import Duration
     from rclpy.executors import SingleThreadedExecutor
 
-    from swarm_world import runinfo
+    from swarm_ros import runinfo
     ctx = Context()
     rclpy.init(context=ctx)
     ex = node = None

@@ -22,9 +22,16 @@ def valid_run_id(text: str) -> bool:
     return text == '' or bool(_ID.match(text))
 
 
-def run_json(run_id: str, scenario: str, mode: str, agents) -> str:
-    """The text of a ``/swarm/run`` message."""
-    return json.dumps(dict(run_id=run_id, scenario=scenario, mode=mode, agents=list(agents)))
+def run_json(run_id: str, scenario: str, mode: str, agents, since: float = 0.0) -> str:
+    """The text of a ``/swarm/run`` message; ``since``: when its world started (wall s, epoch),
+    so that of two runs on one domain the younger one gives way."""
+    return json.dumps(dict(run_id=run_id, scenario=scenario, mode=mode, agents=list(agents), since=since))
+
+
+def older_runs(runs: dict, run_id: str, since: float) -> list:
+    """The runs heard that are not ``run_id`` and started before ``since`` (or do not say when)."""
+    return [r for rid, r in runs.items()
+            if rid != run_id and not (isinstance(r.get('since'), (int, float)) and r['since'] > since)]
 
 
 def parse_run(text: str):

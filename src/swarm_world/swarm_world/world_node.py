@@ -45,7 +45,7 @@ from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, check_values, may_signal, reason
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
-from swarm_ros.runinfo import RunWatch, describe, run_json, valid_run_id
+from swarm_ros.runinfo import RunWatch, describe, older_runs, run_json, valid_run_id
 
 from .lockstep import LockstepBarrier
 from .markers import Trails, markers_message, metrics_message, stamp, view_values
@@ -160,7 +160,8 @@ class WorldNode(Node):
                                                    P.qos_latched(max(100, 4 * self.n)), raw=True)
         # the run's identity; other runs on this domain are heard here (and refused before the start)
         self.pub_run = self.create_publisher(String, P.RUN, P.qos_latched())
-        self.pub_run.publish(String(data=run_json(self.run_id, self.scn.name, self.mode, self.names)))
+        self.since = time.time()
+        self.pub_run.publish(String(data=run_json(self.run_id, self.scn.name, self.mode, self.names, self.since)))
         self.runs = RunWatch(self)
         if self.mode == 'realtime':
             self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
@@ -307,16 +308,20 @@ class WorldNode(Node):
         return ok
 
     def other_run(self):
-        """Before the start: another run on this domain (its /swarm/run, or a second /world node)
-        makes this world refuse to start (one error line, exit 1) instead of mixing with it."""
-        others = [r for rid, r in self.runs.runs.items() if rid != self.run_id]
-        worlds = sum(1 for nm, ns in self.get_node_names_and_namespaces() if nm == 'world' and ns == '/')
+        """An older run on this domain (its /swarm/run; before the start also a second /world
+        node) makes this world stop (one error line, exit 1) instead of mixing with it.  Checked
+        on every tick, also after the start: discovery may find the older run late.  The older
+        run goes on (the younger one gives way)."""
+        others = older_runs(self.runs.runs, self.run_id, self.since)
+        worlds = 1 if self.started else sum(
+            1 for nm, ns in self.get_node_names_and_namespaces() if nm == 'world' and ns == '/')
         if not others and worlds <= 1:
             return False
         dom = os.environ.get('ROS_DOMAIN_ID', '0')
         what = '; '.join(describe(r) for r in others) if others else 'a second /world node'
-        self.failed = (f'another swarm run is on ROS_DOMAIN_ID={dom} ({what}): refusing to start '
-                       'this one; give each run its own ROS_DOMAIN_ID')
+        self.failed = (f'another swarm run is on ROS_DOMAIN_ID={dom} ({what}): '
+                       f'{"stopping" if self.started else "refusing to start"} this one; '
+                       'give each run its own ROS_DOMAIN_ID')
         self.get_logger().error(self.failed)
         self.done = True
         return True
@@ -482,9 +487,9 @@ class WorldNode(Node):
 
     def rt_tick(self):
         now = time.monotonic()
+        if self.other_run():
+            return
         if not self.started:
-            if self.other_run():
-                return
             if len(self.newest) == self.n:
                 self.started, self.run_wall = True, now
                 self.log(f'[world] realtime: {self.n} agents discovered in {now - self.wall_start:.1f} s; '
@@ -535,9 +540,9 @@ class WorldNode(Node):
             self.rt_tick()
             return
         now = time.monotonic()
+        if self.other_run():
+            return
         if not self.started:
-            if self.other_run():
-                return
             if self.ready():
                 self.started = True
                 self.run_wall = now
