@@ -207,7 +207,8 @@ class Recorder:
         track = topic == '/swarm/states' and self.sub_type.get(topic) == 'nav_msgs/msg/Odometry'
 
         def on_message(*args):
-            # (data, info); rclpy's EventsExecutor passes the pair as one tuple
+            # (data, info); rclpy's EventsExecutor (events_executor.cpp, HandleSubscriptionReady)
+            # passes the pair as one tuple
             data, info = args if len(args) == 2 else args[0]
             now = info.get('received_timestamp') or time.time_ns()
             received[topic] += 1
