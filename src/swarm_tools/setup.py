@@ -10,6 +10,7 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', ['config/record_qos_overrides.yaml']),
     ],
     package_data={package_name: ['foxglove_layout.json']},
     include_package_data=True,

@@ -9,10 +9,15 @@ What `ros2 bag record -s mcap` (rosbag2_storage_mcap, Jazzy) writes and this mod
 * one channel per topic: message encoding ``cdr``, metadata ``offered_qos_profiles`` (a YAML
   list of the publishers' QoS, rosbag2 metadata version 9 spelling, `qos_yaml`) and
   ``topic_type_hash`` (left empty, as rosbag2 does when the hash is unknown);
-* messages: log time = receive time, publish time = send time.  Here the publish time is the
-  message's own stamp (``header.stamp``, or the ``builtin_interfaces/Time`` that opens the
-  message, e.g. ``rosgraph_msgs/Clock``) where it has one, else the receive time;
+* messages: log time = receive time, publish time = send time, both wall time (the rmw's
+  ``received_timestamp`` and ``source_timestamp``: rosbag2_transport ``recorder.cpp`` without
+  ``--use-sim-time``; ``mcap_storage.cpp`` writes them as ``logTime`` / ``publishTime``).  Sim time
+  stays in the messages' header stamps;
 * a metadata record ``rosbag2`` with ``serialized_metadata`` at the end.
+
+A bag DIRECTORY is rosbag2's layout: ``DIR/DIR_0.mcap`` and ``DIR/metadata.yaml`` (the same
+version 9 metadata, written when the file is closed), so ``ros2 bag info DIR`` and rosbags'
+``Reader`` open it (`bag_paths`, `resolve_bag`).
 
 Crash safety: chunks are small and `BagWriter.maybe_flush` closes the open chunk every
 ``flush_interval`` seconds, so a writer killed with SIGKILL leaves every finished chunk readable
@@ -249,8 +254,9 @@ class BagWriter:
     """Writes one MCAP file in rosbag2's layout; not thread safe (one writer thread)."""
 
     def __init__(self, path, *, chunk_size: int = 64 * 1024, flush_interval: float = 0.5,
-                 compression: str = 'zstd'):
+                 compression: str = 'zstd', metadata_yaml=None):
         self.path = Path(path)
+        self.metadata_yaml = Path(metadata_yaml) if metadata_yaml is not None else None
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._fh = open(self.path, 'wb')
         comp = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
@@ -291,13 +297,11 @@ class BagWriter:
         return info
 
     def write(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None):
-        """Write one serialized message; publish time defaults to the message's own stamp
-        (if its type has one) else the log time."""
+        """Write one serialized message: log time = receive time, publish time = send time
+        (both wall time); without a send time, the receive time (as rosbag2 does)."""
         info = self.topics[topic]
-        if publish_time_ns is None:
-            publish_time_ns = leading_stamp_ns(data) if info.stamped else None
-            if publish_time_ns is None or publish_time_ns < 0:
-                publish_time_ns = log_time_ns
+        if not publish_time_ns or publish_time_ns < 0:
+            publish_time_ns = log_time_ns
         self._w.add_message(channel_id=info.channel_id, log_time=int(log_time_ns),
                             data=bytes(data), publish_time=int(publish_time_ns),
                             sequence=self._seq & 0xFFFFFFFF)
@@ -340,17 +344,53 @@ class BagWriter:
         if self.closed:
             return
         self.closed = True
-        self._w.add_metadata('rosbag2', {'serialized_metadata': self.rosbag2_metadata()})
+        meta = self.rosbag2_metadata()
+        self._w.add_metadata('rosbag2', {'serialized_metadata': meta})
         self._w.finish()
         self._fh.flush()
         os.fsync(self._fh.fileno())
         self._fh.close()
+        if self.metadata_yaml is not None:
+            self.metadata_yaml.write_text(meta)
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
         self.close()
+
+
+# --------------------------------------------------------------------------- layout
+def bag_paths(out) -> tuple[Path, Path | None]:
+    """Where to write: ``X.mcap`` is one file (no metadata.yaml); any other path is a rosbag2
+    bag directory, ``DIR/DIR_0.mcap`` + ``DIR/metadata.yaml`` (as ``ros2 bag record -o DIR``)."""
+    out = Path(out)
+    if out.suffix == '.mcap':
+        return out, None
+    return out / f'{out.name}_0.mcap', out / 'metadata.yaml'
+
+
+def resolve_bag(path) -> Path:
+    """The .mcap file to read for ``path``: the file itself, or a bag directory's file (the
+    first of metadata.yaml's ``relative_file_paths``, else its only ``*.mcap``)."""
+    path = Path(path)
+    if not path.is_dir():
+        return path
+    meta = path / 'metadata.yaml'
+    if meta.is_file():
+        try:
+            info = yaml.safe_load(meta.read_text())['rosbag2_bagfile_information']
+            files = [path / Path(f).name for f in info.get('relative_file_paths') or []]
+            files = [f for f in files if f.suffix == '.mcap' and f.is_file()]
+            if files:
+                return files[0]
+        except (yaml.YAMLError, KeyError, TypeError):
+            pass
+    found = sorted(path.glob('*.mcap'))
+    if len(found) == 1:
+        return found[0]
+    raise FileNotFoundError(f'{path}: a directory, but not a bag with one .mcap file '
+                            f'({len(found)} found)')
 
 
 # --------------------------------------------------------------------------- reading

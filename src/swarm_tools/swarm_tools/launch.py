@@ -199,10 +199,29 @@ def wait_until_ready(proc, marker: str, timeout: float) -> bool:
     return seen.wait(timeout) and proc.poll() is None
 
 
+#: the package of each executable the launcher starts (``ros2 run PKG EXE``)
+EXE_PACKAGE = {'swarm': 'swarm_core', 'swarm_world': 'swarm_world', 'swarm_agent': 'swarm_agent',
+               'homotopy_commander': 'homotopy_commander'}
+
+
 def _exe(name):
+    """This interpreter's script (pip / venv), else ``PATH``, else where ``ros2 run`` finds it
+    after ``colcon build``: ``<prefix>/lib/<pkg>/<name>``, the prefix from the ament index."""
     here = Path(sys.executable).parent
     cand = here / name
-    return str(cand) if cand.exists() else (shutil.which(name) or name)
+    if cand.exists():
+        return str(cand)
+    found = shutil.which(name)
+    if found:
+        return found
+    try:
+        from ament_index_python import get_package_prefix
+        cand = Path(get_package_prefix(EXE_PACKAGE[name])) / 'lib' / EXE_PACKAGE[name] / name
+        if os.access(cand, os.X_OK):
+            return str(cand)
+    except (ImportError, LookupError, KeyError, ValueError, OSError):
+        pass
+    return name
 
 
 def killed_agents(events_file) -> set:

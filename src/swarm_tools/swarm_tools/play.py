@@ -15,7 +15,7 @@ import signal
 import sys
 import time
 
-from .bag import bag_topics, has_leading_stamp, iter_messages, leading_stamp_ns, replay_qos
+from .bag import bag_topics, has_leading_stamp, iter_messages, leading_stamp_ns, replay_qos, resolve_bag
 from .record import message_class
 
 CLOCK = '/clock'
@@ -26,7 +26,7 @@ def parse_args(argv):
         prog='swarm play',
         description='Republish an MCAP bag (recorded QoS, latched as latched) with /clock '
                     'driven from the bag\'s sim time, paced by --rate.')
-    p.add_argument('bag', help='an .mcap file')
+    p.add_argument('bag', help='an .mcap file or a bag directory (DIR/metadata.yaml + DIR/DIR_0.mcap)')
     p.add_argument('--rate', '-r', type=float, default=1.0,
                    help='sim seconds per wall second (default 1; e.g. 20 to watch a long run)')
     p.add_argument('--loop', '-l', action='store_true', help='start again at the end')
@@ -60,6 +60,7 @@ def main(argv=None) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     try:
+        a.bag = str(resolve_bag(a.bag))
         topics = bag_topics(a.bag)
     except OSError as err:
         print(f'swarm play: {err}', file=sys.stderr)

@@ -3,20 +3,25 @@
 The recorder finds topics itself: it polls the ROS graph, and for each new topic with a
 publisher it subscribes with raw (serialized) messages, asking for the QoS the publishers offer
 (reliable if all offer reliable, transient-local if all offer it: latched messages are then
-received too), as rosbag2 does.  Messages are written as they arrive (log time = receive time)
-by `swarm_tools.bag.BagWriter`.  SIGINT / SIGTERM / ``--duration`` end the recording with a
+received too), as rosbag2 does.  Messages are written as they arrive by
+`swarm_tools.bag.BagWriter`, with rosbag2's times: log time = receive time, publish time = send
+time (the rmw's received / source timestamps, wall time); sim time is in the header stamps.
+``--out X.mcap`` writes one file; ``--out DIR`` a rosbag2 bag directory (``DIR/DIR_0.mcap`` and
+``DIR/metadata.yaml``).  SIGINT / SIGTERM / ``--duration`` end the recording with a
 complete, indexed file; the recorder then prints, per topic, messages received vs written.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import inspect
+import os
 import re
 import signal
 import sys
 import time
 
-from .bag import BagWriter, DefinitionNotFound, parse_odometry, qos_dict
+from .bag import BagWriter, DefinitionNotFound, bag_paths, parse_odometry, qos_dict
 
 #: the graph is polled this often for new topics and publishers (seconds)
 POLL_PERIOD = 0.2
@@ -201,19 +206,25 @@ class Recorder:
         received = self.received
         track = topic == '/swarm/states' and self.sub_type.get(topic) == 'nav_msgs/msg/Odometry'
 
-        def on_message(data):
-            now = time.time_ns()
+        def on_message(*args):
+            # (data, info); rclpy's EventsExecutor (events_executor.cpp, HandleSubscriptionReady)
+            # passes the pair as one tuple
+            data, info = args if len(args) == 2 else args[0]
+            now = info.get('received_timestamp') or time.time_ns()
             received[topic] += 1
             if track:
                 self._track_state(data)
             try:
                 if topic not in writer.topics:
                     self._register(topic)
-                writer.write(topic, data, now)
+                writer.write(topic, data, now, info.get('source_timestamp'))
             except Exception as err:   # keep recording the rest; counted as lost
                 self.failed[topic] += 1
                 if self.failed[topic] == 1:
                     self.log(f'swarm record: write failed on {topic}: {err}')
+        # two parameters: rclpy passes the message info (send and receive time stamps) too
+        on_message.__signature__ = inspect.Signature(
+            [inspect.Parameter(n, inspect.Parameter.POSITIONAL_ONLY) for n in ('data', 'info')])
         return on_message
 
     def _track_state(self, data):
@@ -252,7 +263,9 @@ def parse_args(argv):
         description='Record a running swarm to an MCAP bag (rosbag2 layout: profile ros2, '
                     'ros2msg schemas, cdr messages, offered QoS per topic, zstd chunks). '
                     'Ctrl-C (SIGINT) or SIGTERM ends it with a complete, indexed file.')
-    p.add_argument('--out', '-o', required=True, help='the .mcap file to write')
+    p.add_argument('--out', '-o', required=True,
+                   help='X.mcap: one file; DIR: a rosbag2 bag directory (DIR/DIR_0.mcap and '
+                        'DIR/metadata.yaml; DIR must not exist yet)')
     p.add_argument('--topics', nargs='+', metavar='TOPIC',
                    help='record only these topics (default: every topic with a publisher)')
     p.add_argument('--exclude', nargs='+', metavar='PATTERN', default=[],
@@ -269,8 +282,8 @@ def parse_args(argv):
     a = p.parse_args(argv)
     if a.duration is not None and not a.duration > 0:
         p.error('--duration must be > 0')
-    if not a.out.endswith('.mcap'):
-        p.error('--out must name a .mcap file')
+    if not a.out.endswith('.mcap') and os.path.exists(a.out):
+        p.error(f'--out {a.out}: already exists (a bag directory must be new)')
     return a
 
 
@@ -291,7 +304,9 @@ def main(argv=None) -> int:
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     try:
-        writer = BagWriter(args.out, chunk_size=args.chunk_size, flush_interval=args.flush_interval)
+        mcap_path, metadata_yaml = bag_paths(args.out)
+        writer = BagWriter(mcap_path, chunk_size=args.chunk_size, flush_interval=args.flush_interval,
+                           metadata_yaml=metadata_yaml)
     except OSError as err:
         print(f'swarm record: cannot write {args.out}: {err.strerror or err} ({err.filename})', file=sys.stderr)
         return 2

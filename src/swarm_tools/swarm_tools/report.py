@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .bag import iter_messages, parse_float64, parse_odometry, parse_string
+from .bag import iter_messages, parse_float64, parse_odometry, parse_string, resolve_bag
 
 STATES = '/swarm/states'
 LAMBDA = '/swarm/lambda'
@@ -330,7 +330,8 @@ def parse_args(argv):
         prog='swarm report',
         description='Metrics (metrics.json), trajectory (trajectory.npz) and a figure like the '
                     "paper's from a recorded MCAP bag, from the bag alone.")
-    p.add_argument('bag', help='an .mcap file written by swarm record / swarm run --record')
+    p.add_argument('bag', help='an .mcap file or a bag directory written by swarm record / '
+                               'swarm run --record')
     p.add_argument('--out', default=None, help='output directory (default: BAG without .mcap + _report)')
     p.add_argument('--cutoff-radius', '-w', type=float, default=None,
                    help='cluster radius w: agents closer than w are connected (default: from '
@@ -349,11 +350,16 @@ def parse_args(argv):
 
 def main(argv=None) -> int:
     a = parse_args(sys.argv[1:] if argv is None else argv)
-    bag = Path(a.bag)
+    given = Path(a.bag)
+    try:
+        bag = resolve_bag(given)
+    except FileNotFoundError as err:
+        print(f'swarm report: {err}', file=sys.stderr)
+        return 2
     if not bag.is_file():
         print(f'swarm report: {bag}: no such file', file=sys.stderr)
         return 2
-    out = Path(a.out) if a.out else bag.with_name(bag.stem + '_report')
+    out = Path(a.out) if a.out else given.with_name(given.stem + '_report')
     try:
         run = read_run(bag, cutoff_radius=a.cutoff_radius)
         traj = rebuild_trajectory(run)
