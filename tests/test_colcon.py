@@ -130,7 +130,7 @@ def test_colcon_build_and_ros2_run_finds_every_executable(tmp_path, ros_domain):
 
     # start each one as `ros2 run` does ([path] + argv): the nodes exit with a one-line error on
     # a bad parameter (they got as far as reading their parameters), the tools print --help
-    nodes = {'swarm_agent': 'w:=-1.0', 'swarm_world': 'scenario:=no_such_scenario',
+    nodes = {'swarm_agent': 'cutoff_radius:=-1.0', 'swarm_world': 'scenario:=no_such_scenario',
              'homotopy_commander': 'mode:=sideways'}
     for pkg, exes in wanted.items():
         for exe in exes:

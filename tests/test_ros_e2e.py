@@ -174,7 +174,7 @@ def test_cli_rejects_bad_lambda_and_steering(swarm_cmd):
 def test_agent_process_rejects_a_bad_parameter(ros_domain, processes):
     import sys
     exe = os.path.join(os.path.dirname(sys.executable), 'swarm_agent')
-    p = processes.start([exe, '--ros-args', '-p', 'w:=-1.0', '-r', '__ns:=/agent_0'],
+    p = processes.start([exe, '--ros-args', '-p', 'cutoff_radius:=-1.0', '-r', '__ns:=/agent_0'],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     out, _ = p.communicate(timeout=60)
     assert p.returncode == 2
