@@ -178,5 +178,5 @@ def test_agent_process_rejects_a_bad_parameter(ros_domain, processes):
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     out, _ = p.communicate(timeout=60)
     assert p.returncode == 2
-    errs = [ln for ln in out.splitlines() if 'parameter w' in ln]
+    errs = [ln for ln in out.splitlines() if 'parameter cutoff_radius' in ln]
     assert len(errs) == 1 and 'Traceback' not in out
