@@ -12,6 +12,7 @@ noise).  ``simulate`` records NaN for dead agents and the events in ``meta['even
 """
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,9 +43,20 @@ class Trajectory:
     meta: dict = field(default_factory=dict)
 
     def save(self, path):
+        """Write ``path`` atomically (a temporary file in the same directory, then renamed):
+        a failed write (full disk) leaves no partial or 0-byte file behind."""
         path = Path(path)
-        np.savez_compressed(path, t=self.t, r=self.r, theta=self.theta, u=self.u, lam=self.lam,
-                            leader=self.leader, names=np.array(self.names))
+        tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
+        try:
+            with open(tmp, 'wb') as fh:
+                np.savez_compressed(fh, t=self.t, r=self.r, theta=self.theta, u=self.u, lam=self.lam,
+                                    leader=self.leader, names=np.array(self.names))
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
         return path
 
     @classmethod
