@@ -131,3 +131,33 @@ def test_full_disk_gives_one_line_and_no_empty_trajectory(tmp_path, monkeypatch,
     assert code == 1
     assert len(err) == 1 and 'No space left on device' in err[0], err
     assert list(out.iterdir()) == []           # no partial trajectory.npz, no temp file left
+
+
+def test_swarm_run_parameters_grow_linearly_and_agents_are_limited(tmp_path):
+    """Item 6: the roster was written into every agent's section (O(N²): 10,000 agents took
+    over 300 s before anything started); now it is shared, and `swarm run` has a limit."""
+    import subprocess
+    import sys
+
+    import yaml
+
+    from swarm_tools import launch
+
+    def params_size(n):
+        scn = parse(dict(name='big', agents=dict(count=n)), 'x.yaml')
+        params = launch.node_parameters(scn, 'x.yaml', 'lockstep')
+        path = launch.write_params_file(params, tmp_path / f'p{n}.yaml')
+        return params, path
+
+    (p1, f1), (p4, f4) = params_size(250), params_size(1000)
+    assert f4.stat().st_size < 4.6 * f1.stat().st_size          # O(N²) gives ~16×
+    doc = yaml.safe_load(f4.read_text())
+    shared = doc[launch.AGENTS_SECTION]['ros__parameters']
+    for fqn in ('/agent_0/agent', '/agent_999/agent'):       # each agent still gets everything
+        assert {**shared, **doc[fqn]['ros__parameters']} == p4[fqn]
+    assert doc['/world']['ros__parameters'] == p4['/world']
+    big = tmp_path / 'many.yaml'
+    big.write_text(f'name: many\nagents: {{count: {launch.MAX_RUN_AGENTS + 1}}}\n')
+    r = subprocess.run([sys.executable, '-m', 'swarm_core.cli', 'run', str(big), '--out', str(tmp_path / 'o')],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and f'at most {launch.MAX_RUN_AGENTS}' in r.stderr, r.stderr
