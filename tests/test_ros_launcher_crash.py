@@ -53,7 +53,7 @@ def start_run(processes, swarm_cmd, tmp_path):
     """A long lockstep run of six agents with --record; returns (launcher, lines, out, bag,
     children's process group) once the world has made progress."""
     out, bag = tmp_path / 'out', tmp_path / 'run.mcap'
-    p = processes.start([swarm_cmd, 'run', 'global_alignment', '--duration', '100000', '--record', bag,
+    p = processes.start([swarm_cmd, 'run', 'global_alignment', '--duration', '3000', '--record', bag,
                          '--out', out, '--no-figure', '--progress-every', '1'],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = Lines(p)
@@ -119,5 +119,27 @@ def test_killed_world_trajectory_is_rebuilt_from_the_bag(ros_domain, processes, 
         assert np.isfinite(traj.r).all()
         assert (out / 'metrics.json').exists()
         wait_for(lambda: not group_members(pgid), 30, 'every child to end')
+    finally:
+        _cleanup(pgid)
+
+
+def test_sighup_stops_the_run_and_keeps_the_steps_done(ros_domain, processes, swarm_cmd, tmp_path):
+    """A closed terminal (SIGHUP) used to kill the launcher alone, leaving its children."""
+    pgid = None
+    try:
+        out = tmp_path / 'out'
+        p = processes.start([swarm_cmd, 'run', 'global_alignment', '--duration', '3000', '--out', out,
+                             '--no-figure', '--progress-every', '1'],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        lines = Lines(p)
+        wait_for(lambda: (out / 'pids.json').exists() or p.poll() is not None, 180, 'the agents to start')
+        pgid = os.getpgid(next(iter(json.loads((out / 'pids.json').read_text()).values())))
+        assert lines.wait_for('[world] t=    2.00', 180), ''.join(lines.lines[-50:])
+        p.send_signal(signal.SIGHUP)
+        assert lines.wait(p, 120) == 130, ''.join(lines.lines[-50:])
+        assert not group_members(pgid)
+        from swarm_core.engine import Trajectory
+        assert (out / 'trajectory.npz').exists(), ''.join(lines.lines[-30:])
+        assert len(Trajectory.load(out / 'trajectory.npz').t) > 40
     finally:
         _cleanup(pgid)
