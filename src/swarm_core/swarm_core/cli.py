@@ -18,6 +18,7 @@ ROS_VERBS = {
     'view': ('swarm_tools.view:main', 'serve a running swarm live to the Foxglove app (WebSocket)'),
     'report': ('swarm_tools.report:main', 'metrics and figures from an MCAP bag'),
     'play': ('swarm_tools.play:main', 'republish an MCAP bag with its /clock'),
+    'bag': ('swarm_tools.bag_recover:main', 'bag tools: `swarm bag recover IN OUT` repairs a truncated MCAP bag'),
     'kill': ('swarm_world.fault_cli:kill_main', 'kill an agent of a running swarm (fault injection)'),
     'pause': ('swarm_world.fault_cli:pause_main', 'freeze an agent of a running swarm for some seconds'),
     'drop': ('swarm_world.comms_cli:drop_main', 'burst packet loss in a running swarm'),

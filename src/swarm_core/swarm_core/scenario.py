@@ -6,6 +6,7 @@ A bad file raises `ScenarioError` with one line naming the field, e.g.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -21,10 +22,27 @@ from .frenet import PairGains
 from .schedules import (CommandPlan, ConstantLambda, ConstantSteering, RampSchedule,
                         SinusoidSteering, TanhWindow, WaypointSteering)
 
+#: largest scenario file read (bytes), checked before parsing
+MAX_FILE_BYTES = 2 * 1024 * 1024
+#: largest number of agents a scenario may name (lists or ``count``)
+MAX_AGENTS = 1_000_000
+#: largest |coordinate| of a position, target, barrier or waypoint: far from overflow, so
+#: distances, squares and sums of the law stay finite
+MAX_COORD = 1e6
+#: an agent name: one ROS name token (letters, digits, single underscores), at most 64 chars
+AGENT_NAME = re.compile(r'[A-Za-z](?:_?[A-Za-z0-9])*_?')
+AGENT_NAME_MAX = 64
+
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 NonNeg = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-Point = tuple[Finite, Finite]
+Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD, allow_inf_nan=False)]
+Point = tuple[Coord, Coord]
+#: a gain or curvature: bounded so that u_k and dt·u_k stay finite
+MAX_GAIN = 1e6
+Gain = Annotated[float, Field(ge=0, le=MAX_GAIN, allow_inf_nan=False)]
+Curvature = Annotated[float, Field(ge=-MAX_GAIN, le=MAX_GAIN, allow_inf_nan=False)]
+Length = Annotated[float, Field(gt=0, le=MAX_COORD, allow_inf_nan=False)]
 
 
 class ScenarioError(ValueError):
@@ -39,13 +57,13 @@ class _Strict(BaseModel):
 
 class GridPositions(_Strict):
     rule: Literal['grid']
-    spacing: Positive = 1.0
+    spacing: Length = 1.0
     center: Point = (0.0, 0.0)
 
 
 class DiscPositions(_Strict):
     rule: Literal['disc']
-    radius: Positive = 10.0
+    radius: Length = 10.0
     center: Point = (0.0, 0.0)
 
 
@@ -60,13 +78,36 @@ class UniformHeadings(_Strict):
     rule: Literal['uniform']
 
 
+def check_agent_name(name: str) -> str:
+    """``name`` if it is a valid agent name (one ROS name token: it becomes the agent's
+    namespace), else ValueError saying why."""
+    if not isinstance(name, str) or not name:
+        raise ValueError(f'agent name {name!r}: must not be empty')
+    if len(name) > AGENT_NAME_MAX:
+        raise ValueError(f'agent name {name[:20]!r}...: longer than {AGENT_NAME_MAX} characters')
+    if not AGENT_NAME.fullmatch(name):
+        raise ValueError(f'agent name {name!r}: not a ROS name token (a letter, then letters, '
+                         'digits and single underscores)')
+    return name
+
+
+AgentName = Annotated[str, Field(max_length=AGENT_NAME_MAX)]
+
+
 class AgentsSpec(_Strict):
-    count: Optional[Annotated[int, Field(ge=1, le=1_000_000)]] = None
-    names: Optional[list[str]] = None
-    positions: Union[list[Point], GridPositions, DiscPositions] = Field(
-        default_factory=lambda: GridPositions(rule='grid'))
-    headings: Union[list[Finite], ConeHeadings, UniformHeadings] = Field(
-        default_factory=lambda: ConeHeadings(rule='cone'))
+    count: Optional[Annotated[int, Field(ge=1, le=MAX_AGENTS)]] = None
+    names: Optional[Annotated[list[AgentName], Field(min_length=1, max_length=MAX_AGENTS)]] = None
+    positions: Union[Annotated[list[Point], Field(min_length=1, max_length=MAX_AGENTS)],
+                     GridPositions, DiscPositions] = Field(default_factory=lambda: GridPositions(rule='grid'))
+    headings: Union[Annotated[list[Finite], Field(min_length=1, max_length=MAX_AGENTS)],
+                    ConeHeadings, UniformHeadings] = Field(default_factory=lambda: ConeHeadings(rule='cone'))
+
+    @field_validator('names')
+    @classmethod
+    def _names(cls, v):
+        for nm in v or ():
+            check_agent_name(nm)
+        return v
 
     @model_validator(mode='after')
     def _count(self):
@@ -88,12 +129,12 @@ class AgentsSpec(_Strict):
 
 class LawSpec(_Strict):
     kind: Literal['global', 'local', 'leader_following', 'homotopy', 'target'] = 'homotopy'
-    alpha: NonNeg = PairGains.alpha          # defaults: the core's config types (laws.py, frenet.py)
-    eta: NonNeg = PairGains.eta
-    mu: NonNeg = PairGains.mu
-    r0: Positive = PairGains.r0
-    cutoff_radius: Positive = LawConfig.cutoff_radius
-    leader_gain: Annotated[float, Field(ge=1, allow_inf_nan=False)] = LawConfig.leader_gain
+    alpha: Gain = PairGains.alpha          # defaults: the core's config types (laws.py, frenet.py)
+    eta: Gain = PairGains.eta
+    mu: Gain = PairGains.mu
+    r0: Length = PairGains.r0
+    cutoff_radius: Length = LawConfig.cutoff_radius
+    leader_gain: Annotated[float, Field(ge=1, le=MAX_GAIN, allow_inf_nan=False)] = LawConfig.leader_gain
     q0: Annotated[float, Field(ge=0, le=1)] = LawConfig.q0
 
 
@@ -131,22 +172,22 @@ LambdaSpec = Annotated[Union[ConstantLambdaSpec, TanhWindowSpec, RampsSpec], Fie
 
 class ConstantProgram(_Strict):
     kind: Literal['constant']
-    curvature: Finite = 0.0
+    curvature: Curvature = 0.0
 
 
 class SinusoidProgram(_Strict):
     kind: Literal['sinusoid']
-    amplitude: Finite = 0.01
+    amplitude: Curvature = 0.01
     period: Positive = 200.0
     phase: Finite = 0.0
-    offset: Finite = 0.0
+    offset: Curvature = 0.0
 
 
 class WaypointProgram(_Strict):
     kind: Literal['waypoint']
     point: Point
-    gain: NonNeg = 0.05
-    max_curvature: Positive = 0.05
+    gain: Gain = 0.05
+    max_curvature: Annotated[float, Field(gt=0, le=MAX_GAIN, allow_inf_nan=False)] = 0.05
 
 
 ProgramSpec = Annotated[Union[ConstantProgram, SinusoidProgram, WaypointProgram], Field(discriminator='kind')]
@@ -172,14 +213,38 @@ class LeadersSpec(_Strict):
 
 class TargetSpec(_Strict):
     position: Point
-    gain: NonNeg = 0.05          # γ
+    gain: Gain = 0.05            # γ
     normalised: bool = False
 
 
+#: most barrier points (the law visits every point for every agent)
+MAX_BARRIER_POINTS = 1000
+
+
 class BarrierSpec(_Strict):
-    points: list[Point] = Field(min_length=1)
-    gain: NonNeg = 5.0           # s_b
+    """A convex polygon: at least 3 points, not all on one line, each a corner of the hull
+    (the intrusion check uses the hull; a point inside it would be silently ignored there)."""
+    points: list[Point] = Field(min_length=3, max_length=MAX_BARRIER_POINTS)
+    gain: Gain = 5.0             # s_b
     mode: Literal['ahead', 'literal'] = 'ahead'
+
+    @field_validator('points')
+    @classmethod
+    def _convex(cls, pts):
+        p = np.asarray(pts, dtype=float)
+        span = float(np.ptp(p, axis=0).max())
+        d = p[1:] - p[0]
+        cross = d[:, 0, None] * d[None, :, 1] - d[:, 1, None] * d[None, :, 0]
+        if span == 0 or np.abs(cross).max() <= 1e-12 * span * span:
+            raise ValueError('the barrier points are identical or on one line: a barrier needs an area')
+        from scipy.spatial import ConvexHull
+        corners = set(ConvexHull(p).vertices.tolist())
+        inner = [i for i in range(len(p)) if i not in corners]
+        if inner:
+            raise ValueError(f'not a convex polygon: point {inner[0]} {tuple(pts[inner[0]])} is not a corner of '
+                             f'the hull ({len(inner)} such point{"s" if len(inner) > 1 else ""}); '
+                             'give the corners of a convex barrier')
+        return pts
 
 
 class NoiseSpec(_Strict):
@@ -231,7 +296,7 @@ class ReunionSpec(_Strict):
     for_: Positive = Field(alias='for')
     point: Union[Literal['centroid', 'none'], Point] = 'centroid'
     coupling: Optional[Annotated[float, Field(ge=0, le=1)]] = None
-    gain: NonNeg = 0.05
+    gain: Gain = 0.05
     normalised: bool = False
     track: bool = False          # point: centroid re-taken at every step (moves with the swarm)
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
@@ -284,6 +349,49 @@ class CommsSpec(_Strict):
     events: list[CommsEventSpec] = Field(default_factory=list)
 
 
+# ------------------------------------------------------------------ expect (outcomes.py)
+
+Window = tuple[NonNeg, NonNeg]
+XWindow = tuple[Finite, Finite]
+
+
+class PolarisationAbove(_Strict):
+    at: NonNeg
+    value: Annotated[float, Field(ge=0, le=1)]
+
+
+class FollowsProgram(_Strict):
+    slot: Annotated[int, Field(ge=0, le=1000)] = 0
+    from_: NonNeg = Field(alias='from')
+    to: NonNeg
+    tolerance: Annotated[float, Field(gt=0, le=10)] = 0.3
+    model_config = ConfigDict(extra='forbid', populate_by_name=True)
+
+
+class ExpectSpec(_Strict):
+    """The checks of outcomes.py, each with its argument's type (a window is [a, b], a ≤ b)."""
+    one_cluster_at: Optional[Window] = None
+    polarisation_above: Optional[PolarisationAbove] = None
+    split_between: Optional[Window] = None
+    one_cluster_at_end: Optional[bool] = None
+    stays_split_from: Optional[NonNeg] = None
+    no_intrusion: Optional[bool] = None
+    split_near_x: Optional[XWindow] = None
+    rejoins_after_x: Optional[XWindow] = None
+    arrives_within: Optional[Positive] = None
+    split_at: Optional[NonNeg] = None
+    one_cluster_from: Optional[NonNeg] = None
+    follows_program: Optional[FollowsProgram] = None
+
+    @model_validator(mode='after')
+    def _windows(self):
+        for k in ('one_cluster_at', 'split_between', 'split_near_x', 'rejoins_after_x'):
+            w = getattr(self, k)
+            if w is not None and w[0] > w[1]:
+                raise ValueError(f'{k}: [{w[0]:g}, {w[1]:g}] is empty (a > b)')
+        return self
+
+
 class ScenarioSpec(_Strict):
     name: str
     description: str = ''
@@ -310,7 +418,28 @@ class ScenarioSpec(_Strict):
     def _name(cls, v):
         if not v.strip():
             raise ValueError('must not be empty')
+        if len(v) > 200:
+            raise ValueError('longer than 200 characters')
         return v
+
+    @field_validator('expect', mode='before')
+    @classmethod
+    def _expect(cls, v):
+        """Checked against `ExpectSpec`, kept as the plain mapping outcomes.py reads."""
+        if v is None:
+            return {}
+        if not isinstance(v, dict):
+            raise ValueError('expect is a mapping of checks (see outcomes.py)')
+        spec = ExpectSpec.model_validate(v)
+        return {k: (list(x) if isinstance(x, tuple) else x)
+                for k, x in spec.model_dump(by_alias=True, exclude_unset=True).items()}
+
+    @model_validator(mode='after')
+    def _steps(self):
+        if round(self.duration / self.dt) < 1:
+            raise ValueError(f'duration {self.duration:g} is shorter than one step (dt {self.dt:g}): '
+                             'nothing would run')
+        return self
 
     @model_validator(mode='after')
     def _reunion_vs_target(self):
@@ -337,6 +466,11 @@ class Scenario:
     @property
     def name(self):
         return self.spec.name
+
+    @property
+    def label(self) -> str:
+        """The name made safe as one file-name component (`safe_label`)."""
+        return safe_label(self.spec.name)
 
     @property
     def seed(self):
@@ -472,6 +606,15 @@ def initial_conditions(spec: ScenarioSpec):
     return names, pos.astype(float), theta.astype(float)
 
 
+def safe_label(name: str) -> str:
+    """``name`` as one file-name component: anything but letters, digits, ``-``, ``_`` and
+    single dots becomes ``_``; leading and trailing dots and underscores go.  So ``../x`` or
+    ``/etc/x`` stays inside the output directory (the name itself is only a label)."""
+    out = re.sub(r'[^A-Za-z0-9_.-]+', '_', name)
+    out = re.sub(r'_+', '_', re.sub(r'\.{2,}', '_', out)).strip('._')
+    return out[:100] or 'scenario'
+
+
 SCENARIO_DIR = 'scenarios'
 
 
@@ -487,7 +630,21 @@ def resolve(name_or_path: str) -> tuple[str, str]:
     if p.suffix in ('.yaml', '.yml') or p.exists():
         if not p.is_file():
             raise ScenarioError(f'{name_or_path}: no such scenario file')
-        return p.read_text(), str(p)
+        try:
+            size = p.stat().st_size
+            if size > MAX_FILE_BYTES:
+                raise ScenarioError(f'{name_or_path}: {size} bytes; a scenario file is at most '
+                                    f'{MAX_FILE_BYTES} bytes (give large swarms a placement rule)')
+            with open(p, 'rb') as fh:          # read at most the limit (a file may grow)
+                raw = fh.read(MAX_FILE_BYTES + 1)
+        except OSError as err:
+            raise ScenarioError(f'{name_or_path}: cannot read: {err.strerror or err}') from None
+        if len(raw) > MAX_FILE_BYTES:
+            raise ScenarioError(f'{name_or_path}: more than {MAX_FILE_BYTES} bytes')
+        try:
+            return raw.decode('utf-8'), str(p)
+        except UnicodeDecodeError as err:
+            raise ScenarioError(f'{name_or_path}: not UTF-8 text ({err.reason} at byte {err.start})') from None
     res = resources.files('swarm_core') / SCENARIO_DIR / f'{name_or_path}.yaml'
     if not res.is_file():
         raise ScenarioError(f'{name_or_path}: not a shipped scenario ({", ".join(shipped_scenarios())}) '
@@ -538,11 +695,45 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
     return Scenario(spec=spec, names=names, pos0=pos0, theta0=theta0, law=law, source=source)
 
 
+_Loader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)     # libyaml when there (4x faster)
+
+
+def safe_yaml(text: str):
+    """Parse YAML text with the safe loader, refusing anchors and aliases (``&a`` / ``*a``):
+    an alias bomb (a few lines that expand to billions of values) is refused before anything
+    is built from it.  The node graph is composed, checked (an alias is a node met twice),
+    then constructed."""
+    loader = _Loader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        seen, stack = set(), [node]
+        while stack:
+            nd = stack.pop()
+            if id(nd) in seen:
+                mark = nd.start_mark
+                raise yaml.composer.ComposerError(None, None, 'YAML aliases (*name) are not allowed in a scenario',
+                                                  mark)
+            seen.add(id(nd))
+            if isinstance(nd, yaml.SequenceNode):
+                stack.extend(nd.value)
+            elif isinstance(nd, yaml.MappingNode):
+                for k, v in nd.value:
+                    stack.extend((k, v))
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
 def load(name_or_path: str, **overrides) -> Scenario:
     """Load a shipped scenario by name, or a YAML file, with optional overrides."""
     text, source = resolve(name_or_path)
+    if len(text) > MAX_FILE_BYTES:
+        raise ScenarioError(f'{source}: more than {MAX_FILE_BYTES} bytes')
     try:
-        data = yaml.safe_load(text)
+        data = safe_yaml(text)
     except yaml.YAMLError as err:
-        raise ScenarioError(f'{source}: not valid YAML: {str(err).splitlines()[0]}') from None
+        msg = ' '.join(str(err).split())
+        raise ScenarioError(f'{source}: not valid YAML: {msg[:300]}') from None
     return parse(data, source, **overrides)

@@ -7,6 +7,7 @@ import multiprocessing
 import os
 import signal
 import sys
+import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -70,17 +71,40 @@ def summary_of(scn, traj, series, checks) -> dict:
     return out
 
 
+def write_atomic(path, text: str):
+    """Write ``text`` to ``path`` through a temporary file and a rename (no half-written file)."""
+    path = Path(path)
+    tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
+    try:
+        with open(tmp, 'w') as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_failed(prog, out, err) -> str:
+    """One line for a results write that failed (full disk, permissions)."""
+    where = getattr(err, 'filename', None) or out
+    return f'{prog}: cannot write results to {out}: {getattr(err, "strerror", None) or err} ({where})'
+
+
 def write_outputs(out_dir, scn, traj, series, checks, figure=True):
+    """trajectory.npz, metrics.json (each written atomically) and the figure in ``out_dir``;
+    the figure is named after the scenario's `label` (never a path taken from its name)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     traj.save(out / 'trajectory.npz')
     summary = summary_of(scn, traj, series, checks)
     doc = dict(summary=summary, series={k: v for k, v in series.items()},
                parameters=scn.spec.model_dump(mode='json', by_alias=True))
-    (out / 'metrics.json').write_text(json.dumps(doc, default=_jsonable, indent=1))
+    write_atomic(out / 'metrics.json', json.dumps(doc, default=_jsonable, indent=1))
     if figure and len(traj.t) > 1:
         from .plots import plot_run
-        plot_run(traj, series, out / f'{scn.name}.png',
+        plot_run(traj, series, out / f'{scn.label}.png',
                  title=f'{scn.name}, seed {scn.seed}: {scn.law.kind} law, n = {len(scn.names)}',
                  w=scn.law.cutoff_radius, target=scn.target, barrier=scn.barrier)
     return summary
@@ -113,13 +137,27 @@ class _Progress:
 def _make_dir_or_exit(prog, path) -> Path:
     """Create the output directory ``path`` before anything is computed: one line and exit 2
     if it cannot be made (not a traceback after the work is done)."""
+    err = check_output_dir(path)
+    if err:
+        print(f'{prog}: {err}', file=sys.stderr)
+        raise SystemExit(2)
+    return Path(path)
+
+
+def check_output_dir(path) -> str | None:
+    """Create ``path`` and check that a file can be written in it; None if so, else one line
+    saying why not (a read-only directory is refused before the work, not after)."""
     path = Path(path)
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as err:
-        print(f'{prog}: cannot create output directory {path}: {err.strerror or err} ({err.filename})', file=sys.stderr)
-        raise SystemExit(2)
-    return path
+        return f'cannot create output directory {path}: {err.strerror or err} ({err.filename})'
+    try:
+        with tempfile.NamedTemporaryFile(dir=path, prefix='.write_test_'):
+            pass
+    except OSError as err:
+        return f'output directory {path} is not writable: {err.strerror or err}'
+    return None
 
 
 def _load_or_exit(name, **over):
@@ -152,7 +190,7 @@ def simulate_main(argv) -> int:
     scn = _load_or_exit(a.scenario, **over)
     # the RK4 reference run gets its own default directory (it overwrote the ZOH run's)
     rk4 = '-rk4' if scn.spec.integrator == 'rk4' else ''
-    out = a.out or os.path.join('runs', f'{scn.name}-seed{scn.seed}{rk4}')
+    out = a.out or os.path.join('runs', f'{scn.label}-seed{scn.seed}{rk4}')
     _make_dir_or_exit('swarm simulate', out)
     if not a.quiet:
         src = scn.source if scn.source.startswith(scn.name) else f'{scn.name} ({scn.source})'
@@ -161,7 +199,11 @@ def simulate_main(argv) -> int:
     traj = engine.simulate(scn, record_every=a.record_every,
                            progress=_Progress(f'{scn.name} seed {scn.seed}', not a.quiet))
     series, checks = analyse(scn, traj)
-    summary = write_outputs(out, scn, traj, series, checks, figure=not a.no_figure)
+    try:
+        summary = write_outputs(out, scn, traj, series, checks, figure=not a.no_figure)
+    except OSError as err:
+        print(write_failed('swarm simulate', out, err), file=sys.stderr)
+        return 1
     interrupted = summary['interrupted']
     changes = ', '.join(f't={t:g}: {c}' for t, c in summary['cluster_changes'][:12])
     print(f'{scn.name} seed {scn.seed}: t_end {summary["t_end"]:g}, final clusters {summary["final_clusters"]}, '
@@ -175,7 +217,7 @@ def simulate_main(argv) -> int:
         det = res.get('not_judged') or ', '.join(f'{k}={v}' for k, v in res.items() if k != 'passed')
         verdict = {True: 'PASS', False: 'FAIL', None: 'NOT JUDGED'}[res['passed']]
         print(f'  {verdict} {name}: {det}')
-    print(f'  wrote {out}/trajectory.npz, metrics.json' + ('' if a.no_figure else f', {scn.name}.png'))
+    print(f'  wrote {out}/trajectory.npz, metrics.json' + ('' if a.no_figure else f', {scn.label}.png'))
     return 130 if interrupted else 0
 
 

@@ -6,6 +6,7 @@ held states between realtime stamps, frozen agents, and headings unwrapped in ti
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,9 +29,20 @@ class Trajectory:
     meta: dict = field(default_factory=dict)
 
     def save(self, path):
+        """Write ``path`` atomically (a temporary file in the same directory, then renamed):
+        a failed write (full disk) leaves no partial or 0-byte file behind."""
         path = Path(path)
-        np.savez_compressed(path, t=self.t, r=self.r, theta=self.theta, u=self.u, lam=self.lam,
-                            leader=self.leader, names=np.array(self.names))
+        tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
+        try:
+            with open(tmp, 'wb') as fh:
+                np.savez_compressed(fh, t=self.t, r=self.r, theta=self.theta, u=self.u, lam=self.lam,
+                                    leader=self.leader, names=np.array(self.names))
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
         return path
 
     @classmethod

@@ -4,7 +4,7 @@ separate OS processes (default) or all in one process and one executor (``--in-p
 The launcher writes one parameter file for all nodes (agents get their name, roster, initial
 state, law and gains, w, dt; world and commander get the scenario reference), starts the
 processes in one process group of their own, prints the world's progress, stops everything on
-Ctrl-C / SIGTERM (SIGINT to the group, then SIGKILL after a grace period) and, at the end,
+Ctrl-C / SIGTERM / SIGHUP (SIGINT to the group, then SIGKILL after a grace period) and, at the end,
 writes what ``swarm simulate`` writes (trajectory.npz from what was published, metrics.json,
 a figure) to ``--out``.
 
@@ -19,10 +19,17 @@ stopped process cannot handle SIGINT).
 
 ``--foxglove [PORT]`` also starts ``swarm view`` (`swarm_tools.view`), the live Foxglove
 WebSocket bridge, as one more process of the run; it stops with the run.
+
+No orphans: every child gets a parent-death signal (Linux ``PR_SET_PDEATHSIG``: SIGKILL when
+the launcher dies, whatever killed it), so a SIGKILLed launcher leaves nothing running.  The
+recorder of ``--record`` is not vital: if it dies the run goes on with a warning.  If the
+world dies, the launcher says what is lost and, with ``--record``, rebuilds what it can from
+the bag.
 """
 from __future__ import annotations
 
 import argparse
+import ctypes
 import json
 import os
 import shutil
@@ -37,10 +44,14 @@ from pathlib import Path
 import yaml
 
 from swarm_core.scenario import ScenarioError, load
+from swarm_core.simulate_cli import check_output_dir, write_atomic, write_failed
 
 from . import dds
 
 STOP_GRACE = 4.0
+#: most agents of one ``swarm run`` (each is an OS process, or a node of one executor);
+#: larger swarms are for ``swarm simulate``
+MAX_RUN_AGENTS = 512
 
 
 def agent_parameters(scn, i: int, mode: str) -> dict:
@@ -65,8 +76,26 @@ def node_parameters(scn, scenario_ref: str, mode: str, rtf: float = 1.0, output_
     return out
 
 
+#: the parameters-file section every agent node reads (ROS wildcard: any namespace)
+AGENTS_SECTION = '/**/agent'
+
+
 def write_params_file(params: dict, path: Path) -> Path:
-    doc = {fqn: {'ros__parameters': p} for fqn, p in params.items()}
+    """One parameters file for every node.  What all agents share (the roster, the law, dt, ...)
+    goes once into the wildcard section `AGENTS_SECTION`; each agent's own section keeps only
+    what differs (name, index, initial state), so the file grows as N, not N² (the roster in
+    every agent's section)."""
+    agents = {fqn: p for fqn, p in params.items() if fqn.endswith('/agent')}
+    doc = {fqn: {'ros__parameters': p} for fqn, p in params.items() if fqn not in agents}
+    if agents:
+        first = next(iter(agents.values()))
+        shared = {k: v for k, v in first.items() if all(k in p and p[k] == v for p in agents.values())}
+        if len(agents) > 1:
+            doc[AGENTS_SECTION] = {'ros__parameters': shared}
+        else:
+            shared = {}
+        for fqn, p in agents.items():
+            doc[fqn] = {'ros__parameters': {k: v for k, v in p.items() if k not in shared}}
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return path
 
@@ -126,8 +155,27 @@ def run_in_process(params: dict, domain_id=None) -> int:
 
 # ---------------------------------------------------------------- processes
 
+_PR_SET_PDEATHSIG = 1
+try:
+    _prctl = ctypes.CDLL(None, use_errno=True).prctl      # looked up before any fork
+except (OSError, AttributeError):                         # not Linux
+    _prctl = None
+
+
+def die_with_parent(parent_pid: int):
+    """A ``preexec_fn``: the child gets SIGKILL when the process that started it dies (Linux
+    parent-death signal), and exits at once if that happened before this call."""
+    def preexec():
+        if _prctl is not None:
+            _prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        if os.getppid() != parent_pid:          # the launcher died between fork and prctl
+            os._exit(1)
+    return preexec
+
+
 class Supervisor:
-    """Child processes in one process group of their own; ended together."""
+    """Child processes in one process group of their own; ended together, and killed by the
+    kernel if the launcher dies first (`die_with_parent`)."""
 
     def __init__(self):
         self.procs = {}
@@ -135,6 +183,7 @@ class Supervisor:
 
     def start(self, label, args, env, **kw):
         kw['process_group'] = 0 if self.pgid is None else self.pgid
+        kw['preexec_fn'] = die_with_parent(os.getpid())
         p = subprocess.Popen(args, env=env, **kw)
         if self.pgid is None:
             self.pgid = p.pid
@@ -249,7 +298,7 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
     def on_signal(signum, frame):
         stopping['sig'] = signum
 
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     ros = ['--ros-args', '--params-file', str(params_file)]
     code = 1
     try:
@@ -292,7 +341,12 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
                 else:
                     print(f'swarm run: {k} exited with code {rc}; the world drops it from the roster '
                           'after its missing_timeout', file=sys.stderr, flush=True)
-            dead = [k for k in dead if k not in agents]
+            if 'record' in dead and 'record' not in gone:
+                gone.add('record')
+                print(f'swarm run: WARNING: the recorder exited with code {sup.procs["record"].returncode}; '
+                      f'the run goes on without it (the bag {record} ends here; `swarm bag recover` '
+                      'repairs a truncated bag)', file=sys.stderr, flush=True)
+            dead = [k for k in dead if k not in agents and k != 'record']
             if dead:
                 k = dead[0]
                 print(f'swarm run: {k} exited with code {sup.procs[k].returncode}; stopping the run',
@@ -377,11 +431,14 @@ def main(argv=None) -> int:
     ref = a.scenario
     if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
         ref = str(Path(a.scenario).resolve())
-    out = Path(a.out or os.path.join('runs', f'{scn.name}-seed{scn.seed}-ros')).resolve()
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        print(f'swarm run: cannot create output directory {out}: {err.strerror or err} ({err.filename})', file=sys.stderr)
+    if len(scn.names) > MAX_RUN_AGENTS:
+        print(f'swarm run: {len(scn.names)} agents: at most {MAX_RUN_AGENTS} per run (one node each); '
+              'use swarm simulate for larger swarms', file=sys.stderr)
+        return 2
+    out = Path(a.out or os.path.join('runs', f'{scn.label}-seed{scn.seed}-ros')).resolve()
+    err = check_output_dir(out)
+    if err:
+        print(f'swarm run: {err}', file=sys.stderr)
         return 2
     if a.record and not a.in_process:
         bag = Path(a.record)
@@ -447,12 +504,51 @@ def main(argv=None) -> int:
             what = (f'stopped (code {code}) at t = {summary["t_end"]:g} after {wall:.1f} s; partial run'
                     if code else f'done in {wall:.1f} s')
             print(f'swarm run: {what}; final clusters {summary.get("final_clusters", "?")}; '
-                  f'wrote {out}/trajectory.npz, metrics.json' + ('' if a.no_figure else f', {scn.name}.png'),
+                  f'wrote {out}/trajectory.npz, metrics.json' + ('' if a.no_figure else f', {scn.label}.png'),
                   flush=True)
         except Exception as err:  # the trajectory is there; the extras are a bonus
             print(f'swarm run: wrote {traj_file} (metrics/figure failed: {err})', flush=True)
     elif code != 0:
         print(f'swarm run: stopped (code {code}) after {wall:.1f} s', file=sys.stderr, flush=True)
-    (out / 'run.json').write_text(json.dumps(dict(exit_code=code, wall_seconds=wall, mode=a.mode,
-                                                  processes=not a.in_process, agents=len(scn.names))))
+        if not a.in_process:
+            salvage(scn, out, a.record, a.mode, wall, figure=not a.no_figure)
+    try:
+        write_atomic(out / 'run.json', json.dumps(dict(exit_code=code, wall_seconds=wall, mode=a.mode,
+                                                       processes=not a.in_process, agents=len(scn.names))))
+    except OSError as err:
+        print(write_failed('swarm run', out, err), file=sys.stderr)
     return code
+
+
+def salvage(scn, out: Path, bag, mode: str, wall: float, figure: bool = True) -> bool:
+    """The world ended without writing trajectory.npz (killed, crashed): rebuild the run from
+    the bag of ``--record`` (`swarm_tools.report`) into ``out``, or say plainly what is lost."""
+    lost = 'the trajectory is lost (the world keeps it in memory until the end)'
+    if not bag or not Path(bag).is_file():
+        print(f'swarm run: {lost}; {out}/events.jsonl is kept. Record the run (--record BAG.mcap) '
+              'to be able to rebuild it', file=sys.stderr, flush=True)
+        return False
+    try:
+        from swarm_core.simulate_cli import analyse, write_outputs
+
+        from .report import read_run, rebuild_trajectory
+        run = read_run(bag, cutoff_radius=scn.law.cutoff_radius, agents=scn.names)
+        traj = rebuild_trajectory(run)
+        order = [traj.names.index(nm) for nm in scn.names if nm in traj.names]
+        traj.names = [traj.names[k] for k in order]
+        traj.r, traj.theta, traj.u = traj.r[:, order], traj.theta[:, order], traj.u[:, order]
+        traj.leader = traj.leader[:, order]
+        traj.meta.update(scenario=scn.name, seed=scn.seed, duration=scn.duration, source='bag',
+                         mode=mode, wall_seconds=wall, interrupted=True,
+                         events=read_events(out / 'events.jsonl'))
+        series, checks = analyse(scn, traj)
+        write_outputs(out, scn, traj, series, checks, figure=figure)
+    except (ValueError, OSError, IndexError) as err:
+        print(f'swarm run: {lost}, and rebuilding it from the bag {bag} failed: {err}', file=sys.stderr, flush=True)
+        return False
+    missing = sorted(set(scn.names) - set(traj.names))
+    print(f'swarm run: the world did not save the trajectory; rebuilt t = {traj.t[0]:g}..{traj.t[-1]:g} '
+          f'({len(traj.t)} samples, {len(traj.names)} agents) from the bag {bag} into {out}/trajectory.npz, '
+          'metrics.json' + (f'; no states in the bag for {", ".join(missing)}' if missing else ''),
+          file=sys.stderr, flush=True)
+    return True

@@ -21,7 +21,7 @@ import signal
 import sys
 import time
 
-from .bag import BagWriter, DefinitionNotFound, bag_paths, parse_odometry, qos_dict
+from .bag import BagWriter, DefinitionNotFound, _msg_file, bag_paths, parse_odometry, qos_dict
 
 #: the graph is polled this often for new topics and publishers (seconds)
 POLL_PERIOD = 0.2
@@ -29,10 +29,28 @@ POLL_PERIOD = 0.2
 SUB_DEPTH = 1000
 
 
+#: a message type name as it may come from the graph or a bag: ``pkg/msg/Type`` only
+MESSAGE_TYPE = re.compile(r'([a-z][a-z0-9_]{0,63})/msg/([A-Z][A-Za-z0-9]{0,63})')
+
+
 def message_class(type_name: str):
-    """The Python class of a ROS message type name (``pkg/msg/Type``)."""
-    pkg, ns, name = type_name.split('/')
-    return getattr(importlib.import_module(f'{pkg}.{ns}'), name)
+    """The Python class of a ROS message type name (``pkg/msg/Type``).
+
+    The name comes from data (the DDS graph, a bag's schema), so nothing is imported unless
+    it matches `MESSAGE_TYPE` and ``pkg`` is an installed interface package with that
+    message (``share/pkg/msg/Type.msg``); ValueError otherwise."""
+    m = MESSAGE_TYPE.fullmatch(type_name) if isinstance(type_name, str) else None
+    if m is None:
+        raise ValueError(f'{type_name!r}: not a pkg/msg/Type message name')
+    pkg, name = m.groups()
+    try:
+        _msg_file(type_name)
+    except DefinitionNotFound:
+        raise ValueError(f'{type_name}: no installed interface package defines it') from None
+    cls = getattr(importlib.import_module(f'{pkg}.msg'), name)
+    if not hasattr(type(cls), '_TYPE_SUPPORT'):
+        raise ValueError(f'{type_name}: not a ROS message class')
+    return cls
 
 
 def offered_profiles(infos) -> list[dict]:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import struct
 import sys
 from pathlib import Path
 
@@ -76,22 +77,88 @@ def leader_names(msg, known) -> list[str]:
     return found
 
 
-def read_run(path, *, cutoff_radius=None) -> dict:
+#: states with a stamp beyond this (sim seconds) are absurd and left out
+MAX_STAMP_S = 1e7
+#: |x|, |y| beyond this are absurd (a scenario's coordinates are at most 1e6)
+MAX_COORD = 1e9
+#: without a roster, a name with fewer states than this fraction of the median agent's (and
+#: not named in /swarm/events) is not one of the run's agents (a spoofed or stray publisher)
+MIN_SHARE = 0.1
+
+
+def check_states(per_agent: dict, events=(), agents=None, warn=None) -> dict:
+    """``per_agent`` without what cannot be a state of the run: non-finite or absurd values,
+    negative or absurd stamps, names that are not agent names, and (``agents`` given) names
+    not in the roster, or (no roster) names with few states that no event mentions.  ``warn``
+    gets one line per kind of problem, with counts."""
+    from swarm_core.scenario import AGENT_NAME
+    warn = warn or (lambda line: print(f'swarm report: {line}', file=sys.stderr))
+    bad_values = bad_stamps = 0
+    out = {}
+    for name, rows in per_agent.items():
+        keep = []
+        for row in rows:
+            stamp, _, x, y, qz, qw, wz = row
+            if not (np.isfinite([x, y, qz, qw]).all() and abs(x) <= MAX_COORD and abs(y) <= MAX_COORD
+                    and not np.isinf(wz)):
+                bad_values += 1
+            elif not 0 <= stamp <= MAX_STAMP_S * 1e9:
+                bad_stamps += 1
+            else:
+                keep.append(row)
+        if keep:
+            out[name] = keep
+    if bad_values:
+        warn(f'left out {bad_values} states with non-finite or absurd values')
+    if bad_stamps:
+        warn(f'left out {bad_stamps} states with stamps outside 0..{MAX_STAMP_S:g} s')
+    named = {ev.get('agent') for ev in events}
+    if agents is not None:
+        unknown = sorted(n for n in out if n not in set(agents))
+        why = 'not in the run\'s roster'
+    else:
+        med = float(np.median([len(v) for v in out.values()])) if out else 0.0
+        unknown = sorted(n for n, v in out.items()
+                         if not AGENT_NAME.fullmatch(n) or (len(v) < MIN_SHARE * med and n not in named))
+        why = f'not an agent name, or fewer than {MIN_SHARE:.0%} of the states of the others'
+    if unknown:
+        shown = ', '.join(repr(n) for n in unknown[:5]) + (', ...' if len(unknown) > 5 else '')
+        warn(f'left out {sum(len(out[n]) for n in unknown)} states of {len(unknown)} unknown '
+             f'sender{"s" if len(unknown) > 1 else ""} ({why}): {shown}')
+        for n in unknown:
+            del out[n]
+    return out
+
+
+def read_run(path, *, cutoff_radius=None, agents=None, warn=None) -> dict:
     """Everything the report needs from a bag: per-agent state lists, λ / leader events,
-    target, barrier, and whether the file was cut short."""
+    target, barrier, and whether the file was cut short.  States are checked
+    (`check_states`; ``agents``: the run's roster, if known)."""
     per_agent: dict[str, list] = {}
     lam_events, leader_msgs, events = [], [], []
     target = barrier = None
     w_from_bag = None
     decode = _Decoder()
     stats: dict = {}
+    undecodable = 0
+    bad_geometry = []
     for m in iter_messages(path, stats=stats):
         if m.topic == STATES:
-            s = parse_odometry(m.data)
+            try:
+                s = parse_odometry(m.data)
+            except (struct.error, IndexError, ValueError):
+                undecodable += 1
+                continue
             per_agent.setdefault(s['child_frame_id'], []).append(
                 (s['stamp_ns'], m.log_time, s['x'], s['y'], s['qz'], s['qw'], s['wz']))
         elif m.topic == LAMBDA:
-            lam_events.append((m.log_time, parse_float64(m.data)))
+            try:
+                v = parse_float64(m.data)
+            except (struct.error, IndexError, ValueError):
+                undecodable += 1
+                continue
+            if np.isfinite(v) and 0 <= v <= 1:
+                lam_events.append((m.log_time, v))
         elif m.topic == EVENTS:
             try:
                 ev = json.loads(parse_string(m.data))
@@ -103,10 +170,19 @@ def read_run(path, *, cutoff_radius=None) -> dict:
             leader_msgs.append((m.log_time, decode(m)))
         elif m.topic == TARGET:
             p = decode(m).point
-            target = (float(p.x), float(p.y))
+            if np.isfinite([p.x, p.y]).all() and max(abs(p.x), abs(p.y)) <= MAX_COORD:
+                target = (float(p.x), float(p.y))
+            else:
+                bad_geometry.append(f'target ({p.x}, {p.y})')
         elif m.topic == BARRIER:
             pts = [(float(p.x), float(p.y)) for p in decode(m).polygon.points]
-            barrier = pts or None
+            barrier = None
+            if pts:
+                from swarm_core.scenario import BarrierSpec
+                try:
+                    barrier = [tuple(q) for q in BarrierSpec(points=pts).points]
+                except ValueError as err:
+                    bad_geometry.append(f'barrier of {len(pts)} points ({" ".join(str(err).split())[:120]})')
         elif m.topic == METRICS and w_from_bag is None and cutoff_radius is None:
             try:
                 for st in decode(m).status:
@@ -115,6 +191,12 @@ def read_run(path, *, cutoff_radius=None) -> dict:
                             w_from_bag = float(kv.value)
             except (AttributeError, ValueError):
                 pass
+    say = warn or (lambda line: print(f'swarm report: {line}', file=sys.stderr))
+    if undecodable:
+        say(f'left out {undecodable} messages that could not be decoded')
+    if bad_geometry:
+        say(f'ignored {len(bad_geometry)} unusable world messages: {bad_geometry[0]}')
+    per_agent = check_states(per_agent, events, agents, warn)
     return dict(per_agent=per_agent, lam_events=lam_events, leader_msgs=leader_msgs, events=events,
                 target=target, barrier=barrier, truncated=stats.get('truncated', False),
                 w=cutoff_radius if cutoff_radius is not None else w_from_bag)

@@ -1,0 +1,133 @@
+"""Hostile and damaged bags: type names from data import nothing unknown, a truncated bag is
+recovered into a valid indexed one, and `swarm report` leaves out what cannot be a state of
+the run instead of crashing or inventing an agent."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from swarm_core import engine, scenario
+
+SCN = """
+name: six
+dt: 0.1
+duration: 8
+agents:
+  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
+law: {kind: global}
+"""
+
+
+@pytest.fixture(scope='module')
+def traj(tmp_path_factory):
+    f = tmp_path_factory.mktemp('scn') / 'six.yaml'
+    f.write_text(SCN)
+    return engine.simulate(scenario.load(str(f)))
+
+
+def _odom(name, t_ns, x, y, qz, qw, u):
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import serialize_message
+    m = Odometry()
+    m.header.stamp.sec, m.header.stamp.nanosec = divmod(int(t_ns), 1_000_000_000)
+    m.header.frame_id = 'world'
+    m.child_frame_id = name
+    m.pose.pose.position.x, m.pose.pose.position.y = float(x), float(y)
+    m.pose.pose.orientation.z, m.pose.pose.orientation.w = float(qz), float(qw)
+    m.twist.twist.angular.z = float(u)
+    return serialize_message(m)
+
+
+def write_bag(traj, path, *, hostile=False, flush_every=None):
+    """The run's states as the agents publish them (+ hostile extras), one per step and agent."""
+    from swarm_core.frenet import quaternion_from_heading
+    from swarm_tools.bag import BagWriter, qos_dict
+    w = BagWriter(path, flush_interval=3600)
+    w.add_topic('/swarm/states', 'nav_msgs/msg/Odometry', [qos_dict(history=1, depth=10, reliability=1, durability=2)])
+    qz, qw = quaternion_from_heading(traj.theta)
+    base = 1_700_000_000 * 10**9
+    for s in range(len(traj.t)):
+        t_ns = int(round(traj.t[s] * 1e9))
+        for k, name in enumerate(traj.names):
+            w.write('/swarm/states', _odom(name, t_ns, traj.r[s, k, 0], traj.r[s, k, 1], qz[s, k], qw[s, k],
+                                           traj.u[s, k]), base + s * 1_000_000 + k)
+        if hostile and s == 10:
+            log = base + s * 1_000_000 + 100
+            w.write('/swarm/states', _odom('agent_2', t_ns, np.nan, 0, 0, 1, 0), log)        # NaN
+            w.write('/swarm/states', _odom('agent_3', t_ns, np.inf, 0, 0, 1, 0), log + 1)    # inf
+            w.write('/swarm/states', _odom('agent_4', 10**18, 0, 0, 0, 1, 0), log + 2)      # year 2001
+            w.write('/swarm/states', _odom('ghost', t_ns, 500, 500, 0, 1, 0), log + 3)       # a 7th agent
+            w.write('/swarm/states', _odom('b/../c d', t_ns, 1, 1, 0, 1, 0), log + 4)
+        if flush_every and s % flush_every == 0:
+            w.maybe_flush(force=True)
+    return w
+
+
+def test_message_class_imports_only_installed_interface_types(tmp_path, monkeypatch):
+    """A type name from the graph or a bag's schema imported any module it named."""
+    from swarm_tools.record import message_class
+    pkg = tmp_path / 'evil_pkg' / 'msg'
+    pkg.mkdir(parents=True)
+    (tmp_path / 'evil_pkg' / '__init__.py').write_text('')
+    (pkg / '__init__.py').write_text('import os\nos.environ["EVIL_IMPORTED"] = "1"\nclass X: pass\n')
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delenv('EVIL_IMPORTED', raising=False)
+    for name in ['evil_pkg/msg/X', 'os/path/join', 'evil_pkg.msg/msg/X', '../x/msg/Y', 'std_msgs/msg/Nope']:
+        with pytest.raises(ValueError):
+            message_class(name)
+    assert 'EVIL_IMPORTED' not in __import__('os').environ and 'evil_pkg.msg' not in sys.modules
+    assert message_class('nav_msgs/msg/Odometry').__name__ == 'Odometry'
+
+
+def test_bag_recover_rewrites_a_truncated_bag(traj, tmp_path, swarm_cmd):
+    """A killed recorder's bag cannot be opened by mcap's default (seeking) reader;
+    `swarm bag recover` writes one that can, with every message of the complete chunks."""
+    from mcap.reader import make_reader
+    full = tmp_path / 'full.mcap'
+    w = write_bag(traj, full, flush_every=7)       # the last steps stay in the open chunk
+    w._fh.flush()
+    size_open = full.stat().st_size          # everything flushed so far, no summary: as killed
+    w.close()
+    cut = tmp_path / 'cut.mcap'
+    cut.write_bytes(full.read_bytes()[:size_open - 7])     # cut inside the last chunk
+    with pytest.raises(Exception):
+        with open(cut, 'rb') as fh:
+            list(make_reader(fh).iter_messages())
+    out = tmp_path / 'fixed.mcap'
+    r = subprocess.run([swarm_cmd, 'bag', 'recover', cut, out], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert 'input ends early' in r.stdout
+    with open(out, 'rb') as fh:
+        reader = make_reader(fh)
+        assert reader.get_summary() is not None          # indexed: summary and chunk indexes
+        msgs = list(reader.iter_messages())
+    n = len(traj.names)
+    assert n * 10 <= len(msgs) < n * len(traj.t)
+    with open(full, 'rb') as fh:
+        first = [m for _, _, m in make_reader(fh).iter_messages()][:len(msgs)]
+    assert [m.data for _, _, m in msgs] == [m.data for m in first]
+    assert {c.topic for _, c, _ in msgs} == {'/swarm/states'}
+    again = subprocess.run([swarm_cmd, 'bag', 'recover', cut, out], capture_output=True, text=True, timeout=60)
+    assert again.returncode == 2 and 'exists' in again.stderr     # no silent overwrite
+
+
+def test_report_leaves_out_bad_states(traj, tmp_path, swarm_cmd):
+    """NaN, inf, absurd stamps and unknown senders crashed the report or made a 7th agent."""
+    bag = tmp_path / 'hostile.mcap'
+    write_bag(traj, bag, hostile=True).close()
+    r = subprocess.run([swarm_cmd, 'report', bag, '--out', tmp_path / 'rep', '--no-figure'],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((tmp_path / 'rep' / 'metrics.json').read_text())
+    assert doc['summary']['names'] == list(traj.names)
+    assert doc['summary']['t_end'] == pytest.approx(traj.t[-1])
+    z = np.load(tmp_path / 'rep' / 'trajectory.npz')
+    assert np.isfinite(z['r']).all() and len(z['t']) == len(traj.t)
+    np.testing.assert_allclose(z['r'], traj.r, atol=1e-9)
+    err = r.stderr
+    assert 'non-finite or absurd values' in err and 'stamps outside' in err and "'ghost'" in err, err
+    assert len(err.strip().splitlines()) <= 4, err       # one line per kind
