@@ -94,7 +94,7 @@ def set_field(data: dict, dotted: str, value):
         else:
             raise StudyError(f'{dotted}: {".".join(parts[:i])} is a value, not a section')
         if last:
-            node[key] = value
+            node[key] = json.loads(json.dumps(value))    # a copy: cells never share a mapping
         else:
             node = node[key]
 
@@ -595,12 +595,17 @@ def plot_rates(study: Study, rates_rows, path, check='all', title=None):
         groups = {}
         for r in rr:
             groups.setdefault(tuple(r[o] for o in others), []).append(r)
+        xs = study.grid[x]
+        numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in xs)
         for g, sel in groups.items():
-            xv = np.array([r[x] for r in sel], float)
+            xv = np.array([r[x] if numeric else xs.index(r[x]) for r in sel], float)
             y = np.array([r['rate'] for r in sel])
             err = np.array([[r['rate'] - r['ci_low'] for r in sel], [r['ci_high'] - r['rate'] for r in sel]])
             lab = ', '.join(f'{o}={v}' for o, v in zip(others, g)) or None
             ax.errorbar(xv, y, yerr=err, marker='o', capsize=3, label=lab)
+        if not numeric:
+            ax.set_xticks(range(len(xs)), [str(v) for v in xs])
+            ax.set_xlim(-0.5, len(xs) - 0.5)
         ax.set_xlabel(x)
         ax.set_ylabel(f'{check} rate (95 % CI)')
         ax.set_ylim(-0.05, 1.05)
