@@ -419,15 +419,18 @@ def study_main(p, a) -> int:
     md = st.rates_markdown(study, rr)
     (out / 'rates.md').write_text(f'### {study.name} ({len(study.seeds)} seeds per cell)\n\n{md}\n')
     print(md)
-    check = a.check or study.figure.get('check', 'all')
-    if not a.no_figure and len(study.params) >= 1:
-        if check not in {r['check'] for r in rr}:
-            print(f'swarm sweep: --check {check!r}: no such check (have: '
-                  f'{", ".join(dict.fromkeys(r["check"] for r in rr))}); figure skipped', file=sys.stderr)
-        else:
-            st.plot_rates(study, rr, out / f'{study.name}.png', check=check)
+    checks = [a.check] if a.check else (study.figure.get('checks') or [study.figure.get('check', 'all')])
+    have = list(dict.fromkeys(r['check'] for r in rr))
+    figures = []
+    for check in ([] if a.no_figure else checks):
+        if check not in have:
+            print(f'swarm sweep: --check {check!r}: no such check (have: {", ".join(have)}); figure skipped',
+                  file=sys.stderr)
+            continue
+        name = study.name if check == checks[0] else f'{study.name}-{check}'
+        figures.append(st.plot_rates(study, rr, out / f'{name}.png', check=check).name)
     print(f'swarm sweep: {counts["ran"]} runs done, {counts["cached"]} from the cache, {wall:.1f}s wall; '
-          f'wrote {out}/runs.csv, rates.csv, rates.md' + ('' if a.no_figure else f', {study.name}.png'),
+          f'wrote {out}/runs.csv, rates.csv, rates.md' + ''.join(f', {f}' for f in figures),
           file=sys.stderr)
     return 0
 

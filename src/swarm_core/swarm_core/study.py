@@ -12,6 +12,7 @@ any number of workers.  The checks are the scenario's own (`outcomes.evaluate`).
 from __future__ import annotations
 
 import csv
+import functools
 import hashlib
 import io
 import itertools
@@ -269,6 +270,7 @@ def _canon(x) -> str:
     return json.dumps(x, sort_keys=True, separators=(',', ':'), default=str)
 
 
+@functools.lru_cache(maxsize=None)
 def code_version() -> str:
     """A hash of swarm_core's sources (a change to the law or the checks invalidates the cache)."""
     h = hashlib.sha256()
@@ -294,6 +296,7 @@ class Task:
     seed: int
     data: dict
     source: str
+    version: str = ''
 
 
 def tasks(study: Study, version: str | None = None) -> list[Task]:
@@ -303,7 +306,7 @@ def tasks(study: Study, version: str | None = None) -> list[Task]:
     for ci, cell in enumerate(study.cells()):
         data = study.cell_data(cell)
         for seed in study.seeds:
-            out.append(Task(run_key(base, cell, seed, version), ci, cell, seed, data, study.source))
+            out.append(Task(run_key(base, cell, seed, version), ci, cell, seed, data, study.source, version))
     return out
 
 
@@ -321,6 +324,9 @@ def run_task(task: Task) -> dict:
     """Simulate one run and return its row's results (checks and metrics; no wall time)."""
     from . import engine
     from .simulate_cli import analyse, summary_of
+    if task.version and task.version != code_version():
+        raise RuntimeError(f'this worker runs swarm_core {code_version()}, the study needs {task.version}: '
+                           'install the same project version on every worker')
     scn = scenario.parse(task.data, task.source, seed=task.seed)
     traj = engine.simulate(scn)
     series, checks = analyse(scn, traj)
