@@ -143,3 +143,32 @@ def test_study_file(tmp_path):
     f.write_text('scenario: homotopy_global\ngrid: {law.leader_gain: []}\n')
     with pytest.raises(st.StudyError, match='grid.law.leader_gain'):
         st.load_study(f)
+
+
+def test_ctrl_c_on_the_cli_keeps_finished_runs_and_resumes(tmp_path, processes, swarm_cmd):
+    """SIGINT to the whole process group (what Ctrl-C in a terminal does) during a --jobs 2
+    study: exit 130, the finished runs stay cached; the same command then runs only the rest."""
+    import os
+    import signal
+    import subprocess
+    out = tmp_path / 'out'
+    cmd = [swarm_cmd, 'sweep', 'homotopy_global', '--set', 'law.leader_gain=10,30', '--seeds', '5',
+           '--duration', '200', '--jobs', '2', '--out', out, '--quiet']
+    p = processes.start(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    cache = out / 'cache'
+    end = time.monotonic() + 300
+    while p.poll() is None and time.monotonic() < end and \
+            (not cache.exists() or len(list(cache.glob('*.json'))) < 2):
+        time.sleep(0.05)
+    assert p.poll() is None, 'the study ended before it could be interrupted'
+    os.killpg(p.pid, signal.SIGINT)
+    text = processes.communicate(p, timeout=120)
+    assert p.returncode == 130, text
+    assert 'interrupted; finished runs are cached' in text and 'Traceback' not in text, text
+    kept = len(list(cache.glob('*.json')))
+    assert 2 <= kept < 10
+    p = processes.start(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    text = processes.communicate(p, timeout=600)
+    assert p.returncode == 0, text
+    assert f'{10 - kept} runs done, {kept} from the cache' in text, text
+    assert len((out / 'runs.csv').read_text().splitlines()) == 11
