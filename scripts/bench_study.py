@@ -9,7 +9,11 @@ so that the machine's load hits both alike.  The Dask cluster (N single-threaded
 processes on 127.0.0.1) is started once before the rounds: its start-up time is reported on
 its own, not in the runs per second.  The local pool is started inside each timed round (it
 is part of that executor's cost).  The overhead is (local runs/s ÷ Dask runs/s − 1), from the
-median round of each; the tables of both executors are checked to be equal.
+median round of each; the tables of both executors are checked to be equal.  Each round
+also gives the time per run outside the engine: (wall × workers − Σ engine seconds) / runs,
+the engine seconds measured inside the workers (idle workers at the end of a round count too).
+The parent imports `swarm_core.simulate_cli` first, as `swarm sweep` does, so the local
+pool's forked workers start with the engine imported.
 """
 from __future__ import annotations
 
@@ -35,6 +39,7 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
 
     from distributed import LocalCluster
+    from swarm_core import simulate_cli  # noqa: F401  (as in `swarm sweep`: forked workers inherit it)
     from swarm_core import study as st
 
     s = st.load_study(a.study)
@@ -48,7 +53,7 @@ def main(argv=None) -> int:
                            dashboard_address=None, host='127.0.0.1')
     startup = time.perf_counter() - t0
     res = {'study': s.name, 'runs': n, 'duration': a.duration, 'workers': a.workers, 'dask_startup_s': round(startup, 2),
-           'local_s': [], 'dask_s': []}
+           'local_s': [], 'dask_s': [], 'local_outside_ms': [], 'dask_outside_ms': []}
     tables = {}
     try:
         with tempfile.TemporaryDirectory() as tmp:
@@ -61,8 +66,11 @@ def main(argv=None) -> int:
                     dt = time.perf_counter() - t0
                     assert counts['ran'] == n
                     res[f'{kind}_s'].append(round(dt, 2))
+                    engine_s = sum(json.loads(f.read_text())['wall'] for f in cache.glob('*.json'))
+                    res[f'{kind}_outside_ms'].append(round(1000 * (dt * a.workers - engine_s) / n, 1))
                     tables[kind] = st.to_csv(s, rows)
-                    print(f'round {r}: {kind:5s} {n} runs in {dt:.1f} s = {n / dt:.2f} runs/s', flush=True)
+                    print(f'round {r}: {kind:5s} {n} runs in {dt:.1f} s = {n / dt:.2f} runs/s, '
+                          f'{res[f"{kind}_outside_ms"][-1]:.0f} ms per run outside the engine', flush=True)
     finally:
         cluster.close()
     res['same_table'] = tables['local'] == tables['dask']
@@ -71,6 +79,8 @@ def main(argv=None) -> int:
     res['dask_runs_per_s'] = round(n / dsk, 3)
     res['dask_overhead_pct'] = round(100 * (dsk / loc - 1), 1)
     res['dask_overhead_per_run_ms'] = round(1000 * (dsk - loc) * a.workers / n, 1)
+    res['local_outside_ms_median'] = statistics.median(res['local_outside_ms'])
+    res['dask_outside_ms_median'] = statistics.median(res['dask_outside_ms'])
     print(json.dumps(res, indent=1))
     if a.json:
         Path(a.json).write_text(json.dumps(res, indent=1) + '\n')
