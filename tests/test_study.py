@@ -172,3 +172,16 @@ def test_ctrl_c_on_the_cli_keeps_finished_runs_and_resumes(tmp_path, processes, 
     assert p.returncode == 0, text
     assert f'{10 - kept} runs done, {kept} from the cache' in text, text
     assert len((out / 'runs.csv').read_text().splitlines()) == 11
+
+
+def test_a_check_whose_window_starts_after_the_run_is_not_judged():
+    """fig4_spacing stops at t = 320: homotopy_local's stays_split_from: 600 cannot be judged
+    (it was a failure: an empty window)."""
+    import numpy as np
+    from swarm_core import outcomes, scenario
+    scn = scenario.load('homotopy_local', duration=320)
+    series = {'t': np.arange(0.0, 321.0), 'clusters': np.ones(321, int)}
+    res = outcomes.evaluate({'stays_split_from': 600, 'one_cluster_from': 400}, series, None, scn)
+    assert res['stays_split_from']['passed'] is None and res['one_cluster_from']['passed'] is None
+    series['clusters'][300] = 2
+    assert outcomes.evaluate({'one_cluster_from': 200}, series, None, scn)['one_cluster_from']['passed'] is False

@@ -394,11 +394,11 @@ def _local_map(todo, jobs):
     finally:
         if not done:                       # Ctrl-C or an error: end the runs in flight now
             procs = list((pool._processes or {}).values())
-            pool.shutdown(wait=False, cancel_futures=True)
             for proc in procs:
                 proc.terminate()
             for proc in procs:
                 proc.join(10)
+            pool.shutdown(wait=True)   # the pool sees its workers gone and fails what was left
         else:
             pool.shutdown(wait=True)
 
@@ -514,11 +514,12 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
     return (max(0.0, mid - half), min(1.0, mid + half))
 
 
-def check_names(rows) -> list:
+def check_names(rows, params=()) -> list:
+    """'ok' and the checks' names (the boolean columns that are not parameters nor metrics)."""
     names = ['ok']
     for r in rows:
         for k, v in r.items():
-            if '.' not in k and k not in names and (isinstance(v, bool) or v is None) \
+            if '.' not in k and k not in names and k not in params and k != 'seed' and (isinstance(v, bool) or v is None) \
                     and k not in ('t_first_split', 't_last_one') and k not in ROW_METRICS:
                 names.append(k)
     return names
@@ -528,7 +529,7 @@ def rates(study: Study, rows) -> list[dict]:
     """Per cell and check ('ok': all checks): passed, judged n, rate and its 95 % Wilson CI.
     A run whose check was not judged (None) is left out of n."""
     out = []
-    names = check_names(rows)
+    names = check_names(rows, study.params)
     for cell in study.cells():
         sel = [r for r in rows if all(r.get(k) == v for k, v in cell.items())]
         for c in names:
