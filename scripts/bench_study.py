@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import operator
 import statistics
 import sys
 import tempfile
@@ -26,6 +27,35 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+#: a task that returns at once: the run's key (importable on the workers, like run_task)
+echo = operator.attrgetter('key')
+
+
+def per_task_ms(study_tasks, workers, scheduler=None, repeat=3):
+    """Executor cost per task (ms of worker time): ``echo`` over the study's own tasks (each
+    carries its scenario), in a warm pool of ``workers`` processes or on the Dask cluster."""
+    times = []
+    if scheduler is None:
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            list(pool.map(echo, study_tasks[:workers]))
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                for f in as_completed([pool.submit(echo, t) for t in study_tasks]):
+                    f.result()
+                times.append(time.perf_counter() - t0)
+    else:
+        from distributed import Client, as_completed
+        with Client(scheduler) as client:
+            client.gather([client.submit(echo, t, pure=False) for t in study_tasks[:workers]])
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                for f in as_completed([client.submit(echo, t, pure=False) for t in study_tasks]):
+                    f.result()
+                times.append(time.perf_counter() - t0)
+    return round(1000 * statistics.median(times) * workers / len(study_tasks), 2)
 
 
 def main(argv=None) -> int:
@@ -71,6 +101,15 @@ def main(argv=None) -> int:
                     tables[kind] = st.to_csv(s, rows)
                     print(f'round {r}: {kind:5s} {n} runs in {dt:.1f} s = {n / dt:.2f} runs/s, '
                           f'{res[f"{kind}_outside_ms"][-1]:.0f} ms per run outside the engine', flush=True)
+            # the executors alone, without the runs (robust to a loaded machine)
+            many = st.tasks(s) * max(1, 200 // n)
+            res['echo_tasks'] = len(many)
+            res['local_ms_per_task'] = per_task_ms(many, a.workers)
+            res['dask_ms_per_task'] = per_task_ms(many, a.workers, cluster.scheduler_address)
+            res['engine_s_per_run'] = round(statistics.median(
+                json.loads(f.read_text())['wall'] for f in (Path(tmp) / 'local0').glob('*.json')), 3)
+            print(f'executor cost per task: local {res["local_ms_per_task"]} ms, Dask {res["dask_ms_per_task"]} ms; '
+                  f'median engine time per run {res["engine_s_per_run"]} s', flush=True)
     finally:
         cluster.close()
     res['same_table'] = tables['local'] == tables['dask']
