@@ -171,6 +171,8 @@ def needs_until(name, arg, duration):
         return float(arg)
     if name == 'follows_program':
         return float(arg['to'])
+    if name in ('stays_split_from', 'one_cluster_from'):
+        return max(float(arg), float(duration))     # a run that ends before t0 cannot judge it
     return float(duration)
 
 

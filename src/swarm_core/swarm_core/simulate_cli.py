@@ -335,23 +335,45 @@ def sweep_table(name, results) -> str:
 def sweep_main(argv) -> int:
     p = argparse.ArgumentParser(prog='swarm sweep', description=(
         "Run scenarios over many seeds and count how often the paper's behaviour happens "
-        "(the scenario's `expect` checks). Ctrl-C stops the sweep and keeps the seeds that "
-        "finished (table printed, --out written; exit 130)."))
-    p.add_argument('scenarios', nargs='+', help='shipped scenario names or YAML files')
-    p.add_argument('--seeds', type=int, default=20, help='seeds FIRST..FIRST+N-1 (default 20)')
+        "(the scenario's `expect` checks). With --set or --study: a parameter study over a "
+        "grid of scenario fields (one scenario), written as tables and a figure into --out DIR, "
+        "cached per run so a re-run skips finished runs. Ctrl-C stops and keeps what finished "
+        "(exit 130)."))
+    p.add_argument('scenarios', nargs='*', help='shipped scenario names or YAML files')
+    p.add_argument('--seeds', type=int, default=None, help='seeds FIRST..FIRST+N-1 (default 20; a study file may set it)')
     p.add_argument('--first-seed', type=int, default=0, metavar='FIRST', help='first seed (default 0)')
     jobs = os.cpu_count() or 1
     p.add_argument('--jobs', type=int, default=jobs, help=f'parallel processes (default: the CPU count, {jobs})')
     p.add_argument('--dt', type=float, help="override dt (default: the scenario's)")
     p.add_argument('--integrator', choices=['zoh', 'rk4'], help="override the integrator (default: the scenario's)")
-    p.add_argument('--out', metavar='FILE.md', help='also write the tables (Markdown) and per-seed results (JSON next to it)')
+    p.add_argument('--out', metavar='PATH', help='plain sweep: FILE.md for the tables (per-seed JSON next to it); '
+                   'study: the output directory (default runs/study-NAME)')
+    g = p.add_argument_group('parameter studies (swarm_core.study)')
+    g.add_argument('--set', action='append', default=[], metavar='FIELD=VALUES',
+                   help='a grid axis over a scenario field: law.leader_gain=10,30,50 or a range '
+                        'noise.heading=0:0.05:6 (START:STOP:COUNT); repeat for more axes')
+    g.add_argument('--study', metavar='FILE.yaml', help='a study file (scenario, grid, seeds, fixed overrides)')
+    g.add_argument('--duration', type=float, help="study: override the duration (default: the scenario's)")
+    g.add_argument('--scheduler', metavar='ADDR', help='run on Dask: tcp://HOST:8786 (an existing scheduler) '
+                   'or local:N (a local cluster of N workers); default: local processes (--jobs)')
+    g.add_argument('--check', default=None, help="study: the check whose rate the figure shows (default 'all': every check)")
+    g.add_argument('--no-figure', action='store_true', help='study: skip the figure')
+    g.add_argument('--quiet', action='store_true', help='study: no progress bar')
     a = p.parse_args(argv)
-    if a.seeds < 1:
+    if a.seeds is not None and a.seeds < 1:
         p.error('--seeds must be ≥ 1')
     if a.jobs < 1:
         p.error('--jobs must be ≥ 1')
     if a.first_seed < 0:
         p.error('--first-seed must be ≥ 0')
+    if a.set or a.study:
+        return study_main(p, a)
+    if not a.scenarios:
+        p.error('give at least one scenario (or --set / --study for a parameter study)')
+    for flag in ('scheduler', 'duration', 'check'):
+        if getattr(a, flag) is not None:
+            p.error(f'--{flag} is for parameter studies (with --set or --study)')
+    a.seeds = 20 if a.seeds is None else a.seeds
     over = {k: v for k, v in dict(dt=a.dt, integrator=a.integrator).items() if v is not None}
     for name in a.scenarios:
         _load_or_exit(name, **over)      # validate every scenario before spending time
@@ -383,6 +405,76 @@ def sweep_main(argv) -> int:
         Path(a.out).with_suffix('.json').write_text(json.dumps(everything, indent=1, default=_jsonable))
         print(f'wrote {a.out} and {Path(a.out).with_suffix(".json")}', file=sys.stderr)
     return 130 if interrupted else 0
+
+
+def study_main(p, a) -> int:
+    """`swarm sweep --set ... / --study FILE`: validate every cell, run (cached), write
+    runs.csv (one row per run), rates.csv and rates.md (rate per cell and check, 95 % Wilson
+    CI) and a figure into --out."""
+    from . import study as st
+    if a.study and a.scenarios:
+        p.error('give a study file or a scenario with --set, not both')
+    if not a.study and len(a.scenarios) != 1:
+        p.error('a study with --set runs one scenario')
+    if a.scheduler and not (a.scheduler.startswith(('tcp://', 'tls://')) or
+                            (a.scheduler.startswith('local:') and a.scheduler[6:].isdigit() and int(a.scheduler[6:]) >= 1)):
+        p.error(f'--scheduler {a.scheduler!r}: give tcp://HOST:PORT or local:N')
+    fixed = {k: v for k, v in dict(dt=a.dt, integrator=a.integrator, duration=a.duration).items() if v is not None}
+    try:
+        if a.study:
+            study = st.load_study(a.study)
+            extra = [st.parse_set(e) for e in a.set]
+            for k, vals in extra:
+                study.grid[k] = vals          # --set adds or replaces an axis of the file
+            if a.seeds is not None:
+                study.seeds = list(range(a.first_seed, a.first_seed + a.seeds))
+            study.fixed.update(fixed)
+        else:
+            study = st.make_study(a.scenarios[0], a.set, seeds=20 if a.seeds is None else a.seeds,
+                                  first_seed=a.first_seed, fixed=fixed)
+        st.validate(study)
+    except st.StudyError as err:
+        print(f'swarm sweep: {err}', file=sys.stderr)
+        return 2
+    out = _make_dir_or_exit('swarm sweep', a.out or os.path.join('runs', f'study-{study.name}'))
+    n_cells = len(study.cells())
+    where = f'Dask {a.scheduler}' if a.scheduler else f'{a.jobs} local process{"es" if a.jobs > 1 else ""}'
+    print(f'swarm sweep: study {study.name}: {study.source}, {n_cells} cells × {len(study.seeds)} seeds '
+          f'= {n_cells * len(study.seeds)} runs on {where}; cache {out / "cache"}', file=sys.stderr)
+    t0 = time.perf_counter()
+    interrupted = False
+    counts = {}
+    try:
+        rows, counts = st.run_study(study, out / 'cache', jobs=a.jobs, scheduler=a.scheduler,
+                                    progress=not a.quiet)
+    except KeyboardInterrupt:
+        interrupted = True
+    wall = time.perf_counter() - t0
+    if interrupted:
+        done = len(list((out / 'cache').glob('*.json')))
+        print(f'swarm sweep: interrupted; finished runs are cached in {out / "cache"} ({done} files): '
+              f'the same command resumes', file=sys.stderr)
+        return 130
+    (out / 'runs.csv').write_text(st.to_csv(study, rows))
+    rr = st.rates(study, rows)
+    (out / 'rates.csv').write_text(st.rates_csv(study, rr))
+    md = st.rates_markdown(study, rr)
+    (out / 'rates.md').write_text(f'### {study.name} ({len(study.seeds)} seeds per cell)\n\n{md}\n')
+    print(md)
+    checks = [a.check] if a.check else (study.figure.get('checks') or [study.figure.get('check', 'all')])
+    have = list(dict.fromkeys(r['check'] for r in rr))
+    figures = []
+    for check in ([] if a.no_figure else checks):
+        if check not in have:
+            print(f'swarm sweep: --check {check!r}: no such check (have: {", ".join(have)}); figure skipped',
+                  file=sys.stderr)
+            continue
+        name = study.name if check == checks[0] else f'{study.name}-{check}'
+        figures.append(st.plot_rates(study, rr, out / f'{name}.png', check=check).name)
+    print(f'swarm sweep: {counts["ran"]} runs done, {counts["cached"]} from the cache, {wall:.1f}s wall; '
+          f'wrote {out}/runs.csv, rates.csv, rates.md' + ''.join(f', {f}' for f in figures),
+          file=sys.stderr)
+    return 0
 
 
 def scenarios_main(argv) -> int:

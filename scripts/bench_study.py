@@ -1,0 +1,130 @@
+#!/usr/bin/env python3
+"""Runs per second of a study grid: local processes against a Dask cluster, equal worker count.
+
+    .venv/bin/python scripts/bench_study.py [--study studies/fig3_ramp.yaml] [--seeds 2]
+                                            [--workers 2] [--rounds 2] [--json FILE]
+
+Both executors run the same grid from an empty cache, alternating (local, Dask, local, ...)
+so that the machine's load hits both alike.  The Dask cluster (N single-threaded worker
+processes on 127.0.0.1) is started once before the rounds: its start-up time is reported on
+its own, not in the runs per second.  The local pool is started inside each timed round (it
+is part of that executor's cost).  The overhead is (local runs/s ÷ Dask runs/s − 1), from the
+median round of each; the tables of both executors are checked to be equal.  Each round
+also gives the time per run outside the engine: (wall × workers − Σ engine seconds) / runs,
+the engine seconds measured inside the workers (idle workers at the end of a round count too).
+The parent imports `swarm_core.simulate_cli` first, as `swarm sweep` does, so the local
+pool's forked workers start with the engine imported.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import operator
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+#: a task that returns at once: the run's key (importable on the workers, like run_task)
+echo = operator.attrgetter('key')
+
+
+def per_task_ms(study_tasks, workers, scheduler=None, repeat=3):
+    """Executor cost per task (ms of worker time): ``echo`` over the study's own tasks (each
+    carries its scenario), in a warm pool of ``workers`` processes or on the Dask cluster."""
+    times = []
+    if scheduler is None:
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            list(pool.map(echo, study_tasks[:workers]))
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                for f in as_completed([pool.submit(echo, t) for t in study_tasks]):
+                    f.result()
+                times.append(time.perf_counter() - t0)
+    else:
+        from distributed import Client, as_completed
+        with Client(scheduler) as client:
+            client.gather([client.submit(echo, t, pure=False) for t in study_tasks[:workers]])
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                for f in as_completed([client.submit(echo, t, pure=False) for t in study_tasks]):
+                    f.result()
+                times.append(time.perf_counter() - t0)
+    return round(1000 * statistics.median(times) * workers / len(study_tasks), 2)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument('--study', default=str(ROOT / 'studies' / 'fig3_ramp.yaml'))
+    p.add_argument('--seeds', type=int, default=2, help='seeds per cell (default 2)')
+    p.add_argument('--workers', type=int, default=2)
+    p.add_argument('--rounds', type=int, default=2)
+    p.add_argument('--duration', type=float, help="override the runs' duration (shorter runs: a larger share of overhead)")
+    p.add_argument('--json', help='also write the numbers here')
+    a = p.parse_args(argv)
+
+    from distributed import LocalCluster
+    from swarm_core import simulate_cli  # noqa: F401  (as in `swarm sweep`: forked workers inherit it)
+    from swarm_core import study as st
+
+    s = st.load_study(a.study)
+    s.seeds = list(range(a.seeds))
+    if a.duration:
+        s.fixed['duration'] = a.duration
+    st.validate(s)
+    n = len(s.cells()) * len(s.seeds)
+    t0 = time.perf_counter()
+    cluster = LocalCluster(n_workers=a.workers, threads_per_worker=1, processes=True,
+                           dashboard_address=None, host='127.0.0.1')
+    startup = time.perf_counter() - t0
+    res = {'study': s.name, 'runs': n, 'duration': a.duration, 'workers': a.workers, 'dask_startup_s': round(startup, 2),
+           'local_s': [], 'dask_s': [], 'local_outside_ms': [], 'dask_outside_ms': []}
+    tables = {}
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            for r in range(a.rounds):
+                for kind in ('local', 'dask'):
+                    cache = Path(tmp) / f'{kind}{r}'
+                    t0 = time.perf_counter()
+                    rows, counts = st.run_study(s, cache, jobs=a.workers,
+                                                scheduler=cluster.scheduler_address if kind == 'dask' else None)
+                    dt = time.perf_counter() - t0
+                    assert counts['ran'] == n
+                    res[f'{kind}_s'].append(round(dt, 2))
+                    engine_s = sum(json.loads(f.read_text())['wall'] for f in cache.glob('*.json'))
+                    res[f'{kind}_outside_ms'].append(round(1000 * (dt * a.workers - engine_s) / n, 1))
+                    tables[kind] = st.to_csv(s, rows)
+                    print(f'round {r}: {kind:5s} {n} runs in {dt:.1f} s = {n / dt:.2f} runs/s, '
+                          f'{res[f"{kind}_outside_ms"][-1]:.0f} ms per run outside the engine', flush=True)
+            # the executors alone, without the runs (robust to a loaded machine)
+            many = st.tasks(s) * max(1, 200 // n)
+            res['echo_tasks'] = len(many)
+            res['local_ms_per_task'] = per_task_ms(many, a.workers)
+            res['dask_ms_per_task'] = per_task_ms(many, a.workers, cluster.scheduler_address)
+            res['engine_s_per_run'] = round(statistics.median(
+                json.loads(f.read_text())['wall'] for f in (Path(tmp) / 'local0').glob('*.json')), 3)
+            print(f'executor cost per task: local {res["local_ms_per_task"]} ms, Dask {res["dask_ms_per_task"]} ms; '
+                  f'median engine time per run {res["engine_s_per_run"]} s', flush=True)
+    finally:
+        cluster.close()
+    res['same_table'] = tables['local'] == tables['dask']
+    loc, dsk = statistics.median(res['local_s']), statistics.median(res['dask_s'])
+    res['local_runs_per_s'] = round(n / loc, 3)
+    res['dask_runs_per_s'] = round(n / dsk, 3)
+    res['dask_overhead_pct'] = round(100 * (dsk / loc - 1), 1)
+    res['dask_overhead_per_run_ms'] = round(1000 * (dsk - loc) * a.workers / n, 1)
+    res['local_outside_ms_median'] = statistics.median(res['local_outside_ms'])
+    res['dask_outside_ms_median'] = statistics.median(res['dask_outside_ms'])
+    print(json.dumps(res, indent=1))
+    if a.json:
+        Path(a.json).write_text(json.dumps(res, indent=1) + '\n')
+    return 0 if res['same_table'] else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

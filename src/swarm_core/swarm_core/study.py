@@ -1,0 +1,625 @@
+"""Parameter studies: a grid over scenario fields × seeds, a tidy table, rates with CIs (no ROS).
+
+A study is a scenario, a grid ``{field: [values]}`` (fields in dotted form, ``law.leader_gain``,
+``lambda.tau``, ``faults.0.at``), fixed overrides and a list of seeds.  Every cell is validated
+through the scenario model (`scenario.parse`) before anything runs.  Each run is one task that
+carries its whole scenario mapping, so a worker needs only the project installed.  Runs are
+cached one JSON file per run, keyed by (scenario content hash, parameter values, seed, code
+version): a study re-run skips what finished.  The table is sorted by cell and seed and holds
+nothing that depends on the executor (no wall times), so it is the same for any executor and
+any number of workers.  The checks are the scenario's own (`outcomes.evaluate`).
+"""
+from __future__ import annotations
+
+import csv
+import functools
+import hashlib
+import io
+import itertools
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from . import scenario
+
+#: metrics taken from `simulate_cli.summary_of` into every row
+ROW_METRICS = ('final_clusters', 'max_clusters', 'min_distance', 'final_polarisation',
+               'intrusions_total', 'closest_centroid_target_distance')
+
+
+class StudyError(ValueError):
+    """A study that cannot run; the message names the bad input."""
+
+
+# ------------------------------------------------------------------ grid parsing
+
+def parse_values(text: str) -> list:
+    """``5,10,20`` → [5, 10, 20]; ``0:0.05:6`` → 6 values from 0 to 0.05 (both ends);
+    each item is read as YAML (numbers, true/false, strings)."""
+    text = text.strip()
+    if not text:
+        raise StudyError('empty list of values')
+    if ':' in text and not text.startswith(('[', '{')):
+        parts = text.split(':')
+        if len(parts) != 3:
+            raise StudyError(f'{text!r}: a range is START:STOP:COUNT')
+        try:
+            a, b, n = float(parts[0]), float(parts[1]), int(parts[2])
+        except ValueError:
+            raise StudyError(f'{text!r}: a range is START:STOP:COUNT (numbers, COUNT an integer)') from None
+        if n < 1:
+            raise StudyError(f'{text!r}: empty range (COUNT must be ≥ 1)')
+        return [float(v) for v in np.linspace(a, b, n)] if n > 1 else [a]
+    vals = []
+    for item in text.split(','):
+        if not item.strip():
+            raise StudyError(f'{text!r}: empty value in the list')
+        try:
+            vals.append(yaml.safe_load(item))
+        except yaml.YAMLError:
+            raise StudyError(f'{text!r}: cannot read value {item!r}') from None
+    return vals
+
+
+def parse_set(expr: str) -> tuple[str, list]:
+    """``law.leader_gain=5,10`` → ('law.leader_gain', [5, 10])."""
+    fld, eq, vals = expr.partition('=')
+    fld = fld.strip()
+    if not eq or not fld:
+        raise StudyError(f'--set {expr!r}: give FIELD=VALUES, e.g. law.leader_gain=5,10,20')
+    try:
+        return fld, parse_values(vals)
+    except StudyError as err:
+        raise StudyError(f'--set {fld}: {err}') from None
+
+
+def set_field(data: dict, dotted: str, value):
+    """Set ``data[a][b]...`` for ``a.b...`` (integer parts index lists); creates missing mappings."""
+    parts = dotted.split('.')
+    node = data
+    for i, part in enumerate(parts):
+        last = i == len(parts) - 1
+        if isinstance(node, list):
+            if not part.isdigit() or int(part) >= len(node):
+                raise StudyError(f'{dotted}: {".".join(parts[:i]) or "(top)"} has {len(node)} items, no {part!r}')
+            key = int(part)
+        elif isinstance(node, dict):
+            key = part
+            if not last and node.get(key) is None:
+                node[key] = {}
+        else:
+            raise StudyError(f'{dotted}: {".".join(parts[:i])} is a value, not a section')
+        if last:
+            node[key] = json.loads(json.dumps(value))    # a copy: cells never share a mapping
+        else:
+            node = node[key]
+
+
+# ------------------------------------------------------------------ the study
+
+@dataclass
+class Study:
+    """A scenario (its mapping and source), a grid, fixed overrides and seeds."""
+    data: dict
+    source: str
+    grid: dict = field(default_factory=dict)        # field -> list of values (in order)
+    fixed: dict = field(default_factory=dict)       # field -> value, applied to every cell
+    seeds: list = field(default_factory=lambda: list(range(10)))
+    name: str = ''
+    figure: dict = field(default_factory=dict)      # optional: {check: NAME}
+
+    @property
+    def params(self) -> list:
+        return list(self.grid)
+
+    def cells(self) -> list[dict]:
+        """Every grid cell as {field: value}, the first field varying slowest."""
+        keys = self.params
+        return [dict(zip(keys, combo)) for combo in itertools.product(*(self.grid[k] for k in keys))]
+
+    def cell_data(self, cell: dict) -> dict:
+        """The scenario mapping of one cell (a deep copy with the fixed and cell values set)."""
+        d = json.loads(json.dumps(self.data))
+        for k, v in {**self.fixed, **cell}.items():
+            set_field(d, k, v)
+        return d
+
+
+def _scenario_text(name_or_path):
+    try:
+        text, source = scenario.resolve(name_or_path)
+    except scenario.ScenarioError as err:
+        raise StudyError(str(err)) from None
+    data = yaml.safe_load(text)
+    if not isinstance(data, dict):
+        raise StudyError(f'{source}: a scenario is a YAML mapping')
+    return data, source
+
+
+def make_study(scenario_name, sets=(), seeds=10, first_seed=0, fixed=None, name=None) -> Study:
+    """A study from a scenario name or file and ``--set`` expressions."""
+    data, source = _scenario_text(scenario_name)
+    grid = {}
+    for expr in sets:
+        fld, vals = parse_set(expr) if isinstance(expr, str) else expr
+        if fld in grid:
+            raise StudyError(f'--set {fld}: given twice')
+        grid[fld] = vals
+    seed_list = list(range(first_seed, first_seed + seeds)) if isinstance(seeds, int) else list(seeds)
+    return Study(data=data, source=source, grid=grid, fixed=dict(fixed or {}), seeds=seed_list,
+                 name=name or data.get('name', 'study'))
+
+
+def load_study(path, base_dir=None) -> Study:
+    """A study file (YAML)::
+
+        name: fig3_ramp
+        scenario: homotopy_global      # a shipped name or a file (relative to the study file)
+        seeds: 10                      # or first_seed + seeds, or a list
+        set: {duration: 800}           # fixed overrides (optional)
+        grid:
+          law.leader_gain: [10, 30, 50]
+          lambda.tau: "5:45:3"         # a list or a range string
+        figure: {check: all}           # optional
+    """
+    p = Path(path)
+    try:
+        doc = yaml.safe_load(p.read_text())
+    except OSError as err:
+        raise StudyError(f'{path}: cannot read: {err.strerror}') from None
+    except yaml.YAMLError as err:
+        raise StudyError(f'{path}: not valid YAML: {str(err).splitlines()[0]}') from None
+    if not isinstance(doc, dict):
+        raise StudyError(f'{path}: a study is a YAML mapping')
+    unknown = set(doc) - {'name', 'description', 'scenario', 'seeds', 'first_seed', 'set', 'grid', 'figure'}
+    if unknown:
+        raise StudyError(f'{path}: unknown key(s) {sorted(unknown)}')
+    if 'scenario' not in doc or 'grid' not in doc:
+        raise StudyError(f'{path}: a study needs `scenario:` and `grid:`')
+    scn = str(doc['scenario'])
+    rel = (Path(base_dir) if base_dir else p.parent) / scn
+    if scn.endswith(('.yaml', '.yml')) and rel.is_file():
+        scn = str(rel)
+    sets = []
+    if not isinstance(doc['grid'], dict) or not doc['grid']:
+        raise StudyError(f'{path}: grid: a mapping FIELD: [values] with at least one field')
+    for k, v in doc['grid'].items():
+        if isinstance(v, str):
+            try:
+                v = parse_values(v)
+            except StudyError as err:
+                raise StudyError(f'{path}: grid.{k}: {err}') from None
+        if not isinstance(v, list) or not v:
+            raise StudyError(f'{path}: grid.{k}: needs a non-empty list or a START:STOP:COUNT range')
+        sets.append((str(k), v))
+    seeds = doc.get('seeds', 10)
+    st = make_study(scn, sets, seeds=seeds, first_seed=int(doc.get('first_seed', 0)),
+                    fixed=doc.get('set') or {}, name=doc.get('name') or p.stem)
+    st.figure = doc.get('figure') or {}
+    return st
+
+
+def validate(study: Study) -> None:
+    """Parse every cell through the scenario model; the first bad one raises `StudyError`
+    naming the ``--set`` field and the scenario's complaint.  Nothing runs."""
+    if not study.seeds:
+        raise StudyError('no seeds (--seeds must be ≥ 1)')
+    for k, vals in study.grid.items():
+        if not vals:
+            raise StudyError(f'--set {k}: empty list of values')
+    for k, v in study.fixed.items():
+        _check_cell(study, {}, f'set {k}={v}')
+    for cell in study.cells():
+        _check_cell(study, cell, ', '.join(f'{k}={v}' for k, v in cell.items()))
+
+
+def _known(data: dict, dotted: str) -> bool:
+    """Is ``dotted`` a field the scenario model has (a section may be absent from the file)?"""
+    model = scenario.ScenarioSpec
+    for part in dotted.split('.'):
+        if part.isdigit():
+            continue
+        fields = getattr(model, 'model_fields', None)
+        if fields is None:
+            return True          # a union or a free mapping below: the model validates it
+        match = [n for n, f in fields.items() if part in (n, f.alias)]
+        if not match:
+            return False
+        ann = fields[match[0]].annotation
+        model = _model_in(ann)
+        if model is None:
+            return True
+    return True
+
+
+def _model_in(ann):
+    from typing import get_args
+    from pydantic import BaseModel
+    if isinstance(ann, type) and issubclass(ann, BaseModel):
+        return ann
+    models = []
+    stack = [ann]
+    while stack:
+        a = stack.pop()
+        if isinstance(a, type) and issubclass(a, BaseModel):
+            models.append(a)
+        else:
+            stack.extend(get_args(a))
+    return models[0] if len(models) == 1 else None
+
+
+def _check_cell(study, cell, label):
+    for k in list(study.fixed) + list(cell):
+        if not _known(study.data, k):
+            raise StudyError(f'--set {k}: unknown scenario field')
+    try:
+        data = study.cell_data(cell)
+        scenario.parse(data, study.source, seed=study.seeds[0])
+    except (StudyError, scenario.ScenarioError) as err:
+        raise StudyError(f'{label}: {err}') from None
+
+
+# ------------------------------------------------------------------ runs and the cache
+
+def _canon(x) -> str:
+    return json.dumps(x, sort_keys=True, separators=(',', ':'), default=str)
+
+
+@functools.lru_cache(maxsize=None)
+def code_version() -> str:
+    """A hash of swarm_core's sources (a change to the law or the checks invalidates the cache)."""
+    h = hashlib.sha256()
+    root = Path(__file__).resolve().parent
+    for p in sorted(root.rglob('*')):
+        if p.suffix in ('.py', '.yaml') and '__pycache__' not in p.parts:
+            h.update(p.relative_to(root).as_posix().encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def run_key(base_hash: str, cell: dict, seed: int, version: str) -> str:
+    """The cache key of one run: (scenario content hash, parameter values, seed, code version)."""
+    return hashlib.sha256(_canon([base_hash, cell, seed, version]).encode()).hexdigest()[:24]
+
+
+@dataclass
+class Task:
+    """One run: everything a worker needs (the scenario travels with the task)."""
+    key: str
+    index: int
+    cell: dict
+    seed: int
+    data: dict
+    source: str
+    version: str = ''
+
+
+def tasks(study: Study, version: str | None = None) -> list[Task]:
+    version = version or code_version()
+    base = hashlib.sha256(_canon([study.data, study.fixed]).encode()).hexdigest()
+    out = []
+    for ci, cell in enumerate(study.cells()):
+        data = study.cell_data(cell)
+        for seed in study.seeds:
+            out.append(Task(run_key(base, cell, seed, version), ci, cell, seed, data, study.source, version))
+    return out
+
+
+def _num(v):
+    if isinstance(v, (bool, np.bool_)) or v is None:
+        return v if v is None else bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return float(v)
+    return None
+
+
+def run_task(task: Task) -> dict:
+    """Simulate one run and return its row's results (checks and metrics; no wall time)."""
+    from . import engine
+    from .simulate_cli import analyse, summary_of
+    if task.version and task.version != code_version():
+        raise RuntimeError(f'this worker runs swarm_core {code_version()}, the study needs {task.version}: '
+                           'install the same project version on every worker')
+    scn = scenario.parse(task.data, task.source, seed=task.seed)
+    traj = engine.simulate(scn)
+    series, checks = analyse(scn, traj)
+    s = summary_of(scn, traj, series, checks)
+    row = {'ok': s['behaviour_ok']}
+    for name, res in checks.items():
+        row[name] = res['passed']
+        for k, v in res.items():
+            if k not in ('passed', 'not_judged') and _num(v) is not None:
+                row[f'{name}.{k}'] = _num(v)
+    for k in ROW_METRICS:
+        if k in s:
+            row[k] = _num(s[k])
+    # the first time the swarm has two clusters and the last time it becomes one again
+    ch = s['cluster_changes']
+    row['t_first_split'] = next((t for t, c in ch if c >= 2), None)
+    row['t_last_one'] = next((t for t, c in reversed(ch) if c == 1), None) if ch and ch[-1][1] == 1 else None
+    return {'key': task.key, 'result': row, 'wall': s['wall_seconds']}
+
+
+class Cache:
+    """One JSON file per finished run under ``root`` (written atomically)."""
+
+    def __init__(self, root):
+        self.root = Path(root)
+        self.root.mkdir(parents=True, exist_ok=True)
+
+    def _path(self, key):
+        return self.root / f'{key}.json'
+
+    def get(self, key):
+        p = self._path(key)
+        try:
+            return json.loads(p.read_text())
+        except (OSError, ValueError):
+            return None
+
+    def put(self, key, doc):
+        tmp = self.root / f'.{key}.{os.getpid()}.tmp'
+        tmp.write_text(json.dumps(doc))
+        os.replace(tmp, self._path(key))
+
+
+# ------------------------------------------------------------------ executors
+
+def _ignore_sigint():
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # the parent decides what a Ctrl-C ends
+
+
+def _local_map(todo, jobs):
+    """Yield run_task results as they finish, in local processes (``jobs`` 1: in this one)."""
+    if jobs <= 1:
+        for t in todo:
+            yield run_task(t)
+        return
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    pool = ProcessPoolExecutor(max_workers=jobs, initializer=_ignore_sigint)
+    done = False
+    try:
+        futs = [pool.submit(run_task, t) for t in todo]
+        for f in as_completed(futs):
+            yield f.result()
+        done = True
+    finally:
+        if not done:                       # Ctrl-C or an error: end the runs in flight now
+            procs = list((pool._processes or {}).values())
+            for proc in procs:
+                proc.terminate()
+            for proc in procs:
+                proc.join(10)
+            pool.shutdown(wait=True)   # the pool sees its workers gone and fails what was left
+        else:
+            pool.shutdown(wait=True)
+
+
+def dask_client(scheduler: str):
+    """A distributed Client: ``tcp://HOST:PORT`` (an existing scheduler) or ``local:N`` (a
+    local cluster of N single-threaded worker processes, ended with the client)."""
+    from distributed import Client, LocalCluster
+    if scheduler.startswith('local:'):
+        n = int(scheduler[6:])
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=None, host='127.0.0.1')
+        client = Client(cluster)
+        client._study_cluster = cluster
+        return client
+    return Client(scheduler, timeout=30)
+
+
+def _dask_map(todo, scheduler):
+    from distributed import as_completed
+    client = dask_client(scheduler)
+    try:
+        futs = [client.submit(run_task, t, key=f'swarm-run-{t.key}', pure=False) for t in todo]
+        try:
+            for f in as_completed(futs):
+                yield f.result()
+        finally:
+            client.cancel(futs)
+    finally:
+        cluster = getattr(client, '_study_cluster', None)
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, version=None,
+              on_result=None):
+    """Run every task not in the cache; return (rows in cell × seed order, counts).
+
+    ``scheduler``: None for local processes (``jobs``), else a Dask address or ``local:N``.
+    ``on_result(counts)`` is called after each finished run is cached.  Ctrl-C
+    (KeyboardInterrupt) leaves the finished runs in the cache and propagates."""
+    cache = Cache(cache_dir)
+    all_tasks = tasks(study, version)
+    todo = [t for t in all_tasks if cache.get(t.key) is None]
+    counts = {'total': len(all_tasks), 'cached': len(all_tasks) - len(todo), 'ran': 0}
+    by_key = {t.key: t for t in todo}
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(all_tasks), initial=counts['cached'], unit='run', dynamic_ncols=True,
+                   desc=study.name, smoothing=0.1)
+    try:
+        if todo:
+            it = _dask_map(todo, scheduler) if scheduler else _local_map(todo, jobs)
+            for out in it:
+                t = by_key[out['key']]
+                cache.put(t.key, {'cell': t.cell, 'seed': t.seed, 'result': out['result'],
+                                  'wall': out['wall']})
+                counts['ran'] += 1
+                if bar is not None:
+                    bar.update(1)
+                if on_result is not None:
+                    on_result(counts)
+    finally:
+        if bar is not None:
+            bar.close()
+    rows = []
+    for t in all_tasks:
+        doc = cache.get(t.key)
+        rows.append({**t.cell, 'seed': t.seed, **doc['result']})
+    return rows, counts
+
+
+# ------------------------------------------------------------------ tables
+
+def table_columns(study: Study, rows) -> list:
+    cols = study.params + ['seed', 'ok']
+    for r in rows:
+        for k in r:
+            if k not in cols:
+                cols.append(k)
+    return cols
+
+
+def _cell_str(v):
+    if v is None:
+        return ''
+    if isinstance(v, float):
+        return repr(v)
+    return str(v)
+
+
+def to_csv(study: Study, rows) -> str:
+    """The tidy table: one row per run, every parameter, the seed, every check and metric."""
+    cols = table_columns(study, rows)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator='\n')
+    w.writerow(cols)
+    for r in rows:
+        w.writerow([_cell_str(r.get(c)) for c in cols])
+    return buf.getvalue()
+
+
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score interval (95 % by default) of a binomial rate k/n."""
+    if n == 0:
+        return (float('nan'), float('nan'))
+    p = k / n
+    den = 1 + z * z / n
+    mid = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return (max(0.0, mid - half), min(1.0, mid + half))
+
+
+def check_names(rows, params=()) -> list:
+    """'ok' and the checks' names (the boolean columns that are not parameters nor metrics)."""
+    names = ['ok']
+    for r in rows:
+        for k, v in r.items():
+            if '.' not in k and k not in names and k not in params and k != 'seed' and (isinstance(v, bool) or v is None) \
+                    and k not in ('t_first_split', 't_last_one') and k not in ROW_METRICS:
+                names.append(k)
+    return names
+
+
+def rates(study: Study, rows) -> list[dict]:
+    """Per cell and check ('ok': all checks): passed, judged n, rate and its 95 % Wilson CI.
+    A run whose check was not judged (None) is left out of n."""
+    out = []
+    names = check_names(rows, study.params)
+    for cell in study.cells():
+        sel = [r for r in rows if all(r.get(k) == v for k, v in cell.items())]
+        for c in names:
+            vals = [r.get(c) for r in sel if r.get(c) is not None]
+            k, n = sum(bool(v) for v in vals), len(vals)
+            lo, hi = wilson(k, n)
+            out.append({**cell, 'check': 'all' if c == 'ok' else c, 'passed': k, 'n': n,
+                        'rate': k / n if n else float('nan'), 'ci_low': lo, 'ci_high': hi})
+    return out
+
+
+def rates_csv(study: Study, rates_rows) -> str:
+    cols = study.params + ['check', 'passed', 'n', 'rate', 'ci_low', 'ci_high']
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator='\n')
+    w.writerow(cols)
+    for r in rates_rows:
+        w.writerow([_cell_str(round(r[c], 4) if isinstance(r[c], float) else r[c]) for c in cols])
+    return buf.getvalue()
+
+
+def rates_markdown(study: Study, rates_rows, checks=None) -> str:
+    """A Markdown table: one row per cell, one column per check with 'k/n (lo–hi)'."""
+    names = list(dict.fromkeys(r['check'] for r in rates_rows))
+    if checks:
+        names = [c for c in names if c in checks]
+    head = study.params + [f'{c}' for c in names]
+    lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
+    for cell in study.cells():
+        sel = {r['check']: r for r in rates_rows if all(r.get(k) == v for k, v in cell.items())}
+        vals = [f'{v:g}' if isinstance(v, float) else str(v) for v in cell.values()]
+        for c in names:
+            r = sel[c]
+            vals.append(f'{r["passed"]}/{r["n"]} ({r["ci_low"]:.2f}–{r["ci_high"]:.2f})' if r['n'] else 'n/a')
+        lines.append('| ' + ' | '.join(vals) + ' |')
+    return '\n'.join(lines)
+
+
+def plot_rates(study: Study, rates_rows, path, check='all', title=None):
+    """Rate of ``check`` per cell: a heatmap for two parameters, rate ± 95 % CI for one
+    (with more, one line per value of the other parameters)."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    rr = [r for r in rates_rows if r['check'] == check]
+    params = study.params
+    title = title or f'{study.name}: {check} rate ({len(study.seeds)} seeds per cell)'
+    if len(params) == 2:
+        a, b = params
+        xs, ys = study.grid[b], study.grid[a]
+        z = np.full((len(ys), len(xs)), np.nan)
+        txt = {}
+        for r in rr:
+            i, j = ys.index(r[a]), xs.index(r[b])
+            z[i, j] = r['rate']
+            txt[i, j] = f'{r["passed"]}/{r["n"]}'
+        fig, ax = plt.subplots(figsize=(1.2 * len(xs) + 2.5, 0.8 * len(ys) + 1.8))
+        im = ax.imshow(z, origin='lower', cmap='viridis', vmin=0, vmax=1, aspect='auto')
+        for (i, j), s in txt.items():
+            ax.text(j, i, s, ha='center', va='center', color='w' if z[i, j] < 0.6 else 'k', fontsize=9)
+        ax.set_xticks(range(len(xs)), [f'{v:g}' if isinstance(v, float) else str(v) for v in xs])
+        ax.set_yticks(range(len(ys)), [f'{v:g}' if isinstance(v, float) else str(v) for v in ys])
+        ax.set_xlabel(b)
+        ax.set_ylabel(a)
+        fig.colorbar(im, ax=ax, label=f'{check} rate')
+    else:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        x = params[0]
+        others = params[1:]
+        groups = {}
+        for r in rr:
+            groups.setdefault(tuple(r[o] for o in others), []).append(r)
+        xs = study.grid[x]
+        numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in xs)
+        for g, sel in groups.items():
+            xv = np.array([r[x] if numeric else xs.index(r[x]) for r in sel], float)
+            y = np.array([r['rate'] for r in sel])
+            err = np.array([[r['rate'] - r['ci_low'] for r in sel], [r['ci_high'] - r['rate'] for r in sel]])
+            lab = ', '.join(f'{o}={v}' for o, v in zip(others, g)) or None
+            ax.errorbar(xv, y, yerr=err, marker='o', capsize=3, label=lab)
+        if not numeric:
+            ax.set_xticks(range(len(xs)), [str(v) for v in xs])
+            ax.set_xlim(-0.5, len(xs) - 0.5)
+        ax.set_xlabel(x)
+        ax.set_ylabel(f'{check} rate (95 % CI)')
+        ax.set_ylim(-0.05, 1.05)
+        if others:
+            ax.legend(fontsize=8)
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
