@@ -150,7 +150,7 @@ class WorldNode(Node):
         self.sub_states = self.create_subscription(Odometry, P.STATES, self._on_state,
                                                    P.qos_latched(max(100, 4 * self.n)), raw=True)
         if self.mode == 'realtime':
-            self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
+            self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_latched(10))  # the commander's
             # the leaders as the commander announces them (lockstep: in each decision)
             self.create_subscription(String, P.LEADERS, self._on_leaders, P.qos_latched())
         if self.mode == 'lockstep':
