@@ -78,7 +78,8 @@ def test_topic_pub_once_and_param_set_take_effect_every_time(tmp_path, ros_domai
         spin_for(ex, lambda: not t.is_alive(), 120)
         hit = spin_for(ex, lambda: value in seen[key], 30)
         taken.append((topic, value, hit, round(time.monotonic() - t0, 2)))
-    assert all(h for _, _, h, _ in taken), taken
+    assert all(h for _, _, h, _ in taken), '\n'.join([str(x) for x in taken] + [
+        ln.rstrip() for ln in lines.lines if 'commander' in ln][-40:])
     assert not set_param('lambda', 1.5).successful
     assert set_param('lambda', 0.77).successful
     assert spin_for(ex, lambda: 0.77 in seen['lambda'], 30)

@@ -48,9 +48,30 @@ from swarm_core.model import frame_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 from swarm_core.schedules import check_command
 from swarm_world import protocol as P
-from swarm_world.rosutil import ParameterError, RejectLog, declare, run_node, when_matched
+from swarm_world.rosutil import ParameterError, RejectLog, declare, gid_key, run_node, steady_clock, when_matched
 
 SETPOINT = '/commander/lambda_setpoint'
+#: wall seconds between looks at the graph for new command writers
+COMMAND_POLL = 0.05
+
+
+class CommandReader:
+    """A command topic and its reader (None until a writer of another node is seen)."""
+
+    def __init__(self, topic, msg_type, callback, own=None):
+        self.topic, self.msg_type, self.callback = topic, msg_type, callback
+        self.own = own                   # key of the commander's own writer (own_sent), if any
+        self.sub = None
+        self.writers = frozenset()
+
+    def drain(self):
+        """Hand what the reader holds to the callback before it is dropped."""
+        try:
+            with self.sub.handle:
+                while (got := self.sub.handle.take_message(self.msg_type, False)) is not None:
+                    self.callback(got[0])
+        except Exception:                # pragma: no cover - rclpy internals changed
+            pass
 
 
 class CommanderNode(Node):
@@ -106,14 +127,17 @@ class CommanderNode(Node):
         self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
         self.pub_steer = {nm: self.create_publisher(Float64, P.steering_topic(nm), P.qos_latched(P.STEP_DEPTH))
                           for nm in self.names}
-        # rclpy's message info carries no publisher id here, so the commander recognises its own
-        # publications by value: its own messages come back in order (one FIFO per topic)
+        # command readers (VOLATILE, as `ros2 topic pub` writes), each made only once a writer of
+        # another node is in the graph (see _watch_commands).  rclpy's message info carries no
+        # publisher id here, so the commander recognises its own publications by value: its own
+        # messages come back in order (one FIFO per topic, kept while the reader exists)
         self.own_sent = {}
-        self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
-        self.create_subscription(Float64MultiArray, SETPOINT, self._on_setpoint, P.qos_reliable())
+        self.commands = {P.LAMBDA: CommandReader(P.LAMBDA, Float64, self._on_lambda, P.LAMBDA),
+                         SETPOINT: CommandReader(SETPOINT, Float64MultiArray, self._on_setpoint)}
         for nm in self.names:
-            self.create_subscription(Float64, P.steering_topic(nm),
-                                     lambda msg, nm=nm: self._on_steering(nm, msg), P.qos_reliable())
+            self.commands[nm] = CommandReader(P.steering_topic(nm), Float64,
+                                              lambda msg, nm=nm: self._on_steering(nm, msg), nm)
+        self.create_timer(COMMAND_POLL, self._watch_commands, clock=steady_clock())
         if self.mode == 'lockstep':
             self.last_decision = None
             self.pub_decision = self.create_publisher(Float64MultiArray, P.LOCK_DECISION, P.qos_latched())
@@ -134,20 +158,49 @@ class CommanderNode(Node):
         self.publish_leaders([])
 
     def _recorder_matched(self):
-        # readers: λ — the agents, the commander itself, the recorder; steering — the agent, the
-        # commander itself, the recorder; decisions — the world, the recorder
-        return (self.pub_lambda.get_subscription_count() >= self.n + 2
+        # readers: λ — the agents, the recorder; steering — the agent, the recorder; decisions —
+        # the world, the recorder
+        return (self.pub_lambda.get_subscription_count() >= self.n + 1
                 and self.pub_decision.get_subscription_count() >= 2
-                and all(p.get_subscription_count() >= 3 for p in self.pub_steer.values()))
+                and all(p.get_subscription_count() >= 2 for p in self.pub_steer.values()))
+
+    def _watch_commands(self):
+        """Make a command topic's reader when a writer of another node appears on it (again
+        when another new one does), and drop it when none is left.
+
+        ``ros2 topic pub --once`` publishes as soon as ONE reader matched ITS writer.  Discovery
+        is asymmetric: a reader that existed before the writer may be matched on the writer's
+        side before the reader's side knows the writer, and the reader then drops the sample
+        (the tool has exited 0.1 s later, so it is never repaired).  A reader made after this
+        participant discovered the writer is paired with it when it is made, before the tool
+        can see it: the first sample is always taken."""
+        me = (self.get_name(), self.get_namespace())
+        for c in self.commands.values():
+            try:
+                infos = self.get_publishers_info_by_topic(c.topic)
+            except Exception:            # the context is going down
+                return
+            writers = frozenset(gid_key(i.endpoint_gid) for i in infos if (i.node_name, i.node_namespace) != me)
+            if writers - c.writers or (not writers and c.sub is not None):
+                if c.sub is not None:
+                    c.drain()
+                    self.destroy_subscription(c.sub)
+                    c.sub = None
+                if writers:
+                    c.sub = self.create_subscription(c.msg_type, c.topic, c.callback, P.qos_reliable())
+                if c.own is not None:
+                    self.own_sent.pop(c.own, None)
+            c.writers = writers
 
     def _join_lockstep(self):
         self.create_subscription(Float64MultiArray, P.LOCK_STATES, self._on_states, P.qos_latched(), raw=True)
 
     def _send(self, topic, pub, value):
-        fifo = self.own_sent.setdefault(topic, [])
-        fifo.append(value)
-        if len(fifo) > 1000:
-            del fifo[:500]
+        if self.commands[topic].sub is not None:      # it comes back only while the reader exists
+            fifo = self.own_sent.setdefault(topic, [])
+            fifo.append(value)
+            if len(fifo) > 1000:
+                del fifo[:500]
         pub.publish(Float64(data=value))
 
     def _from_self(self, topic, value):
