@@ -47,3 +47,19 @@ def test_read_commands_rejects_a_command_without_a_step_or_agent():
         read_commands([json.dumps(dict(kind='command', command='lambda', value=1.0))], names)
     with pytest.raises(ValueError, match="unknown agent 'agent_9'"):
         read_commands([json.dumps(dict(kind='command', step=1, command='steer', agent='agent_9', value=1.0))], names)
+
+
+def test_swarm_simulate_replay_cli(tmp_path, swarm_cmd):
+    """``swarm simulate --replay events.jsonl`` applies the commands (the printed events show
+    the command and the leaders it chose); a bad file is one line and exit 2."""
+    import subprocess
+    ev = tmp_path / 'events.jsonl'
+    ev.write_text(json.dumps(dict(t=2.0, step=20, kind='command', command='lambda', value=1.0, ramp=5.0)) + '\n')
+    r = subprocess.run([swarm_cmd, 'simulate', 'homotopy_global', '--duration', '10', '--replay', ev, '--quiet',
+                        '--no-figure', '--out', tmp_path / 'out'], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert 'event t=2: command' in r.stdout and 'leaders_chosen' in r.stdout
+    ev.write_text('{"kind": "command", "command": "lambda", "value": 1.0}\n')
+    r = subprocess.run([swarm_cmd, 'simulate', 'homotopy_global', '--duration', '10', '--replay', ev, '--quiet',
+                        '--no-figure', '--out', tmp_path / 'out'], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.strip().count('\n') == 0 and 'line 1' in r.stderr, r.stderr

@@ -108,12 +108,12 @@ def test_lockstep_live_commands_replay_in_the_batch_engine(tmp_path, rclpy_conte
     from swarm_world.rosutil import make_executor
     from conftest import spin_for
 
-    path = short_homotopy(tmp_path / 'lock.yaml', duration=40, lam='{kind: constant, value: 0.0}', at=1e6)
+    path = short_homotopy(tmp_path / 'lock.yaml', duration=25, lam='{kind: constant, value: 0.0}', at=1e6)
     scn = load(str(path))
     out = tmp_path / 'out'
     params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
     world, commander, agents = build_nodes(params, rclpy_context, log=lambda *a, **k: None)
-    ex = make_executor(rclpy_context)
+    ex = make_executor(rclpy_context, events=False)   # a wait-set executor: nodes can leave and come back
     for nd in [world, commander, *agents]:
         ex.add_node(nd)
 
@@ -122,11 +122,17 @@ def test_lockstep_live_commands_replay_in_the_batch_engine(tmp_path, rclpy_conte
         n = len([e for e in world.events if e['kind'] == 'command'])
         t = threading.Thread(target=_pub_once_in_own_context, args=(topic, value))
         t.start()
-        t.join(120)                  # the swarm waits (not spun) while the tool runs
+        # the swarm waits (world and agents not spun) while the tool runs; the commander
+        # answers the graph and takes the command
+        for nd in [world, *agents]:
+            ex.remove_node(nd)
+        assert spin_for(ex, lambda: not t.is_alive(), 120)
+        for nd in [world, *agents]:
+            ex.add_node(nd)
         assert spin_for(ex, lambda: len([e for e in world.events if e['kind'] == 'command']) > n, 60)
 
     command('/swarm/lambda', 1.0, 100)
-    command('/agent_1/steering', -0.02, 300)
+    command('/agent_1/steering', -0.02, 250)
     assert spin_for(ex, lambda: world.done, 300)
     got = world.trajectory()
     lines = (out / 'events.jsonl').read_text().splitlines()
