@@ -31,9 +31,11 @@ def main() -> int:
     p.add_argument('--record', action='store_true', help='run with --record')
     p.add_argument('--tries', type=int, default=20)
     p.add_argument('--wait', type=float, default=10.0, help='wall s to wait for the commander per try')
-    p.add_argument('--domain', type=int, default=77)
     a = p.parse_args()
-    env = dict(os.environ, ROS_DOMAIN_ID=str(a.domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+    sys.path.insert(0, str(ROOT / 'tests'))
+    from conftest import _claim_domain      # a ROS_DOMAIN_ID no other run or test uses meanwhile
+    domain, lock = _claim_domain()
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                RMW_IMPLEMENTATION='rmw_fastrtps_cpp', PYTHONUNBUFFERED='1')
     tmp = Path(tempfile.mkdtemp(prefix='bench_topic_pub_'))
     log = tmp / 'run.log'
