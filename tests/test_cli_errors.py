@@ -115,7 +115,7 @@ def test_ros_verbs_help_shows_defaults(verb, flag):
 
 
 @pytest.mark.parametrize('exe, param', [('swarm_world', 'scenario (str)'), ('swarm_agent', 'leader_gain (float)'),
-                                        ('homotopy_commander', 'default_ramp (float)')])
+                                        ('homotopy_commander', 'ramp (float)')])
 def test_node_executables_answer_help_without_starting(ros_domain, swarm_cmd, exe, param):
     """`swarm_world --help` (a setup.py entry point) prints its usage and parameters and
     exits 0; it used to start a world node that waited for agents for 180 s."""

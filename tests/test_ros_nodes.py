@@ -120,7 +120,8 @@ def test_lockstep_reaches_agents_over_dds(rclpy_context):
 
 def test_realtime_lambda_and_steering_change_what_an_agent_does(rclpy_context):
     """A realtime leader agent: with λ = 1 from /swarm/lambda its u is its /agent_0/steering
-    value; λ = 0 gives the pair law; bad λ and steering values are rejected (logged)."""
+    value; λ = 0 gives the pair law; bad λ and steering values are rejected (logged).  The
+    probe publishes as the commander does (transient-local): agents read only those."""
     scn = load('homotopy_global')
     ctx = rclpy_context
     ex = make_executor(ctx)
@@ -128,8 +129,8 @@ def test_realtime_lambda_and_steering_change_what_an_agent_does(rclpy_context):
     agent = AgentNode('agent', namespace='agent_0', context=ctx, parameter_overrides=overrides(prm))
     probe = rclpy.create_node('probe', context=ctx)
     clock = probe.create_publisher(Clock, '/clock', 10)
-    lam = probe.create_publisher(Float64, '/swarm/lambda', 10)
-    steer = probe.create_publisher(Float64, '/agent_0/steering', 10)
+    lam = probe.create_publisher(Float64, '/swarm/lambda', P.qos_latched(10))
+    steer = probe.create_publisher(Float64, '/agent_0/steering', P.qos_latched(10))
     for nd in (agent, probe):
         ex.add_node(nd)
     assert spin_for(ex, lambda: lam.get_subscription_count() and steer.get_subscription_count()
@@ -320,7 +321,7 @@ def test_commander_rejects_bad_lambda_and_takes_setpoints(rclpy_context):
     c, s = np.cos(scn.theta0), np.sin(scn.theta0)
     lam0, flags, steering = cmd.decide(100.0, scn.pos0, c, s)
     assert lam0 == pytest.approx(0.0, abs=1e-4) and flags[4] and steering[4] == 0.02
-    lam_mid, _, _ = cmd.decide(110.0, scn.pos0, c, s)          # ramping to 1 over default_ramp = 20
+    lam_mid, _, _ = cmd.decide(110.0, scn.pos0, c, s)          # ramping to 1 over ramp = 20
     lam_end, _, _ = cmd.decide(125.0, scn.pos0, c, s)
     assert 0.2 < lam_mid < 0.8 and lam_end == 1.0
     probe.destroy_node()

@@ -1,11 +1,11 @@
 """``swarm lambda`` and ``swarm steer``: set λ or a leader's steering in a running swarm.
 
 ``swarm lambda 1.0 --ramp 20`` publishes ``[1.0, 20]`` on ``/commander/lambda_setpoint``: the
-commander ramps λ smoothly from its current value to 1.0 over 20 sim seconds.  Without a
-commander (none subscribed within --wait seconds) it publishes the value on ``/swarm/lambda``
-directly, which is what a raw ``ros2 topic pub --once /swarm/lambda std_msgs/msg/Float64
-"{data: 1.0}"`` does: agents apply it at once; a running commander takes it as a set-point
-and ramps to it over its ``default_ramp`` (20 s).
+commander ramps λ smoothly from its current value to 1.0 over 20 sim seconds, from the next
+step it decides.  Without a commander (none subscribed within --wait seconds) it publishes the
+value on ``/swarm/lambda``, as ``ros2 topic pub --once /swarm/lambda std_msgs/msg/Float64
+"{data: 1.0}"`` does (a running commander takes that as a set-point with its ``ramp``
+parameter, 20 s by default; docs/commands.md).
 ``swarm steer agent_0 0.01`` publishes 0.01 on ``/agent_0/steering`` (as ``ros2 topic pub``
 would): the commander makes it that leader's constant steering program (the agent becomes a
 leader if it was not); a realtime agent applies it at once.

@@ -1,25 +1,34 @@
-"""CommanderNode: the λ schedule, the leaders and their steering programs, live set-points.
+"""CommanderNode: the λ schedule, the leaders and their steering programs, live commands.
 
 Runs the scenario's `swarm_core.schedules.CommandPlan` (the batch engine runs the same):
 - lockstep: on each ``/lockstep/states`` (the states of step n) it decides λ, leaders and
   s_k for step n and answers on ``/lockstep/decision``;
 - realtime: a timer at 1/dt (sim time) decides from the newest ``/swarm/states``.
-It publishes ``/swarm/lambda``, ``/<leader>/steering`` and ``/swarm/leaders`` (latched).
+It publishes the λ in force on ``/swarm/lambda``, ``/<leader>/steering`` (both reliable,
+transient-local) and ``/swarm/leaders`` (latched).
 
-Live changes:
+Live commands (docs/commands.md), each applied at the next step the commander decides and
+published with that step on ``/swarm/events`` (``kind: command``; ``swarm simulate
+--replay`` re-applies them):
+- ``/swarm/lambda`` (std_msgs/Float64) from anyone else, e.g. ``ros2 topic pub --once
+  /swarm/lambda std_msgs/msg/Float64 "{data: 1.0}"``: ramp to it over ``ramp`` seconds;
 - ``/commander/lambda_setpoint`` (std_msgs/Float64MultiArray ``[value, ramp_seconds]``, what
-  ``swarm lambda`` sends): ramp smoothly from the current λ to ``value``;
-- a ``/swarm/lambda`` message from anyone else (e.g. ``ros2 topic pub --once /swarm/lambda
-  std_msgs/msg/Float64 "{data: 1.0}"``): the same, with the ``default_ramp`` duration;
-- a ``/<agent>/steering`` message from anyone else (``swarm steer agent_0 0.01``): that
-  agent's program becomes the constant curvature (the agent becomes a leader if it was not).
+  ``swarm lambda`` sends): the same with its own ramp;
+- ``/<agent>/steering`` from anyone else (``swarm steer agent_0 0.01``): that agent's program
+  becomes the constant curvature (the agent becomes a leader if it was not);
+- the parameters ``lambda``, ``ramp`` and ``steering.<agent>`` (``ros2 param set /commander
+  lambda 1.0``): checked in the on-set callback, applied in the post-set callback.
+The commander is the only node that reads the command topics with the VOLATILE durability of
+``ros2 topic pub``; agents, world and recorder read the transient-local λ and steering the
+commander publishes, so a one-shot publisher's single match is always the commander.
 λ outside [0, 1] or not finite, a non-finite steering value, an unknown agent: rejected with
 one log line, nothing changes.
 
 Faults (swarm_core.faults): in lockstep the plan sees which agents the world heard at each step
 (the alive mask of ``/lockstep/states``), so leader failover elects the same successor as the
 batch engine; the decision carries the leader slots and the rendezvous (reunion) target.  The
-plan's events (leaders chosen, failover, leader lost, rendezvous on/off) go to ``/swarm/events``.
+plan's events (leaders chosen, failover, leader lost, rendezvous on/off, commands) go to
+``/swarm/events``.
 """
 from __future__ import annotations
 
@@ -29,21 +38,42 @@ import sys
 
 import numpy as np
 from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_core.faults import event_names
 from swarm_core.frenet import frame_from_quaternion
 from swarm_core.scenario import ScenarioError, load
-from swarm_core.schedules import ConstantSteering
+from swarm_core.schedules import check_command
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders
-from swarm_ros.rosutil import ParameterError, declare, run_node, when_matched
+from swarm_ros.rosutil import ParameterError, declare, gid_key, run_node, steady_clock, when_matched
 from swarm_ros.runinfo import valid_run_id
 
-from .live import LiveSchedule
-
 SETPOINT = '/commander/lambda_setpoint'
+#: wall seconds between looks at the graph for new command writers
+COMMAND_POLL = 0.05
+
+
+class CommandReader:
+    """A command topic and its reader (None until a writer of another node is seen)."""
+
+    def __init__(self, topic, msg_type, callback, own=None):
+        self.topic, self.msg_type, self.callback = topic, msg_type, callback
+        self.own = own                   # key of the commander's own writer (own_sent), if any
+        self.sub = None
+        self.writers = frozenset()
+
+    def drain(self):
+        """Hand what the reader holds to the callback before it is dropped."""
+        try:
+            with self.sub.handle:
+                while (got := self.sub.handle.take_message(self.msg_type, False)) is not None:
+                    self.callback(got[0])
+        except Exception:                # pragma: no cover - rclpy internals changed
+            pass
 
 
 class CommanderNode(Node):
@@ -56,8 +86,8 @@ class CommanderNode(Node):
         seed = d('seed', -1, "seed (-1: the scenario's)", lo=-1, hi=2**31 - 1)
         dt = d('dt', 0.0, "step (0: the scenario's)", lo=0.0, hi=10.0)
         self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=('lockstep', 'realtime'))
-        self.default_ramp = d('default_ramp', 20.0, 'ramp duration (sim s) for a bare /swarm/lambda set-point',
-                              lo=0.0, hi=1e6)
+        self.ramp = d('ramp', 20.0, 'ramp duration (sim s) of a λ set-point from /swarm/lambda or the '
+                      'lambda parameter (0 = jump)', lo=0.0, hi=1e6)
         self.ramp_shape = d('ramp_shape', 'smoothstep', 'shape of set-point ramps',
                             choices=('smoothstep', 'linear', 'tanh', 'step'))
         self.heard_timeout = d('heard_timeout', 1.0, 'realtime: an agent silent for this many sim s is not heard '
@@ -80,30 +110,41 @@ class CommanderNode(Node):
         self.row = {nm: i for i, nm in enumerate(self.names)}
         self.dt = self.scn.dt
         self.plan = self.scn.command_plan()
-        self.schedule = LiveSchedule(self.plan.schedule)
-        self.plan.schedule = self.schedule
         self.reject = RejectLog(self.get_logger())
         self.senders = Senders()     # realtime: each agent name bound to its first publisher
         self.t = 0.0
-        self.lam = float(self.schedule.value(0.0))
+        self.lam = float(self.plan.schedule.value(0.0))
+        d('lambda', self.lam, 'set λ: the commander ramps to it over `ramp` s from the next step '
+          '(holds the last set-point)', lo=0.0, hi=1.0)
+        for nm in self.names:
+            d(f'steering.{nm}', math.nan, f'set the steering s_k of {nm} (it becomes a leader) from the next '
+              'step; NaN = the scenario\'s program', finite=False)
+        self.add_pre_set_parameters_callback(self._pre_set)
+        self.add_on_set_parameters_callback(self._check_params)
+        self.add_post_set_parameters_callback(self._apply_params)
         self.leaders_sent = None
         self.steer_sent = {}
         self.pending = []            # live changes to apply at the next decision
         self.decisions = 0
 
-        self.pub_lambda = self.create_publisher(Float64, P.LAMBDA, P.qos_reliable(P.STEP_DEPTH))
+        # outputs: transient-local, so that a one-shot VOLATILE publisher (ros2 topic pub) matches
+        # only the commander's command readers below, not the agents, world or recorder
+        self.pub_lambda = self.create_publisher(Float64, P.LAMBDA, P.qos_latched(P.STEP_DEPTH))
         self.pub_leaders = self.create_publisher(String, P.LEADERS, P.qos_latched())
         self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
-        self.pub_steer = {nm: self.create_publisher(Float64, P.steering_topic(nm), P.qos_reliable(P.STEP_DEPTH))
+        self.pub_steer = {nm: self.create_publisher(Float64, P.steering_topic(nm), P.qos_latched(P.STEP_DEPTH))
                           for nm in self.names}
-        # rclpy's message info carries no publisher id here, so the commander recognises its own
-        # publications by value: its own messages come back in order (one FIFO per topic)
+        # command readers (VOLATILE, as `ros2 topic pub` writes), each made only once a writer of
+        # another node is in the graph (see _watch_commands).  rclpy's message info carries no
+        # publisher id here, so the commander recognises its own publications by value: its own
+        # messages come back in order (one FIFO per topic, kept while the reader exists)
         self.own_sent = {}
-        self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
-        self.create_subscription(Float64MultiArray, SETPOINT, self._on_setpoint, P.qos_reliable())
+        self.commands = {P.LAMBDA: CommandReader(P.LAMBDA, Float64, self._on_lambda, P.LAMBDA),
+                         SETPOINT: CommandReader(SETPOINT, Float64MultiArray, self._on_setpoint)}
         for nm in self.names:
-            self.create_subscription(Float64, P.steering_topic(nm),
-                                     lambda msg, nm=nm: self._on_steering(nm, msg), P.qos_reliable())
+            self.commands[nm] = CommandReader(P.steering_topic(nm), Float64,
+                                              lambda msg, nm=nm: self._on_steering(nm, msg), nm)
+        self.create_timer(COMMAND_POLL, self._watch_commands, clock=steady_clock())
         if self.mode == 'lockstep':
             self.last_decision = None
             self.pub_decision = self.create_publisher(Float64MultiArray, P.LOCK_DECISION, P.qos_latched())
@@ -124,20 +165,49 @@ class CommanderNode(Node):
         self.publish_leaders([])
 
     def _recorder_matched(self):
-        # readers: λ — the agents, the commander itself, the recorder; steering — the agent, the
-        # commander itself, the recorder; decisions — the world, the recorder
-        return (self.pub_lambda.get_subscription_count() >= self.n + 2
+        # readers: λ — the agents, the recorder; steering — the agent, the recorder; decisions —
+        # the world, the recorder
+        return (self.pub_lambda.get_subscription_count() >= self.n + 1
                 and self.pub_decision.get_subscription_count() >= 2
-                and all(p.get_subscription_count() >= 3 for p in self.pub_steer.values()))
+                and all(p.get_subscription_count() >= 2 for p in self.pub_steer.values()))
+
+    def _watch_commands(self):
+        """Make a command topic's reader when a writer of another node appears on it (again
+        when another new one does), and drop it when none is left.
+
+        ``ros2 topic pub --once`` publishes as soon as ONE reader matched ITS writer.  Discovery
+        is asymmetric: a reader that existed before the writer may be matched on the writer's
+        side before the reader's side knows the writer, and the reader then drops the sample
+        (the tool has exited 0.1 s later, so it is never repaired).  A reader made after this
+        participant discovered the writer is paired with it when it is made, before the tool
+        can see it: the first sample is always taken."""
+        me = (self.get_name(), self.get_namespace())
+        for c in self.commands.values():
+            try:
+                infos = self.get_publishers_info_by_topic(c.topic)
+            except Exception:            # the context is going down
+                return
+            writers = frozenset(gid_key(i.endpoint_gid) for i in infos if (i.node_name, i.node_namespace) != me)
+            if writers - c.writers or (not writers and c.sub is not None):
+                if c.sub is not None:
+                    c.drain()
+                    self.destroy_subscription(c.sub)
+                    c.sub = None
+                if writers:
+                    c.sub = self.create_subscription(c.msg_type, c.topic, c.callback, P.qos_reliable())
+                if c.own is not None:
+                    self.own_sent.pop(c.own, None)
+            c.writers = writers
 
     def _join_lockstep(self):
         self.create_subscription(Float64MultiArray, P.LOCK_STATES, self._on_states, P.qos_latched(), raw=True)
 
     def _send(self, topic, pub, value):
-        fifo = self.own_sent.setdefault(topic, [])
-        fifo.append(value)
-        if len(fifo) > 1000:
-            del fifo[:500]
+        if self.commands[topic].sub is not None:      # it comes back only while the reader exists
+            fifo = self.own_sent.setdefault(topic, [])
+            fifo.append(value)
+            if len(fifo) > 1000:
+                del fifo[:500]
         pub.publish(Float64(data=value))
 
     def _from_self(self, topic, value):
@@ -151,53 +221,84 @@ class CommanderNode(Node):
     def _on_lambda(self, msg):
         if self._from_self(P.LAMBDA, msg.data):
             return
-        self.set_lambda(msg.data, self.default_ramp, P.LAMBDA)
+        self.set_lambda(msg.data, self.ramp, P.LAMBDA)
 
     def _on_setpoint(self, msg):
         if len(msg.data) not in (1, 2):
             self.reject('setpoint', f'{SETPOINT} with {len(msg.data)} values (want [λ, ramp])')
             return
-        ramp = msg.data[1] if len(msg.data) == 2 else self.default_ramp
-        if not (math.isfinite(ramp) and ramp >= 0):
-            self.reject('ramp', f'ramp duration {ramp!r}: must be finite and ≥ 0')
-            return
+        ramp = msg.data[1] if len(msg.data) == 2 else self.ramp
         self.set_lambda(msg.data[0], ramp, SETPOINT)
 
     def set_lambda(self, value, ramp, source):
-        if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-            self.reject('lambda', f'λ={value!r} from {source}: must be finite and in [0, 1]')
-            return
-        self.pending.append(('lambda', float(value), float(ramp)))
-        self.get_logger().info(f'λ set-point {value:g} over {ramp:g} s (from {source})')
+        """Queue a λ set-point for the next step (False, logged, if it is rejected)."""
+        return self._queue(dict(command='lambda', value=value, ramp=ramp, shape=self.ramp_shape, source=source),
+                           f'λ set-point {value:g} over {ramp:g} s (from {source})')
 
     def _on_steering(self, name, msg):
         if self._from_self(name, msg.data):
             return
-        v = msg.data
-        if not math.isfinite(v):
-            self.reject('steer', f'steering s={v!r} for {name}: not finite')
-            return
-        self.pending.append(('steer', name, float(v)))
-        self.get_logger().info(f'steering of {name} set to {v:g}')
+        self.set_steering(name, msg.data, P.steering_topic(name))
 
-    def apply_pending(self, t):
-        for item in self.pending:
-            if item[0] == 'lambda':
-                self.schedule.set_point(t, item[1], item[2], self.ramp_shape)
-            else:
-                _, name, v = item
-                idx = self.row[name]
-                if idx not in self.plan.leaders:
-                    self.get_logger().info(f'{name} becomes a leader')
-                self.plan.leaders[idx] = ConstantSteering(v)
-        self.pending.clear()
+    def set_steering(self, name, value, source):
+        return self._queue(dict(command='steer', agent=self.row[name], value=value, source=source),
+                           f'steering of {name} set to {value:g} (from {source})')
+
+    def _queue(self, cmd, text):
+        try:
+            cmd = check_command(cmd, self.n)
+        except ValueError as err:
+            self.reject(cmd['command'], f'{cmd["source"]}: {err}')
+            return False
+        self.pending.append(cmd)
+        self.get_logger().info(text)
+        return True
+
+    # parameters, as in ros2/demos (set_parameters_callback.py): pre-set adjusts the request,
+    # on-set validates it, post-set applies it
+    def _pre_set(self, params):
+        """``ros2 param set /commander lambda 1`` sends an integer: make it the declared double."""
+        return [Parameter(p.name, value=float(p.value))
+                if self._live_param(p.name) and p.type_ == Parameter.Type.INTEGER else p for p in params]
+
+    def _live_param(self, name):
+        return name in ('lambda', 'ramp') or (name.startswith('steering.') and name[9:] in self.row)
+
+    def _check_params(self, params):
+        for p in params:
+            if not self._live_param(p.name):
+                continue
+            v = p.value
+            if p.type_ != Parameter.Type.DOUBLE:
+                return SetParametersResult(successful=False, reason=f'{p.name}: want a double, got {v!r}')
+            if p.name == 'lambda' and not (math.isfinite(v) and 0.0 <= v <= 1.0):
+                return SetParametersResult(successful=False, reason=f'lambda={v!r}: must be finite and in [0, 1]')
+            if p.name == 'ramp' and not (math.isfinite(v) and v >= 0.0):
+                return SetParametersResult(successful=False, reason=f'ramp={v!r}: must be finite and ≥ 0')
+            if p.name.startswith('steering.') and not math.isfinite(v):
+                return SetParametersResult(successful=False, reason=f'{p.name}={v!r}: not finite')
+        return SetParametersResult(successful=True)
+
+    def _apply_params(self, params):
+        names = {p.name: p.value for p in params}
+        if 'ramp' in names:
+            self.ramp = float(names['ramp'])
+        if 'lambda' in names:
+            self.set_lambda(float(names['lambda']), self.ramp, 'parameter lambda')
+        for name, v in names.items():
+            if name.startswith('steering.') and name[9:] in self.row:
+                self.set_steering(name[9:], float(v), f'parameter {name}')
 
     # ------------------------------------------------------------ deciding
-    def decide(self, t, pos, cos_t, sin_t, heard=None):
-        self.apply_pending(t)
-        lam, leaders, steering = self.plan.update(t, pos, cos_t, sin_t, heard=heard)
+    def decide(self, t, pos, cos_t, sin_t, heard=None, step=None):
+        """The plan's λ, leader flags and s_k for time t (step n); pending commands apply now
+        and are published with their step on /swarm/events."""
+        commands, self.pending = self.pending, []
+        lam, leaders, steering = self.plan.update(t, pos, cos_t, sin_t, heard=heard, commands=commands)
         for ev in self.plan.events:
             ev = dict(event_names(ev, self.names), node='commander')
+            if ev['kind'] == 'command':
+                ev['step'] = P.step_of(t, self.dt) if step is None else int(step)
             self.pub_events.publish(String(data=json.dumps(ev)))
             if ev['kind'] in ('failover', 'leader_lost'):
                 self.get_logger().warning(f't={t:.2f}: leader {ev["lost"]} lost; '
@@ -243,7 +344,7 @@ class CommanderNode(Node):
         cos_t, sin_t = frame_from_quaternion(qz, qw)
         pos = np.stack([x, y], axis=1)
         alive = P.states_alive(data)
-        lam, flags, steering = self.decide(t, pos, cos_t, sin_t, heard=alive)
+        lam, flags, steering = self.decide(t, pos, cos_t, sin_t, heard=alive, step=n)
         slots = np.full(self.n, -1.0)
         for sl, i in self.plan.slots.items():
             slots[i] = sl

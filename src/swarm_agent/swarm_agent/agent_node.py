@@ -128,8 +128,10 @@ class AgentNode(Node):
         self.silent = False      # lockstep: not in the table (frozen, or killed)
 
         self.pub = self.create_publisher(Odometry, P.STATES, P.qos_latched(P.STATES_DEPTH))
-        self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
-        self.create_subscription(Float64, 'steering', self._on_steering, P.qos_reliable())
+        # transient-local: the commander's λ and steering in force, never a user's one-shot
+        # command (that one is for the commander only; docs/commands.md)
+        self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_latched(10))
+        self.create_subscription(Float64, 'steering', self._on_steering, P.qos_latched(10))
         self.create_subscription(String, P.LEADERS, self._on_leaders, P.qos_latched())
         self.create_subscription(PointStamped, P.TARGET, self._on_target, P.qos_latched())
         self.create_subscription(PolygonStamped, P.BARRIER, self._on_barrier, P.qos_latched())

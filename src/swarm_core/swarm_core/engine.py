@@ -51,8 +51,9 @@ class SwarmStepper:
     """Steps a scenario's swarm; `simulate` drives it, benchmarks and tests may too."""
 
     def __init__(self, scn: Scenario, integrator: str | None = None,
-                 neighbour_search: str = 'auto'):
+                 neighbour_search: str = 'auto', commands=None):
         self.scn = scn
+        self.commands = commands or {}      # live commands to replay: step → [command, ...]
         self.law = scn.law
         self.integrator = integrator or scn.spec.integrator
         if self.integrator not in ('zoh', 'rk4'):
@@ -119,8 +120,11 @@ class SwarmStepper:
         names = self.scn.names
         for ev in self.faults.apply(self.step_index, self.plan.slots):
             self.events.append(ev)
-        lam, leaders, steering = self.plan.update(t, self.pos, *frame, heard=self.faults.alive)
+        lam, leaders, steering = self.plan.update(t, self.pos, *frame, heard=self.faults.alive,
+                                                  commands=self.commands.get(self.step_index, ()))
         for ev in self.plan.events:
+            if ev['kind'] == 'command':
+                ev = dict(ev, step=self.step_index)
             self.events.append(event_names(ev, names))
         last, is_leader = self._is_leader
         if leaders != last:                 # the flags are rebuilt only when the leaders change
@@ -209,9 +213,10 @@ class SwarmStepper:
 
 
 def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int = 1,
-             neighbour_search: str = 'auto', progress=None) -> Trajectory:
-    """Run a scenario to its duration; ``progress(step, steps)`` is called now and then."""
-    stepper = SwarmStepper(scn, integrator, neighbour_search)
+             neighbour_search: str = 'auto', progress=None, commands=None) -> Trajectory:
+    """Run a scenario to its duration; ``progress(step, steps)`` is called now and then.
+    ``commands``: live commands to replay, {step: [command, ...]} (`read_commands`)."""
+    stepper = SwarmStepper(scn, integrator, neighbour_search, commands)
     steps = scn.steps
     n = stepper.n
     n_rec = steps // record_every + 1

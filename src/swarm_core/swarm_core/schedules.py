@@ -98,6 +98,61 @@ class RampSchedule(LambdaSchedule):
         return level
 
 
+class LiveSchedule(LambdaSchedule):
+    """A schedule with live set-points: the base schedule until the first set-point; from
+    then on smooth ramps from the value reached to each new set-point (`RampSchedule`)."""
+
+    def __init__(self, base: LambdaSchedule):
+        self.base = base
+        self.override: RampSchedule | None = None
+
+    def set_point(self, t: float, to: float, duration: float, shape: str = 'smoothstep'):
+        if self.override is None:
+            self.override = RampSchedule(initial=float(self.base.value(t)))
+        self.override.then(t, to, duration, shape)
+
+    def value(self, t):
+        return self.base.value(t) if self.override is None else self.override.value(t)
+
+
+# ---------------------------------------------------------------- live commands
+
+COMMANDS = ('lambda', 'steer')
+
+
+def check_command(cmd: dict, n_agents: int) -> dict:
+    """A live command, validated and normalised (ValueError names the bad field):
+    ``{'command': 'lambda', 'value': λ ∈ [0, 1], 'ramp': s ≥ 0, 'shape': RAMP_SHAPES}`` or
+    ``{'command': 'steer', 'agent': index, 'value': finite s_k}``; other keys are kept."""
+    out = dict(cmd)
+    kind = out.get('command')
+    if kind not in COMMANDS:
+        raise ValueError(f'command {kind!r}: one of {", ".join(COMMANDS)}')
+    try:
+        value = float(out.get('value'))
+    except (TypeError, ValueError):
+        raise ValueError(f'{kind} value {out.get("value")!r}: not a number') from None
+    if not math.isfinite(value):
+        raise ValueError(f'{kind} value {value!r}: not finite')
+    out['value'] = value
+    if kind == 'lambda':
+        if not 0.0 <= value <= 1.0:
+            raise ValueError(f'λ={value!r}: must be in [0, 1]')
+        ramp = float(out.get('ramp', 0.0))
+        if not (math.isfinite(ramp) and ramp >= 0.0):
+            raise ValueError(f'ramp {ramp!r}: must be finite and ≥ 0')
+        out['ramp'] = ramp
+        out.setdefault('shape', 'smoothstep')
+        if out['shape'] not in RAMP_SHAPES:
+            raise ValueError(f'ramp shape {out["shape"]!r}: one of {", ".join(RAMP_SHAPES)}')
+    else:
+        agent = out.get('agent')
+        if isinstance(agent, bool) or not isinstance(agent, (int, np.integer)) or not 0 <= agent < n_agents:
+            raise ValueError(f'steer agent {agent!r}: not an agent index in [0, {n_agents})')
+        out['agent'] = int(agent)
+    return out
+
+
 # ---------------------------------------------------------------- steering programs s_k
 
 class SteeringProgram:
@@ -151,6 +206,10 @@ class WaypointSteering(SteeringProgram):
 
 LEADER_RULES = ('lateral_extremes',)
 
+#: a leader rule also fires as soon as λ has risen this much above the lowest λ so far, whoever
+#: raised it (the schedule, a live set-point): raising λ splits the swarm
+CHOOSE_RISE = 0.01
+
 
 def lateral_extremes(pos, cos_t, sin_t):
     """Indices (left, right) of the agents at the lateral extremes of the swarm, relative to
@@ -169,8 +228,14 @@ class CommandPlan:
     """What the commander decides each step: λ, the leaders and their steering values.
 
     Leaders are either fixed (``fixed_leaders``: agent index → program) or chosen by
-    ``rule`` at the first step with t ≥ ``choose_at`` (the left extreme gets programs[0],
-    the right one programs[1]).  Before the choice there are no leaders.
+    ``rule`` at the first step with t ≥ ``choose_at`` or with λ risen by `CHOOSE_RISE` above
+    its lowest value so far (the left extreme gets programs[0], the right one programs[1]).
+    Before the choice there are no leaders.
+
+    Live commands (``update(..., commands=[...])``, see `check_command`) are applied at the
+    start of the step they are given to: a λ set-point starts a ramp from the λ reached at
+    t_n; a steering command makes that agent a leader with a constant program.  The batch
+    engine replays recorded commands at their steps the same way.
 
     Beyond the paper (see `swarm_core.faults`): ``failover_timeout`` (None: off) replaces a
     leader not heard for that long by the elected successor, which inherits its program and
@@ -199,12 +264,24 @@ class CommandPlan:
         self.events = []
         self.rendezvous_now = None
         self._rdv_on = [False] * len(self.rendezvous)
+        self._lam_low = math.inf
+
+    def command(self, t: float, cmd: dict, n_agents: int) -> dict:
+        """Apply one live command at time t (validated by `check_command`); returns its event."""
+        cmd = check_command(cmd, n_agents)
+        if cmd['command'] == 'lambda':
+            if not isinstance(self.schedule, LiveSchedule):
+                self.schedule = LiveSchedule(self.schedule)
+            self.schedule.set_point(t, cmd['value'], cmd['ramp'], cmd['shape'])
+        else:
+            self.leaders[cmd['agent']] = ConstantSteering(cmd['value'])
+        return dict(cmd, t=t, kind='command')
 
     @property
     def pending_choice(self) -> bool:
         return self.rule is not None and not self.leaders
 
-    def update(self, t: float, pos, cos_t, sin_t, heard=None):
+    def update(self, t: float, pos, cos_t, sin_t, heard=None, commands=()):
         """Advance to time t with the swarm's states; returns (λ, leader indices, steering).
 
         pos (N, 2) and the frames (cos θ, sin θ) are what the agents publish, so the batch
@@ -212,11 +289,16 @@ class CommandPlan:
         the agents whose states of t are known; the rows of the others are not read.
         steering is an array (N,) with s_k for leaders (from their last known state if not
         heard) and 0 elsewhere.  The leader indices include leaders that are not heard (until
-        failover replaces them)."""
+        failover replaces them).  ``commands``: live commands applied first (`command`); their
+        events come first in ``events``."""
         self.events = []
         n = len(cos_t)
+        for cmd in commands:
+            self.events.append(self.command(t, cmd, n))
         heard = np.ones(n, bool) if heard is None else np.asarray(heard, bool)
-        if self.pending_choice and t >= self.choose_at:
+        lam = float(self.schedule.value(t))
+        self._lam_low = min(self._lam_low, lam)
+        if self.pending_choice and (t >= self.choose_at or lam - self._lam_low >= CHOOSE_RISE):
             rows = np.flatnonzero(heard)
             pos_h = np.asarray(pos, float)[rows]
             left, right = lateral_extremes(pos_h, np.asarray(cos_t)[rows], np.asarray(sin_t)[rows])
@@ -231,7 +313,6 @@ class CommandPlan:
                                     slots=[self.slots[k] for k in sorted(self.slots)]))
         if self.failover is not None and self.leaders:
             self._failover(t, pos, heard)
-        lam = float(self.schedule.value(t))
         steering = np.zeros(n)
         for idx, prog in self.leaders.items():
             heading = math.atan2(float(sin_t[idx]), float(cos_t[idx]))
@@ -282,3 +363,34 @@ class CommandPlan:
             if heard[idx]:
                 fo.last_position[idx] = np.array(pos[idx], float)
                 fo.followers[idx] = lk == idx
+
+
+def read_commands(lines, names) -> dict:
+    """{step: [command, ...]} of the ``command`` events among JSON lines (a run's
+    ``events.jsonl``, or ``/swarm/events`` messages), agent names turned into indices.
+    ValueError names the line of a bad event (no step, unknown agent, bad value)."""
+    import json
+    row = {nm: i for i, nm in enumerate(names)}
+    out: dict[int, list] = {}
+    for k, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            ev = json.loads(line)
+        except ValueError as err:
+            raise ValueError(f'line {k}: not JSON ({err})') from None
+        if not isinstance(ev, dict) or ev.get('kind') != 'command':
+            continue
+        step = ev.get('step')
+        if isinstance(step, bool) or not isinstance(step, int) or step < 0:
+            raise ValueError(f'line {k}: command without a step ≥ 0 (step={step!r})')
+        cmd = {key: v for key, v in ev.items() if key not in ('t', 'kind', 'step', 'node')}
+        if cmd.get('command') == 'steer':
+            if cmd.get('agent') not in row:
+                raise ValueError(f'line {k}: steer command for unknown agent {cmd.get("agent")!r}')
+            cmd['agent'] = row[cmd['agent']]
+        try:
+            out.setdefault(step, []).append(check_command(cmd, len(names)))
+        except ValueError as err:
+            raise ValueError(f'line {k}: {err}') from None
+    return out

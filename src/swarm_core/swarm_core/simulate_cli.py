@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import engine, metrics, outcomes, scenario
+from .schedules import read_commands
 
 
 def analyse(scn, traj, every_time: float = 1.0):
@@ -168,6 +169,19 @@ def _load_or_exit(name, **over):
         raise SystemExit(2)
 
 
+def _replay_or_exit(path, scn) -> dict:
+    """The commands of an events file by step (schedules.read_commands), or exit 2 naming the problem."""
+    try:
+        commands = read_commands(Path(path).read_text().splitlines(), scn.names)
+        late = [s for s in commands if s > scn.steps]
+        if late:
+            raise ValueError(f'a command at step {late[0]} is after the last step {scn.steps}')
+    except (OSError, ValueError) as err:
+        print(f'swarm simulate: --replay {path}: {getattr(err, "strerror", None) or err}', file=sys.stderr)
+        raise SystemExit(2)
+    return commands
+
+
 def simulate_main(argv) -> int:
     p = argparse.ArgumentParser(prog='swarm simulate', description=(
         'Run a scenario in the batch engine (pure numpy, no ROS) and write trajectory.npz, '
@@ -181,6 +195,8 @@ def simulate_main(argv) -> int:
     p.add_argument('--record-every', type=int, default=1, metavar='K', help='keep every K-th step (default 1)')
     p.add_argument('--no-figure', action='store_true', help='skip the PNG figure')
     p.add_argument('--quiet', action='store_true', help='no progress output')
+    p.add_argument('--replay', metavar='EVENTS.jsonl', help=(
+        "re-apply a run's live commands (the 'command' events of its events.jsonl) at their steps"))
     a = p.parse_args(argv)
     if a.record_every < 1:
         p.error('--record-every must be ≥ 1')
@@ -196,7 +212,8 @@ def simulate_main(argv) -> int:
         src = scn.source if scn.source.startswith(scn.name) else f'{scn.name} ({scn.source})'
         print(f'swarm simulate: {src}, {len(scn.names)} agents, law {scn.law.kind}, '
               f'dt {scn.dt}, t = 0..{scn.duration:g} ({scn.steps} steps), seed {scn.seed}', file=sys.stderr)
-    traj = engine.simulate(scn, record_every=a.record_every,
+    commands = _replay_or_exit(a.replay, scn) if a.replay else None
+    traj = engine.simulate(scn, record_every=a.record_every, commands=commands,
                            progress=_Progress(f'{scn.name} seed {scn.seed}', not a.quiet))
     series, checks = analyse(scn, traj)
     try:

@@ -100,11 +100,19 @@ class TopicFilter:
 SWARM_TOPICS = {
     '/swarm/states': ('nav_msgs/msg/Odometry', 1),
     '/swarm/events': ('std_msgs/msg/String', 1),
-    '/swarm/lambda': ('std_msgs/msg/Float64', 2),
+    '/swarm/lambda': ('std_msgs/msg/Float64', 1),
     '/clock': ('rosgraph_msgs/msg/Clock', 2),
     '/world/markers': ('visualization_msgs/msg/MarkerArray', 2),
     '/world/metrics': ('diagnostic_msgs/msg/DiagnosticArray', 2),
 }
+
+
+def command_topic(topic: str) -> bool:
+    """λ and steering: the commander publishes what is in force (transient-local) and is the
+    only VOLATILE reader, so that a one-shot ``ros2 topic pub`` matches only the commander
+    (docs/commands.md).  The recorder reads the commander's offers only; the commands
+    themselves are recorded as ``command`` events on /swarm/events."""
+    return topic == '/swarm/lambda' or re.fullmatch(r'/[^/]+/steering', topic) is not None
 
 
 def _qos_key(q):
@@ -198,6 +206,9 @@ class Recorder:
                 continue        # only subscribers so far: wait for a publisher's offer
             type_name = infos[0].topic_type or types[0]
             same = [i for i in infos if i.topic_type == type_name]
+            if command_topic(topic):
+                latched = [i for i in same if int(i.qos_profile.durability) == 1]
+                same = latched or same
             want = request_qos(offered_profiles(same))
             if settled:
                 # a publisher that joined later with an offer the subscription cannot match

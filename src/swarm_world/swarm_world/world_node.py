@@ -164,7 +164,7 @@ class WorldNode(Node):
         self.pub_run.publish(String(data=run_json(self.run_id, self.scn.name, self.mode, self.names, self.since)))
         self.runs = RunWatch(self)
         if self.mode == 'realtime':
-            self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_reliable())
+            self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_latched(10))  # the commander's
             # the leaders as the commander announces them (lockstep: in each decision)
             self.create_subscription(String, P.LEADERS, self._on_leaders, P.qos_latched())
         if self.mode == 'lockstep':
