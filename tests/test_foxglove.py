@@ -186,7 +186,7 @@ def _talk(c):
     # the commander ramps from 0 to 1 (default_ramp): values strictly between come from it only
     c.until(lambda: any(0.001 < m.data < 0.999 for _, m in decoded(2)), 120,
             'the commander to publish a rising λ')
-    assert any(m.data == 1.0 for _, m in decoded(2)), 'the client λ itself, republished on ROS'
+    # (the client's raw λ goes to the commander only: /swarm/lambda as served is the λ in force)
 
     # steering as JSON (Foxglove's fallback encoding): agent_0 becomes a leader, and the
     # commander publishes its new program value on every tick (the client sent it once)

@@ -118,7 +118,7 @@ def test_lockstep_live_commands_replay_in_the_batch_engine(tmp_path, rclpy_conte
         ex.add_node(nd)
 
     def command(topic, value, at_step):
-        assert spin_for(ex, lambda: world.cur >= at_step, 120)
+        assert spin_for(ex, lambda: world.lock.cur >= at_step, 120)
         n = len([e for e in world.events if e['kind'] == 'command'])
         t = threading.Thread(target=_pub_once_in_own_context, args=(topic, value))
         t.start()

@@ -84,7 +84,9 @@ def test_hostile_publisher_during_a_realtime_run(tmp_path, rclpy_context):
     assert {'future-stamp', 'second-publisher', 'non-finite'} <= set(world.reject.kinds), world.reject.lines
     # the flood overruns the readers' KEEP_LAST queues (depth 10-100): many arrive, not all
     assert commander.reject.count >= 20 and set(commander.reject.kinds) >= {'lambda', 'steer'}
-    assert agents[0].reject.count >= 20 and {'lambda', 'steer', 'target', 'barrier-size'} <= set(agents[0].reject.kinds)
+    # agents read only the commander's λ and steering (transient-local; docs/commands.md): the raw
+    # flood never reaches them, the bad target and barrier do
+    assert {'target', 'barrier-size'} <= set(agents[0].reject.kinds), agents[0].reject.lines
     for nd in [world, commander, *agents]:
         # one line per kind, one more per kind per 10 s of rejections (a 2,000-message flood included)
         assert len(nd.reject.lines) <= 2 * len(nd.reject.kinds), (nd.get_name(), nd.reject.lines)
