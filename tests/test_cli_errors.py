@@ -14,7 +14,7 @@ from conftest import Lines
 
 
 def _swarm(*args, timeout=120):
-    return subprocess.run([sys.executable, '-m', 'swarm_core.cli', *map(str, args)], capture_output=True,
+    return subprocess.run([sys.executable, '-m', 'swarm_tools.cli', *map(str, args)], capture_output=True,
                           text=True, timeout=timeout)
 
 
@@ -73,7 +73,7 @@ def test_sweep_ctrl_c_keeps_the_finished_seeds(tmp_path, jobs):
     """SIGINT to the sweep (what Ctrl-C does) once a seed has finished: exit 130 promptly, the
     finished seeds in the printed table and in --out (Markdown + JSON), no worker left."""
     out = tmp_path / 'sweep.md'
-    p = subprocess.Popen([sys.executable, '-m', 'swarm_core.cli', 'sweep', 'global_alignment', '--seeds', '200',
+    p = subprocess.Popen([sys.executable, '-m', 'swarm_tools.cli', 'sweep', 'global_alignment', '--seeds', '200',
                           '--jobs', str(jobs), '--out', str(out)],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
@@ -152,7 +152,7 @@ def test_live_verbs_refuse_a_negative_or_nonnumeric_wait(args):
 
 def test_rk4_reference_run_does_not_overwrite_the_zoh_run(tmp_path):
     for extra in ((), ('--integrator', 'rk4')):
-        r = subprocess.run([sys.executable, '-m', 'swarm_core.cli', 'simulate', 'global_alignment', '--duration', '2',
+        r = subprocess.run([sys.executable, '-m', 'swarm_tools.cli', 'simulate', 'global_alignment', '--duration', '2',
                             '--quiet', '--no-figure', *extra], capture_output=True, text=True, timeout=120, cwd=tmp_path)
         assert r.returncode == 0, r.stderr
     zoh = np.load(tmp_path / 'runs' / 'global_alignment-seed0' / 'trajectory.npz')['r']

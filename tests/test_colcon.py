@@ -26,7 +26,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
-PACKAGES = ['homotopy_commander', 'swarm_agent', 'swarm_core', 'swarm_tools', 'swarm_world']
+PACKAGES = ['homotopy_commander', 'swarm_agent', 'swarm_core', 'swarm_ros', 'swarm_tools', 'swarm_world']
 
 # the lookup of `ros2 run PKG EXE` (see the module docstring), run in the sourced workspace
 LOOKUP = r'''

@@ -158,6 +158,6 @@ def test_swarm_run_parameters_grow_linearly_and_agents_are_limited(tmp_path):
     assert doc['/world']['ros__parameters'] == p4['/world']
     big = tmp_path / 'many.yaml'
     big.write_text(f'name: many\nagents: {{count: {launch.MAX_RUN_AGENTS + 1}}}\n')
-    r = subprocess.run([sys.executable, '-m', 'swarm_core.cli', 'run', str(big), '--out', str(tmp_path / 'o')],
+    r = subprocess.run([sys.executable, '-m', 'swarm_tools.cli', 'run', str(big), '--out', str(tmp_path / 'o')],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and f'at most {launch.MAX_RUN_AGENTS}' in r.stderr, r.stderr

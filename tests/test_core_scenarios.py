@@ -180,7 +180,7 @@ def test_bad_files(tmp_path):
 # ------------------------------------------------------------------ CLI
 
 def _swarm(*args, **kw):
-    return subprocess.run([sys.executable, '-m', 'swarm_core.cli', *args], capture_output=True, text=True,
+    return subprocess.run([sys.executable, '-m', 'swarm_tools.cli', *args], capture_output=True, text=True,
                           timeout=300, **kw)
 
 

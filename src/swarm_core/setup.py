@@ -19,5 +19,4 @@ setup(
     maintainer_email='dev@homotopy-swarm.invalid',
     description='Pure numpy model of Morgan and Schwartz swarm control laws: control laws, integrator, scenarios, metrics, batch engine (no ROS).',
     license='Apache-2.0',
-    entry_points={'console_scripts': ['swarm = swarm_core.cli:main']},
 )

@@ -21,6 +21,7 @@ setup(
     description='Launcher, MCAP recorder, replay and reports for homotopy-swarm.',
     license='Apache-2.0',
     entry_points={'console_scripts': [
+        'swarm = swarm_tools.cli:main',
         'swarm_record = swarm_tools.record:main',
         'swarm_report = swarm_tools.report:main',
         'swarm_play = swarm_tools.play:main',

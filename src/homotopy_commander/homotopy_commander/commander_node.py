@@ -52,7 +52,7 @@ from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders
 from swarm_ros.rosutil import ParameterError, declare, gid_key, run_node, steady_clock, when_matched
 from swarm_ros.runinfo import valid_run_id
 
-SETPOINT = '/commander/lambda_setpoint'
+SETPOINT = P.LAMBDA_SETPOINT
 #: wall seconds between looks at the graph for new command writers
 COMMAND_POLL = 0.05
 

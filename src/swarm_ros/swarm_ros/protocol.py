@@ -98,6 +98,7 @@ import numpy as np
 
 STATES = '/swarm/states'
 LAMBDA = '/swarm/lambda'
+LAMBDA_SETPOINT = '/commander/lambda_setpoint'   # [λ, ramp]: swarm lambda → the commander
 LEADERS = '/swarm/leaders'
 CLOCK = '/clock'
 TARGET = '/world/target'

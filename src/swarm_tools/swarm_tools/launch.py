@@ -249,7 +249,7 @@ def wait_until_ready(proc, marker: str, timeout: float) -> bool:
 
 
 #: the package of each executable the launcher starts (``ros2 run PKG EXE``)
-EXE_PACKAGE = {'swarm': 'swarm_core', 'swarm_world': 'swarm_world', 'swarm_agent': 'swarm_agent',
+EXE_PACKAGE = {'swarm': 'swarm_tools', 'swarm_world': 'swarm_world', 'swarm_agent': 'swarm_agent',
                'homotopy_commander': 'homotopy_commander'}
 
 
