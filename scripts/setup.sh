@@ -18,6 +18,8 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   for d in src/*/; do [ -f "$d/setup.py" ] && pkgs+=(-e "$d"); done
   .venv/bin/python -m pip install --disable-pip-version-check -q --no-deps "${pkgs[@]}" 2>&1 \
     | grep -v "^WARNING: Location" || true
+  # a package that used to own a console script may remove it when reinstalled after its new owner
+  [ -x .venv/bin/swarm ] || .venv/bin/python -m pip install --disable-pip-version-check -q --no-deps -e src/swarm_tools
   .venv/bin/python -c "import rclpy, numpy, swarm_core" 
   echo "$want" > "$stamp"
 fi
