@@ -6,7 +6,7 @@ import pytest
 
 from swarm_core.engine import simulate
 from swarm_core.scenario import load
-from swarm_core.schedules import CHOOSE_RISE, check_command, read_commands
+from swarm_core.command_plan import CHOOSE_RISE, check_command, read_commands
 
 
 def test_check_command_names_the_bad_field():

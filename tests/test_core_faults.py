@@ -11,7 +11,8 @@ from swarm_core.faults import Fault, FaultTimeline, elect_successor, followers_o
 from swarm_core.laws import swarm_control
 from swarm_core.frenet import frame_from_quaternion, heading_frame
 from swarm_core.scenario import ScenarioError, load, parse
-from swarm_core.schedules import CommandPlan, ConstantSteering
+from swarm_core.schedules import ConstantSteering
+from swarm_core.command_plan import CommandPlan
 from swarm_core.simulate_cli import analyse
 
 BASE = dict(name='faulty', seed=1, dt=0.05, duration=3.0,

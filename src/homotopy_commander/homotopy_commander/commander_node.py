@@ -1,6 +1,6 @@
 """CommanderNode: the λ schedule, the leaders and their steering programs, live commands.
 
-Runs the scenario's `swarm_core.schedules.CommandPlan` (the batch engine runs the same):
+Runs the scenario's `swarm_core.command_plan.CommandPlan` (the batch engine runs the same):
 - lockstep: on each ``/lockstep/states`` (the states of step n) it decides λ, leaders and
   s_k for step n and answers on ``/lockstep/decision``;
 - realtime: a timer at 1/dt (sim time) decides from the newest ``/swarm/states``.
@@ -46,7 +46,7 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from swarm_core.faults import event_names
 from swarm_core.frenet import frame_from_quaternion
 from swarm_core.scenario import ScenarioError, load
-from swarm_core.schedules import check_command
+from swarm_core.command_plan import check_command
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders
 from swarm_ros.rosutil import ParameterError, declare, gid_key, run_node, steady_clock, when_matched

@@ -15,7 +15,7 @@ Faults (`FaultTimeline`)
     slot of the leader it replaces).  A fault at a step whose agent is already dead is a no-op.
     ``alive`` (heard this step) = not dead and not frozen.
 
-Leader failover (`CommandPlan`, schedules.py, uses `followers_of` and `elect_successor`)
+Leader failover (`CommandPlan`, command_plan.py, uses `followers_of` and `elect_successor`)
     A leader not heard for ``timeout`` seconds (first step with t − t_missing ≥ timeout) is
     lost.  Its successor is, among the agents that are heard now and are not leaders, those
     whose nearest leader l(k) (eq. 8, `laws.nearest_leader`) was the lost leader at the last

@@ -19,8 +19,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from .faults import Fault, FaultTimeline, Rendezvous
 from .laws import LawConfig
 from .frenet import PairGains
-from .schedules import (CommandPlan, ConstantLambda, ConstantSteering, RampSchedule,
-                        SinusoidSteering, TanhWindow, WaypointSteering)
+from .schedules import (ConstantLambda, ConstantSteering, RampSchedule, SinusoidSteering, TanhWindow,
+                        WaypointSteering)
+from .command_plan import CommandPlan
 
 #: largest scenario file read (bytes), checked before parsing
 MAX_FILE_BYTES = 2 * 1024 * 1024

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import engine, metrics, outcomes, scenario
-from .schedules import read_commands
+from .command_plan import read_commands
 
 
 def analyse(scn, traj, every_time: float = 1.0):
