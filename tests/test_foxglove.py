@@ -183,7 +183,7 @@ def _talk(c):
     c.send({'op': 'advertise', 'channels': [{'id': 1, 'topic': '/swarm/lambda', 'encoding': 'cdr',
                                              'schemaName': 'std_msgs/msg/Float64'}]})
     c.ws.send(struct.pack('<BI', 1, 1) + bytes(payload))
-    # the commander ramps from 0 to 1 (default_ramp): values strictly between come from it only
+    # the commander ramps from 0 to 1 (its ramp parameter): values strictly between come from it only
     c.until(lambda: any(0.001 < m.data < 0.999 for _, m in decoded(2)), 120,
             'the commander to publish a rising λ')
     # (the client's raw λ goes to the commander only: /swarm/lambda as served is the λ in force)
