@@ -50,7 +50,7 @@ from swarm_core.command_plan import check_command
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders
 from swarm_ros.rosutil import ParameterError, declare, gid_key, run_node, steady_clock, when_matched
-from swarm_ros.runinfo import valid_run_id
+from swarm_ros.runinfo import declare_run_id
 
 SETPOINT = P.LAMBDA_SETPOINT
 #: wall seconds between looks at the graph for new command writers
@@ -97,10 +97,7 @@ class CommanderNode(Node):
                                    f'(at most {P.RECORDER_MATCH_WAIT:g} s)')
         self.publish_every = d('publish_every', 10, 'lockstep: publish /swarm/lambda every this many steps',
                                lo=1, hi=10**9)
-        self.run_id = d('run_id', '', "this run's id (swarm run sets it; '' = none): lockstep states of "
-                        'another run are rejected, decisions carry it')
-        if not valid_run_id(self.run_id):
-            raise ParameterError(f'parameter run_id: {self.run_id!r} is not 1-32 letters, digits, _ or -')
+        self.run_id = declare_run_id(self, 'lockstep states of another run are rejected, decisions carry it')
         try:
             self.scn = load(scenario, seed=None if seed < 0 else seed, dt=dt or None)
         except ScenarioError as err:

@@ -36,7 +36,7 @@ from swarm_core.scenario import noise_rng
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, check_barrier, check_state, new_sender_tag
 from swarm_ros.rosutil import ParameterError, declare, run_node, when_matched
-from swarm_ros.runinfo import valid_run_id
+from swarm_ros.runinfo import declare_run_id
 
 from .agent_core import AgentCore, catch_up
 
@@ -80,10 +80,7 @@ class AgentNode(Node):
                                 'integrates when the sim clock jumped (u held); a longer gap (a stopped '
                                 'or starved process) moves the agent this many', lo=1, hi=10**6)
         comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect)")
-        self.run_id = d('run_id', '', "this run's id (swarm run sets it; '' = none): lockstep steps of "
-                        'another run are rejected')
-        if not valid_run_id(self.run_id):
-            raise ParameterError(f'parameter run_id: {self.run_id!r} is not 1-32 letters, digits, _ or -')
+        self.run_id = declare_run_id(self, 'lockstep steps of another run are rejected')
         self.future_tolerance = d('future_tolerance', FUTURE_TOLERANCE, 'realtime: reject neighbour states '
                                   'stamped more than this many sim s ahead of this clock', lo=0.0, hi=1e9)
         if self.roster == ['']:

@@ -22,6 +22,16 @@ def valid_run_id(text: str) -> bool:
     return text == '' or bool(_ID.match(text))
 
 
+def declare_run_id(node, what: str) -> str:
+    """Declare a node's ``run_id`` parameter (``what``: what the node does with it) and return it;
+    ParameterError for one that is not 1-32 letters, digits, _ or -."""
+    from .rosutil import ParameterError, declare
+    run_id = declare(node, 'run_id', '', f"this run's id (swarm run sets it; '' = none): {what}")
+    if not valid_run_id(run_id):
+        raise ParameterError(f'parameter run_id: {run_id!r} is not 1-32 letters, digits, _ or -')
+    return run_id
+
+
 def run_json(run_id: str, scenario: str, mode: str, agents, since: float = 0.0) -> str:
     """The text of a ``/swarm/run`` message; ``since``: when its world started (wall s, epoch),
     so that of two runs on one domain the younger one gives way."""
