@@ -14,6 +14,7 @@ ROS_VERBS = {
     'run': ('swarm_tools.launch:main', 'run a scenario as ROS 2 nodes (agents as processes)'),
     'lambda': ('homotopy_commander.cli:lambda_main', 'set the homotopy parameter λ of a running swarm'),
     'steer': ('homotopy_commander.cli:steer_main', "set a leader's steering program in a running swarm"),
+    'join': ('swarm_tools.join:main', 'start agents on this host that join a run on another host'),
     'record': ('swarm_tools.record:main', 'record a running swarm to an MCAP bag'),
     'report': ('swarm_tools.report:main', 'metrics and figures from an MCAP bag'),
     'play': ('swarm_tools.play:main', 'republish an MCAP bag with its /clock'),

@@ -220,7 +220,9 @@ def killed_agents(events_file) -> set:
 
 
 def run_processes(params: dict, params_file: Path, names, env, record=None, out_dir=None,
-                  pid_file=None, events_file=None) -> int:
+                  pid_file=None, events_file=None, server=None) -> int:
+    """``names``: the agents started here (a run spread over hosts starts the others with
+    ``swarm join``); ``server``: a `dds.DiscoveryServer` started first, stopped with the rest."""
     sup = Supervisor()
     stopping = {'sig': None}
 
@@ -231,8 +233,16 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
     ros = ['--ros-args', '--params-file', str(params_file)]
     code = 1
     try:
+        if server is not None:
+            try:
+                server.start(sup.start, env)
+            except RuntimeError as err:
+                print(f'swarm run: {err}', file=sys.stderr, flush=True)
+                return 1
+            print(f'swarm run: discovery server on {server.locator}; tools in another shell: '
+                  f'{dds.user_line(server.address, server.port)}', flush=True)
         if record:
-            rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record)], env,
+            rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record)], dds.super_client(env),
                             stderr=subprocess.PIPE, text=True, bufsize=1)
             if not wait_until_ready(rec, 'swarm record: ready', RECORDER_READY_TIMEOUT):
                 print(f'swarm run: the recorder did not say it was ready within '
@@ -325,7 +335,36 @@ def _parser():
         '(that profile in any case) or localhost (rmw_fastrtps localhost discovery with shared '
         'memory: up to 32 processes, and an agent killed or frozen by fault injection can block '
         'shared memory for the others)'))
+    add_network_options(p)
+    p.add_argument('--discovery', choices=dds.DISCOVERY, default='auto', help=(
+        f'simple (every process finds the others), server (a Fast DDS discovery server the run '
+        f'starts; every process is its client) or auto (default: server above {dds.SIMPLE_LIMIT} '
+        f'processes, or with --remote-agents)'))
+    p.add_argument('--server-port', type=int, default=0, metavar='PORT',
+                   help='UDP port of the discovery server (default: a free one)')
+    p.add_argument('--remote-agents', metavar='LIST', default='', help=(
+        'agents (indices, e.g. 48-95 or 0,2,5-7) this host does not start: other hosts start '
+        'them with `swarm join`; the world waits for them'))
     return p
+
+
+def add_network_options(p):
+    p.add_argument('--interface', default='127.0.0.1', metavar='ADDR', help=(
+        "this host's IPv4 address the ROS processes use (default 127.0.0.1: this host only)"))
+
+
+def parse_agents(text: str, n: int) -> list:
+    """'48-95' or '0,2,5-7' -> sorted agent indices in 0..n-1; ValueError naming the bad part."""
+    out = set()
+    for part in [q.strip() for q in text.split(',')]:
+        lo, sep, hi = part.partition('-')
+        if not lo.strip().isdigit() or (sep and not hi.strip().isdigit()):
+            raise ValueError(f'agents {text!r}: {part!r} is not an index or a range like 48-95')
+        a, b = int(lo), int(hi) if sep else int(lo)
+        if a > b or b >= n:
+            raise ValueError(f'agents {text!r}: {part!r} is outside 0..{n - 1} (the scenario has {n} agents)')
+        out.update(range(a, b + 1))
+    return sorted(out)
 
 
 def main(argv=None) -> int:
@@ -343,6 +382,21 @@ def main(argv=None) -> int:
         scn = load(a.scenario, seed=a.seed, duration=a.duration, dt=a.dt)
     except ScenarioError as err:
         print(f'swarm run: {err}', file=sys.stderr)
+        return 2
+    try:
+        interface = dds.check_address(a.interface, '--interface')
+        remote = parse_agents(a.remote_agents, len(scn.names)) if a.remote_agents else []
+    except ValueError as err:
+        print(f'swarm run: {err}', file=sys.stderr)
+        return 2
+    if not 0 <= a.server_port < 65536:
+        print(f'swarm run: --server-port {a.server_port}: must be in 1..65535', file=sys.stderr)
+        return 2
+    if remote and a.in_process:
+        print('swarm run: --remote-agents needs --processes', file=sys.stderr)
+        return 2
+    if remote and a.discovery == 'simple':
+        print('swarm run: --remote-agents needs a discovery server (--discovery server or auto)', file=sys.stderr)
         return 2
     ref = a.scenario
     if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
@@ -380,7 +434,9 @@ def main(argv=None) -> int:
             params[f'/{nm}/agent']['state_subscribers'] = 2
         params['/world']['wait_for_recorder'] = True          # ... every /clock
         params['/commander']['wait_for_recorder'] = True      # ... and every λ and steering message
-    n_proc = len(scn.names) + 2 + (1 if a.record else 0)
+    n_proc = len(scn.names) - len(remote) + 2 + (1 if a.record else 0)
+    use_server = not a.in_process and (a.discovery == 'server' or (a.discovery == 'auto' and (
+        n_proc > dds.SIMPLE_LIMIT or bool(remote))))
     print(f'swarm run: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '
           f'{"one process" if a.in_process else f"{n_proc} processes"}, t = {scn.duration:g}, dt = {scn.dt:g}',
           flush=True)
@@ -394,9 +450,23 @@ def main(argv=None) -> int:
             pid_file = Path(tmp) / 'pids.json'
             params['/world'].update(pid_file=str(pid_file), events_file=str(out / 'events.jsonl'))
             pfile = write_params_file(params, Path(tmp) / 'params.yaml')
-            env = dds.environment(n_proc, Path(tmp), choice=a.dds)
-            code = run_processes(params, pfile, scn.names, env, record=a.record, out_dir=out,
-                                 pid_file=pid_file, events_file=out / 'events.jsonl')
+            server = dds.DiscoveryServer(interface, a.server_port) if use_server else None
+            try:
+                env = dds.environment(n_proc, Path(tmp), choice=a.dds, interface=interface,
+                                      server=server.locator if server else None)
+            except (ValueError, OSError) as err:
+                print(f'swarm run: {err}', file=sys.stderr)
+                return 2
+            local = [nm for i, nm in enumerate(scn.names) if i not in set(remote)]
+            if remote:
+                same = ''.join(f' --{k} {v}' for k, v in (('seed', a.seed), ('dt', a.dt), ('duration', a.duration),
+                                                          ('mode', a.mode if a.mode != 'lockstep' else None))
+                               if v is not None)
+                print(f'swarm run: waiting for {len(remote)} agents from other hosts: swarm join '
+                      f'{a.scenario} --agents {a.remote_agents} --server {server.locator} --interface ADDR'
+                      + same + (' --recorded' if a.record else ''), flush=True)
+            code = run_processes(params, pfile, local, env, record=a.record, out_dir=out,
+                                 pid_file=pid_file, events_file=out / 'events.jsonl', server=server)
     wall = time.monotonic() - t0
     if code in (0, 130) and traj_file.exists():      # 130: Ctrl-C; the world saved the steps done
         try:
