@@ -335,6 +335,9 @@ def _parser():
         '(that profile in any case) or localhost (rmw_fastrtps localhost discovery with shared '
         'memory: up to 32 processes, and an agent killed or frozen by fault injection can block '
         'shared memory for the others)'))
+    p.add_argument('--start-timeout', type=float, default=180.0, metavar='S', help=(
+        'the world gives up if not every agent is there after this many wall s (default 180; '
+        'raise it for hundreds of processes or agents joining from other hosts)'))
     add_network_options(p)
     p.add_argument('--discovery', choices=dds.DISCOVERY, default='auto', help=(
         f'simple (every process finds the others), server (a Fast DDS discovery server the run '
@@ -371,6 +374,9 @@ def main(argv=None) -> int:
     a = _parser().parse_args(argv)
     if not (a.missing_timeout >= 0.1 and a.missing_timeout < 1e6):
         print(f'swarm run: --missing-timeout {a.missing_timeout}: must be in [0.1, 1e6)', file=sys.stderr)
+        return 2
+    if not (a.start_timeout >= 1 and a.start_timeout <= 1e6):
+        print(f'swarm run: --start-timeout {a.start_timeout}: must be in [1, 1e6]', file=sys.stderr)
         return 2
     if a.clock_every < 1:
         print(f'swarm run: --clock-every {a.clock_every}: must be ≥ 1', file=sys.stderr)
@@ -428,7 +434,8 @@ def main(argv=None) -> int:
         (out / 'events.jsonl').unlink()
     params = node_parameters(scn, ref, a.mode, a.rtf, str(out), scn.duration,
                              extra_world=dict(progress_every=float(a.progress_every), clock_every=int(a.clock_every),
-                                              missing_timeout=float(a.missing_timeout)))
+                                              missing_timeout=float(a.missing_timeout),
+                                              start_timeout=float(a.start_timeout)))
     if a.record and not a.in_process and a.mode == 'lockstep':
         for nm in scn.names:            # the recorder must hear every state from step 0
             params[f'/{nm}/agent']['state_subscribers'] = 2
