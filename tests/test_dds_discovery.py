@@ -65,13 +65,19 @@ def test_agent_lists_and_addresses():
             dds.parse_server(bad)
     with pytest.raises(ValueError, match='--interface'):
         dds.check_address('eth0', '--interface')
+    assert dds.check_local('127.0.0.1') == '127.0.0.1'
+    with pytest.raises(ValueError, match='not an address of this host'):
+        dds.check_local('192.0.2.1', '--interface')          # TEST-NET-1: no host has it
 
 
 def test_join_and_run_reject_bad_options(swarm_cmd):
     for args, word in ((['join', 'homotopy_global', '--agents', '0-99', '--server', '127.0.0.1:5'], 'outside'),
                        (['join', 'homotopy_global', '--agents', '1', '--server', 'nowhere'], 'ADDRESS:PORT'),
                        (['run', 'homotopy_global', '--remote-agents', '2', '--discovery', 'simple'], 'discovery server'),
-                       (['run', 'homotopy_global', '--interface', 'eth0'], '--interface')):
+                       (['run', 'homotopy_global', '--interface', 'eth0'], '--interface'),
+                       (['run', 'homotopy_global', '--interface', '192.0.2.1'], 'not an address of this host'),
+                       (['join', 'homotopy_global', '--agents', '1', '--server', '127.0.0.1:5',
+                         '--interface', '192.0.2.1'], 'not an address of this host')):
         r = subprocess.run([swarm_cmd, *args], capture_output=True, text=True, timeout=60)
         assert r.returncode == 2 and word in r.stderr, (args, r.stderr)
 

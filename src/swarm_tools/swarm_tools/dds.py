@@ -112,6 +112,15 @@ def check_address(text: str, what: str = 'address') -> str:
         raise ValueError(f'{what} {text!r}: not an IPv4 address (e.g. 192.168.1.20)') from None
 
 
+def check_local(address: str, what: str = 'address') -> str:
+    """``address`` if this host has it (a UDP socket can bind to it); ValueError otherwise."""
+    try:
+        free_udp_port(address)
+    except OSError as err:
+        raise ValueError(f'{what} {address}: not an address of this host ({err.strerror or err})') from None
+    return address
+
+
 def parse_server(text: str) -> tuple:
     """'HOST:PORT' -> (IPv4 address, port); ValueError naming the bad part."""
     host, sep, port = text.rpartition(':')
@@ -191,6 +200,8 @@ class DiscoveryServer:
 
         threading.Thread(target=pump, daemon=True).start()
         if not seen.wait(timeout) or proc.poll() is not None or not any(self.READY in ln for ln in lines):
+            if proc.poll() is None:
+                proc.kill()
             raise RuntimeError(f'the discovery server on {self.locator} did not start: '
                                + ' '.join(ln.strip() for ln in lines[-5:]))
         return proc

@@ -61,7 +61,7 @@ def main(argv=None) -> int:
     try:
         idx = parse_agents(a.agents, len(scn.names))
         addr, port = dds.parse_server(a.server)
-        interface = dds.check_address(a.interface, '--interface')
+        interface = dds.check_local(dds.check_address(a.interface, '--interface'), '--interface')
     except ValueError as err:
         print(f'swarm join: {err}', file=sys.stderr)
         return 2

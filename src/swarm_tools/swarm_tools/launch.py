@@ -390,13 +390,13 @@ def main(argv=None) -> int:
         print(f'swarm run: {err}', file=sys.stderr)
         return 2
     try:
-        interface = dds.check_address(a.interface, '--interface')
+        interface = dds.check_local(dds.check_address(a.interface, '--interface'), '--interface')
         remote = parse_agents(a.remote_agents, len(scn.names)) if a.remote_agents else []
     except ValueError as err:
         print(f'swarm run: {err}', file=sys.stderr)
         return 2
     if not 0 <= a.server_port < 65536:
-        print(f'swarm run: --server-port {a.server_port}: must be in 1..65535', file=sys.stderr)
+        print(f'swarm run: --server-port {a.server_port}: must be 0 (a free port) or in 1..65535', file=sys.stderr)
         return 2
     if remote and a.in_process:
         print('swarm run: --remote-agents needs --processes', file=sys.stderr)
@@ -457,8 +457,8 @@ def main(argv=None) -> int:
             pid_file = Path(tmp) / 'pids.json'
             params['/world'].update(pid_file=str(pid_file), events_file=str(out / 'events.jsonl'))
             pfile = write_params_file(params, Path(tmp) / 'params.yaml')
-            server = dds.DiscoveryServer(interface, a.server_port) if use_server else None
             try:
+                server = dds.DiscoveryServer(interface, a.server_port) if use_server else None
                 env = dds.environment(n_proc, Path(tmp), choice=a.dds, interface=interface,
                                       server=server.locator if server else None)
             except (ValueError, OSError) as err:
