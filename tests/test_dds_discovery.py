@@ -30,6 +30,11 @@ def test_profile_simple_and_server():
     assert [e.text for e in server.iter(NS + 'address')] == ['10.1.2.3']                  # whitelist only
     assert server.find(f'.//{NS}initialPeersList') is None
     assert int(server.find(f'.//{NS}mutation_tries').text) >= 4 * 150
+    own = _xml(dds.DiscoveryServer('127.0.0.1', 11811).profile_xml())       # the server's own profile
+    assert own.find(f'.//{NS}discoveryProtocol').text == 'SERVER'
+    assert [e.text for e in own.iter(NS + 'address')] == ['127.0.0.1', '127.0.0.1']
+    assert own.find(f'.//{NS}port').text == '11811'
+    assert own.find(f'.//{NS}useBuiltinTransports').text == 'false'          # no shared memory
 
 
 def test_environment_server_and_super_client(tmp_path):
@@ -131,7 +136,7 @@ def test_run_through_a_discovery_server(tmp_path, ros_domain, processes, swarm_c
     assert '/swarm/states' in listed and '/lockstep/step' in listed, listed
     # apart: another discovery server's super client, and simple discovery, see none of it
     other = dds.DiscoveryServer('127.0.0.1')
-    other.start(lambda label, args, env, **kw: processes.start(args, env=env, **kw), dict(os.environ))
+    other.start(lambda label, args, env, **kw: processes.start(args, env=env, **kw), dict(os.environ), tmp_path)
     assert '/swarm/states' not in topic_list(dict(shell, ROS_DISCOVERY_SERVER=other.locator), 2)
     plain = {k: v for k, v in shell.items() if k not in ('ROS_DISCOVERY_SERVER', 'ROS_SUPER_CLIENT')}
     assert '/swarm/states' not in topic_list(plain, 2)

