@@ -280,7 +280,10 @@ def environment(n_processes: int, workdir: Path, base=None, choice: str = 'auto'
     the profile is the way to keep discovery on 127.0.0.1 without shared memory.
 
     server: 'ADDR:PORT' of a discovery server every process is a client of (the UDP profile,
-    without initial peers); interface: the address the profile sends and listens on."""
+    without initial peers); interface: the address the profile sends and listens on.  With
+    either, 'auto' writes the profile even if the environment names one.  Without a server the
+    caller's ``ROS_DISCOVERY_SERVER`` / ``ROS_SUPER_CLIENT`` are dropped: the run's processes
+    find each other by simple discovery, all of them, not some through a server."""
     if choice not in CHOICES:
         raise ValueError(f'DDS choice {choice!r}: one of {", ".join(CHOICES)}')
     env = dict(os.environ if base is None else base)
