@@ -52,6 +52,11 @@ def play(argv):
     return main(argv)
 
 
+def join(argv):
+    from .join import main
+    return main(argv)
+
+
 def bag(argv):
     from .bag_recover import main
     return main(argv)
@@ -99,6 +104,7 @@ VERBS = {
     'pause': (pause, 'freeze an agent of a running swarm for some seconds'),
     'drop': (drop, 'burst packet loss in a running swarm'),
     'partition': (partition, 'partition a running swarm into groups that cannot hear each other'),
+    'join': (join, 'start agents on this host that join a run on another host'),
     'record': (record, 'record a running swarm to an MCAP bag'),
     'view': (view, 'serve a running swarm live to the Foxglove app (WebSocket)'),
     'report': (report, 'metrics and figures from an MCAP bag'),

@@ -291,7 +291,9 @@ def killed_agents(events_file) -> set:
 
 
 def run_processes(params: dict, params_file: Path, names, env, record=None, out_dir=None,
-                  pid_file=None, events_file=None, foxglove=None) -> int:
+                  pid_file=None, events_file=None, foxglove=None, server=None) -> int:
+    """``names``: the agents started here (a run spread over hosts starts the others with
+    ``swarm join``); ``server``: a `dds.DiscoveryServer` started first, stopped with the rest."""
     sup = Supervisor()
     stopping = {'sig': None}
 
@@ -302,8 +304,16 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
     ros = ['--ros-args', '--params-file', str(params_file)]
     code = 1
     try:
+        if server is not None:
+            try:
+                server.start(sup.start, env, Path(params_file).parent)
+            except RuntimeError as err:
+                print(f'swarm run: {err}', file=sys.stderr, flush=True)
+                return 1
+            print(f'swarm run: discovery server on {server.locator}; tools in another shell: '
+                  f'{dds.user_line(server.address, server.port)}', flush=True)
         if record:
-            rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record)], env,
+            rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record)], dds.super_client(env),
                             stderr=subprocess.PIPE, text=True, bufsize=1)
             if not wait_until_ready(rec, 'swarm record: ready', RECORDER_READY_TIMEOUT):
                 print(f'swarm run: the recorder did not say it was ready within '
@@ -406,13 +416,48 @@ def _parser():
         '(that profile in any case) or localhost (rmw_fastrtps localhost discovery with shared '
         'memory: up to 32 processes, and an agent killed or frozen by fault injection can block '
         'shared memory for the others)'))
+    p.add_argument('--start-timeout', type=float, default=180.0, metavar='S', help=(
+        'the world gives up if not every agent is there after this many wall s (default 180; '
+        'raise it for hundreds of processes or agents joining from other hosts)'))
+    add_network_options(p)
+    p.add_argument('--discovery', choices=dds.DISCOVERY, default='auto', help=(
+        f'simple (every process finds the others), server (a Fast DDS discovery server the run '
+        f'starts; every process is its client) or auto (default: server above {dds.SIMPLE_LIMIT} '
+        f'processes, or with --remote-agents)'))
+    p.add_argument('--server-port', type=int, default=0, metavar='PORT',
+                   help='UDP port of the discovery server (default: a free one)')
+    p.add_argument('--remote-agents', metavar='LIST', default='', help=(
+        'agents (indices, e.g. 48-95 or 0,2,5-7) this host does not start: other hosts start '
+        'them with `swarm join`; the world waits for them'))
     return p
+
+
+def add_network_options(p):
+    p.add_argument('--interface', default='127.0.0.1', metavar='ADDR', help=(
+        "this host's IPv4 address the ROS processes use (default 127.0.0.1: this host only)"))
+
+
+def parse_agents(text: str, n: int) -> list:
+    """'48-95' or '0,2,5-7' -> sorted agent indices in 0..n-1; ValueError naming the bad part."""
+    out = set()
+    for part in [q.strip() for q in text.split(',')]:
+        lo, sep, hi = part.partition('-')
+        if not lo.strip().isdigit() or (sep and not hi.strip().isdigit()):
+            raise ValueError(f'agents {text!r}: {part!r} is not an index or a range like 48-95')
+        a, b = int(lo), int(hi) if sep else int(lo)
+        if a > b or b >= n:
+            raise ValueError(f'agents {text!r}: {part!r} is outside 0..{n - 1} (the scenario has {n} agents)')
+        out.update(range(a, b + 1))
+    return sorted(out)
 
 
 def main(argv=None) -> int:
     a = _parser().parse_args(argv)
     if not (a.missing_timeout >= 0.1 and a.missing_timeout < 1e6):
         print(f'swarm run: --missing-timeout {a.missing_timeout}: must be in [0.1, 1e6)', file=sys.stderr)
+        return 2
+    if not (a.start_timeout >= 1 and a.start_timeout <= 1e6):
+        print(f'swarm run: --start-timeout {a.start_timeout}: must be in [1, 1e6]', file=sys.stderr)
         return 2
     if a.clock_every < 1:
         print(f'swarm run: --clock-every {a.clock_every}: must be ≥ 1', file=sys.stderr)
@@ -427,6 +472,21 @@ def main(argv=None) -> int:
         scn = load(a.scenario, seed=a.seed, duration=a.duration, dt=a.dt)
     except ScenarioError as err:
         print(f'swarm run: {err}', file=sys.stderr)
+        return 2
+    try:
+        interface = dds.check_local(dds.check_address(a.interface, '--interface'), '--interface')
+        remote = parse_agents(a.remote_agents, len(scn.names)) if a.remote_agents else []
+    except ValueError as err:
+        print(f'swarm run: {err}', file=sys.stderr)
+        return 2
+    if not 0 <= a.server_port < 65536:
+        print(f'swarm run: --server-port {a.server_port}: must be 0 (a free port) or in 1..65535', file=sys.stderr)
+        return 2
+    if remote and a.in_process:
+        print('swarm run: --remote-agents needs --processes', file=sys.stderr)
+        return 2
+    if remote and a.discovery == 'simple':
+        print('swarm run: --remote-agents needs a discovery server (--discovery server or auto)', file=sys.stderr)
         return 2
     ref = a.scenario
     if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
@@ -461,7 +521,8 @@ def main(argv=None) -> int:
         (out / 'events.jsonl').unlink()
     params = node_parameters(scn, ref, a.mode, a.rtf, str(out), scn.duration,
                              extra_world=dict(progress_every=float(a.progress_every), clock_every=int(a.clock_every),
-                                              missing_timeout=float(a.missing_timeout)))
+                                              missing_timeout=float(a.missing_timeout),
+                                              start_timeout=float(a.start_timeout)))
     if a.record and not a.in_process and a.mode == 'lockstep':
         for nm in scn.names:            # the recorder must hear every state from step 0
             params[f'/{nm}/agent']['state_subscribers'] = 2
@@ -471,7 +532,9 @@ def main(argv=None) -> int:
     run_id = new_run_id()               # on the lockstep messages and /swarm/run (swarm_ros.runinfo)
     for p in params.values():
         p['run_id'] = run_id
-    n_proc = len(scn.names) + 2 + (1 if a.record else 0) + (1 if a.foxglove is not None else 0)
+    n_proc = len(scn.names) - len(remote) + 2 + (1 if a.record else 0) + (1 if a.foxglove is not None else 0)
+    use_server = not a.in_process and (a.discovery == 'server' or (a.discovery == 'auto' and (
+        n_proc > dds.SIMPLE_LIMIT or bool(remote))))
     print(f'swarm run: run {run_id}: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '
           f'{"one process" if a.in_process else f"{n_proc} processes"}, t = {scn.duration:g}, dt = {scn.dt:g}',
           flush=True)
@@ -487,9 +550,24 @@ def main(argv=None) -> int:
             pid_file = Path(tmp) / 'pids.json'
             params['/world'].update(pid_file=str(pid_file), events_file=str(out / 'events.jsonl'))
             pfile = write_params_file(params, Path(tmp) / 'params.yaml')
-            env = dds.environment(n_proc, Path(tmp), choice=a.dds)
-            code = run_processes(params, pfile, scn.names, env, record=a.record, out_dir=out,
-                                 pid_file=pid_file, events_file=out / 'events.jsonl', foxglove=a.foxglove)
+            try:
+                server = dds.DiscoveryServer(interface, a.server_port) if use_server else None
+                env = dds.environment(n_proc, Path(tmp), choice=a.dds, interface=interface,
+                                      server=server.locator if server else None)
+            except (ValueError, OSError) as err:
+                print(f'swarm run: {err}', file=sys.stderr)
+                return 2
+            local = [nm for i, nm in enumerate(scn.names) if i not in set(remote)]
+            if remote:
+                same = ''.join(f' --{k} {v}' for k, v in (('seed', a.seed), ('dt', a.dt), ('duration', a.duration),
+                                                          ('mode', a.mode if a.mode != 'lockstep' else None))
+                               if v is not None)
+                print(f'swarm run: waiting for {len(remote)} agents from other hosts: swarm join '
+                      f'{a.scenario} --agents {a.remote_agents} --server {server.locator} --interface ADDR'
+                      + same + (' --recorded' if a.record else ''), flush=True)
+            code = run_processes(params, pfile, local, env, record=a.record, out_dir=out,
+                                 pid_file=pid_file, events_file=out / 'events.jsonl', foxglove=a.foxglove,
+                                 server=server)
     wall = time.monotonic() - t0
     if code in (0, 130) and traj_file.exists():      # 130: Ctrl-C; the world saved the steps done
         try:

@@ -1,0 +1,136 @@
+"""``swarm join``: start some agents of a run whose world, commander (and recorder) run on
+another host.
+
+The run's host starts ``swarm run SCENARIO --remote-agents LIST --interface ITS_ADDR``; it runs
+a discovery server and prints its ``ADDR:PORT``.  Here ``swarm join SCENARIO --agents LIST
+--server ADDR:PORT --interface THIS_ADDR`` starts those agents with the same parameters (the
+same scenario, seed, dt, duration and mode) as clients of that server.  They take part in
+lockstep like local ones.  ``swarm join`` ends when the world has gone from the graph (the run
+is over), on Ctrl-C, or if the world does not appear within ``--wait`` seconds.
+
+Faults: the world signals agents by pid on its own host only; ``swarm kill`` of an agent that
+runs here leaves it out of the table (it stops moving and speaking) but does not end its process.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from swarm_core.scenario import ScenarioError, load
+
+from . import dds
+from .launch import Supervisor, _exe, add_network_options, node_parameters, parse_agents, write_params_file
+
+#: wall seconds the world may stay out of the graph before ``swarm join`` takes the run as over
+GONE_AFTER = 3.0
+
+
+def _parser():
+    p = argparse.ArgumentParser(prog='swarm join', description=(
+        'Start agents of a run whose world and commander run on another host (started there with '
+        '`swarm run SCENARIO --remote-agents LIST`). Give the same scenario options as that run.'))
+    p.add_argument('scenario', help='shipped scenario name or YAML file (the same as the run)')
+    p.add_argument('--agents', required=True, metavar='LIST', help='agent indices to start here, e.g. 48-95 or 0,2,5-7')
+    p.add_argument('--server', required=True, metavar='ADDR:PORT', help="the run's discovery server (swarm run prints it)")
+    add_network_options(p)
+    p.add_argument('--mode', choices=('lockstep', 'realtime'), default='lockstep', help='as the run (default lockstep)')
+    p.add_argument('--duration', type=float, help="as the run (default: the scenario's)")
+    p.add_argument('--seed', type=int, help="as the run (default: the scenario's)")
+    p.add_argument('--dt', type=float, help="as the run (default: the scenario's)")
+    p.add_argument('--recorded', action='store_true', help='the run records (swarm run --record): wait for the recorder too')
+    p.add_argument('--wait', type=float, default=180.0, help='give up if the world has not appeared after this many s (default 180)')
+    return p
+
+
+def world_present(node) -> bool:
+    return any(nm == 'world' and ns == '/' for nm, ns in node.get_node_names_and_namespaces())
+
+
+def main(argv=None) -> int:
+    a = _parser().parse_args(argv)
+    try:
+        scn = load(a.scenario, seed=a.seed, duration=a.duration, dt=a.dt)
+    except ScenarioError as err:
+        print(f'swarm join: {err}', file=sys.stderr)
+        return 2
+    try:
+        idx = parse_agents(a.agents, len(scn.names))
+        addr, port = dds.parse_server(a.server)
+        interface = dds.check_local(dds.check_address(a.interface, '--interface'), '--interface')
+    except ValueError as err:
+        print(f'swarm join: {err}', file=sys.stderr)
+        return 2
+    if not a.wait > 0:
+        print(f'swarm join: --wait {a.wait}: must be > 0', file=sys.stderr)
+        return 2
+    ref = a.scenario
+    if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
+        ref = str(Path(a.scenario).resolve())
+    params = node_parameters(scn, ref, a.mode, duration=scn.duration)
+    names = [scn.names[i] for i in idx]
+    params = {f'/{nm}/agent': params[f'/{nm}/agent'] for nm in names}
+    if a.recorded and a.mode == 'lockstep':
+        for p in params.values():
+            p['state_subscribers'] = 2
+    stopping = {'sig': None}
+
+    def on_signal(signum, frame):
+        stopping['sig'] = signum
+
+    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    sup = Supervisor()
+    code = 1
+    with tempfile.TemporaryDirectory(prefix='swarm_join_') as tmp:
+        pfile = write_params_file(params, Path(tmp) / 'params.yaml')
+        env = dds.environment(len(names) + 1, Path(tmp), interface=interface, server=f'{addr}:{port}')
+        for k in [k for k in os.environ if k not in env]:
+            del os.environ[k]               # this process's own graph watcher: a client like the agents
+        os.environ.update(env)
+        import rclpy
+        from rclpy.context import Context
+        ctx = Context()
+        try:
+            ros = ['--ros-args', '--params-file', str(pfile)]
+            for nm in names:
+                sup.start(nm, [_exe('swarm_agent')] + ros + ['-r', '__node:=agent', '-r', f'__ns:=/{nm}'], env)
+            print(f'swarm join: {len(names)} agents ({a.agents}) joining the run at {addr}:{port}', flush=True)
+            rclpy.init(context=ctx)
+            node = rclpy.create_node('swarm_join', context=ctx, start_parameter_services=False)
+            t0, seen, gone_since = time.monotonic(), False, None
+            while True:
+                if stopping['sig'] is not None:
+                    print(f'swarm join: {signal.Signals(stopping["sig"]).name}: stopping {len(sup.alive())} agents',
+                          file=sys.stderr, flush=True)
+                    code = 130
+                    break
+                if not sup.alive():
+                    print('swarm join: every agent here has exited', file=sys.stderr, flush=True)
+                    code = 1
+                    break
+                now = time.monotonic()
+                if world_present(node):
+                    if not seen:
+                        print(f'swarm join: the world found after {now - t0:.1f} s', flush=True)
+                    seen, gone_since = True, None
+                elif seen:
+                    gone_since = gone_since or now
+                    if now - gone_since > GONE_AFTER:
+                        print('swarm join: the world has left the graph; the run is over', flush=True)
+                        code = 0
+                        break
+                elif now - t0 > a.wait:
+                    print(f'swarm join: no world at {addr}:{port} after {a.wait:g} s', file=sys.stderr, flush=True)
+                    code = 1
+                    break
+                time.sleep(0.2)
+        finally:
+            sup.stop()
+            rclpy.try_shutdown(context=ctx)
+            for s, h in old.items():
+                signal.signal(s, h)
+    return code
