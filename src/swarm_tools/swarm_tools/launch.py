@@ -319,7 +319,10 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
                 print(f'swarm run: the recorder did not say it was ready within '
                       f'{RECORDER_READY_TIMEOUT:g} s; starting the run anyway', file=sys.stderr, flush=True)
         world = sup.start('world', [_exe('swarm_world')] + ros + ['-r', '__node:=world'], env)
-        sup.start('commander', [_exe('homotopy_commander')] + ros + ['-r', '__node:=commander'], env)
+        # a super client: it opens a command topic's reader once it sees a writer there (ros2 topic
+        # pub, swarm lambda), and a plain CLIENT of a discovery server hears only of topics it reads
+        sup.start('commander', [_exe('homotopy_commander')] + ros + ['-r', '__node:=commander'],
+                  dds.super_client(env))
         for nm in names:
             sup.start(nm, [_exe('swarm_agent')] + ros + ['-r', '__node:=agent', '-r', f'__ns:=/{nm}'], env)
         if foxglove is not None:        # the live view (swarm view), a process of the run
