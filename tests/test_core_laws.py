@@ -68,7 +68,7 @@ def test_frame_from_quaternion_is_orthonormal_and_matches_heading():
 # ------------------------------------------------------------------ vectorised == per-pair loop
 
 def _u_pair_loop(rk, thk, rj, thj, g):
-    """eq. 4-5 written out with math, straight from docs/model.md."""
+    """eq. 5-6 written out with math, straight from docs/model.md."""
     dx, dy = rk[0] - rj[0], rk[1] - rj[1]
     rho = math.hypot(dx, dy)
     if rho == 0.0:
@@ -87,7 +87,7 @@ def _law_loop(pos, th, law, lam, leaders, steering, target, barrier):
     n = len(th)
     g = law.gains
     w = law.cutoff_radius
-    c = lambda rho, q: 1.0 if rho < w else q  # noqa: E731  (eq. 6)
+    c = lambda rho, q: 1.0 if rho < w else q  # noqa: E731  (eq. 8)
     lam_e, q0 = law.effective_lambda_q0(lam)
     out = np.zeros(n)
     lead_idx = [i for i in range(n) if leaders[i]] if law.uses_leaders else []
@@ -256,11 +256,11 @@ def test_homotopy_limits():
     def u(kind, lam=0.0, q0=1.0):
         return swarm_control(pos, c, s, recv, LawConfig(kind=kind, q0=q0, leader_gain=25.0), lambda_=lam,
                              is_leader=leaders, steering=steer)
-    # λ = 0, q0 = 1: the global, group-averaged law (eq. 3), leaders and all
+    # λ = 0, q0 = 1: the global, group-averaged law (eq. 4), leaders and all
     np.testing.assert_array_equal(u('homotopy', 0.0, 1.0), u('global'))
-    # λ = 0, q0 = 0: the local law (eq. 7)
+    # λ = 0, q0 = 0: the local law (eq. 9)
     np.testing.assert_array_equal(u('homotopy', 0.0, 0.0), u('local'))
-    # λ = 1: leader following with local coupling (eq. 8, 9), whatever q0
+    # λ = 1: leader following with local coupling (eq. 10, 11), whatever q0
     for q0 in (0.0, 0.3, 1.0):
         np.testing.assert_array_equal(u('homotopy', 1.0, q0), u('leader_following'))
     np.testing.assert_array_equal(u('leader_following')[leaders], steer[leaders])

@@ -18,7 +18,7 @@ Faults (`FaultTimeline`)
 Leader failover (`CommandPlan`, command_plan.py, uses `followers_of` and `elect_successor`)
     A leader not heard for ``timeout`` seconds (first step with t − t_missing ≥ timeout) is
     lost.  Its successor is, among the agents that are heard now and are not leaders, those
-    whose nearest leader l(k) (eq. 8, `laws.nearest_leader`) was the lost leader at the last
+    whose nearest leader l(k) (eq. 10, `laws.nearest_leader`) was the lost leader at the last
     step it was heard, the one nearest to the lost leader's last heard position; ties go to
     the lower agent index; no successor if there is no such agent.  The successor takes over
     the lost leader's steering program and slot.  A lost leader that is heard again later
@@ -26,10 +26,10 @@ Leader failover (`CommandPlan`, command_plan.py, uses `followers_of` and `elect_
 
 Reunion (`Rendezvous`, applied to the law by `reunion_law`)
     From ``at`` for ``for`` seconds either every agent also steers to a shared rendezvous
-    point with the target term of eq. 13 (`laws.target_term`, gain γ = ``gain``; the point is
+    point with the target term of eq. 15 (`laws.target_term`, gain γ = ``gain``; the point is
     given, or the centroid of the heard agents at the first step of the window; ``track``: at
     every step, a rendezvous that moves with the swarm), and/or the far-coupling weight q0 of
-    the homotopy law is set to ``coupling`` (weak global coupling, eq. 10-12, the paper's own
+    the homotopy law is set to ``coupling`` (weak global coupling, eq. 12-14, the paper's own
     cohesion mechanism).  After the window only the law's own (local) coupling holds the
     reunited swarm together.
 """
@@ -208,7 +208,7 @@ def track_slots(slots: dict, ev: dict, row: dict) -> None:
 # ---------------------------------------------------------------- leader failover
 
 def followers_of(pos, heard, leader_rows):
-    """l(k) for every agent: the index of the heard leader nearest to it (eq. 8), −1 for
+    """l(k) for every agent: the index of the heard leader nearest to it (eq. 10), −1 for
     agents not heard, leaders and when no leader is heard."""
     pos = np.asarray(pos, float)
     heard = np.asarray(heard, bool)
@@ -250,7 +250,7 @@ class Rendezvous:
     at: float
     duration: float
     point: tuple | str | None = None   # (x, y); None: the centroid at ``at``; 'none': no target
-    gain: float = 0.05              # γ of eq. 13
+    gain: float = 0.05              # γ of eq. 15
     normalised: bool = False
     track: bool = False             # centroid: re-taken at every step (a moving rendezvous)
     coupling: float | None = None   # far-coupling weight q0 during the window (None: the law's)
@@ -276,7 +276,7 @@ class Rendezvous:
 
 def reunion_law(law, target, rdv):
     """(law, target) for a step with rendezvous ``rdv`` (`Rendezvous.update`; None: off):
-    the target term of eq. 13 towards the rendezvous point, and/or the far-coupling q0."""
+    the target term of eq. 15 towards the rendezvous point, and/or the far-coupling q0."""
     if rdv is None:
         return law, target
     point, gain, normalised, coupling = rdv

@@ -1,8 +1,8 @@
 """Frenet-Serret agent model and the Justh-Krishnaprasad pair term (no ROS).
 
 The model is that of Morgan & Schwartz, "Dynamic coordinated control laws in multiple agent
-models".  docs/model.md states it, lists the fixes applied to the paper's text, and maps the
-equation numbers in these comments to the paper's.
+models".  docs/model.md states it and lists the fixes applied to the paper's text.  Equation
+numbers in these comments are the paper's.
 
 Headings travel between agents as a planar quaternion (z = sin(θ/2), w = cos(θ/2)), the
 orientation of a ``nav_msgs/Odometry`` pose.  Every frame vector in this package is computed
@@ -18,7 +18,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class PairGains:
-    """Constants of the pair term u_jk (eq. 4, 5): ``alpha`` (spacing), ``eta`` (baseline),
+    """Constants of the pair term u_jk (eq. 5, 6): ``alpha`` (spacing), ``eta`` (baseline),
     ``mu`` (alignment) and the preferred spacing ``r0``."""
 
     alpha: float = 0.02
@@ -34,7 +34,7 @@ def quaternion_from_heading(theta):
 
 
 def frame_from_quaternion(qz, qw):
-    """Frenet frame of eq. 2 from a planar quaternion: returns (cos θ, sin θ).
+    """Frenet frame of eq. 3 from a planar quaternion: returns (cos θ, sin θ).
 
     x_k = (cos θ, sin θ), y_k = (−sin θ, cos θ).  cos θ = w² − z², sin θ = 2wz.
     """
@@ -54,7 +54,7 @@ def yaw_from_quaternion(qz, qw):
 
 
 def cutoff(rho, q, w):
-    """Cutoff function c(ρ, q, w) (eq. 6): 1 where ρ < w, q elsewhere."""
+    """Cutoff function c(ρ, q, w) (eq. 8): 1 where ρ < w, q elsewhere."""
     return np.where(np.asarray(rho) < w, 1.0, q)
 
 
@@ -71,7 +71,7 @@ def pair_geometry(dx, dy, cos_k, sin_k):
 
 
 def pair_terms(dx, dy, cos_k, sin_k, cos_j, sin_j, gains: PairGains):
-    """The three terms of u_jk (eq. 4, 5) as (baseline, spacing, alignment).
+    """The three terms of u_jk (eq. 5, 6) as (baseline, spacing, alignment).
 
     baseline  = −η (r̂·x_k)(r̂·y_k)
     spacing   = −f(ρ)(r̂·y_k),  f(ρ) = α(1 − (r0/ρ)²)
@@ -87,7 +87,7 @@ def pair_terms(dx, dy, cos_k, sin_k, cos_j, sin_j, gains: PairGains):
 
 
 def pair_control(dx, dy, cos_k, sin_k, cos_j, sin_j, gains: PairGains):
-    """u_jk (eq. 4): the Justh-Krishnaprasad steering of agent k due to agent j.
+    """u_jk (eq. 5): the Justh-Krishnaprasad steering of agent k due to agent j.
 
     The per-pair reference form; `laws.swarm_control` sums the same terms over all pairs
     through per-receiver moments of the pair geometry (`laws._pair_sums_dense`)."""
@@ -96,7 +96,7 @@ def pair_control(dx, dy, cos_k, sin_k, cos_j, sin_j, gains: PairGains):
 
 
 def avoidance_control(dx, dy, cos_k, sin_k, gains: PairGains, normalised: bool = False):
-    """Collision-avoidance pair term of the target law (eq. 13).
+    """Collision-avoidance pair term of the target law (eq. 15).
 
     −α(1 − (r0/ρ)²)(r_jk·y_k), with r_jk unnormalised as the paper writes it; with
     ``normalised`` the unit vector r̂ is used instead.  0 for coincident agents.

@@ -1,4 +1,4 @@
-"""Integrators of the unit-speed Frenet-Serret system (eq. 2), no ROS.
+"""Integrators of the unit-speed Frenet-Serret system (eq. 3), no ROS.
 
 `zoh_step` is the default and what every ROS agent runs: the control u is held over
 [t, t + dt) and the agent moves on the exact circular arc.  `rk4_step` integrates the

@@ -10,13 +10,13 @@ controls.  No Python loop runs over pairs; the dense path works in row blocks he
 scratch arrays (the speed-ups are measured in BENCHMARKS.md, `scripts/bench_core.py`).
 
 Laws (``LawConfig.kind``):
-- ``global``            eq. 3,  u_k = Σ_j u_jk
-- ``local``             eq. 7,  u_k = Σ_j c(ρ_jk, 0, w) u_jk          (cutoff inside the sum)
-- ``leader_following``  eq. 8-9 (the homotopy law at λ = 1, q0 = 0)
-- ``homotopy``          eq. 10-12 with far-coupling weight q(λ) = q0 (1 − λ)
-- ``target``            eq. 13, collision avoidance within w plus target seeking
-The target term (eq. 13, second line) is added to any law when a target and a nonzero
-``target_gain`` are given, and the sensed-barrier term (eq. 14) whenever a barrier and a
+- ``global``            eq. 4,  u_k = Σ_j u_jk
+- ``local``             eq. 9,  u_k = Σ_j c(ρ_jk, 0, w) u_jk          (cutoff inside the sum)
+- ``leader_following``  eq. 10-11 (the homotopy law at λ = 1, q0 = 0)
+- ``homotopy``          eq. 12-14 with far-coupling weight q(λ) = q0 (1 − λ)
+- ``target``            eq. 15, collision avoidance within w plus target seeking
+The target term (eq. 15, second line) is added to any law when a target and a nonzero
+``target_gain`` are given, and the sensed-barrier term (eq. 16) whenever a barrier and a
 nonzero ``barrier_gain`` are given.
 """
 from __future__ import annotations
@@ -39,12 +39,12 @@ BARRIER_MODES = ('ahead', 'literal')
 class LawConfig:
     """Which law and its constants.
 
-    cutoff_radius  w, the communication/sensing radius of the cutoff c(ρ, q, w) (eq. 6)
-    leader_gain    ℓc ≫ 1, the follower-to-leader coupling (eq. 8, 11)
+    cutoff_radius  w, the communication/sensing radius of the cutoff c(ρ, q, w) (eq. 8)
+    leader_gain    ℓc ≫ 1, the follower-to-leader coupling (eq. 10, 13)
     q0             far-coupling weight at λ = 0 (1: the paper's homotopy law, Fig. 3;
                    0: local coupling throughout, Fig. 4)
-    target_gain    γ (eq. 13); target_normalised uses unit vectors in eq. 13
-    barrier_gain   s_b (eq. 14); barrier_mode 'ahead' (default) or 'literal', see docs/model.md
+    target_gain    γ (eq. 15); target_normalised uses unit vectors in eq. 15
+    barrier_gain   s_b (eq. 16); barrier_mode 'ahead' (default) or 'literal', see docs/model.md
     """
 
     kind: str = 'homotopy'
@@ -102,7 +102,7 @@ class LawConfig:
 
 
 # name → (description, (lowest, highest)) of each law parameter; defaults: `LawConfig()`.
-# Equation numbers are the paper's (docs/model.md maps them to the code comments').
+# Equation numbers here and in every comment are the paper's.
 # A choice parameter has its choices instead of a range; booleans have None.
 LAW_PARAMETERS = {
     'law': ('control law', LAW_KINDS),
@@ -111,7 +111,7 @@ LAW_PARAMETERS = {
     'mu': ('alignment gain μ of the pair term (eq. 5)', (0.0, 1e6)),
     'r0': ('preferred spacing r0 in f(ρ) (eq. 6)', (1e-9, 1e6)),
     'cutoff_radius': ('cutoff (communication and sensing) radius w (eq. 8)', (1e-9, 1e9)),
-    'leader_gain': ('leader coupling ℓc ≫ 1 (eq. 10, 11)', (1.0, 1e6)),
+    'leader_gain': ('leader coupling ℓc ≫ 1 (eq. 10, 13)', (1.0, 1e6)),
     'q0': ('far-coupling weight q0 at λ = 0 (eq. 12-14)', (0.0, 1.0)),
     'target_gain': ('target gain γ (eq. 15)', (0.0, 1e6)),
     'target_normalised': ('use unit vectors in the target term (eq. 15)', None),
@@ -142,7 +142,7 @@ def nearest_leader(pos, receivers, leader_rows):
 
 
 def target_term(pos_k, cos_k, sin_k, target, law: LawConfig):
-    """γα(1 − (r0/|r̄_k|)²)(r̄_k·y_k), r̄_k = r̄ − r_k (eq. 13, second line); 0 at the target."""
+    """γα(1 − (r0/|r̄_k|)²)(r̄_k·y_k), r̄_k = r̄ − r_k (eq. 15, second line); 0 at the target."""
     dx = target[0] - pos_k[:, 0]
     dy = target[1] - pos_k[:, 1]
     d2 = dx * dx + dy * dy
@@ -155,7 +155,7 @@ def target_term(pos_k, cos_k, sin_k, target, law: LawConfig):
 
 
 def barrier_direction(pos_k, barrier, w):
-    """Average barrier direction v_k (eq. 14, with b_i − r_k): unit vector, 0 if none sensed."""
+    """Average barrier direction v_k (eq. 16, with b_i − r_k): unit vector, 0 if none sensed."""
     d = barrier[None, :, :] - pos_k[:, None, :]               # (K, m, 2)
     sensed = (d[..., 0] ** 2 + d[..., 1] ** 2) < w * w
     v = (d * sensed[..., None]).sum(axis=1)
@@ -164,7 +164,7 @@ def barrier_direction(pos_k, barrier, w):
 
 
 def barrier_term(pos_k, cos_k, sin_k, barrier, law: LawConfig):
-    """Barrier avoidance (eq. 14): ±s_b (v_k·y_k).
+    """Barrier avoidance (eq. 16): ±s_b (v_k·y_k).
 
     'ahead' (default): −s_b [v_k·x_k > 0] (v_k·y_k), steering away only while the barrier is
     ahead.  'literal': −s_b sign(v_k·x_k)(v_k·y_k), the paper's sign of v_k·y_k^⊥ with
@@ -292,7 +292,7 @@ def _senders(rows: int, n: int):
 
 
 def _pair_weights(law, lam, q0, leaders, recv_leader, careful):
-    """The weights of eq. 6, 11, 12, or None where every weight is 1 (then no weight matrix is
+    """The weights of eq. 8, 13, 14, or None where every weight is 1 (then no weight matrix is
     built): (far, gain, leader rows) with far the weight q of c(ρ, q, w) beyond w (a number, or
     (K, 1) per receiver) and, for leader laws, gain (K,) the factor of the pair with the
     nearest leader l(k), (ℓc − 1)λ + 1 for a follower and 1 for a leader."""
@@ -317,7 +317,7 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
     """Row sums ("moments") from which Σ_j weight_jk·u_jk follows for each receiver, over the
     whole table, in blocks of receiver rows (no Python loop over pairs).
 
-    u_jk (eq. 4) is linear in pair moments whose coefficients depend only on the receiver's
+    u_jk (eq. 5) is linear in pair moments whose coefficients depend only on the receiver's
     frame (c, s) = (cos θ_k, sin θ_k).  With r_jk = (dx, dy): (r_jk·x_k)(r_jk·y_k) =
     (c² − s²)·dx·dy + c·s·(dy² − dx²) and r_jk·y_k = c·dy − s·dx, so
 
@@ -327,8 +327,8 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
     C = Σ W cos θ_j, S = Σ W sin θ_j.  The self pair adds exactly 0 to A, B, Hx, Hy (its ρ² is
     set to ∞) and its alignment c·s_k − s·c_k cancels.  With unit weights (no cutoff weight or
     leader gain differs from 1) C and S are the plain table sums and are not formed per row.
-    The target law (eq. 13) needs only (Hx, Hy) with h = −α(1 − r0²/ρ²) (·1/ρ if normalised)
-    within w.  The nearest leader l(k) (eq. 8) is read off the block's ρ² (the numbers
+    The target law (eq. 15) needs only (Hx, Hy) with h = −α(1 − r0²/ρ²) (·1/ρ if normalised)
+    within w.  The nearest leader l(k) (eq. 10) is read off the block's ρ² (the numbers
     `nearest_leader` forms; ties to the lower row).
 
     cos_sin (2, N): the table's cos θ and sin θ.  Returns (moments (6, K): rows A, B, Hx, Hy,
@@ -396,7 +396,7 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
             np.multiply(z.d, z.d, out=z.d2)
             np.add(z.d2x, z.d2y, out=rr)                         # ρ²
             rr.put(self_pair if single else self_pair[rows] - a * n, np.inf)  # self: 1/ρ² = 0
-            if gain is not None:                                 # l(k), eq. 8: the nearest leader
+            if gain is not None:                                 # l(k), eq. 10: the nearest leader
                 l_flat = leader_rows.take(rr.take(leader_rows, axis=1).argmin(axis=1))
                 l_flat += starts if b == block else starts[:b]
             if target_kind or weights is not None:
@@ -425,8 +425,8 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
             if weights is not None:
                 wm = z.wm
                 np.copyto(wm, far if gain is None or single else far[rows])  # far: q, or (K, 1)
-                np.copyto(wm, const(1.0), where=z.wb)            # c(ρ, q, w), eq. 6
-                if gain is not None:                             # (ℓc − 1)λ + 1 with l(k), eq. 11
+                np.copyto(wm, const(1.0), where=z.wb)            # c(ρ, q, w), eq. 8
+                if gain is not None:                             # (ℓc − 1)λ + 1 with l(k), eq. 13
                     wm.put(l_flat, wm.take(l_flat) * (gain if single else gain[rows]))
                 if coincident is not None and careful:
                     wm[coincident] = 0.0
@@ -505,14 +505,14 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
         m[3] = np.bincount(k, weights=h * dy, minlength=n_recv)
         return m, False
     h *= np.sqrt(rr)                                            # h = −α(1 − r0²/ρ²)/ρ
-    # c(ρ, q, w) with q = q0(1 − λ) (followers, none) or q0 (leaders), eq. 6, 11, 12
+    # c(ρ, q, w) with q = q0(1 − λ) (followers, none) or q0 (leaders), eq. 8, 13, 14
     if q0 == 0.0:
         weight = within.astype(float)
     elif leaders is None:
         weight = np.where(within, 1.0, q0 * (1.0 - lam))
     else:
         weight = np.where(within, 1.0, np.where(leaders[rk], q0, q0 * (1.0 - lam)))
-    if leaders is not None:                                     # (ℓc − 1)λ + 1 with l(k), eq. 11
+    if leaders is not None:                                     # (ℓc − 1)λ + 1 with l(k), eq. 13
         partner = np.where(leaders[receivers], -1, l_of_k)
         weight[(j == partner[k]).nonzero()[0]] *= (law.leader_gain - 1.0) * lam + 1.0
     if careful:
@@ -555,7 +555,7 @@ def _pair_sum_sparse(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, lea
 
 def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
                   is_leader=None, steering=None, target=None, barrier=None, pairs=None):
-    """Curvature controls u_k of the receivers (eq. 3, 7, 8-12, 13, 14).
+    """Curvature controls u_k of the receivers (eq. 4, 9, 10-14, 15, 16).
 
     pos (N, 2), cos_t, sin_t (N,): the table of agent states (frames from
     `model.heading_frame` or `model.frame_from_quaternion`).
@@ -604,7 +604,7 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
 
 
 def _add_world_terms(u, pos, F, receivers, law, target, barrier):
-    """u plus the target term (eq. 13) and the barrier term (eq. 14) where they apply."""
+    """u plus the target term (eq. 15) and the barrier term (eq. 16) where they apply."""
     if target is not None and law.target_gain != 0.0:
         u = u + target_term(pos[receivers], F[1], F[0], np.asarray(target, float), law)
     if barrier is not None and law.barrier_gain != 0.0 and len(barrier):

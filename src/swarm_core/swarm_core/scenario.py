@@ -291,7 +291,7 @@ class FailoverSpec(_Strict):
 
 
 class ReunionSpec(_Strict):
-    """Over [at, at + for): a shared rendezvous target (eq. 13; point: [x, y], centroid or none)
+    """Over [at, at + for): a shared rendezvous target (eq. 15; point: [x, y], centroid or none)
     and/or far coupling q0 = ``coupling`` (faults.py)."""
     at: NonNeg
     for_: Positive = Field(alias='for')
@@ -446,7 +446,7 @@ class ScenarioSpec(_Strict):
     def _reunion_vs_target(self):
         if self.reunion and self.target is not None:
             raise ValueError('reunion: a scenario with a target cannot also have a rendezvous '
-                             '(both use the target term of eq. 13)')
+                             '(both use the target term of eq. 15)')
         return self
 
 

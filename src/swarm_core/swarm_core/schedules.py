@@ -113,7 +113,7 @@ class LiveSchedule(LambdaSchedule):
 
 
 class SteeringProgram:
-    """A leader's explicit steering program s_k (eq. 9, 12): curvature as a function of
+    """A leader's explicit steering program s_k (eq. 11, 14): curvature as a function of
     time and of the leader's own state."""
 
     def value(self, t: float, pos, heading: float) -> float:  # pragma: no cover - interface
