@@ -10,6 +10,7 @@ graph: rclpy only serialises the messages.
 from __future__ import annotations
 
 import json
+import struct
 
 import numpy as np
 import pytest
@@ -82,3 +83,28 @@ def test_jsonable_writes_nan_as_null():
 def test_cluster_changes():
     series = dict(t=np.arange(5.0), clusters=np.array([1, 1, 2, 2, 1]))
     assert analysis.cluster_changes(series) == [(0.0, 1), (2.0, 2), (4.0, 1)]
+
+
+def _odometry_cdr(end, frame, child, sec, nsec, doubles):
+    """A serialized nav_msgs/Odometry in byte order ``end``, packed by hand (XCDR1)."""
+    body = struct.pack(end + 'iI', sec, nsec)
+    for s in (frame, child):
+        b = s.encode() + b'\0'
+        body += b'\0' * (-len(body) % 4) + struct.pack(end + 'I', len(b)) + b
+    body += b'\0' * (-len(body) % 8)
+    return (b'\0\1\0\0' if end == '<' else b'\0\0\0\0') + body + struct.pack(end + '85d', *doubles)
+
+
+@pytest.mark.parametrize('end', ['<', '>'])
+def test_one_odometry_decoder_for_the_world_and_the_report(end):
+    """Both byte orders; the report's fields (frame_id, stamp, vx) and the world's (pose, u,
+    sender tag) come from the one decoder."""
+    from swarm_ros import protocol as P
+    from swarm_tools.bag import parse_odometry
+    d = np.arange(85, dtype=float) / 8
+    raw = _odometry_cdr(end, 'map', 'agent_3', 12, 345, d)
+    name, sec, nsec, pose, wz, tag = P.cdr_to_odometry_tagged(raw)
+    assert (name, sec, nsec, wz, tag) == ('agent_3', 12, 345, d[48], d[7 + P.SENDER_TAG_INDEX])
+    assert pose == (d[0], d[1], d[3], d[4], d[5], d[6])
+    assert parse_odometry(raw) == dict(stamp_ns=12_000_000_345, frame_id='map', child_frame_id='agent_3',
+                                       x=d[0], y=d[1], qz=d[5], qw=d[6], vx=d[43], wz=d[48])

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from . import metrics, outcomes
+from .atomic import atomic_open
 
 
 def analyse(traj, cutoff_radius=None, *, target=None, barrier=None, scenario=None, dt=None,
@@ -118,17 +118,8 @@ def dumps(doc) -> str:
 
 def write_atomic(path, text: str):
     """Write ``text`` to ``path`` through a temporary file and a rename (no half-written file)."""
-    path = Path(path)
-    tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
-    try:
-        with open(tmp, 'w') as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    with atomic_open(path) as fh:
+        fh.write(text)
 
 
 def write_failed(prog, out, err) -> str:

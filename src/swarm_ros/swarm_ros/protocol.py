@@ -377,14 +377,19 @@ def cdr_byte_order(raw: bytes) -> str:
 def cdr_to_odometry_full(raw: bytes):
     """The one decoder of a serialized ``nav_msgs/Odometry`` (either byte order): (frame_id,
     child_frame_id, sec, nanosec, (x, y, qx, qy, qz, qw), linear.x, angular.z, sender tag)."""
-    end = cdr_byte_order(raw)
-    sec, nsec = struct.unpack_from(end + 'iI', raw, 4)
-    frame, o = cdr_string(raw, 12, end)
-    name, o = cdr_string(raw, o, end)
+    end = '<' if raw[1] & 1 else '>'
+    sec, nsec, n = struct.unpack_from(end + 'iII', raw, 4)
+    frame = raw[16:15 + n].decode('utf-8', 'replace')
+    o = 16 + n                                       # after header.frame_id
+    o = (o - 4 + 3) // 4 * 4 + 4
+    n, = struct.unpack_from(end + 'I', raw, o)
+    name = raw[o + 4:o + 3 + n].decode('utf-8', 'replace')
+    o += 4 + n
     o = (o - 4 + 7) // 8 * 8 + 4
-    d = struct.unpack_from(end + f'{_I_WZ + 1}d', raw, o)
-    return (frame, name, sec, nsec, (d[_I_X], d[_I_Y], d[_I_QX], d[_I_QY], d[_I_QZ], d[_I_QW]),
-            d[_I_VX], d[_I_WZ], d[_I_TAG])
+    x, y, _, qx, qy, qz, qw = struct.unpack_from(end + '7d', raw, o)
+    tag, vx = struct.unpack_from(end + '2d', raw, o + 8 * _I_TAG)       # adjacent fields
+    wz, = struct.unpack_from(end + 'd', raw, o + 8 * _I_WZ)
+    return frame, name, sec, nsec, (x, y, qx, qy, qz, qw), vx, wz, tag
 
 
 def cdr_to_odometry(raw: bytes):
