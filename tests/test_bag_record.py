@@ -119,8 +119,9 @@ def _on_disk(out, want, counts=False):
 
     from swarm_tools.bag import iter_messages
     got = Counter()
-    if out.is_file():
-        got.update(m.topic for m in iter_messages(out, stats={}))
+    path = out / f'{out.name}_0.mcap' if out.is_dir() else out     # --out DIR: DIR/DIR_0.mcap
+    if path.is_file():
+        got.update(m.topic for m in iter_messages(path, stats={}))
     if counts:
         return dict(got)
     return all(got[t] >= n for t, n in want.items())

@@ -25,9 +25,11 @@ def run():
     return scn, engine.simulate(scn, record_every=RECORD_EVERY)
 
 
-def write_bag(traj, path, *, leaders=True, lam=True, cut_after=None, metrics_cutoff=None):
+def write_bag(traj, path, *, leaders=True, lam=True, cut_after=None, metrics_cutoff=None,
+              target=None, barrier=None):
     """The run as the ROS nodes would have published it, written with BagWriter (with
-    ``metrics_cutoff``: one /world/metrics message carrying it, as the world publishes)."""
+    ``metrics_cutoff``: one /world/metrics message carrying it, as the world publishes; with
+    ``target`` / ``barrier``: the world's latched /world/target and /world/barrier)."""
     from nav_msgs.msg import Odometry
     from rclpy.serialization import serialize_message
     from std_msgs.msg import Float64, String
@@ -44,6 +46,18 @@ def write_bag(traj, path, *, leaders=True, lam=True, cut_after=None, metrics_cut
         st = DiagnosticStatus(name='swarm', hardware_id='world', values=[
             KeyValue(key='clusters', value='1'), KeyValue(key='cutoff_radius', value=str(metrics_cutoff))])
         w.write('/world/metrics', serialize_message(DiagnosticArray(status=[st])), 1_700_000_000 * 10**9)
+    if target is not None:
+        from geometry_msgs.msg import PointStamped
+        w.add_topic('/world/target', 'geometry_msgs/msg/PointStamped', latched)
+        m = PointStamped()
+        m.point.x, m.point.y = map(float, target)
+        w.write('/world/target', serialize_message(m), 1_700_000_000 * 10**9)
+    if barrier is not None:
+        from geometry_msgs.msg import Point32, PolygonStamped
+        w.add_topic('/world/barrier', 'geometry_msgs/msg/PolygonStamped', latched)
+        m = PolygonStamped()
+        m.polygon.points = [Point32(x=float(x), y=float(y)) for x, y in barrier]
+        w.write('/world/barrier', serialize_message(m), 1_700_000_000 * 10**9)
     if lam:
         w.add_topic('/swarm/lambda', 'std_msgs/msg/Float64', vol)
     if leaders:

@@ -3,14 +3,14 @@ over t = 1000, so outcomes are compared, not positions).  Slow: several full run
 import pytest
 
 from swarm_core import engine, scenario
-from swarm_core.simulate_cli import analyse
+from swarm_core.analysis import analyse
 
 pytestmark = pytest.mark.slow
 
 
 def _outcomes(name, seed, dt, integrator, keep=None):
     scn = scenario.load(name, seed=seed, dt=dt, integrator=integrator)
-    _, checks = analyse(scn, engine.simulate(scn))
+    _, checks = analyse(engine.simulate(scn), scenario=scn)
     return {k: v['passed'] for k, v in checks.items() if keep is None or k in keep}
 
 

@@ -13,7 +13,7 @@ from swarm_core.frenet import frame_from_quaternion, heading_frame
 from swarm_core.scenario import ScenarioError, load, parse
 from swarm_core.schedules import ConstantSteering
 from swarm_core.command_plan import CommandPlan
-from swarm_core.simulate_cli import analyse
+from swarm_core.analysis import analyse
 
 BASE = dict(name='faulty', seed=1, dt=0.05, duration=3.0,
             agents=dict(positions=[[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]),
@@ -62,7 +62,7 @@ def test_killed_agent_leaves_the_swarm():
     ref = simulate(five)
     np.testing.assert_array_equal(tr.r[k0:, keep], ref.r)
     # metrics skip the dead agent
-    series, _ = analyse(scn, tr)
+    series, _ = analyse(tr, scenario=scn)
     assert np.all(np.isfinite(series['polarisation'])) and np.all(np.isfinite(series['centroid']))
 
 
@@ -210,7 +210,7 @@ def test_lost_leaders_subswarm_follows_program_only_with_failover(seed, failover
     at t = 14 after the split: with failover its subswarm keeps turning at +0.05."""
     scn = parse(dict(EARLY, seed=seed, **({'failover': {'timeout': 0.5}} if failover else {})), 'early')
     tr = simulate(scn)
-    _, checks = analyse(scn, tr)
+    _, checks = analyse(tr, scenario=scn)
     fp = checks['follows_program']
     assert fp['passed'] is failover, fp
     if failover:
@@ -246,7 +246,7 @@ def two_groups(reunion):
 def test_reunion_brings_groups_together_and_local_coupling_keeps_them(reunion, reunites):
     scn = two_groups(reunion)
     tr = simulate(scn, record_every=10)
-    series, checks = analyse(scn, tr)
+    series, checks = analyse(tr, scenario=scn)
     assert checks['split_at']['passed']
     assert checks['one_cluster_from']['passed'] is reunites, checks
     if reunion:

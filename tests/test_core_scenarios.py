@@ -9,7 +9,7 @@ import yaml
 
 from swarm_core import engine, scenario
 from swarm_core.metrics import Barrier
-from swarm_core.simulate_cli import analyse
+from swarm_core.analysis import analyse
 
 SHIPPED = ['global_alignment', 'homotopy_global', 'homotopy_local', 'target_barrier',
            'leader_failover', 'leader_no_failover', 'homotopy_reunion']
@@ -29,7 +29,7 @@ def runs():
     for name in SHIPPED:
         scn = scenario.load(name)
         traj = engine.simulate(scn)
-        out[name] = (scn, traj) + analyse(scn, traj)
+        out[name] = (scn, traj) + analyse(traj, scenario=scn)
     return out
 
 
@@ -114,16 +114,17 @@ def test_partial_run_is_kept_on_interrupt():
 def test_a_run_shorter_than_its_checks_leaves_them_not_judged():
     """homotopy_global to t = 20: its windows (t = 300-600) and the end are not reached; an
     interrupted run judges nothing about the end; what a short run settles still counts."""
-    from swarm_core.simulate_cli import behaviour_ok, sweep_table
+    from swarm_core.analysis import behaviour_ok
+    from swarm_core.simulate_cli import sweep_table
     scn = scenario.load('homotopy_global', duration=20)
-    _, checks = analyse(scn, engine.simulate(scn))
+    _, checks = analyse(engine.simulate(scn), scenario=scn)
     assert checks['one_cluster_at']['passed'] is None and checks['split_between']['passed'] is None
     assert 'needs t = 310' in checks['one_cluster_at']['not_judged']
     assert checks['one_cluster_at_end']['passed'] is True           # the end of the run asked for
     assert behaviour_ok(checks) is None
     full = scenario.load('homotopy_global')                          # the file's t = 1000, cut at t = 20
     part = engine.simulate(scenario.load('homotopy_global', duration=20))
-    _, cut = analyse(full, part)
+    _, cut = analyse(part, scenario=full)
     assert all(v['passed'] is None for v in cut.values()), cut
     table = sweep_table('homotopy_global', [dict(seed=0, ok=None, checks=cut)])
     assert '0/1 (1 not judged' in table and 'failing seeds: []' in table

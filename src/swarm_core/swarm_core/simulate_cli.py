@@ -2,113 +2,19 @@
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing
 import os
 import signal
 import sys
-import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
-from . import engine, metrics, outcomes, scenario
+from . import engine, scenario
+from .analysis import analyse, check_output_dir, dumps, summary_of, write_failed, write_outputs
 from .command_plan import read_commands
-
-
-def analyse(scn, traj, every_time: float = 1.0):
-    """Metric time series (sampled every ``every_time`` units) and the scenario's checks."""
-    rec_dt = scn.dt * traj.meta.get('record_every', 1)
-    every = max(1, int(round(every_time / rec_dt)))
-    series = metrics.time_series(traj.t, traj.r, traj.theta, traj.leader, scn.law.cutoff_radius,
-                                 target=scn.target, barrier_points=scn.barrier, every=every)
-    checks = outcomes.evaluate(scn.spec.expect, series, traj, scn) if len(traj.t) else {}
-    return series, checks
-
-
-def _jsonable(x):
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return x.item()
-    raise TypeError(type(x))
-
-
-def behaviour_ok(checks):
-    """True if every check passed, False if one failed, None if none failed but some could not
-    be judged (a run shorter than the scenario) or there are no checks."""
-    if not checks or any(v['passed'] is False for v in checks.values()):
-        return False if checks else None
-    return None if any(v['passed'] is None for v in checks.values()) else True
-
-
-def summary_of(scn, traj, series, checks) -> dict:
-    c = series['clusters']
-    changes = [(float(series['t'][0]), int(c[0]))]
-    for i in range(1, len(c)):
-        if c[i] != c[i - 1]:
-            changes.append((float(series['t'][i]), int(c[i])))
-    out = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, steps=len(traj.t) - 1,
-               t_end=float(traj.t[-1]) if len(traj.t) else 0.0,
-               agents=len(scn.names), law=scn.law.kind,
-               final_clusters=int(c[-1]), max_clusters=int(c.max()),
-               min_distance=float(np.min(series['min_distance'])),
-               final_polarisation=float(series['polarisation'][-1]),
-               cluster_changes=changes, checks=checks,
-               behaviour_ok=behaviour_ok(checks),
-               interrupted=bool(traj.meta.get('interrupted', False)),
-               wall_seconds=round(traj.meta.get('wall_seconds', 0.0), 3))
-    if 'intrusions_total' in series:
-        out['intrusions_total'] = series['intrusions_total']
-        out['barrier_clearance'] = series['barrier_clearance']
-    if 'centroid_target_distance' in series:
-        out['closest_centroid_target_distance'] = float(series['centroid_target_distance'].min())
-    if traj.meta.get('events'):
-        out['events'] = traj.meta['events']        # faults, failover, reunion (faults.py)
-    if traj.meta.get('comms'):
-        out['comms'] = traj.meta['comms']      # what the radio did (swarm_core.comms)
-    return out
-
-
-def write_atomic(path, text: str):
-    """Write ``text`` to ``path`` through a temporary file and a rename (no half-written file)."""
-    path = Path(path)
-    tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
-    try:
-        with open(tmp, 'w') as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
-def write_failed(prog, out, err) -> str:
-    """One line for a results write that failed (full disk, permissions)."""
-    where = getattr(err, 'filename', None) or out
-    return f'{prog}: cannot write results to {out}: {getattr(err, "strerror", None) or err} ({where})'
-
-
-def write_outputs(out_dir, scn, traj, series, checks, figure=True):
-    """trajectory.npz, metrics.json (each written atomically) and the figure in ``out_dir``;
-    the figure is named after the scenario's `label` (never a path taken from its name)."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    traj.save(out / 'trajectory.npz')
-    summary = summary_of(scn, traj, series, checks)
-    doc = dict(summary=summary, series={k: v for k, v in series.items()},
-               parameters=scn.spec.model_dump(mode='json', by_alias=True))
-    write_atomic(out / 'metrics.json', json.dumps(doc, default=_jsonable, indent=1))
-    if figure and len(traj.t) > 1:
-        from .plots import plot_run
-        plot_run(traj, series, out / f'{scn.label}.png',
-                 title=f'{scn.name}, seed {scn.seed}: {scn.law.kind} law, n = {len(scn.names)}',
-                 w=scn.law.cutoff_radius, target=scn.target, barrier=scn.barrier)
-    return summary
 
 
 class _Progress:
@@ -143,22 +49,6 @@ def _make_dir_or_exit(prog, path) -> Path:
         print(f'{prog}: {err}', file=sys.stderr)
         raise SystemExit(2)
     return Path(path)
-
-
-def check_output_dir(path) -> str | None:
-    """Create ``path`` and check that a file can be written in it; None if so, else one line
-    saying why not (a read-only directory is refused before the work, not after)."""
-    path = Path(path)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        return f'cannot create output directory {path}: {err.strerror or err} ({err.filename})'
-    try:
-        with tempfile.NamedTemporaryFile(dir=path, prefix='.write_test_'):
-            pass
-    except OSError as err:
-        return f'output directory {path} is not writable: {err.strerror or err}'
-    return None
 
 
 def _load_or_exit(name, **over):
@@ -215,7 +105,7 @@ def simulate_main(argv) -> int:
     commands = _replay_or_exit(a.replay, scn) if a.replay else None
     traj = engine.simulate(scn, record_every=a.record_every, commands=commands,
                            progress=_Progress(f'{scn.name} seed {scn.seed}', not a.quiet))
-    series, checks = analyse(scn, traj)
+    series, checks = analyse(traj, scenario=scn)
     try:
         summary = write_outputs(out, scn, traj, series, checks, figure=not a.no_figure)
     except OSError as err:
@@ -268,7 +158,7 @@ def _sweep_one(args):
         traj = engine.simulate(scn)
         if traj.meta.get('interrupted'):
             return dict(seed=seed, interrupted=True)
-        series, checks = analyse(scn, traj)
+        series, checks = analyse(traj, scenario=scn)
     except KeyboardInterrupt:
         return dict(seed=seed, interrupted=True)
     finally:
@@ -419,7 +309,7 @@ def sweep_main(argv) -> int:
             break
     if a.out and everything:
         Path(a.out).write_text('\n\n'.join(tables) + '\n')
-        Path(a.out).with_suffix('.json').write_text(json.dumps(everything, indent=1, default=_jsonable))
+        Path(a.out).with_suffix('.json').write_text(dumps(everything))
         print(f'wrote {a.out} and {Path(a.out).with_suffix(".json")}', file=sys.stderr)
     return 130 if interrupted else 0
 

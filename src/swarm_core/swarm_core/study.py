@@ -27,7 +27,7 @@ import yaml
 
 from . import scenario
 
-#: metrics taken from `simulate_cli.summary_of` into every row
+#: metrics taken from `analysis.summary_of` into every row
 ROW_METRICS = ('final_clusters', 'max_clusters', 'min_distance', 'final_polarisation',
                'intrusions_total', 'closest_centroid_target_distance')
 
@@ -323,13 +323,13 @@ def _num(v):
 def run_task(task: Task) -> dict:
     """Simulate one run and return its row's results (checks and metrics; no wall time)."""
     from . import engine
-    from .simulate_cli import analyse, summary_of
+    from .analysis import analyse, summary_of
     if task.version and task.version != code_version():
         raise RuntimeError(f'this worker runs swarm_core {code_version()}, the study needs {task.version}: '
                            'install the same project version on every worker')
     scn = scenario.parse(task.data, task.source, seed=task.seed)
     traj = engine.simulate(scn)
-    series, checks = analyse(scn, traj)
+    series, checks = analyse(traj, scenario=scn)
     s = summary_of(scn, traj, series, checks)
     row = {'ok': s['behaviour_ok']}
     for name, res in checks.items():

@@ -6,12 +6,11 @@ held states between realtime stamps, frozen agents, and headings unwrapped in ti
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
+from .atomic import atomic_open
 from .frenet import yaw_from_quaternion
 
 
@@ -31,18 +30,9 @@ class Trajectory:
     def save(self, path):
         """Write ``path`` atomically (a temporary file in the same directory, then renamed):
         a failed write (full disk) leaves no partial or 0-byte file behind."""
-        path = Path(path)
-        tmp = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
-        try:
-            with open(tmp, 'wb') as fh:
-                np.savez_compressed(fh, t=self.t, r=self.r, theta=self.theta, u=self.u, lam=self.lam,
-                                    leader=self.leader, names=np.array(self.names))
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
+        with atomic_open(path, 'wb') as fh:
+            np.savez_compressed(fh, t=self.t, r=self.r, theta=self.theta, u=self.u, lam=self.lam,
+                                leader=self.leader, names=np.array(self.names))
         return path
 
     @classmethod

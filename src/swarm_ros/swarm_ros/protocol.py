@@ -362,6 +362,37 @@ class OdometryWriter:
         return _HEADER + struct.pack('<iI', sec, nanosec) + self._names + b.tobytes()
 
 
+def cdr_string(raw: bytes, off: int, end: str) -> tuple[str, int]:
+    """The CDR string at offset ``off`` (aligned to 4 after the encapsulation header) of
+    ``raw`` in byte order ``end`` ('<' or '>'), and the offset after it."""
+    off = (off - 4 + 3) // 4 * 4 + 4
+    n, = struct.unpack_from(end + 'I', raw, off)
+    return raw[off + 4:off + 3 + n].decode('utf-8', 'replace'), off + 4 + n
+
+
+def cdr_byte_order(raw: bytes) -> str:
+    """'<' or '>': the byte order of a serialized message (its encapsulation header)."""
+    return '<' if raw[1] & 1 else '>'
+
+
+def cdr_to_odometry_full(raw: bytes):
+    """The one decoder of a serialized ``nav_msgs/Odometry`` (either byte order): (frame_id,
+    child_frame_id, sec, nanosec, (x, y, qx, qy, qz, qw), linear.x, angular.z, sender tag)."""
+    end = '<' if raw[1] & 1 else '>'
+    sec, nsec, n = struct.unpack_from(end + 'iII', raw, 4)
+    frame = raw[16:15 + n].decode('utf-8', 'replace')
+    o = 16 + n                                       # after header.frame_id
+    o = (o - 4 + 3) // 4 * 4 + 4
+    n, = struct.unpack_from(end + 'I', raw, o)
+    name = raw[o + 4:o + 3 + n].decode('utf-8', 'replace')
+    o += 4 + n
+    o = (o - 4 + 7) // 8 * 8 + 4
+    x, y, _, qx, qy, qz, qw = struct.unpack_from(end + '7d', raw, o)
+    tag, vx = struct.unpack_from(end + '2d', raw, o + 8 * _I_TAG)       # adjacent fields
+    wz, = struct.unpack_from(end + 'd', raw, o + 8 * _I_WZ)
+    return frame, name, sec, nsec, (x, y, qx, qy, qz, qw), vx, wz, tag
+
+
 def cdr_to_odometry(raw: bytes):
     """(child_frame_id, sec, nanosec, (x, y, qx, qy, qz, qw), angular.z) of a serialized
     ``nav_msgs/Odometry`` (either byte order, any frame_id)."""
@@ -371,18 +402,8 @@ def cdr_to_odometry(raw: bytes):
 
 def cdr_to_odometry_tagged(raw: bytes):
     """`cdr_to_odometry` and the sender tag (pose.covariance[`SENDER_TAG_INDEX`])."""
-    end = '<' if raw[1] & 1 else '>'
-    sec, nsec, n = struct.unpack_from(end + 'iII', raw, 4)
-    o = 16 + n                                       # after header.frame_id
-    o = (o - 4 + 3) // 4 * 4 + 4
-    n, = struct.unpack_from(end + 'I', raw, o)
-    name = raw[o + 4:o + 3 + n].decode('utf-8', 'replace')
-    o += 4 + n
-    o = (o - 4 + 7) // 8 * 8 + 4
-    x, y, _, qx, qy, qz, qw = struct.unpack_from(end + '7d', raw, o)
-    wz, = struct.unpack_from(end + 'd', raw, o + 8 * _I_WZ)
-    tag, = struct.unpack_from(end + 'd', raw, o + 8 * _I_TAG)
-    return name, sec, nsec, (x, y, qx, qy, qz, qw), wz, tag
+    _, name, sec, nsec, pose, _, wz, tag = cdr_to_odometry_full(raw)
+    return name, sec, nsec, pose, wz, tag
 
 
 def clock_to_cdr(t: float) -> bytes:

@@ -38,6 +38,7 @@ from mcap.exceptions import McapError
 from mcap.records import Channel, Chunk, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
+from swarm_ros.protocol import cdr_byte_order, cdr_string, cdr_to_odometry_full
 
 PROFILE = 'ros2'
 SCHEMA_ENCODING = 'ros2msg'
@@ -155,8 +156,7 @@ def leading_stamp_ns(data: bytes) -> int | None:
     """sec·1e9 + nanosec of the stamp that opens a CDR message (see `has_leading_stamp`)."""
     if len(data) < 12:
         return None
-    little = data[1] & 1
-    sec, nsec = struct.unpack_from('<iI' if little else '>iI', data, 4)
+    sec, nsec = struct.unpack_from(cdr_byte_order(data) + 'iI', data, 4)
     return sec * 1_000_000_000 + nsec
 
 
@@ -478,39 +478,20 @@ def bag_topics(path) -> dict[str, dict]:
 
 
 # --------------------------------------------------------------------------- CDR helpers
-def _align(off: int, n: int) -> int:
-    # CDR alignment counts from the end of the 4-byte encapsulation header
-    return 4 + ((off - 4 + n - 1) // n) * n
-
-
-def _string(data: bytes, off: int, endian: str) -> tuple[str, int]:
-    off = _align(off, 4)
-    (n,) = struct.unpack_from(endian + 'I', data, off)
-    off += 4
-    s = data[off:off + max(0, n - 1)].decode('utf-8', 'replace')
-    return s, off + n
-
-
 def parse_odometry(data: bytes) -> dict:
-    """The fields of a CDR ``nav_msgs/msg/Odometry`` the report needs, without a ROS decoder:
-    stamp_ns, frame_id, child_frame_id, x, y, qz, qw, vx, wz."""
-    e = '<' if data[1] & 1 else '>'
-    sec, nsec = struct.unpack_from(e + 'iI', data, 4)
-    frame, off = _string(data, 12, e)
-    child, off = _string(data, off, e)
-    off = _align(off, 8)
-    x, y, z, qx, qy, qz, qw = struct.unpack_from(e + '7d', data, off)
-    off += 7 * 8 + 36 * 8
-    vx, vy, vz, wx, wy, wz = struct.unpack_from(e + '6d', data, off)
+    """The fields of a CDR ``nav_msgs/msg/Odometry`` the report needs, without a ROS decoder
+    (`swarm_ros.protocol.cdr_to_odometry_full`): stamp_ns, frame_id, child_frame_id, x, y,
+    qz, qw, vx, wz."""
+    frame, child, sec, nsec, (x, y, _, _, qz, qw), vx, wz, _ = cdr_to_odometry_full(data)
     return dict(stamp_ns=sec * 1_000_000_000 + nsec, frame_id=frame, child_frame_id=child,
                 x=x, y=y, qz=qz, qw=qw, vx=vx, wz=wz)
 
 
 def parse_string(data: bytes) -> str:
     """``std_msgs/msg/String`` (CDR), e.g. a ``/swarm/events`` JSON object."""
-    return _string(data, 4, '<' if data[1] & 1 else '>')[0]
+    return cdr_string(data, 4, cdr_byte_order(data))[0]
 
 
 def parse_float64(data: bytes) -> float:
     """``std_msgs/msg/Float64`` (CDR)."""
-    return struct.unpack_from(('<' if data[1] & 1 else '>') + 'd', data, 4)[0]
+    return struct.unpack_from(cdr_byte_order(data) + 'd', data, 4)[0]

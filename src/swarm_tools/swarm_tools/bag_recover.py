@@ -11,12 +11,12 @@ how many it kept and where the input ended.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
 from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
 from mcap.writer import CompressionType, Writer
+from swarm_core.atomic import atomic_open
 
 from .bag import iter_records_tolerant
 
@@ -25,60 +25,52 @@ def recover(src, dst) -> dict:
     """Copy every readable record of ``src`` into a new indexed MCAP file ``dst`` (written to a
     temporary file, then renamed).  Returns counts and whether ``src`` was cut short."""
     src, dst = Path(src), Path(dst)
-    tmp = dst.with_name(f'.{dst.name}.{os.getpid()}.tmp')
     stats: dict = {}
     counts = dict(schemas=0, channels=0, messages=0, attachments=0, metadata=0)
     schema_ids: dict[int, int] = {}
     channel_ids: dict[int, int] = {}
     t_first = t_last = None
-    try:
-        with open(tmp, 'wb') as fh:
-            w = Writer(fh, compression=CompressionType.ZSTD)
-            started = False
+    with atomic_open(dst, 'wb') as fh:
+        w = Writer(fh, compression=CompressionType.ZSTD)
+        started = False
 
-            def start(profile='', library=''):
-                nonlocal started
-                if not started:
-                    w.start(profile=profile, library=library or 'swarm bag recover')
-                    started = True
+        def start(profile='', library=''):
+            nonlocal started
+            if not started:
+                w.start(profile=profile, library=library or 'swarm bag recover')
+                started = True
 
-            for rec in iter_records_tolerant(src, stats):
-                if isinstance(rec, Header):
-                    start(rec.profile, rec.library)
-                    continue
-                start()
-                if isinstance(rec, Schema):
-                    if rec.id not in schema_ids:
-                        schema_ids[rec.id] = w.register_schema(rec.name, rec.encoding, rec.data)
-                        counts['schemas'] += 1
-                elif isinstance(rec, Channel):
-                    if rec.id not in channel_ids:
-                        channel_ids[rec.id] = w.register_channel(
-                            rec.topic, rec.message_encoding, schema_ids.get(rec.schema_id, 0),
-                            dict(rec.metadata))
-                        counts['channels'] += 1
-                elif isinstance(rec, Message):
-                    cid = channel_ids.get(rec.channel_id)
-                    if cid is None:          # a message before its channel: not readable
-                        continue
-                    w.add_message(cid, rec.log_time, rec.data, rec.publish_time, rec.sequence)
-                    counts['messages'] += 1
-                    t_first = rec.log_time if t_first is None else min(t_first, rec.log_time)
-                    t_last = rec.log_time if t_last is None else max(t_last, rec.log_time)
-                elif isinstance(rec, Attachment):
-                    w.add_attachment(rec.create_time, rec.log_time, rec.name, rec.media_type, rec.data)
-                    counts['attachments'] += 1
-                elif isinstance(rec, Metadata):
-                    w.add_metadata(rec.name, dict(rec.metadata))
-                    counts['metadata'] += 1
+        for rec in iter_records_tolerant(src, stats):
+            if isinstance(rec, Header):
+                start(rec.profile, rec.library)
+                continue
             start()
-            w.finish()
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, dst)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+            if isinstance(rec, Schema):
+                if rec.id not in schema_ids:
+                    schema_ids[rec.id] = w.register_schema(rec.name, rec.encoding, rec.data)
+                    counts['schemas'] += 1
+            elif isinstance(rec, Channel):
+                if rec.id not in channel_ids:
+                    channel_ids[rec.id] = w.register_channel(
+                        rec.topic, rec.message_encoding, schema_ids.get(rec.schema_id, 0),
+                        dict(rec.metadata))
+                    counts['channels'] += 1
+            elif isinstance(rec, Message):
+                cid = channel_ids.get(rec.channel_id)
+                if cid is None:          # a message before its channel: not readable
+                    continue
+                w.add_message(cid, rec.log_time, rec.data, rec.publish_time, rec.sequence)
+                counts['messages'] += 1
+                t_first = rec.log_time if t_first is None else min(t_first, rec.log_time)
+                t_last = rec.log_time if t_last is None else max(t_last, rec.log_time)
+            elif isinstance(rec, Attachment):
+                w.add_attachment(rec.create_time, rec.log_time, rec.name, rec.media_type, rec.data)
+                counts['attachments'] += 1
+            elif isinstance(rec, Metadata):
+                w.add_metadata(rec.name, dict(rec.metadata))
+                counts['metadata'] += 1
+        start()
+        w.finish()
     return dict(counts, truncated=bool(stats.get('truncated')), error=stats.get('error'),
                 span_s=(t_last - t_first) * 1e-9 if t_first is not None else 0.0)
 

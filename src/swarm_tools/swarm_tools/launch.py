@@ -44,7 +44,7 @@ from pathlib import Path
 import yaml
 
 from swarm_core.scenario import ScenarioError, load
-from swarm_core.simulate_cli import check_output_dir, write_atomic, write_failed
+from swarm_core.analysis import check_output_dir, write_atomic, write_failed
 
 from . import dds
 
@@ -575,12 +575,12 @@ def main(argv=None) -> int:
     if code in (0, 130) and traj_file.exists():      # 130: Ctrl-C; the world saved the steps done
         try:
             from swarm_core.trajectory import Trajectory
-            from swarm_core.simulate_cli import analyse, write_outputs
+            from swarm_core.analysis import analyse, write_outputs
             traj = Trajectory.load(traj_file)
             traj.meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration, source='ros',
                              mode=a.mode, wall_seconds=wall, events=read_events(out / 'events.jsonl'),
                              interrupted=code == 130)
-            series, checks = analyse(scn, traj)
+            series, checks = analyse(traj, scenario=scn)
             summary = write_outputs(out, scn, traj, series, checks, figure=not a.no_figure)
             what = (f'stopped (code {code}) at t = {summary["t_end"]:g} after {wall:.1f} s; partial run'
                     if code else f'done in {wall:.1f} s')
@@ -610,7 +610,7 @@ def salvage(scn, out: Path, bag, mode: str, wall: float, figure: bool = True) ->
               'to be able to rebuild it', file=sys.stderr, flush=True)
         return False
     try:
-        from swarm_core.simulate_cli import analyse, write_outputs
+        from swarm_core.analysis import analyse, write_outputs
 
         from .report import read_run, rebuild_trajectory
         run = read_run(bag, cutoff_radius=scn.law.cutoff_radius, agents=scn.names)
@@ -622,7 +622,7 @@ def salvage(scn, out: Path, bag, mode: str, wall: float, figure: bool = True) ->
         traj.meta.update(scenario=scn.name, seed=scn.seed, duration=scn.duration, source='bag',
                          mode=mode, wall_seconds=wall, interrupted=True,
                          events=read_events(out / 'events.jsonl'))
-        series, checks = analyse(scn, traj)
+        series, checks = analyse(traj, scenario=scn)
         write_outputs(out, scn, traj, series, checks, figure=figure)
     except (ValueError, OSError, IndexError) as err:
         print(f'swarm run: {lost}, and rebuilding it from the bag {bag} failed: {err}', file=sys.stderr, flush=True)

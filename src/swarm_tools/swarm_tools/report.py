@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from swarm_core import analysis
 
 from .bag import iter_messages, parse_float64, parse_odometry, parse_string, resolve_bag
 
@@ -299,52 +300,16 @@ def rebuild_trajectory(run: dict):
     return Trajectory(names, t, r, theta, u, lam, leader, meta)
 
 
-def _jsonable(x):
-    if isinstance(x, np.ndarray):
-        return [None if isinstance(v, float) and not np.isfinite(v) else v for v in x.tolist()] \
-            if x.dtype.kind == 'f' else x.tolist()
-    if isinstance(x, (np.floating,)):
-        v = float(x)
-        return v if np.isfinite(v) else None
-    if isinstance(x, (np.integer, np.bool_)):
-        return x.item()
-    raise TypeError(type(x))
-
-
-def cluster_history(series) -> list[tuple[float, int]]:
-    """[(t, clusters)] at t0 and at every change."""
-    c, t = series['clusters'], series['t']
-    out = [(float(t[0]), int(c[0]))]
-    for i in range(1, len(c)):
-        if c[i] != c[i - 1]:
-            out.append((float(t[i]), int(c[i])))
-    return out
-
-
-def analyse(traj, w, *, target=None, barrier=None, every_time=1.0):
-    from swarm_core import metrics
-    dt = traj.meta.get('dt') or 1.0
-    every = max(1, int(round(every_time / dt))) if dt > 0 else 1
-    series = metrics.time_series(traj.t, traj.r, traj.theta, traj.leader, w, target=target,
-                                 barrier_points=barrier, every=every)
-    c = series['clusters']
-    summary = dict(agents=len(traj.names), names=list(traj.names), steps=len(traj.t) - 1,
-                   t_start=float(traj.t[0]), t_end=float(traj.t[-1]), dt=dt, cutoff_radius=w,
-                   final_clusters=int(c[-1]), max_clusters=int(c.max()),
-                   min_distance=float(np.min(series['min_distance'])),
-                   final_polarisation=float(series['polarisation'][-1]),
-                   cluster_changes=cluster_history(series),
-                   one_leader_per_cluster_fraction=float(np.mean(series['one_leader_per_cluster']))
-                   if traj.leader.any() else None,
-                   leaders_seen=[traj.names[k] for k in np.flatnonzero(traj.leader.any(axis=0))],
-                   **{k: traj.meta[k] for k in ('alignment', 'truncated_bag', 'has_lambda',
-                                                'has_leaders')})
-    if 'intrusions_total' in series:
-        summary['intrusions_total'] = series['intrusions_total']
-        summary['barrier_clearance'] = series['barrier_clearance']
-    if 'centroid_target_distance' in series:
-        summary['closest_centroid_target_distance'] = float(series['centroid_target_distance'].min())
-    return series, summary
+def report_summary(traj, series, w) -> dict:
+    """`swarm_core.analysis.run_summary` with what the bag tells: names, start, step, cutoff
+    radius, leaders, alignment."""
+    return dict(analysis.run_summary(traj, series), names=list(traj.names),
+                t_start=float(traj.t[0]), dt=traj.meta.get('dt') or 1.0, cutoff_radius=w,
+                one_leader_per_cluster_fraction=float(np.mean(series['one_leader_per_cluster']))
+                if traj.leader.any() else None,
+                leaders_seen=[traj.names[k] for k in np.flatnonzero(traj.leader.any(axis=0))],
+                **{k: traj.meta[k] for k in ('alignment', 'truncated_bag', 'has_lambda',
+                                             'has_leaders')})
 
 
 def plot(traj, series, path, *, title, w, target, barrier):
@@ -454,13 +419,14 @@ def main(argv=None) -> int:
         w = LawConfig.cutoff_radius
         print(f'swarm report: {bag}: no cutoff_radius on /world/metrics; using the default '
               f'{w:g} (pass --cutoff-radius to choose)', file=sys.stderr)
-    series, summary = analyse(traj, w, target=run['target'], barrier=run['barrier'],
-                              every_time=a.every)
+    series, _ = analysis.analyse(traj, w, target=run['target'], barrier=run['barrier'],
+                                 every_time=a.every)
+    summary = report_summary(traj, series, w)
     summary['bag'] = str(bag)
     out.mkdir(parents=True, exist_ok=True)
     traj.save(out / 'trajectory.npz')
     doc = dict(summary=summary, series=series)
-    (out / 'metrics.json').write_text(json.dumps(doc, default=_jsonable, indent=1))
+    (out / 'metrics.json').write_text(analysis.dumps(doc))
     wrote = ['trajectory.npz', 'metrics.json']
     if not a.no_figure and len(traj.t) > 1:
         plot(traj, series, out / 'report.png', w=w, target=run['target'], barrier=run['barrier'],
