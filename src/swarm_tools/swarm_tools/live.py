@@ -40,7 +40,7 @@ import sys
 import time
 
 from swarm_ros import protocol as P
-from swarm_ros.cliutil import add_wait
+from swarm_ros.cliutil import add_wait, cli_node
 
 SETPOINT = P.LAMBDA_SETPOINT
 
@@ -58,21 +58,12 @@ def _publish_once(msg_type, topic, msg, wait, qos_depth=10, for_node=None, prog=
     wait for the acknowledgements.  ``prog``: also read the run's ``/swarm/run`` announcement
     (swarm_ros.runinfo) and say which run was reached; raise `RunRefused` (nothing is sent)
     if two runs share the domain or ``agent`` is not one of the run's agents."""
-    import rclpy
-    from rclpy.context import Context
     from rclpy.duration import Duration
-    from rclpy.executors import SingleThreadedExecutor
 
     from swarm_ros import runinfo
-    ctx = Context()
-    rclpy.init(context=ctx)
-    ex = node = None
-    try:
-        node = rclpy.create_node('swarm_cli', context=ctx, start_parameter_services=False)
+    with cli_node('swarm_cli') as (node, ex):
         pub = node.create_publisher(msg_type, topic, qos_depth)
         watch = runinfo.RunWatch(node) if prog else None
-        ex = SingleThreadedExecutor(context=ctx)
-        ex.add_node(node)
 
         def ready():
             if pub.get_subscription_count() == 0:
@@ -104,12 +95,6 @@ def _publish_once(msg_type, topic, msg, wait, qos_depth=10, for_node=None, prog=
         pub.publish(msg)
         pub.wait_for_all_acked(Duration(seconds=2.0))
         return True
-    finally:
-        if ex is not None:
-            ex.shutdown()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
 
 
 def lambda_main(argv) -> int:
@@ -244,25 +229,16 @@ def _agents_in_graph(node):
 
 def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='swarm'):
     """Publish one event once the swarm is found; returns an exit code (messages printed)."""
-    import rclpy
-    from rclpy.context import Context
     from rclpy.duration import Duration
     from rosgraph_msgs.msg import Clock
     from std_msgs.msg import String
 
-    ctx = Context()
-    rclpy.init(context=ctx)
-    node = ex = None
-    try:
-        node = rclpy.create_node('swarm_cli_events', context=ctx, start_parameter_services=False)
+    from swarm_ros.runinfo import RunWatch, describe, one_run
+    with cli_node('swarm_cli_events') as (node, ex):
         clock = {}
         node.create_subscription(Clock, P.CLOCK, lambda m: clock.__setitem__('t', P.stamp_to_time(m.clock)), 10)
         pub = node.create_publisher(String, P.EVENTS, P.qos_latched(100))
-        from swarm_ros.runinfo import RunWatch, describe, one_run
         watch = RunWatch(node)
-        from rclpy.executors import SingleThreadedExecutor
-        ex = SingleThreadedExecutor(context=ctx)
-        ex.add_node(node)
         end = time.monotonic() + wait
         agents = []
         while time.monotonic() < end:
@@ -310,12 +286,6 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
         print(f'{prog}: {kind} {fields} at t={"?" if t is None else f"{t:.2f}"} '
               f'(sent to {pub.get_subscription_count()} readers of {P.EVENTS})')
         return 0
-    finally:        # on every path (an early return left the executor to a GC after shutdown:
-        if ex is not None:      # "Exception ignored in Executor.__del__ ... InvalidHandle")
-            ex.shutdown()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
 
 
 def drop_main(argv) -> int:
