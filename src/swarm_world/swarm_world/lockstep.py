@@ -28,7 +28,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from swarm_core.comms import event_step
 from swarm_ros import protocol as P
+
+
+def comms_schedule(comms, dt):
+    """A scenario's radio events (its ``comms`` spec or None) as (step, event dict), by step."""
+    return sorted(((event_step(e.at, dt), e.model_dump(exclude_none=True))
+                   for e in (comms.events if comms else [])), key=lambda se: se[0])
 
 
 class LockstepBarrier:
