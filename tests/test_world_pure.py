@@ -11,7 +11,8 @@ import pytest
 from swarm_core import metrics as M
 from swarm_core.faults import Fault, FaultTimeline
 from swarm_core.frenet import quaternion_from_heading
-from swarm_world.inputs import fault_request, format_points, leader_flags, parse_point, parse_points
+from swarm_world.inputs import fault_request, format_points, leader_flags, parse_geometry, parse_point, parse_points
+from swarm_world.lockstep import decision_valid
 from swarm_world.observe import Observer
 from swarm_world.realtime import RealtimeSchedule, newest_view
 from swarm_world.wallclock import StallWatch, StartWatch
@@ -169,3 +170,20 @@ def test_stall_watch_drops_then_gives_up_and_repeats_between():
     w.progressed(30.0)
     assert w.decide(31.0, states_out=True, complete=True, can_repeat=True) is None
     assert StallWatch(0.0, missing_timeout=10.0, step_timeout=1.0, stall_timeout=2.0).give_up_after == 30.0
+
+
+def test_geometry_parameters_change_only_what_is_given():
+    t0, b0 = np.array([1.0, 2.0]), None
+    t, b = parse_geometry({'barrier': '0,0;1,0;0,1'}, t0, b0)
+    assert t is t0 and b.shape == (3, 2)
+    t, b = parse_geometry({'target': ''}, t0, b)
+    assert t is None and b.shape == (3, 2)
+    with pytest.raises(ValueError):
+        parse_geometry({'target': '1,2,3'}, t0, b0)
+
+
+def test_decision_valid_needs_lambda_in_range_finite_steering_and_one_flag_each():
+    ok = dict(lam=0.5, flags=[0, 1, 0], steering=[0.0, 0.1, 0.0], n=3)
+    assert decision_valid(**ok)
+    for bad in [dict(lam=1.5), dict(lam=float('nan')), dict(flags=[0, 1]), dict(steering=[0.0, float('inf'), 0.0])]:
+        assert not decision_valid(**{**ok, **bad})

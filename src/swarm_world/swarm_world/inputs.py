@@ -35,6 +35,16 @@ def format_points(pts):
     return '' if pts is None else ';'.join(f'{float(x)!r},{float(y)!r}' for x, y in np.atleast_2d(pts))
 
 
+def parse_geometry(values, target, barrier):
+    """(target, barrier) after the parameter texts in ``values`` (``target`` and/or
+    ``barrier`` → text); what ``values`` lacks is kept."""
+    if 'target' in values:
+        target = parse_point(values['target'])
+    if 'barrier' in values:
+        barrier = parse_points(values['barrier'])
+    return target, barrier
+
+
 def leader_flags(text, row):
     """Comma-separated names → (flags over the roster, the unknown names)."""
     names = [nm.strip() for nm in text.split(',') if nm.strip()]

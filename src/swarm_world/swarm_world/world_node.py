@@ -38,8 +38,8 @@ from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, check_val
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.runinfo import RunWatch, describe, older_runs, run_json, valid_run_id
 
-from .inputs import fault_request, format_points, leader_flags, parse_point, parse_points
-from .lockstep import LockstepBarrier, comms_schedule
+from .inputs import fault_request, format_points, leader_flags, parse_geometry, parse_point, parse_points
+from .lockstep import LockstepBarrier, comms_schedule, decision_valid
 from .markers import Trails, geometry_messages, markers_message, metrics_message, stamp, view_values
 from .observe import Observer
 from .realtime import RealtimeSchedule, newest_view
@@ -177,17 +177,13 @@ class WorldNode(Node):
 
     # ------------------------------------------------------------ geometry
     def _on_params(self, params):
+        values = {p.name: p.value for p in params if p.name in ('target', 'barrier')}
         try:
-            new_t, new_b = self.target, self.barrier
-            for p in params:
-                if p.name == 'target':
-                    new_t = parse_point(p.value)
-                elif p.name == 'barrier':
-                    new_b = parse_points(p.value)
+            new_t, new_b = parse_geometry(values, self.target, self.barrier)
         except (ValueError, TypeError) as err:
             self.get_logger().warning(f'rejected parameter: {err}')
             return SetParametersResult(successful=False, reason=str(err))
-        if any(p.name in ('target', 'barrier') for p in params):
+        if values:
             self.target, self.barrier = new_t, new_b
             self.barrier_geom = M.Barrier(self.barrier) if self.barrier is not None and len(self.barrier) >= 3 else None
             self.publish_geometry()
@@ -242,8 +238,7 @@ class WorldNode(Node):
         n, t, lam, flags, steering = P.unpack_decision(data)
         if n != self.lock.cur or self.lock.decision is not None:
             return
-        if not (math.isfinite(lam) and 0.0 <= lam <= 1.0) or not np.all(np.isfinite(steering)) \
-                or len(flags) != self.n:
+        if not decision_valid(lam, flags, steering, self.n):
             self.reject('decision', f'commander decision for step {n}: λ={lam}, non-finite or wrong size')
             return
         slots, rdv = P.decision_extras(data)
