@@ -26,9 +26,23 @@ The node keeps the wall clock (stalls, time-outs), the messages and the files.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from swarm_core.comms import event_step
 from swarm_ros import protocol as P
+
+
+def comms_schedule(comms, dt):
+    """A scenario's radio events (its ``comms`` spec or None) as (step, event dict), by step."""
+    return sorted(((event_step(e.at, dt), e.model_dump(exclude_none=True))
+                   for e in (comms.events if comms else [])), key=lambda se: se[0])
+
+
+def decision_valid(lam, flags, steering, n):
+    """A commander decision is usable: λ in [0, 1], finite steering, one flag per agent."""
+    return bool(math.isfinite(lam) and 0.0 <= lam <= 1.0 and np.all(np.isfinite(steering)) and len(flags) == n)
 
 
 class LockstepBarrier:

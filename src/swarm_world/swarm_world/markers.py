@@ -1,4 +1,5 @@
-"""What the world shows: the ``/world/metrics`` values and the ``/world/markers`` of a sample.
+"""What the world shows: the ``/world/metrics`` values, the ``/world/markers`` of a sample,
+and the target and barrier messages.
 
 Message building only (no node, no rclpy): agents as arrows coloured by cluster (leaders
 gold), a trail per agent, the target as a sphere and the barrier as a closed line.
@@ -10,7 +11,7 @@ import math
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point
+from geometry_msgs.msg import Point, Point32, PointStamped, PolygonStamped
 from visualization_msgs.msg import Marker, MarkerArray
 
 from swarm_core import metrics as M
@@ -26,6 +27,21 @@ def stamp(t: float) -> Time:
     s = Time()
     s.sec, s.nanosec = P.time_to_stamp(t)
     return s
+
+
+def geometry_messages(t, target, barrier):
+    """(``/world/target`` PointStamped or None without a target, ``/world/barrier``
+    PolygonStamped, empty without a barrier) at time t."""
+    ts = PointStamped()
+    ts.header.frame_id = 'world'
+    ts.header.stamp = stamp(t)
+    if target is not None:
+        ts.point.x, ts.point.y = float(target[0]), float(target[1])
+    bs = PolygonStamped()
+    bs.header = ts.header
+    if barrier is not None:
+        bs.polygon.points = [Point32(x=float(x), y=float(y)) for x, y in barrier]
+    return (ts if target is not None else None), bs
 
 
 def metrics_message(t, values: dict) -> DiagnosticArray:

@@ -1,20 +1,13 @@
 """WorldNode: sim time, the lockstep barrier, target and barrier, swarm view and metrics.
 
-See `swarm_ros.protocol` for the message flow.  The world loads the same scenario as the
-other nodes (for the roster, duration, target and barrier), records what the agents publish
-and, at the end, writes ``trajectory.npz`` (the batch engine's format) to ``output_dir``.
-Target and barrier can be moved during a run: ``ros2 param set /world target "400,0"``,
-``ros2 param set /world barrier "x,y;x,y;…"`` (empty string: none).
-
-Faults (swarm_core.faults; protocol.py for the layout): the world runs the scenario's
-`FaultTimeline` at exactly the scheduled steps and applies live requests from
-``/swarm/fault_request`` (``swarm kill`` / ``swarm pause``) at its next step.  It sends the
-agent's process SIGKILL (kill), SIGSTOP (freeze: once it holds the agent's state of the freeze
-step) and SIGCONT (resume), by the pid in ``pid_file`` (written by ``swarm run --processes``;
-no file: the agent is only left out of the table, which it obeys).  An agent whose state does
-not come within ``missing_timeout`` wall seconds is dropped from the roster (event ``lost``)
-and the run goes on.  Every event is published on ``/swarm/events`` and appended (with the
-commander's events) to ``events_file`` (JSON lines).
+The node holds parameters, publishers, subscriptions, timers, signals and files; the logic
+lives in pure modules: `lockstep` (the barrier), `realtime` (the realtime schedule),
+`wallclock` (start, stalls, time-outs), `observe` (checks, progress), `inputs` (parsing),
+`markers` (messages) and `swarm_core.trajectory` (the record).  The world writes
+``trajectory.npz`` to ``output_dir`` at the end and every event to ``events_file``.
+Target and barrier are movable: ``ros2 param set /world target "400,0"``.  Faults: the
+scenario's at their steps, live ones (``/swarm/fault_request``) at the next step, with
+SIGKILL / SIGSTOP / SIGCONT by the pids in ``pid_file``.  See docs/ros-graph.md and docs/faults.md.
 """
 from __future__ import annotations
 
@@ -28,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Point32, PointStamped, PolygonStamped
+from geometry_msgs.msg import PointStamped, PolygonStamped
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
@@ -37,8 +30,6 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from visualization_msgs.msg import MarkerArray
 
 from swarm_core import metrics as M
-from swarm_core.faults import FAULT_KINDS, Fault, track_slots
-from swarm_core.frenet import yaw_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
@@ -47,33 +38,15 @@ from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, check_val
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.runinfo import RunWatch, describe, older_runs, run_json, valid_run_id
 
-from .lockstep import LockstepBarrier
-from .markers import Trails, markers_message, metrics_message, stamp, view_values
+from .inputs import fault_request, format_points, leader_flags, parse_geometry, parse_point, parse_points
+from .lockstep import LockstepBarrier, comms_schedule, decision_valid
+from .markers import Trails, geometry_messages, markers_message, metrics_message, stamp, view_values
+from .observe import Observer
+from .realtime import RealtimeSchedule, newest_view
+from .wallclock import StallWatch, StartWatch
 
 
 SIGNALS = {'kill': signal.SIGKILL, 'stop': signal.SIGSTOP, 'cont': signal.SIGCONT}
-
-
-def parse_point(text):
-    text = text.strip()
-    if not text:
-        return None
-    vals = [float(v) for v in text.split(',')]
-    if len(vals) != 2 or not all(math.isfinite(v) for v in vals):
-        raise ValueError(f'{text!r} is not "x,y" with finite numbers')
-    return np.array(vals)
-
-
-def parse_points(text):
-    text = text.strip()
-    if not text:
-        return None
-    pts = [parse_point(p) for p in text.split(';') if p.strip()]
-    return np.array(pts) if pts else None
-
-
-def format_points(pts):
-    return '' if pts is None else ';'.join(f'{float(x)!r},{float(y)!r}' for x, y in np.atleast_2d(pts))
 
 
 class WorldNode(Node):
@@ -98,7 +71,6 @@ class WorldNode(Node):
         self.wait_for_recorder = d('wait_for_recorder', False, 'lockstep: start step 0 only once /clock has '
                                    'one reader more than the agents and the commander (a recorder; '
                                    f'at most {P.RECORDER_MATCH_WAIT:g} s)')
-        self.recorder_wait_from = None  # when everyone but the recorder was matched (wall s)
         self.step_timeout = d('step_timeout', 120.0, 'lockstep: give up (exit 1) if one step has not completed '
                               'after this many wall s', lo=1.0, hi=1e9)
         self.start_timeout = d('start_timeout', 180.0, 'give up if not everyone is discovered in this many wall s', lo=1.0, hi=1e6)
@@ -138,8 +110,6 @@ class WorldNode(Node):
         self.faults = self.scn.fault_timeline()
         self.events = []
         self.pids = None
-        self.rt_fault_step = -1
-        self.rt_slots = dict(self.scn.command_plan().slots)   # realtime: fixed leaders; then the commander's events
         if not self.events_file and self.output_dir:
             self.events_file = str(Path(self.output_dir) / 'events.jsonl')
         if self.events_file:
@@ -173,33 +143,33 @@ class WorldNode(Node):
             self.sub_decision = self.create_subscription(Float64MultiArray, P.LOCK_DECISION, self._on_decision,
                                                          P.qos_latched(), raw=True)
 
-        # the lockstep barrier and the record (swarm_world.lockstep, swarm_core.trajectory)
-        from swarm_core.comms import event_step
-        cspec = self.scn.spec.comms
-        comms_events = sorted(((event_step(e.at, self.dt), e.model_dump(exclude_none=True))
-                               for e in (cspec.events if cspec else [])), key=lambda se: se[0])
+        # the lockstep barrier or the realtime schedule, the record, the checks (pure modules)
+        comms_events = comms_schedule(self.scn.spec.comms, self.dt)
         self.rec = TrajectoryRecorder(self.names, self.steps, self.dt, self.scn.theta0,
                                       realtime=self.mode == 'realtime')
         self.lock = LockstepBarrier(self.names, self.steps, self.dt, self.faults, self.rec,
                                     comms_events=comms_events, clock_every=self.clock_every,
                                     geometry=lambda: (self.target, self.barrier))
-        self.rt_comms = list(comms_events)      # realtime: published when the clock passes them
+        # realtime: fixed leaders, then the commander's events
+        self.rt = RealtimeSchedule(self.names, self.faults, self.scn.command_plan().slots, comms_events,
+                                   self.view_every)
+        self.obs = Observer(self.collision_distance, self.w, self.progress_every)
         self.newest = {}         # name -> (t, x, y, qz, qw) newest accepted
-        self.step_wall = time.monotonic()
+        self.start_watch = StartWatch(time.monotonic(), self.n, start_timeout=self.start_timeout,
+                                      wait_for_recorder=self.wait_for_recorder,
+                                      recorder_wait=P.RECORDER_MATCH_WAIT)
+        self.watch = StallWatch(time.monotonic(), missing_timeout=self.missing_timeout,
+                                step_timeout=self.step_timeout, stall_timeout=self.stall_timeout)
         self.last_msg = None
-        self.last_progress = time.monotonic()
         self.started = False
         self.done = False
         self.failed = None
         self.wall_start = time.monotonic()
         self.run_wall = None
-        self.intrusions = 0
-        self.collisions = 0
         self.trails = Trails(self.n, self.trail_length)
         self.sim_t = 0.0
         self.lam_now = 0.0
         self.leaders_now = np.zeros(self.n, bool)
-        self.next_progress = 0.0
         self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
         self.publish_geometry()
         self.timer = self.create_timer(0.05 if self.mode == 'lockstep' else 0.01, self._on_timer,
@@ -207,17 +177,13 @@ class WorldNode(Node):
 
     # ------------------------------------------------------------ geometry
     def _on_params(self, params):
+        values = {p.name: p.value for p in params if p.name in ('target', 'barrier')}
         try:
-            new_t, new_b = self.target, self.barrier
-            for p in params:
-                if p.name == 'target':
-                    new_t = parse_point(p.value)
-                elif p.name == 'barrier':
-                    new_b = parse_points(p.value)
+            new_t, new_b = parse_geometry(values, self.target, self.barrier)
         except (ValueError, TypeError) as err:
             self.get_logger().warning(f'rejected parameter: {err}')
             return SetParametersResult(successful=False, reason=str(err))
-        if any(p.name in ('target', 'barrier') for p in params):
+        if values:
             self.target, self.barrier = new_t, new_b
             self.barrier_geom = M.Barrier(self.barrier) if self.barrier is not None and len(self.barrier) >= 3 else None
             self.publish_geometry()
@@ -225,17 +191,10 @@ class WorldNode(Node):
         return SetParametersResult(successful=True)
 
     def publish_geometry(self):
-        ts = PointStamped()
-        ts.header.frame_id = 'world'
-        ts.header.stamp = stamp(self.sim_t if hasattr(self, 'sim_t') else 0.0)
-        if self.target is not None:
-            ts.point.x, ts.point.y = float(self.target[0]), float(self.target[1])
-            self.pub_target.publish(ts)
-        bs = PolygonStamped()
-        bs.header = ts.header
-        if self.barrier is not None:
-            bs.polygon.points = [Point32(x=float(x), y=float(y)) for x, y in self.barrier]
-        self.pub_barrier.publish(bs)
+        target, barrier = geometry_messages(self.sim_t if hasattr(self, 'sim_t') else 0.0, self.target, self.barrier)
+        if target is not None:
+            self.pub_target.publish(target)
+        self.pub_barrier.publish(barrier)
 
     # ------------------------------------------------------------ inputs
     def _on_state(self, raw):
@@ -267,7 +226,7 @@ class WorldNode(Node):
             return
         self.senders.accept(name, tag)
         self.newest[name] = (t, *vals)
-        self.last_progress = time.monotonic()
+        self.watch.progressed(time.monotonic())
         self.act(acts)
 
     def _on_decision(self, raw):
@@ -279,34 +238,14 @@ class WorldNode(Node):
         n, t, lam, flags, steering = P.unpack_decision(data)
         if n != self.lock.cur or self.lock.decision is not None:
             return
-        if not (math.isfinite(lam) and 0.0 <= lam <= 1.0) or not np.all(np.isfinite(steering)) \
-                or len(flags) != self.n:
+        if not decision_valid(lam, flags, steering, self.n):
             self.reject('decision', f'commander decision for step {n}: λ={lam}, non-finite or wrong size')
             return
         slots, rdv = P.decision_extras(data)
-        self.last_progress = time.monotonic()
+        self.watch.progressed(time.monotonic())
         self.act(self.lock.on_decision(n, lam, flags, steering, slots, rdv))
 
     # ------------------------------------------------------------ lockstep
-    def ready(self):
-        """Everyone matched: agents' states of step 0 held, relay and commander matched (and,
-        with ``wait_for_recorder``, the recorder's /clock reader: a late match would lose the
-        first /clock messages, which are volatile)."""
-        ok = (self.lock.have.all() and self.pub_step.get_subscription_count() >= self.n
-              and self.pub_lock_states.get_subscription_count() >= 1
-              and self.sub_decision.handle.get_publisher_count() >= 1)
-        if ok and self.wait_for_recorder:
-            if self.pub_clock.get_subscription_count() < self.n + 2:       # agents, commander, recorder
-                now = time.monotonic()
-                if self.recorder_wait_from is None:
-                    self.recorder_wait_from = now
-                if now - self.recorder_wait_from < P.RECORDER_MATCH_WAIT:
-                    return False
-                self.get_logger().warning(f'{P.CLOCK}: {self.pub_clock.get_subscription_count()} readers '
-                                          f'matched, not {self.n + 2}, after {P.RECORDER_MATCH_WAIT:g} s; '
-                                          'starting anyway')
-        return ok
-
     def other_run(self):
         """An older run on this domain (its /swarm/run; before the start also a second /world
         node) makes this world stop (one error line, exit 1) instead of mixing with it.  Checked
@@ -347,7 +286,7 @@ class WorldNode(Node):
                 raw = P.float64_array_to_cdr(a[1], self.run_id)
                 self.pub_step.publish(raw)
                 self.last_msg = (self.pub_step, raw)
-                self.step_wall = time.monotonic()
+                self.watch.stepped(time.monotonic())
             elif kind == 'event':
                 self.emit(a[1])
             elif kind == 'signal':
@@ -378,28 +317,17 @@ class WorldNode(Node):
             self.events.append(ev)
             self.write_event(ev)
             if self.mode == 'realtime':
-                track_slots(self.rt_slots, ev, self.row)
+                self.rt.on_event(ev)
 
     def _on_fault_request(self, msg):
         try:
-            req = json.loads(msg.data)
-            kind, agent = req['kind'], req['agent']
-            dur = float(req.get('for', 0.0))
-            if kind not in FAULT_KINDS:
-                raise ValueError(f'kind must be one of {FAULT_KINDS}')
-            if kind == 'freeze' and not (math.isfinite(dur) and dur > 0):
-                raise ValueError(f'freeze needs "for" > 0 seconds, got {dur!r}')
-            fault = Fault(0.0, kind, agent, dur, source='live')
-            if self.mode == 'lockstep':
-                k = self.lock.add_fault(fault)
-            else:
-                k = self.rt_fault_step + 1
-                self.faults.add(fault, not_before=k)
+            f = fault_request(msg.data)
+            k = (self.lock if self.mode == 'lockstep' else self.rt).add_fault(f)
         except (ValueError, KeyError, TypeError) as err:
             self.reject('fault-request', f'{P.FAULT_REQUEST} {msg.data[:80]!r}: {err}')
             return
-        self.get_logger().info(f'fault request: {kind} {agent}' + (f' for {dur:g} s' if kind == 'freeze' else '')
-                               + f' at step {k}')
+        self.get_logger().info(f'fault request: {f.kind} {f.agent}'
+                               + (f' for {f.duration:g} s' if f.kind == 'freeze' else '') + f' at step {k}')
 
     def signal_agent(self, i, sig):
         """Send ``sig`` to agent i's process (pid from ``pid_file``), if there is one."""
@@ -424,35 +352,19 @@ class WorldNode(Node):
         except ProcessLookupError:
             pass
 
-    def drop_missing(self):
-        """Lockstep: give up on agents whose state has not come within missing_timeout."""
-        for i in self.lock.missing():
-            self.get_logger().warning(f'{self.names[i]}: no state for step {self.lock.cur} within '
-                                      f'{self.missing_timeout:g} s: dropped from the roster')
-        self.act(self.lock.drop_missing())
-
     # ------------------------------------------------------------ view
     def observe(self, k):
-        """Per-step checks (collisions, intrusions), progress, metrics and markers."""
+        """Lockstep: step k's checks (collisions, intrusions), progress, metrics and markers."""
         idx = np.flatnonzero(self.faults.alive)         # faults: only agents in the table
         pos = self.rec.r[k, idx]
-        md = M.min_distance(pos)
-        if md < self.collision_distance:
-            self.collisions += 1
-            self.reject('collision', f'nothing: collision at t={k * self.dt:.2f} (min distance {md:.4f})')
-        if self.barrier_geom is not None:
-            inside = self.barrier_geom.inside(pos)
-            if inside.any():
-                self.intrusions += int(inside.sum())
-                self.reject('intrusion', f'nothing: barrier intrusion at t={k * self.dt:.2f} by '
-                            + ', '.join(self.names[idx[i]] for i in np.flatnonzero(inside)))
         t = k * self.dt
-        if self.progress_every > 0 and t >= self.next_progress:
-            self.next_progress = t + self.progress_every
-            c, _ = M.cluster_labels(pos, self.w)
-            el = time.monotonic() - (self.run_wall or self.wall_start)
-            self.log(f'[world] t={t:8.2f}  clusters={c}  λ={self.lam_now:.3f}  min_dist={md:.3f}  '
-                     f'({k / el if el > 0 else 0:.0f} steps/s)', flush=True)
+        md, complaints = self.obs.check(t, pos, [self.names[i] for i in idx], self.barrier_geom)
+        for kind, text in complaints:
+            self.reject(kind, text)
+        el = time.monotonic() - (self.run_wall or self.wall_start)
+        line = self.obs.progress(t, pos, md, self.lam_now, rate=k / el if el > 0 else 0)
+        if line:
+            self.log(line, flush=True)
         if self.view_every and k % self.view_every == 0:
             self.publish_view(t, pos, self.rec.theta[k, idx], md, idx)
 
@@ -462,7 +374,7 @@ class WorldNode(Node):
         c, labels = M.cluster_labels(pos, self.w)
         leaders = [self.names[i] for i in np.flatnonzero(self.leaders_now)]
         vals = view_values(t, pos, theta, c, md, self.lam_now, leaders, self.target,
-                           intrusions=self.intrusions, collisions=self.collisions,
+                           intrusions=self.obs.intrusions, collisions=self.obs.collisions,
                            cutoff_radius=self.w)       # what `swarm report` needs to count clusters
         self.pub_metrics.publish(metrics_message(t, vals))
         if self.pub_markers.get_subscription_count() == 0:
@@ -477,60 +389,35 @@ class WorldNode(Node):
 
     def _on_leaders(self, msg):
         """Realtime: /swarm/leaders (comma-separated names) → the leader flags recorded."""
-        names = [nm.strip() for nm in msg.data.split(',') if nm.strip()]
-        unknown = [nm for nm in names if nm not in self.row]
+        self.leaders_now, unknown = leader_flags(msg.data, self.row)
         if unknown:
             self.reject('leaders', f'{P.LEADERS}: unknown agent(s) {", ".join(unknown)}')
-        flags = np.zeros(self.n, bool)
-        flags[[self.row[nm] for nm in names if nm in self.row]] = True
-        self.leaders_now = flags
 
     def rt_tick(self):
         now = time.monotonic()
         if self.other_run():
             return
         if not self.started:
-            if len(self.newest) == self.n:
-                self.started, self.run_wall = True, now
-                self.log(f'[world] realtime: {self.n} agents discovered in {now - self.wall_start:.1f} s; '
-                         f'clock at rtf {self.rtf}', flush=True)
-            else:
+            if len(self.newest) < self.n:
                 return
+            self.started, self.run_wall = True, now
+            self.log(f'[world] realtime: {self.n} agents discovered in {now - self.wall_start:.1f} s; '
+                     f'clock at rtf {self.rtf}', flush=True)
         self.sim_t = (now - self.run_wall) * self.rtf
         self.pub_clock.publish(Clock(clock=stamp(self.sim_t)))
         k = P.step_of(self.sim_t, self.dt)
-        while self.rt_comms and self.rt_comms[0][0] <= k:
-            _, e = self.rt_comms.pop(0)
-            self.pub_events.publish(String(data=P.event_json('comms', k * self.dt, source='scenario', **e)))
-        if self.view_every and (k // self.view_every) != getattr(self, '_rt_view', -1):
-            self._rt_view = k // self.view_every
-            have = [nm for nm in self.names if nm in self.newest]
-            pos = np.array([self.newest[nm][1:3] for nm in have])
-            th = np.array([yaw_from_quaternion(*self.newest[nm][3:5]) for nm in have])
-            self.observe_rt(k, pos, th)
-        self.rt_faults(min(k, self.steps))
+        self.act(self.rt.comms_due(k))
+        if self.rt.view_due(k):
+            pos, theta = newest_view(self.newest, self.names)
+            t = k * self.dt
+            md = M.min_distance(pos)
+            line = self.obs.progress(t, pos, md, self.lam_now)
+            if line:
+                self.log(line, flush=True)
+            self.publish_view(t, pos, theta, md)
+        self.act(self.rt.faults_due(min(k, self.steps)))
         if self.sim_t >= self.scn.duration:
             self.finish()
-
-    def rt_faults(self, k):
-        """Realtime: the faults of every step up to k, signals at once ('leader:i' resolved with
-        the slots the commander's events announced)."""
-        while self.rt_fault_step < k:
-            self.rt_fault_step += 1
-            for ev in self.faults.apply(self.rt_fault_step, dict(self.rt_slots)):
-                self.emit(ev)
-                sig = {'kill': signal.SIGKILL, 'freeze': signal.SIGSTOP, 'resume': signal.SIGCONT}.get(ev['kind'])
-                if sig is not None:
-                    self.signal_agent(self.row.get(ev['agent']), sig)
-
-    def observe_rt(self, k, pos, theta):
-        t = k * self.dt
-        md = M.min_distance(pos)
-        if self.progress_every > 0 and t >= self.next_progress:
-            self.next_progress = t + self.progress_every
-            c, _ = M.cluster_labels(pos, self.w)
-            self.log(f'[world] t={t:8.2f}  clusters={c}  λ={self.lam_now:.3f}  min_dist={md:.3f}', flush=True)
-        self.publish_view(t, pos, theta, md)
 
     # ------------------------------------------------------------ timer, end
     def _on_timer(self):
@@ -543,39 +430,47 @@ class WorldNode(Node):
         if self.other_run():
             return
         if not self.started:
-            if self.ready():
+            clock_readers = self.pub_clock.get_subscription_count()
+            go = self.start_watch.decide(
+                now, states=bool(self.lock.have.all()), relay_readers=self.pub_step.get_subscription_count(),
+                commander_readers=self.pub_lock_states.get_subscription_count(),
+                decision_writers=self.sub_decision.handle.get_publisher_count(), clock_readers=clock_readers)
+            if go == 'start_without_recorder':
+                self.get_logger().warning(f'{P.CLOCK}: {clock_readers} readers matched, not {self.n + 2}, after '
+                                          f'{P.RECORDER_MATCH_WAIT:g} s; starting anyway')
+            if go in ('start', 'start_without_recorder'):
                 self.started = True
                 self.run_wall = now
                 self.log(f'[world] lockstep: {self.n} agents and the commander discovered in '
                          f'{now - self.wall_start:.1f} s; {self.steps} steps of dt={self.dt}', flush=True)
-                self.step_wall = now
+                self.watch.stepped(now)
                 self.act(self.lock.start())
-            elif now - self.wall_start > self.start_timeout:
-                self.failed = (f'discovery timed out after {self.start_timeout:.0f} s: have states of '
-                               f'{int(self.lock.have.sum())}/{self.n} agents, relay readers '
-                               f'{self.pub_step.get_subscription_count()}, commander '
-                               f'{"yes" if self.pub_lock_states.get_subscription_count() else "no"}')
-                self.get_logger().error(self.failed)
-                self.done = True
+            elif go == 'time_out':
+                self.give_up(f'discovery timed out after {self.start_timeout:.0f} s: have states of '
+                             f'{int(self.lock.have.sum())}/{self.n} agents, relay readers '
+                             f'{self.pub_step.get_subscription_count()}, commander '
+                             f'{"yes" if self.pub_lock_states.get_subscription_count() else "no"}')
             return
-        if not self.lock.states_out and now - self.step_wall > self.missing_timeout and not self.lock.complete():
-            self.drop_missing()
-            return
-        if now - self.step_wall > max(self.step_timeout, self.missing_timeout + 10 * self.stall_timeout):
-            self.failed = (f'step {self.lock.cur} has not completed after {now - self.step_wall:.0f} s '
-                           f'({"waiting for the commander" if self.lock.states_out else "waiting for agents"}): giving up')
-            self.get_logger().error(self.failed)
-            self.done = True
-            return
-        if self.last_msg is not None and now - self.last_progress > self.stall_timeout:
-            pub, msg = self.last_msg
-            if self.lock.states_out:
-                waiting = "the commander's decision"
-            else:
-                waiting = 'the states of ' + ', '.join(self.names[i] for i in self.lock.missing())
+        what = self.watch.decide(now, states_out=self.lock.states_out, complete=self.lock.complete(),
+                                 can_repeat=self.last_msg is not None)
+        if what == 'drop':
+            for i in self.lock.missing():
+                self.get_logger().warning(f'{self.names[i]}: no state for step {self.lock.cur} within '
+                                          f'{self.missing_timeout:g} s: dropped from the roster')
+            self.act(self.lock.drop_missing())
+        elif what == 'give_up':
+            self.give_up(f'step {self.lock.cur} has not completed after {now - self.watch.step_wall:.0f} s '
+                         f'(waiting for {"the commander" if self.lock.states_out else "agents"}): giving up')
+        elif what == 'repeat':
+            waiting = ("the commander's decision" if self.lock.states_out else
+                       'the states of ' + ', '.join(self.names[i] for i in self.lock.missing()))
             self.get_logger().warning(f'stalled at step {self.lock.cur} waiting for {waiting}: repeating the last message')
-            pub.publish(msg)
-            self.last_progress = now
+            self.last_msg[0].publish(self.last_msg[1])
+
+    def give_up(self, why):
+        self.failed = why
+        self.get_logger().error(why)
+        self.done = True
 
     def trajectory(self) -> Trajectory:
         return self.rec.trajectory(meta=dict(
@@ -587,8 +482,8 @@ class WorldNode(Node):
         self.done = True
         wall = time.monotonic() - (self.run_wall or self.wall_start)
         self.log(f'[world] finished t={self.scn.duration:g} ({self.steps} steps) in {wall:.1f} s '
-                 f'({self.steps / wall if wall > 0 else 0:.0f} steps/s); collisions={self.collisions} '
-                 f'intrusions={self.intrusions}', flush=True)
+                 f'({self.steps / wall if wall > 0 else 0:.0f} steps/s); collisions={self.obs.collisions} '
+                 f'intrusions={self.obs.intrusions}', flush=True)
         if self.output_dir:
             out = Path(self.output_dir)
             out.mkdir(parents=True, exist_ok=True)

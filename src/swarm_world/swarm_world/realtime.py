@@ -1,0 +1,71 @@
+"""The realtime world's schedule, without ROS: as the clock passes step k, the scheduled
+radio events and faults that are due, and when to refresh the view.
+
+Returns actions in the lockstep barrier's vocabulary (`swarm_world.lockstep`):
+``('comms', k, event)``, ``('event', ev)`` and ``('signal', i, what)``."""
+from __future__ import annotations
+
+import numpy as np
+
+from swarm_core.faults import track_slots
+from swarm_core.frenet import yaw_from_quaternion
+
+SIGNAL_OF = {'kill': 'kill', 'freeze': 'stop', 'resume': 'cont'}   # fault event → signal
+
+
+class RealtimeSchedule:
+    """``faults`` a `FaultTimeline`, ``slots`` the fixed leader slots (slot → index), then
+    the commander's; ``comms_events`` (step, event) sorted by step."""
+
+    def __init__(self, names, faults, slots, comms_events=(), view_every=0):
+        self.row = {nm: i for i, nm in enumerate(names)}
+        self.faults = faults
+        self.slots = dict(slots)
+        self.comms = list(comms_events)
+        self.view_every = view_every
+        self.fault_step = -1           # faults applied up to this step
+        self.view_bucket = -1
+
+    def comms_due(self, k):
+        """The scheduled radio events of every step up to k not sent yet."""
+        acts = []
+        while self.comms and self.comms[0][0] <= k:
+            acts.append(('comms', k, self.comms.pop(0)[1]))
+        return acts
+
+    def faults_due(self, k):
+        """The faults of every step up to k ('leader:i' resolved with the slots known now)."""
+        acts = []
+        while self.fault_step < k:
+            self.fault_step += 1
+            for ev in self.faults.apply(self.fault_step, dict(self.slots)):
+                acts.append(('event', ev))
+                if ev['kind'] in SIGNAL_OF:
+                    acts.append(('signal', self.row.get(ev['agent']), SIGNAL_OF[ev['kind']]))
+        return acts
+
+    def view_due(self, k):
+        """True once per ``view_every`` steps (never with 0)."""
+        if not self.view_every or k // self.view_every == self.view_bucket:
+            return False
+        self.view_bucket = k // self.view_every
+        return True
+
+    def add_fault(self, fault):
+        """A live fault request: applied at the next step not yet applied; that step."""
+        k = self.fault_step + 1
+        self.faults.add(fault, not_before=k)
+        return k
+
+    def on_event(self, ev):
+        """Follow the commander's leader slots from its events."""
+        track_slots(self.slots, ev, self.row)
+
+
+def newest_view(newest, names):
+    """Positions (m, 2) and headings (m,) of the agents in ``newest`` (name → (t, x, y, qz,
+    qw)), in roster order."""
+    have = [nm for nm in names if nm in newest]
+    pos = np.array([newest[nm][1:3] for nm in have])
+    theta = np.array([yaw_from_quaternion(*newest[nm][3:5]) for nm in have])
+    return pos, theta

@@ -1,0 +1,189 @@
+"""The world's pure helpers, without ROS: parsing its inputs (swarm_world.inputs), the
+realtime schedule (swarm_world.realtime), per-step checks and progress
+(swarm_world.observe) and the wall-clock decisions (swarm_world.wallclock)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from swarm_core import metrics as M
+from swarm_core.faults import Fault, FaultTimeline
+from swarm_core.frenet import quaternion_from_heading
+from swarm_world.inputs import fault_request, format_points, leader_flags, parse_geometry, parse_point, parse_points
+from swarm_world.lockstep import decision_valid
+from swarm_world.observe import Observer
+from swarm_world.realtime import RealtimeSchedule, newest_view
+from swarm_world.wallclock import StallWatch, StartWatch
+
+NAMES = ['a', 'b', 'c']
+DT = 0.5
+
+
+# ---------------------------------------------------------------- inputs
+def test_points_parse_and_format_round_trip_exactly():
+    assert parse_point('  ') is None and parse_points('') is None
+    assert parse_point('1.5, -2').tolist() == [1.5, -2.0]
+    pts = parse_points('0,0; 1,0;0.1,0.3;')
+    assert pts.shape == (3, 2)
+    assert np.array_equal(parse_points(format_points(pts)), pts)
+    assert format_points(None) == ''
+    assert format_points(np.array([0.1, 2.0])) == '0.1,2.0'
+
+
+@pytest.mark.parametrize('text', ['1', '1,2,3', 'nan,0', '1,inf', 'x,1'])
+def test_bad_points_are_refused(text):
+    with pytest.raises(ValueError):
+        parse_point(text)
+
+
+def test_leader_flags_mark_known_names_and_report_the_others():
+    row = {nm: i for i, nm in enumerate(NAMES)}
+    flags, unknown = leader_flags(' c, x ,a,', row)
+    assert flags.tolist() == [True, False, True] and unknown == ['x']
+    flags, unknown = leader_flags('', row)
+    assert flags.tolist() == [False] * 3 and unknown == []
+
+
+def test_fault_request_builds_a_live_fault_or_says_why_not():
+    f = fault_request(json.dumps({'kind': 'freeze', 'agent': 'b', 'for': 2.5}))
+    assert (f.kind, f.agent, f.duration, f.source) == ('freeze', 'b', 2.5, 'live')
+    assert fault_request('{"kind": "kill", "agent": "leader:0"}').agent == 'leader:0'
+    for bad, err in [('{"kind": "melt", "agent": "a"}', ValueError),
+                     ('{"kind": "freeze", "agent": "a"}', ValueError),
+                     ('{"kind": "freeze", "agent": "a", "for": "nan"}', ValueError),
+                     ('{"agent": "a"}', KeyError), ('not json', ValueError), ('[1]', TypeError)]:
+        with pytest.raises(err):
+            fault_request(bad)
+
+
+# ---------------------------------------------------------------- realtime
+def schedule(faults=(), slots=None, comms=(), view_every=0):
+    return RealtimeSchedule(NAMES, FaultTimeline(list(faults), NAMES, DT), slots or {}, comms, view_every)
+
+
+def test_realtime_sends_each_radio_event_once_when_its_step_is_passed():
+    s = schedule(comms=[(2, {'kind': 'drop'}), (2, {'kind': 'x'}), (5, {'kind': 'heal'})])
+    assert s.comms_due(1) == []
+    assert s.comms_due(3) == [('comms', 3, {'kind': 'drop'}), ('comms', 3, {'kind': 'x'})]
+    assert s.comms_due(4) == []
+    assert s.comms_due(9) == [('comms', 9, {'kind': 'heal'})]
+    assert s.comms_due(10) == []
+
+
+def test_realtime_applies_the_faults_of_every_step_passed_with_their_signals():
+    # freeze b at t=0.5 (step 1) for 1 s (2 steps), kill leader slot 0 at t=1.0 (step 2)
+    s = schedule([Fault(0.5, 'freeze', 'b', 1.0), Fault(1.0, 'kill', 'leader:0')], slots={0: 2})
+    acts = s.faults_due(0)
+    assert acts == []
+    acts = s.faults_due(2)                                   # steps 1 and 2 at once
+    assert [(a[0], a[1]['kind'], a[1]['agent']) if a[0] == 'event' else a for a in acts] == [
+        ('event', 'freeze', 'b'), ('signal', 1, 'stop'), ('event', 'kill', 'c'), ('signal', 2, 'kill')]
+    acts = s.faults_due(3)
+    assert [a[0] for a in acts] == ['event', 'signal'] and acts[0][1]['kind'] == 'resume'
+    assert acts[1] == ('signal', 1, 'cont')
+    assert s.faults.alive.tolist() == [True, True, False]
+
+
+def test_realtime_live_fault_lands_on_the_next_step_and_slots_follow_the_commander():
+    s = schedule()
+    s.faults_due(4)
+    assert s.add_fault(Fault(0.0, 'kill', 'leader:1', source='live')) == 5
+    s.on_event({'kind': 'leaders_chosen', 'slots': ['c', 'a']})
+    assert s.slots == {0: 2, 1: 0}
+    acts = s.faults_due(5)
+    assert acts[0][1]['agent'] == 'a' and acts[1] == ('signal', 0, 'kill')
+
+
+def test_realtime_view_is_due_once_per_period_and_never_with_zero():
+    s = schedule(view_every=10)
+    assert [k for k in [0, 3, 9, 10, 15, 31, 32] if s.view_due(k)] == [0, 10, 31]
+    assert not any(schedule(view_every=0).view_due(k) for k in range(30))
+
+
+def test_newest_view_samples_in_roster_order():
+    qz, qw = quaternion_from_heading(0.5)
+    newest = {'c': (1.0, 5.0, 6.0, qz, qw), 'a': (0.9, 1.0, 2.0, 0.0, 1.0)}
+    pos, theta = newest_view(newest, NAMES)
+    assert pos.tolist() == [[1.0, 2.0], [5.0, 6.0]]
+    assert theta == pytest.approx([0.0, 0.5])
+
+
+# ---------------------------------------------------------------- observe
+def test_observer_counts_collisions_and_intruders():
+    obs = Observer(collision_distance=0.5, cutoff_radius=4.0)
+    barrier = M.Barrier(np.array([[0.0, 0.0], [4.0, 0.0], [0.0, 4.0]]))
+    pos = np.array([[1.0, 1.0], [1.2, 1.0], [10.0, 10.0]])        # a and b inside, 0.2 apart
+    md, complaints = obs.check(1.5, pos, NAMES, barrier)
+    assert md == pytest.approx(0.2)
+    assert [k for k, _ in complaints] == ['collision', 'intrusion']
+    assert complaints[1][1].endswith('at t=1.50 by a, b')
+    assert (obs.collisions, obs.intrusions) == (1, 2)
+    md, complaints = obs.check(2.0, pos + [20.0, 0.0] * np.arange(3)[:, None], NAMES, None)
+    assert complaints == [] and (obs.collisions, obs.intrusions) == (1, 2)
+
+
+def test_progress_line_is_paced_in_sim_time():
+    obs = Observer(0.01, cutoff_radius=4.0, progress_every=10.0)
+    pos = np.array([[0.0, 0.0], [1.0, 0.0], [50.0, 0.0]])
+    line = obs.progress(0.0, pos, 1.0, 0.25, rate=123.4)
+    assert line == '[world] t=    0.00  clusters=2  λ=0.250  min_dist=1.000  (123 steps/s)'
+    assert obs.progress(9.9, pos, 1.0, 0.25) is None
+    assert obs.progress(10.0, pos, 1.0, 0.25).endswith('min_dist=1.000')
+    assert Observer(0.01, 4.0, progress_every=0.0).progress(0.0, pos, 1.0, 0.0) is None
+
+
+# ---------------------------------------------------------------- wall clock
+def test_start_waits_for_everyone_then_times_out():
+    w = StartWatch(100.0, 3, start_timeout=30.0)
+    everyone = dict(states=True, relay_readers=3, commander_readers=1, decision_writers=1, clock_readers=4)
+    assert w.decide(101.0, **everyone) == 'start'
+    for missing in [dict(states=False), dict(relay_readers=2), dict(commander_readers=0), dict(decision_writers=0)]:
+        assert w.decide(101.0, **{**everyone, **missing}) is None
+        assert w.decide(131.0, **{**everyone, **missing}) == 'time_out'
+
+
+def test_start_waits_a_bounded_time_for_the_recorder():
+    w = StartWatch(0.0, 3, start_timeout=100.0, wait_for_recorder=True, recorder_wait=5.0)
+    everyone = dict(states=True, relay_readers=3, commander_readers=1, decision_writers=1)
+    assert w.decide(1.0, **everyone, clock_readers=4) is None          # agents + commander only
+    assert w.decide(5.9, **everyone, clock_readers=4) is None
+    assert w.decide(6.0, **everyone, clock_readers=4) == 'start_without_recorder'
+    w = StartWatch(0.0, 3, start_timeout=100.0, wait_for_recorder=True, recorder_wait=5.0)
+    assert w.decide(1.0, **everyone, clock_readers=5) == 'start'
+
+
+def test_stall_watch_drops_then_gives_up_and_repeats_between():
+    w = StallWatch(0.0, missing_timeout=10.0, step_timeout=30.0, stall_timeout=2.0)
+    assert w.give_up_after == 30.0
+    waiting = dict(states_out=False, complete=False, can_repeat=True)
+    assert w.decide(1.0, **waiting) is None
+    assert w.decide(2.5, **waiting) == 'repeat'
+    assert w.decide(3.0, **waiting) is None                          # the repeat counts as progress
+    w.progressed(9.0)
+    assert w.decide(10.5, **waiting) == 'drop'
+    assert w.decide(10.5, **{**waiting, 'complete': True}) is None    # complete: nothing to drop
+    assert w.decide(10.5, states_out=True, complete=True, can_repeat=False) is None
+    assert w.decide(30.5, states_out=True, complete=True, can_repeat=True) == 'give_up'
+    w.stepped(30.0)
+    w.progressed(30.0)
+    assert w.decide(31.0, states_out=True, complete=True, can_repeat=True) is None
+    assert StallWatch(0.0, missing_timeout=10.0, step_timeout=1.0, stall_timeout=2.0).give_up_after == 30.0
+
+
+def test_geometry_parameters_change_only_what_is_given():
+    t0, b0 = np.array([1.0, 2.0]), None
+    t, b = parse_geometry({'barrier': '0,0;1,0;0,1'}, t0, b0)
+    assert t is t0 and b.shape == (3, 2)
+    t, b = parse_geometry({'target': ''}, t0, b)
+    assert t is None and b.shape == (3, 2)
+    with pytest.raises(ValueError):
+        parse_geometry({'target': '1,2,3'}, t0, b0)
+
+
+def test_decision_valid_needs_lambda_in_range_finite_steering_and_one_flag_each():
+    ok = dict(lam=0.5, flags=[0, 1, 0], steering=[0.0, 0.1, 0.0], n=3)
+    assert decision_valid(**ok)
+    for bad in [dict(lam=1.5), dict(lam=float('nan')), dict(flags=[0, 1]), dict(steering=[0.0, float('inf'), 0.0])]:
+        assert not decision_valid(**{**ok, **bad})
