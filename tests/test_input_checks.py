@@ -152,3 +152,20 @@ def test_run_announcements():
     assert run is None and 'aaaa' in err and 'bbbb' in err
     assert "unknown agent 'ghost'" in unknown_agent(a, 'ghost', 'swarm kill')
     assert unknown_agent(a, 'agent_1', 'swarm kill') is None
+
+
+def test_the_younger_of_two_runs_gives_way():
+    """runinfo.give_way: an older run heard makes this one stop (before or after its start); a
+    younger one does not; before the start a second /world node alone is enough."""
+    from swarm_ros.runinfo import give_way
+    old = {'run_id': 'a1', 'scenario': 's', 'mode': 'lockstep', 'agents': ['x'], 'since': 10.0}
+    young = dict(old, run_id='b2', since=30.0)
+    assert give_way({}, 'me', 20.0, 1, False, '7') is None
+    assert give_way({'b2': young}, 'me', 20.0, 1, True, '7') is None
+    line = give_way({'a1': old}, 'me', 20.0, 1, False, '7')
+    assert line.startswith('another swarm run is on ROS_DOMAIN_ID=7 (run a1 (s, lockstep, 1 agents))')
+    assert 'refusing to start' in line
+    assert 'stopping this one' in give_way({'a1': old}, 'me', 20.0, 1, True, '7')
+    assert 'a second /world node' in give_way({}, 'me', 20.0, 2, False, '7')
+    assert give_way({}, 'me', 20.0, 2, True, '7') is None
+    assert give_way({'me': dict(old, run_id='me')}, 'me', 20.0, 1, False, '7') is None

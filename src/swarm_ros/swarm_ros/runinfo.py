@@ -55,6 +55,18 @@ def parse_run(text: str):
     return d
 
 
+def give_way(runs: dict, run_id: str, since: float, worlds: int, started: bool, domain: str):
+    """Why this run must stop (the error line), or None: an older run heard on the domain, or
+    (before the start, when no announcement may have come yet) a second ``/world`` node.  The
+    older run goes on; the younger one gives way, also when discovery finds the other late."""
+    others = older_runs(runs, run_id, since)
+    if not others and (started or worlds <= 1):
+        return None
+    what = '; '.join(describe(r) for r in others) if others else 'a second /world node'
+    return (f'another swarm run is on ROS_DOMAIN_ID={domain} ({what}): '
+            f'{"stopping" if started else "refusing to start"} this one; give each run its own ROS_DOMAIN_ID')
+
+
 def describe(run) -> str:
     """'run 1a2b3c4d (homotopy_global, lockstep, 6 agents)'."""
     rid = run.get('run_id') or '(no id)'

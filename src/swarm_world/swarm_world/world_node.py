@@ -34,14 +34,15 @@ from swarm_core.scenario import ScenarioError, load
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, check_values, may_signal, reason
+from swarm_ros.msg_checks import RejectLog, Senders, check_values, may_signal, reason
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
-from swarm_ros.runinfo import RunWatch, describe, older_runs, run_json, valid_run_id
+from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, run_json
 
 from .inputs import fault_request, format_points, leader_flags, parse_geometry, parse_point, parse_points
 from .lockstep import LockstepBarrier, comms_schedule, decision_valid
 from .markers import Trails, geometry_messages, markers_message, metrics_message, stamp, view_values
 from .observe import Observer
+from .parameters import SCENARIO, WORLD
 from .realtime import RealtimeSchedule, newest_view
 from .wallclock import StallWatch, StartWatch
 
@@ -56,36 +57,11 @@ class WorldNode(Node):
                          parameter_overrides=parameter_overrides)
         d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
         self.log = log
-        scenario = d('scenario', 'homotopy_global', 'scenario name or YAML path')
-        seed = d('seed', -1, "seed (-1: the scenario's)", lo=-1, hi=2**31 - 1)
-        duration = d('duration', 0.0, "run length in sim s (0: the scenario's)", lo=0.0, hi=1e9)
-        dt = d('dt', 0.0, "step (0: the scenario's)", lo=0.0, hi=10.0)
-        self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=('lockstep', 'realtime'))
-        self.rtf = d('rtf', 1.0, 'realtime: sim seconds per wall second', lo=1e-3, hi=1e4)
-        self.output_dir = d('output_dir', '', 'where to write trajectory.npz at the end ("": nowhere)')
-        self.progress_every = d('progress_every', 50.0, 'progress line every this many sim s (0: none)', lo=0.0, hi=1e9)
-        self.view_every = d('view_every', 20, 'markers and metrics every this many steps (0: never)', lo=0, hi=10**9)
-        self.clock_every = d('clock_every', 1, 'lockstep: publish /clock every this many steps (every node '
-                             'receives each one; lockstep inputs carry their own time)', lo=1, hi=10**9)
-        self.stall_timeout = d('stall_timeout', 2.0, 'lockstep: repeat the last message after this many wall s', lo=0.1, hi=1e6)
-        self.wait_for_recorder = d('wait_for_recorder', False, 'lockstep: start step 0 only once /clock has '
-                                   'one reader more than the agents and the commander (a recorder; '
-                                   f'at most {P.RECORDER_MATCH_WAIT:g} s)')
-        self.step_timeout = d('step_timeout', 120.0, 'lockstep: give up (exit 1) if one step has not completed '
-                              'after this many wall s', lo=1.0, hi=1e9)
-        self.start_timeout = d('start_timeout', 180.0, 'give up if not everyone is discovered in this many wall s', lo=1.0, hi=1e6)
-        self.collision_distance = d('collision_distance', 0.01, 'pairs closer than this count as a collision', lo=0.0, hi=1e6)
-        self.missing_timeout = d('missing_timeout', 10.0, 'lockstep: drop an agent whose state has not come after this many wall s',
-                                 lo=0.1, hi=1e6)
-        self.pid_file = d('pid_file', '', 'JSON {agent: pid} of the agent processes, for kill/pause ("": none)')
-        self.events_file = d('events_file', '', 'append every event here as JSON lines ("": output_dir/events.jsonl)')
-        self.trail_length = d('trail_length', 200, 'trail points per agent in the markers', lo=0, hi=100000)
-        self.run_id = d('run_id', '', "this run's id (swarm run sets it; '' = none): carried on the lockstep "
-                        'messages, announced on /swarm/run; a second run on the domain makes the world refuse to start')
-        if not valid_run_id(self.run_id):
-            raise ParameterError(f'parameter run_id: {self.run_id!r} is not 1-32 letters, digits, _ or -')
-        self.future_tolerance = d('future_tolerance', FUTURE_TOLERANCE, 'realtime: reject states stamped more '
-                                  'than this many sim s ahead of the world clock', lo=0.0, hi=1e9)
+        scenario, seed, duration, dt = (d(nm, default, text, **lim) for nm, (default, text, lim) in SCENARIO.items())
+        for nm, (default, text, lim) in WORLD.items():
+            setattr(self, nm, d(nm, default, text, **lim))
+        self.run_id = declare_run_id(self, 'carried on the lockstep messages, announced on /swarm/run; '
+                                     'an older run on the domain makes the world give way')
         try:
             self.scn = load(scenario, seed=None if seed < 0 else seed,
                             duration=duration or None, dt=dt or None)
@@ -247,20 +223,13 @@ class WorldNode(Node):
 
     # ------------------------------------------------------------ lockstep
     def other_run(self):
-        """An older run on this domain (its /swarm/run; before the start also a second /world
-        node) makes this world stop (one error line, exit 1) instead of mixing with it.  Checked
-        on every tick, also after the start: discovery may find the older run late.  The older
-        run goes on (the younger one gives way)."""
-        others = older_runs(self.runs.runs, self.run_id, self.since)
+        """Stop (one error line, exit 1) rather than mix with an older run (runinfo.give_way)."""
         worlds = 1 if self.started else sum(
             1 for nm, ns in self.get_node_names_and_namespaces() if nm == 'world' and ns == '/')
-        if not others and worlds <= 1:
+        self.failed = give_way(self.runs.runs, self.run_id, self.since, worlds, self.started,
+                               os.environ.get('ROS_DOMAIN_ID', '0'))
+        if self.failed is None:
             return False
-        dom = os.environ.get('ROS_DOMAIN_ID', '0')
-        what = '; '.join(describe(r) for r in others) if others else 'a second /world node'
-        self.failed = (f'another swarm run is on ROS_DOMAIN_ID={dom} ({what}): '
-                       f'{"stopping" if self.started else "refusing to start"} this one; '
-                       'give each run its own ROS_DOMAIN_ID')
         self.get_logger().error(self.failed)
         self.done = True
         return True

@@ -1,0 +1,40 @@
+"""The world node's ROS parameters: name → (default, description, limits), one place for each
+default.  The scenario's own values (target, barrier) are declared by the node from the
+scenario it loads."""
+from __future__ import annotations
+
+from swarm_ros import protocol as P
+from swarm_ros.msg_checks import FUTURE_TOLERANCE
+
+#: read once at start-up (0 / -1: the scenario's own value)
+SCENARIO = {
+    'scenario': ('homotopy_global', 'scenario name or YAML path', {}),
+    'seed': (-1, "seed (-1: the scenario's)", dict(lo=-1, hi=2**31 - 1)),
+    'duration': (0.0, "run length in sim s (0: the scenario's)", dict(lo=0.0, hi=1e9)),
+    'dt': (0.0, "step (0: the scenario's)", dict(lo=0.0, hi=10.0)),
+}
+
+#: kept as attributes of the node
+WORLD = {
+    'mode': ('lockstep', 'lockstep or realtime', dict(choices=('lockstep', 'realtime'))),
+    'rtf': (1.0, 'realtime: sim seconds per wall second', dict(lo=1e-3, hi=1e4)),
+    'output_dir': ('', 'where to write trajectory.npz at the end ("": nowhere)', {}),
+    'progress_every': (50.0, 'progress line every this many sim s (0: none)', dict(lo=0.0, hi=1e9)),
+    'view_every': (20, 'markers and metrics every this many steps (0: never)', dict(lo=0, hi=10**9)),
+    'clock_every': (1, 'lockstep: publish /clock every this many steps (every node receives each one; '
+                    'lockstep inputs carry their own time)', dict(lo=1, hi=10**9)),
+    'stall_timeout': (2.0, 'lockstep: repeat the last message after this many wall s', dict(lo=0.1, hi=1e6)),
+    'wait_for_recorder': (False, 'lockstep: start step 0 only once /clock has one reader more than the agents '
+                          f'and the commander (a recorder; at most {P.RECORDER_MATCH_WAIT:g} s)', {}),
+    'step_timeout': (120.0, 'lockstep: give up (exit 1) if one step has not completed after this many wall s',
+                     dict(lo=1.0, hi=1e9)),
+    'start_timeout': (180.0, 'give up if not everyone is discovered in this many wall s', dict(lo=1.0, hi=1e6)),
+    'collision_distance': (0.01, 'pairs closer than this count as a collision', dict(lo=0.0, hi=1e6)),
+    'missing_timeout': (10.0, 'lockstep: drop an agent whose state has not come after this many wall s',
+                        dict(lo=0.1, hi=1e6)),
+    'pid_file': ('', 'JSON {agent: pid} of the agent processes, for kill/pause ("": none)', {}),
+    'events_file': ('', 'append every event here as JSON lines ("": output_dir/events.jsonl)', {}),
+    'trail_length': (200, 'trail points per agent in the markers', dict(lo=0, hi=100000)),
+    'future_tolerance': (FUTURE_TOLERANCE, 'realtime: reject states stamped more than this many sim s ahead '
+                         'of the world clock', dict(lo=0.0, hi=1e9)),
+}
