@@ -66,6 +66,8 @@ class AgentCore:
         self.comms = None
         self.beliefs = None
         self._frame = None                  # own (cos θ, sin θ), see `_own_frame`
+        self.step = 0                       # lockstep: the step whose state it holds
+        self.silent = False                 # lockstep: not in the table (frozen or killed)
 
     def attach_comms(self, model: CommModel):
         """Receive through ``model`` from now on (lockstep: `comms_control`)."""
@@ -132,7 +134,13 @@ class AgentCore:
         """One ZOH step with the held control u (a non-finite u is replaced by 0)."""
         if not math.isfinite(u):
             u = 0.0
-        self.pos, self.theta = zoh_step(self.pos, self.theta, np.array([u]), self.dt)
+        pos, theta = zoh_step(self.pos, self.theta, np.array([u]), self.dt)
+        return self.moved_to(pos, theta, u)
+
+    def moved_to(self, pos, theta, u: float):
+        """Take the state (pos (1, 2), θ (1,)) that one ZOH step with u gave (`advance`, or
+        the batched step of a container), then the agent's own noise draw."""
+        self.pos, self.theta = pos, theta
         self._frame = None
         if self.noisy:
             draw = self.rng.uniform(-1.0, 1.0, size=3) * self.noise_scale

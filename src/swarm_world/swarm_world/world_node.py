@@ -103,6 +103,10 @@ class WorldNode(Node):
         self.collision_distance = d('collision_distance', 0.01, 'pairs closer than this count as a collision', lo=0.0, hi=1e6)
         self.missing_timeout = d('missing_timeout', 10.0, 'lockstep: drop an agent whose state has not come after this many wall s',
                                  lo=0.1, hi=1e6)
+        self.step_readers = d('step_readers', 0, 'lockstep: readers of the step relay to wait for '
+                              '(one per agent process; 0: one per agent)', lo=0, hi=100000)
+        self.clock_readers = d('clock_readers', 0, 'with wait_for_recorder: /clock readers to wait for '
+                               '(0: agents + commander + recorder)', lo=0, hi=100000)
         self.pid_file = d('pid_file', '', 'JSON {agent: pid} of the agent processes, for kill/pause ("": none)')
         self.events_file = d('events_file', '', 'append every event here as JSON lines ("": output_dir/events.jsonl)')
         self.trail_length = d('trail_length', 200, 'trail points per agent in the markers', lo=0, hi=100000)
@@ -269,18 +273,19 @@ class WorldNode(Node):
         """Everyone matched: agents' states of step 0 held, relay and commander matched (and,
         with ``wait_for_recorder``, the recorder's /clock reader: a late match would lose the
         first /clock messages, which are volatile)."""
-        ok = (self.lock.have.all() and self.pub_step.get_subscription_count() >= self.n
+        ok = (self.lock.have.all() and self.pub_step.get_subscription_count() >= (self.step_readers or self.n)
               and self.pub_lock_states.get_subscription_count() >= 1
               and self.sub_decision.handle.get_publisher_count() >= 1)
         if ok and self.wait_for_recorder:
-            if self.pub_clock.get_subscription_count() < self.n + 2:       # agents, commander, recorder
+            want = self.clock_readers or self.n + 2                      # agents, commander, recorder
+            if self.pub_clock.get_subscription_count() < want:
                 now = time.monotonic()
                 if self.recorder_wait_from is None:
                     self.recorder_wait_from = now
                 if now - self.recorder_wait_from < P.RECORDER_MATCH_WAIT:
                     return False
                 self.get_logger().warning(f'{P.CLOCK}: {self.pub_clock.get_subscription_count()} readers '
-                                          f'matched, not {self.n + 2}, after {P.RECORDER_MATCH_WAIT:g} s; '
+                                          f'matched, not {want}, after {P.RECORDER_MATCH_WAIT:g} s; '
                                           'starting anyway')
         return ok
 
@@ -370,8 +375,8 @@ class WorldNode(Node):
                 self.get_logger().warning(f'pid_file {self.pid_file}: {err}; faults only leave agents out')
                 self.pids = {}
         pid = self.pids.get(self.names[i])
-        if pid is None:
-            return
+        if pid is None or list(self.pids.values()).count(pid) > 1:
+            return                    # a container holds this agent: it obeys /swarm/events itself
         try:
             os.kill(int(pid), sig)
         except ProcessLookupError:
