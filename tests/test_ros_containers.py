@@ -113,3 +113,44 @@ def test_container_fault_one_agent_killed_one_frozen(tmp_path, ros_domain, proce
     assert sorted((e['kind'], e.get('agent'), e['t']) for e in events) == want
     pids = json.loads((out / 'pids.json').read_text())
     assert len(set(pids.values())) == 1                             # one process held all six
+
+
+def test_container_live_faults_and_a_killed_container(tmp_path, ros_domain, processes, swarm_cmd):
+    """Three containers of two: `swarm kill agent_4` and `swarm pause agent_1 5` act on that
+    agent alone (its container partner goes on); SIGKILL to the container of agent_2 and agent_3
+    kills both, and the world drops them as lost after its missing_timeout."""
+    import os
+    import signal
+    path = scenario(tmp_path, 6, duration=150.0)
+    out = tmp_path / 'run'
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--agents-per-process', '2',
+                         '--missing-timeout', '3', '--progress-every', '25'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait_for('discovered in', 120), ''.join(lines.lines)
+    cli = [processes.start([swarm_cmd, 'kill', 'agent_4'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True),
+           processes.start([swarm_cmd, 'pause', 'agent_1', '5'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           text=True)]
+    pids = json.loads((out / 'pids.json').read_text())
+    assert pids['agent_2'] == pids['agent_3'] and len(set(pids.values())) == 3
+    os.kill(pids['agent_2'], signal.SIGKILL)                   # the whole container, from outside
+    for c in cli:
+        msg, _ = c.communicate(timeout=60)
+        assert c.returncode == 0, msg
+    assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
+    text = ''.join(lines.lines)
+    assert 'agents[agent_2..agent_3] exited with code' in text and 'its 2 agents are gone' in text, text[-3000:]
+    events = [json.loads(ln) for ln in (out / 'events.jsonl').read_text().splitlines()]
+    by = {(e['kind'], e.get('agent')): e for e in events}
+    kill, freeze, resume = by[('kill', 'agent_4')], by[('freeze', 'agent_1')], by[('resume', 'agent_1')]
+    assert ('lost', 'agent_2') in by and ('lost', 'agent_3') in by
+    live = Trajectory.load(out / 'trajectory.npz')
+    assert np.isnan(live.r[kill['step']:, 4]).all() and np.isfinite(live.r[:kill['step'], 4]).all()
+    for nm in ('agent_2', 'agent_3'):
+        k = by[('lost', nm)]['step']
+        i = int(nm[-1])
+        assert np.isnan(live.r[k:, i]).all() and np.isfinite(live.r[:k, i]).all()
+    assert np.isfinite(live.r[:, [0, 1, 5]]).all()             # the partners went on to the end
+    k0, k1 = freeze['step'], resume['step']
+    assert np.array_equal(live.r[k1, 1], live.r[k0, 1])       # agent_1 held still while paused
+    assert not np.array_equal(live.r[-1, 1], live.r[k1, 1])    # ... and flew on

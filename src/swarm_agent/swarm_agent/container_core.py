@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from swarm_core.faults import reunion_law
-from swarm_core.frenet import frame_from_quaternion
+from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.integrate import zoh_step
 from swarm_core.laws import swarm_control
 
@@ -139,7 +139,7 @@ class ContainerCore:
         cos_t, sin_t = frame_from_quaternion(qz, qw)            # new arrays
         for r, c in zip(recv, cores):                           # own rows: the agent's own state
             pos[r] = c.pos[0]
-            cos_t[r], sin_t[r] = c._own_frame()
+            cos_t[r], sin_t[r] = c._own_frame()                 # (cached by `advance`)
         u = swarm_control(pos, cos_t, sin_t, recv, law, lambda_=float(s.lam),
                           is_leader=np.asarray(flags, bool), steering=np.asarray(s.steering, float)[idx],
                           target=target, barrier=s.barrier)
@@ -159,3 +159,10 @@ class ContainerCore:
         pos, theta = zoh_step(pos, theta, u, cores[0].dt)
         for i, c in enumerate(cores):
             c.moved_to(pos[i:i + 1].copy(), theta[i:i + 1].copy(), float(u[i]))
+        # what each agent publishes (qz, qw) and its own frame next step, for all at once
+        # (elementwise: the same bits as `AgentCore.quaternion` and `_own_frame` one by one)
+        qz, qw = quaternion_from_heading(np.concatenate([c.theta for c in cores]))
+        cos_t, sin_t = frame_from_quaternion(qz, qw)
+        for i, c in enumerate(cores):
+            c._quat = (float(qz[i]), float(qw[i]))
+            c._frame = (cos_t[i], sin_t[i])

@@ -107,7 +107,7 @@ def main(argv=None):
     from rclpy.utilities import remove_ros_args
     args = sys.argv if argv is None else argv
     AGENT_NAMES[:] = [a for a in remove_ros_args(list(args))[1:] if a not in ('-h', '--help')]
-    return run_node(AgentContainer, 'swarm_agents', args)
+    return run_node(AgentContainer, 'swarm_agents', args, more_nodes=lambda c: c.agents)
 
 
 if __name__ == '__main__':
