@@ -271,6 +271,8 @@ def main(argv=None) -> int:
     ap.add_argument('--per-process', default='1', help="--agents-per-process values for the process runs, "
                     "comma-separated (e.g. 1,auto; default 1)")
     ap.add_argument('--no-agent-clock', action='store_true', help='also 6 agent processes with /clock every 10^6 steps')
+    ap.add_argument('--max-processes', type=int, default=100, help='skip one-process-per-agent runs of more '
+                    'agents than this (Fast DDS simple discovery stops near 100 participants; default 100)')
     ap.add_argument('--plot', metavar='PNG', help='log-log plot of CPU per step and steps/s against n')
     ap.add_argument('--repeat', type=int, default=1, help='runs per case (default 1)')
     ap.add_argument('--swarm', action='append', metavar='LABEL=PATH', help=(
@@ -320,6 +322,9 @@ def main(argv=None) -> int:
                     for label, exe in exes:
                         if k != '1' and label != exes[0][0]:
                             continue                # older launchers know one agent per process only
+                        if k == '1' and kind == 'processes' and n > a.max_processes:
+                            print(f'  [{label}] processes n={n} K=1: skipped (more than --max-processes)', flush=True)
+                            continue
                         run_dir = tmp / f'{label}-{kind}-{n}-{k}-{rep}'
                         if kind == 'full':
                             bag = tmp / f'{label}-{rep}.mcap'

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from swarm_agent.agent_core import AgentCore
-from swarm_agent.container_core import (CONTAINER_SIZE, SMALL_SWARM, ContainerCore, agents_per_process,
+from swarm_agent.container_core import (CONTAINER_SIZE, PROCESSES_PER_CORE, ContainerCore, agents_per_process,
                                         split_agents)
 from swarm_core import laws
 from swarm_core.engine import simulate
@@ -131,7 +131,9 @@ def test_repeat_reject_and_kill():
 
 
 def test_auto_rule_and_groups():
-    assert agents_per_process(6, 2) == 1 and agents_per_process(SMALL_SWARM, 2) == 1
+    assert agents_per_process(6, 2) == 1 and agents_per_process(PROCESSES_PER_CORE * 4, 4) == 1
+    assert agents_per_process(7, 2) == 4 and agents_per_process(24, 2) == 12
+    assert agents_per_process(1000, 2) == 100 and agents_per_process(1000, 32) == 32
     for n in (24, 96, 240, 500, 1000, 5000):
         k = agents_per_process(n, 2)
         groups = split_agents([f'a{i}' for i in range(n)], k)
