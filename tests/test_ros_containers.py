@@ -47,20 +47,34 @@ def graph_agents(ctx_node, want, proc, timeout):
 @pytest.mark.parametrize('n,per', [(6, 1), (6, 3), (6, 6), (24, 12)], ids=['6x1', '2x3', '1x6', '24-2x12'])
 def test_containers_lockstep_equal_simulate(n, per, tmp_path, ros_domain, rclpy_context, processes, swarm_cmd):
     from rclpy.node import Node
-    path = scenario(tmp_path, n, duration=20.0 if n == 6 else 8.0)
-    out = tmp_path / 'run'
+
+    from swarm_agent.container_core import split_agents
+    from swarm_tools.launch import agent_commands, node_parameters, write_params_file
+    path = scenario(tmp_path, n, duration=10.0 if n == 6 else 6.0)
+    scn = load(str(path))
+    # the graph: the agent processes as the launcher spawns them (`agent_commands`), on their own
+    # (a run may end before a watcher has discovered it): every agent node, one host per container
+    params = write_params_file(node_parameters(scn, str(path), 'lockstep'), tmp_path / 'params.yaml')
+    groups = split_agents(scn.names, per)
+    agents = [processes.start(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+              for _, _, cmd in agent_commands(groups, ['--ros-args', '--params-file', str(params)])]
     watcher = Node('graph_watch', context=rclpy_context)
+    want = {f'/{nm}/agent' for nm in scn.names}
+    hosts = set() if per == 1 else {f'/agent_container_{i}' for i in range(0, n, per)}
+    seen = graph_agents(watcher, want | hosts, agents[0], 180)
+    watcher.destroy_node()
+    for a in agents:
+        a.terminate()
+    for a in agents:
+        a.wait(timeout=30)
+    assert want <= seen, f'graph lacks {sorted(want - seen)[:5]}'
+    assert {nm for nm in seen if nm.startswith('/agent_container_')} == hosts, seen   # one host node per container
+    # the run
+    out = tmp_path / 'run'
     p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--agents-per-process', str(per)],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = Lines(p)
-    scn = load(str(path))
-    want = {f'/{nm}/agent' for nm in scn.names}
-    hosts = set() if per == 1 else {f'/agent_container_{i}' for i in range(0, n, per)}
-    seen = graph_agents(watcher, want | hosts, p, 180)
     assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
-    watcher.destroy_node()
-    assert want <= seen, f'graph lacks {sorted(want - seen)[:5]}'
-    assert {nm for nm in seen if nm.startswith('/agent_container_')} == hosts, seen   # one host node per container
     text = ''.join(lines.lines)
     if per > 1:
         assert f'({per} agents per process)' in text
