@@ -4,6 +4,11 @@ for n = 6, 12, 24, 48, 96 (and in one process for comparison), start-up / discov
 per-process memory (RSS), and the wall time of the whole `homotopy_global` run to t = 1000
 with 6 agent processes and a bag (``--record``).
 
+``--per-process 1,auto`` measures every agent count with those ``--agents-per-process`` values
+(agent containers); ``--no-agent-clock`` adds, for 6 agent processes, a run whose world sends
+/clock only every 10^6 steps (what the agents' /clock readers cost in lockstep); ``--plot``
+draws CPU per step and steps/s against n on log-log axes.
+
 Every run goes through the product's own launcher (``swarm run``): for n agents a scenario
 file is generated in a temporary directory from `homotopy_global` (same law, gains, λ window
 and leader rule) with ``agents: {count: n}`` on a grid.  Numbers are read from the world's
@@ -42,7 +47,7 @@ DEFAULT_SWARM = str(Path(sys.executable).parent / 'swarm')
 LOCK_DIR = Path(os.environ.get('SWARM_DOMAIN_LOCK_DIR', '/tmp/homotopy-swarm-domains'))
 #: lockstep steps per measured run, by agent count (about 5-20 s each on the 2-core machine)
 TICKS = os.sysconf('SC_CLK_TCK')
-DEFAULT_STEPS = {6: 4000, 12: 2400, 24: 1200, 48: 600, 96: 400}
+DEFAULT_STEPS = {6: 4000, 12: 2400, 24: 1200, 48: 600, 96: 400, 240: 300, 500: 200, 1000: 150}
 
 
 # ------------------------------------------------------------------ helpers
@@ -122,7 +127,7 @@ def role(pid: int) -> str:
     except OSError:
         return '?'
     text = b' '.join(cmd).decode(errors='replace')
-    for key, name in (('swarm_agent', 'agent'), ('swarm_world', 'world'), ('homotopy_commander', 'commander'),
+    for key, name in (('swarm_agents', 'container'), ('swarm_agent', 'agent'), ('swarm_world', 'world'), ('homotopy_commander', 'commander'),
                       (' record', 'recorder'), (' run', 'launcher')):
         if key in text:
             return name
@@ -263,6 +268,12 @@ def main(argv=None) -> int:
     ap.add_argument('--steps', type=float, default=1.0, help='scale the steps per run (default 1: 4000 steps at n=6 … 400 at n=96)')
     ap.add_argument('--full', action=argparse.BooleanOptionalAction, default=True,
                     help='also the whole homotopy_global run to t = 1000 with a bag (default on)')
+    ap.add_argument('--per-process', default='1', help="--agents-per-process values for the process runs, "
+                    "comma-separated (e.g. 1,auto; default 1)")
+    ap.add_argument('--no-agent-clock', action='store_true', help='also 6 agent processes with /clock every 10^6 steps')
+    ap.add_argument('--max-processes', type=int, default=100, help='skip one-process-per-agent runs of more '
+                    'agents than this (Fast DDS simple discovery stops near 100 participants; default 100)')
+    ap.add_argument('--plot', metavar='PNG', help='log-log plot of CPU per step and steps/s against n')
     ap.add_argument('--repeat', type=int, default=1, help='runs per case (default 1)')
     ap.add_argument('--swarm', action='append', metavar='LABEL=PATH', help=(
         'a swarm executable to measure, with a label; repeat to measure several interleaved, case by '
@@ -290,9 +301,12 @@ def main(argv=None) -> int:
     for k in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_STATIC_PEERS', 'FASTRTPS_DEFAULT_PROFILES_FILE',
               'FASTDDS_DEFAULT_PROFILES_FILE'):
         env.pop(k, None)                    # the launcher chooses (LOCALHOST, or a profile past 32)
-    cases = [('processes', n) for n in counts] + [('in-process', n) for n in inproc]
+    per = [v.strip() for v in a.per_process.split(',') if v.strip()]
+    cases = [('processes', n, k) for n in counts for k in per] + [('in-process', n, '1') for n in inproc]
+    if a.no_agent_clock:
+        cases.append(('no-agent-clock', 6, '1'))
     if a.full:
-        cases.append(('full', 6))
+        cases.append(('full', 6, '1'))
     results = dict(command=' '.join([Path(sys.argv[0]).name] + (sys.argv[1:] if argv is None else argv)),
                    date=time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()), domain=dom, cpus=os.cpu_count(),
                    load_start=loadavg(), runs=[])
@@ -304,9 +318,14 @@ def main(argv=None) -> int:
         with tempfile.TemporaryDirectory(prefix='bench_ros_') as tmp:
             tmp = Path(tmp)
             for rep in range(a.repeat):
-                for kind, n in cases:
+                for kind, n, k in cases:
                     for label, exe in exes:
-                        run_dir = tmp / f'{label}-{kind}-{n}-{rep}'
+                        if k != '1' and label != exes[0][0]:
+                            continue                # older launchers know one agent per process only
+                        if k == '1' and kind == 'processes' and n > a.max_processes:
+                            print(f'  [{label}] processes n={n} K=1: skipped (more than --max-processes)', flush=True)
+                            continue
+                        run_dir = tmp / f'{label}-{kind}-{n}-{k}-{rep}'
                         if kind == 'full':
                             bag = tmp / f'{label}-{rep}.mcap'
                             args = [exe, 'run', 'homotopy_global', '--record', str(bag), '--no-figure',
@@ -318,15 +337,19 @@ def main(argv=None) -> int:
                                     '--progress-every', str(steps * 0.05 / 2)]
                             if kind == 'in-process':
                                 args.append('--in-process')
+                            if k != '1':
+                                args += ['--agents-per-process', k]
+                            if kind == 'no-agent-clock':
+                                args += ['--clock-every', '1000000']
                         load0 = loadavg()
-                        print(f'  [{label}] {kind} n={n} (run {rep + 1}/{a.repeat}); load {load0}', flush=True)
+                        print(f'  [{label}] {kind} n={n} K={k} (run {rep + 1}/{a.repeat}); load {load0}', flush=True)
                         r = Run(args, env, a.timeout).go()
                         if kind == 'full' and bag.exists():
                             r['bag_mib'] = round(bag.stat().st_size / 2**20, 2)
                             r['bag_states'] = bag_states(bag)
                             if r.get('steps'):
                                 r['bag_states_expected'] = (r['steps'] + 2) * n   # t_0 … t_{steps+1}
-                        r.update(label=label, kind=kind, agents=n, repeat=rep, load_before=load0, load_after=loadavg())
+                        r.update(label=label, kind=kind, agents=n, per_process=k, repeat=rep, load_before=load0, load_after=loadavg())
                         results['runs'].append(r)
                         print(f'    -> {summary_line(r)}', flush=True)
                         out_path.write_text(json.dumps(results, indent=1))
@@ -336,7 +359,36 @@ def main(argv=None) -> int:
         lock.close()
     print(markdown(results))
     print(f'bench_ros: wrote {out_path}')
+    if a.plot:
+        plot(results, a.plot)
+        print(f'bench_ros: wrote {a.plot}')
     return 0
+
+
+def plot(results, path):
+    """CPU ms per step and steps/s against n (log-log), one line per label and agents per process."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    lines = {}
+    for r in results['runs']:
+        if r['kind'] != 'processes' or r['exit_code'] != 0 or not r.get('steps_per_s'):
+            continue
+        key = f"{r['label']}, K={r.get('per_process', '1')}"
+        lines.setdefault(key, []).append((r['agents'], r.get('cpu_ms_per_step', {}).get('total'), r['steps_per_s']))
+    for key, pts in sorted(lines.items()):
+        pts.sort()
+        n = [p[0] for p in pts]
+        ax1.loglog(n, [p[1] for p in pts], 'o-', label=key)
+        ax2.loglog(n, [p[2] for p in pts], 'o-', label=key)
+    ax1.set(xlabel='agents n', ylabel='CPU ms per lockstep step (all processes)', title='cost per step')
+    ax2.set(xlabel='agents n', ylabel='lockstep steps/s', title='rate')
+    for ax in (ax1, ax2):
+        ax.grid(True, which='both', alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
 
 
 def bag_states(bag) -> int:
@@ -357,20 +409,22 @@ def summary_line(r):
 
 
 def markdown(results) -> str:
-    rows = ['| executable | how | agents | steps/s | start (s) | discovery (s) | RSS agent / world / commander (MiB) '
+    rows = ['| executable | how | agents | agents per process | steps/s | start (s) | discovery (s) | RSS agent / world / commander (MiB) '
             '| RSS total (MiB) | CPU ms/step (agents / world / commander / total) | wall (s) | load before→after |',
-            '|---|---|---|---|---|---|---|---|---|---|---|']
+            '|---|---|---|---|---|---|---|---|---|---|---|---|']
     for r in results['runs']:
         rss = r.get('rss_mib', {})
         f = lambda k: str(rss.get(k, {}).get('median', '—'))  # noqa: E731
-        how = {'processes': 'processes', 'in-process': 'one process', 'full': 'homotopy_global t=1000 + bag'}[r['kind']]
+        how = {'processes': 'processes', 'in-process': 'one process', 'full': 'homotopy_global t=1000 + bag',
+               'no-agent-clock': 'processes, /clock every 10^6 steps'}[r['kind']]
         sps = r.get('steps_per_s', '—') if r['exit_code'] == 0 else f"failed ({r['exit_code']})"
         cpu = r.get('cpu_ms_per_step', {})
         c = lambda k: str(cpu.get(k, '—'))  # noqa: E731
-        cpus = (f"{c('agent')} / {c('world')} / {c('commander')} / {c('total')}" if r['kind'] != 'in-process'
-                else f"one process: {c('total')}")
-        rows.append(f"| {r['label']} | {how} | {r['agents']} | {sps} | {r.get('start_s', '—')} | "
-                    f"{r.get('discovery_s', '—')} | {f('agent')} / {f('world')} / {f('commander')} | "
+        cpus = (f"{c('agent') if 'agent' in cpu else c('container')} / {c('world')} / {c('commander')} / {c('total')}"
+                if r['kind'] != 'in-process' else f"one process: {c('total')}")
+        ag = 'agent' if 'agent' in rss or 'container' not in rss else 'container'
+        rows.append(f"| {r['label']} | {how} | {r['agents']} | {r.get('per_process', '1')} | {sps} | {r.get('start_s', '—')} | "
+                    f"{r.get('discovery_s', '—')} | {f(ag)} / {f('world')} / {f('commander')} | "
                     f"{r.get('rss_total_mib', '—')} | {cpus} | {r['launcher_wall_s']} | {r['load_before']} → {r['load_after']} |")
     return '\n'.join(rows)
 

@@ -19,5 +19,6 @@ setup(
     maintainer_email='dev@homotopy-swarm.invalid',
     description='AgentNode: one swarm agent as an rclpy node integrating its own Frenet frame.',
     license='Apache-2.0',
-    entry_points={'console_scripts': ['swarm_agent = swarm_agent.agent_node:main']},
+    entry_points={'console_scripts': ['swarm_agent = swarm_agent.agent_node:main',
+                                  'swarm_agents = swarm_agent.container_node:main']},
 )

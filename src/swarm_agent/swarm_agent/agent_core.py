@@ -66,6 +66,9 @@ class AgentCore:
         self.comms = None
         self.beliefs = None
         self._frame = None                  # own (cos θ, sin θ), see `_own_frame`
+        self._quat = None                   # own (qz, qw) as published (cached until it moves)
+        self.step = 0                       # lockstep: the step whose state it holds
+        self.silent = False                 # lockstep: not in the table (frozen or killed)
 
     def attach_comms(self, model: CommModel):
         """Receive through ``model`` from now on (lockstep: `comms_control`)."""
@@ -91,8 +94,10 @@ class AgentCore:
     # -- what the agent publishes
     @property
     def quaternion(self):
-        qz, qw = quaternion_from_heading(self.theta)
-        return float(qz[0]), float(qw[0])
+        if self._quat is None:
+            qz, qw = quaternion_from_heading(self.theta)
+            self._quat = (float(qz[0]), float(qw[0]))
+        return self._quat
 
     def control(self, x, y, qz, qw, lam, is_leader, steering_own, target=None, barrier=None,
                 alive=None, rendezvous=None):
@@ -132,8 +137,14 @@ class AgentCore:
         """One ZOH step with the held control u (a non-finite u is replaced by 0)."""
         if not math.isfinite(u):
             u = 0.0
-        self.pos, self.theta = zoh_step(self.pos, self.theta, np.array([u]), self.dt)
-        self._frame = None
+        pos, theta = zoh_step(self.pos, self.theta, np.array([u]), self.dt)
+        return self.moved_to(pos, theta, u)
+
+    def moved_to(self, pos, theta, u: float):
+        """Take the state (pos (1, 2), θ (1,)) that one ZOH step with u gave (`advance`, or
+        the batched step of a container), then the agent's own noise draw."""
+        self.pos, self.theta = pos, theta
+        self._frame = self._quat = None
         if self.noisy:
             draw = self.rng.uniform(-1.0, 1.0, size=3) * self.noise_scale
             self.pos = self.pos + draw[None, :2]

@@ -9,6 +9,11 @@ Realtime: a timer at the control rate (1/dt in sim time) uses the newest states 
 ``/world/barrier``.
 Bad inputs are rejected with one log line naming them; no NaN ever enters the state.
 
+In an agent container (``swarm_agents``, `swarm_agent.container_node`) the node is built with
+``contained=True``: it keeps its name, parameters, logger, ``steering`` subscription and
+``/swarm/states`` publisher, and the container feeds it the inputs its agents share (the step
+relay, ``/swarm/states``, λ, leaders, target, barrier, events) from one subscription each.
+
 Communication model (parameter ``comms``: the scenario's ``comms`` section as JSON, '' = a
 perfect radio; see swarm_core.comms): the agent applies it on its receive side.  Lockstep: from
 each step's table it keeps only what its radio delivers (`AgentCore.comms_control`; equal to
@@ -39,15 +44,18 @@ from swarm_ros.rosutil import ParameterError, declare, run_node, when_matched
 from swarm_ros.runinfo import declare_run_id
 
 from .agent_core import AgentCore, catch_up
+from .container_core import ContainerCore
 
 MODES = ('lockstep', 'realtime')
 
 
 class AgentNode(Node):
     def __init__(self, node_name='agent', *, namespace=None, context=None, parameter_overrides=None,
-                 cli_args=None):
+                 cli_args=None, contained=False):
         super().__init__(node_name, namespace=namespace, context=context, cli_args=cli_args,
                          parameter_overrides=parameter_overrides)
+        self.contained = contained
+        self.halted = None       # contained: 'kill' or 'freeze' (fault events for this agent)
         ns = self.get_namespace().strip('/')
         d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
         self.agent_name = d('agent_name', ns or 'agent_0', 'agent name (child_frame_id of its states)')
@@ -119,27 +127,22 @@ class AgentNode(Node):
         self.target = None
         self.barrier = None
         self.neigh = {}          # name -> (t, x, y, qz, qw)
-        self.step = 0            # lockstep: the step whose state we hold
+        self.step = 0            # the step whose state we hold (lockstep: `core.step`)
         self.t = 0.0
         self.u_history = []      # (step, u) for tests (bounded)
-        self.silent = False      # lockstep: not in the table (frozen, or killed)
 
         self.pub = self.create_publisher(Odometry, P.STATES, P.qos_latched(P.STATES_DEPTH))
         # transient-local: the commander's λ and steering in force, never a user's one-shot
         # command (that one is for the commander only; docs/commands.md)
-        self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_latched(10))
         self.create_subscription(Float64, 'steering', self._on_steering, P.qos_latched(10))
-        self.create_subscription(String, P.LEADERS, self._on_leaders, P.qos_latched())
-        self.create_subscription(PointStamped, P.TARGET, self._on_target, P.qos_latched())
-        self.create_subscription(PolygonStamped, P.BARRIER, self._on_barrier, P.qos_latched())
-        self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
+        if not contained:
+            for typ, topic, cb, qos, raw in shared_inputs(self):
+                self.create_subscription(typ, topic, cb, qos, raw=raw)
+            self.lock = ContainerCore([self.core])
         self.sender_tag = new_sender_tag()     # who we are on /swarm/states (protocol.SENDER_TAG_INDEX)
         self.serialize_state = P.OdometryWriter(self.agent_name, tag=self.sender_tag)
         self.own = None          # (sec, nanosec, x, y, qz, qw, u) last published
-        if self.mode == 'lockstep':
-            self.create_subscription(Float64MultiArray, P.LOCK_STEP, self._on_step, P.qos_latched(), raw=True)
-        else:
-            self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(50, 4 * self.n)))
+        if self.mode == 'realtime':
             self.timer = self.create_timer(self.dt, self._on_tick)
         if self.mode == 'lockstep' and self.state_subscribers > 1:
             # a recorder matched late would miss the first states (the writer keeps 100): the world
@@ -176,57 +179,41 @@ class AgentNode(Node):
 
     def _apply(self, u):
         u = self.core.advance(u)
+        self._applied(u)
+
+    def _applied(self, u):
         self.u_history.append((self.step, u))
         if len(self.u_history) > 10000:
             del self.u_history[:5000]
 
+    @property
+    def silent(self):
+        """Lockstep: not in the table (frozen, or killed)."""
+        return self.core.silent
+
     # ------------------------------------------------------------ lockstep
     def _on_step(self, raw):
-        if self.run_id and P.cdr_run_id(raw) != self.run_id:
-            self.reject('other-run', f'{P.LOCK_STEP} of run {P.cdr_run_id(raw) or "(none)"!r}, not this run '
-                        f'{self.run_id!r}: another swarm run on this ROS_DOMAIN_ID?')
-            return
-        try:
-            s = P.Step(P.cdr_to_float64_array(raw))
-        except Exception as err:
-            self.reject('step-decode', f'/lockstep/step message: {err}')
-            return
-        if s.n == self.step - 1:       # a repeat (stall recovery): say our answer again
+        step_message(raw, self.lock, [self], self)
+
+    def lockstep_outcome(self, kind, detail, s):
+        """Carry out one `ContainerCore.on_step` decision for this agent."""
+        if kind == 'moved':
+            self.lam = s.lam
+            self.step = s.n
+            self._applied(detail)
+            self.step = self.core.step
+            self.t = self.step * self.dt
             self.publish_state()
-            return
-        if len(s.alive) == self.n and not s.alive[self.index]:
+        elif kind == 'repeat':       # a repeat (stall recovery): say our answer again
+            self.publish_state()
+        elif kind == 'silent':
             # faults: dead or frozen at this step: neither move nor speak (a frozen agent
             # resumes at the first step that lists it alive, with the state it holds)
-            if s.n >= self.step and not self.silent:
-                self.silent = True
-                self.get_logger().info(f'not in the table from step {s.n} on (killed or frozen)')
-            return
-        if s.n > self.step:            # back after a freeze (maybe stopped before it saw one)
-            self.get_logger().info(f'back in the table at step {s.n} (was frozen at step {self.step})')
-            self.step = s.n
-        if s.n != self.step:
-            self.reject('step', f'/lockstep/step for step {s.n} (this agent is at step {self.step})')
-            return
-        if len(s.x) != self.n:
-            self.reject('step-n', f'/lockstep/step with {len(s.x)} agents (roster has {self.n})')
-            return
-        self.lam = s.lam
-        self.silent = False
-        if self.radio_on:
-            u = self.core.comms_control(s.n, s.x, s.y, s.qz, s.qw, s.u, s.lam, s.flags,
-                                        s.steering[self.index], s.target, s.barrier,
-                                        alive=s.alive if len(s.alive) == self.n else None,
-                                        rendezvous=s.rendezvous)
-        else:
-            u = self.core.control(s.x, s.y, s.qz, s.qw, s.lam, s.flags, s.steering[self.index],
-                                  s.target, s.barrier, alive=s.alive, rendezvous=s.rendezvous)
-        if not math.isfinite(u):
-            self.reject('u-nan', f'non-finite control u={u} at step {s.n}; holding u=0')
-            u = 0.0
-        self._apply(u)
-        self.step = s.n + 1
-        self.t = self.step * self.dt
-        self.publish_state()
+            self.get_logger().info(f'not in the table from step {detail} on (killed or frozen)')
+        elif kind == 'back':         # back after a freeze (maybe stopped before it saw one)
+            self.get_logger().info(f'back in the table at step {s.n} (was frozen at step {detail})')
+        elif kind == 'reject':
+            self.reject(*detail)
 
     # ------------------------------------------------------------ realtime inputs
     def _on_lambda(self, msg):
@@ -268,9 +255,15 @@ class AgentNode(Node):
 
     # ------------------------------------------------------------ radio (communication model)
     def _on_event(self, msg):
-        """Runtime radio changes from /swarm/events (see swarm_ros.protocol)."""
+        """Runtime radio changes from /swarm/events (see swarm_ros.protocol); in a container
+        also the faults of this agent (the world cannot signal a process it shares)."""
         try:
-            change = change_from_event(json.loads(msg.data))
+            ev = json.loads(msg.data)
+            if self.contained and isinstance(ev, dict) and ev.get('agent') == self.agent_name \
+                    and ev.get('kind') in ('kill', 'freeze', 'resume'):
+                self.fault(ev['kind'])
+                return
+            change = change_from_event(ev)
         except (ValueError, TypeError) as err:
             self.reject('event', f'{P.EVENTS} event {msg.data[:80]!r}: {str(err)[:120]}')
             return
@@ -287,6 +280,19 @@ class AgentNode(Node):
             if self.mode == 'lockstep':
                 self.core.attach_comms(self.radio)
         self.get_logger().info(f'radio: {json.dumps(change)} from step {step}')
+
+    def fault(self, kind):
+        """Contained: kill (stop for good), freeze (stop until resume) or resume this agent
+        alone, as SIGKILL / SIGSTOP / SIGCONT do to an agent process."""
+        if self.halted == 'kill':
+            return
+        self.halted = None if kind == 'resume' else kind
+        if kind == 'kill':
+            self.lock_kill()
+        self.get_logger().info(f'fault: {kind} (in-process: the other agents of the container go on)')
+
+    def lock_kill(self):
+        """Set by the container: stop this agent's lockstep for good."""
 
     def _now(self):
         return self.get_clock().now().nanoseconds * 1e-9
@@ -344,6 +350,8 @@ class AgentNode(Node):
         last state, in whole periods dt with u held (ZOH; `core.catch_up`), not by one dt per
         call: a /clock jump may cover two periods and fire the timer once (it catches up), or
         fire it again at the same time (nothing moves, so no two states share a stamp)."""
+        if self.halted is not None:
+            return
         now = self.get_clock().now().nanoseconds * 1e-9
         periods, t_new = catch_up(now, self.t, self.dt, self.catch_up_limit)
         if periods == 0:
@@ -367,6 +375,41 @@ class AgentNode(Node):
         self.step += periods
         self.t = t_new
         self.publish_state()
+
+
+def shared_inputs(node):
+    """(type, topic, callback, QoS, raw) of the subscriptions whose messages every agent of a
+    process reads alike (a container makes each once and hands the messages to its agents;
+    `node` is the agent or the container)."""
+    subs = [(Float64, P.LAMBDA, node._on_lambda, P.qos_latched(10), False),      # the λ in force
+            (String, P.LEADERS, node._on_leaders, P.qos_latched(), False),
+            (PointStamped, P.TARGET, node._on_target, P.qos_latched(), False),
+            (PolygonStamped, P.BARRIER, node._on_barrier, P.qos_latched(), False),
+            (String, P.EVENTS, node._on_event, P.qos_latched(100), False)]
+    if node.mode == 'lockstep':
+        subs.append((Float64MultiArray, P.LOCK_STEP, node._on_step, P.qos_latched(), True))
+    else:
+        subs.append((Odometry, P.STATES, node._on_state, P.qos_latched(max(50, 4 * node.n)), False))
+    return subs
+
+
+def step_message(raw, lock, agents, log_node):
+    """One ``/lockstep/step`` message for the agents of a process: decoded once, decided by
+    their `ContainerCore` (one law call), carried out by each agent.  A step of another run
+    (its id, swarm_ros.runinfo) is rejected."""
+    run_id = agents[0].run_id
+    if run_id and P.cdr_run_id(raw) != run_id:
+        log_node.reject('other-run', f'{P.LOCK_STEP} of run {P.cdr_run_id(raw) or "(none)"!r}, not this run '
+                        f'{run_id!r}: another swarm run on this ROS_DOMAIN_ID?')
+        return None
+    try:
+        s = P.Step(P.cdr_to_float64_array(raw))
+    except Exception as err:
+        log_node.reject('step-decode', f'/lockstep/step message: {err}')
+        return None
+    for j, kind, detail in lock.on_step(s):
+        agents[j].lockstep_outcome(kind, detail, s)
+    return s
 
 
 def main(argv=None):

@@ -182,7 +182,8 @@ def stop_on_signals():
     return stop, wake, restore
 
 
-def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, on_stop=None) -> int:
+def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, on_stop=None,
+             more_nodes=None) -> int:
     """The ``main()`` of a node executable: init rclpy from ``argv``, build ``node_class()``
     (a bad parameter -> one error line, exit 2), spin until ``done(node)`` or SIGINT / SIGTERM,
     clean up; returns ``exit_code(node)`` (default 0).  ``-h`` / ``--help``: the usage and the
@@ -191,7 +192,8 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
     SIGINT / SIGTERM only set a flag that the spin loop checks (at least every 0.1 s): a
     callback that is running finishes (rclpy's own handler shut the context down under it, and
     every node logged a traceback on Ctrl-C), then ``on_stop(node)`` runs (e.g. the world
-    saves the steps done so far) and the node is cleaned up."""
+    saves the steps done so far) and the node is cleaned up.  ``more_nodes(node)``: further
+    nodes the node holds (an agent container's agents), spun by the same executor."""
     import sys
 
     import rclpy
@@ -211,6 +213,8 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
         return 2
     ex = make_executor(ctx)
     ex.add_node(node)
+    for other in (more_nodes(node) if more_nodes is not None else ()):
+        ex.add_node(other)
     spin_until(ex, ctx, (lambda: bool(stop) or done(node)) if done is not None else (lambda: bool(stop)),
                wake=wake)
     if stop and on_stop is not None:

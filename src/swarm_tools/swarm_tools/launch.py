@@ -1,5 +1,7 @@
 """``swarm run``: a scenario as ROS 2 nodes — every agent, the world and the commander as
 separate OS processes (default) or all in one process and one executor (``--in-process``).
+With ``--agents-per-process K`` the agents run K to a process (agent containers,
+``swarm_agents``; each agent still its own node), see docs/scale.md.
 
 The launcher writes one parameter file for all nodes (agents get their name, roster, initial
 state, law and gains, w, dt; world and commander get the scenario reference), starts the
@@ -51,7 +53,7 @@ from . import dds
 STOP_GRACE = 4.0
 #: most agents of one ``swarm run`` (each is an OS process, or a node of one executor);
 #: larger swarms are for ``swarm simulate``
-MAX_RUN_AGENTS = 512
+MAX_RUN_AGENTS = 2000
 
 
 def agent_parameters(scn, i: int, mode: str) -> dict:
@@ -290,10 +292,23 @@ def killed_agents(events_file) -> set:
     return out
 
 
+def agent_commands(groups, ros) -> list:
+    """(label, agent names, command) of each agent process: ``swarm_agent`` for a group of one
+    (label: the agent's name), the container ``swarm_agents`` for more (label: ``agents[a..b]``)."""
+    out = []
+    for g in groups:
+        if len(g) == 1:
+            out.append((g[0], g, [_exe('swarm_agent')] + ros + ['-r', '__node:=agent', '-r', f'__ns:=/{g[0]}']))
+        else:
+            out.append((f'agents[{g[0]}..{g[-1]}]', g, [_exe('swarm_agents'), *g] + ros))
+    return out
+
+
 def run_processes(params: dict, params_file: Path, names, env, record=None, out_dir=None,
-                  pid_file=None, events_file=None, foxglove=None, server=None) -> int:
+                  pid_file=None, events_file=None, foxglove=None, server=None, groups=None) -> int:
     """``names``: the agents started here (a run spread over hosts starts the others with
-    ``swarm join``); ``server``: a `dds.DiscoveryServer` started first, stopped with the rest."""
+    ``swarm join``); ``server``: a `dds.DiscoveryServer` started first, stopped with the rest;
+    ``groups``: the agents of each agent process (default: one process per agent)."""
     sup = Supervisor()
     stopping = {'sig': None}
 
@@ -323,17 +338,20 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
         # pub, swarm lambda), and a plain CLIENT of a discovery server hears only of topics it reads
         sup.start('commander', [_exe('homotopy_commander')] + ros + ['-r', '__node:=commander'],
                   dds.super_client(env))
-        for nm in names:
-            sup.start(nm, [_exe('swarm_agent')] + ros + ['-r', '__node:=agent', '-r', f'__ns:=/{nm}'], env)
+        members = {}                    # agent process label -> its agents
+        for label, group, cmd in agent_commands(groups or [[nm] for nm in names], ros):
+            sup.start(label, cmd, env)
+            members[label] = group
         if foxglove is not None:        # the live view (swarm view), a process of the run
             sup.start('view', [_exe('swarm'), 'view', '--port', str(foxglove)], env)
         if pid_file is not None:
+            # agents sharing a process share its pid: the world signals only a pid of one agent
             tmp = Path(str(pid_file) + '.tmp')
-            tmp.write_text(json.dumps({nm: sup.procs[nm].pid for nm in names}))
+            tmp.write_text(json.dumps({nm: sup.procs[label].pid for label, g in members.items() for nm in g}))
             tmp.replace(pid_file)
             if out_dir is not None:
                 shutil.copyfile(pid_file, Path(out_dir) / 'pids.json')
-        agents = set(names)
+        agents = set(members)
         gone = set()
         while True:
             if stopping['sig'] is not None:
@@ -349,7 +367,10 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
             for k in [k for k in dead if k in agents]:
                 gone.add(k)
                 rc = sup.procs[k].returncode
-                if k in killed_agents(events_file) if events_file else ():
+                if len(members[k]) > 1:
+                    print(f'swarm run: {k} exited with code {rc}: its {len(members[k])} agents are gone; the '
+                          'world drops them from the roster after its missing_timeout', file=sys.stderr, flush=True)
+                elif k in killed_agents(events_file) if events_file else ():
                     print(f'swarm run: {k} killed (fault injection)', file=sys.stderr, flush=True)
                 else:
                     print(f'swarm run: {k} exited with code {rc}; the world drops it from the roster '
@@ -413,6 +434,9 @@ def _parser():
         'lockstep: the world publishes /clock every K steps (default 1). Every node receives each '
         '/clock; K = 10 saves about a fifth of the CPU per step with 6-24 agent processes, and sim '
         'time in the nodes then advances in steps of K dt (lockstep results do not change)'))
+    p.add_argument('--agents-per-process', default='1', metavar='K', help=(
+        'processes: K agents per process (agent containers; each agent still its own node), or auto '
+        '(1 for a small swarm, larger containers when the agents outnumber the cores; default 1)'))
     p.add_argument('--dds', choices=dds.CHOICES, default='auto', help=(
         'DDS set-up of the processes: auto (default: a generated Fast DDS profile, UDP on '
         '127.0.0.1 without shared memory, unless FASTRTPS_DEFAULT_PROFILES_FILE names one), udp '
@@ -491,6 +515,20 @@ def main(argv=None) -> int:
     if remote and a.discovery == 'simple':
         print('swarm run: --remote-agents needs a discovery server (--discovery server or auto)', file=sys.stderr)
         return 2
+    from swarm_agent.container_core import agents_per_process, split_agents
+    if a.agents_per_process == 'auto':
+        per = agents_per_process(len(scn.names) - len(remote), os.cpu_count())
+    else:
+        try:
+            per = int(a.agents_per_process)
+            if per < 1:
+                raise ValueError
+        except ValueError:
+            print(f'swarm run: --agents-per-process {a.agents_per_process}: must be a whole number ≥ 1 or auto',
+                  file=sys.stderr)
+            return 2
+    local = [nm for i, nm in enumerate(scn.names) if i not in set(remote)]
+    groups = split_agents(local, per)
     ref = a.scenario
     if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
         ref = str(Path(a.scenario).resolve())
@@ -535,12 +573,20 @@ def main(argv=None) -> int:
     run_id = new_run_id()               # on the lockstep messages and /swarm/run (swarm_ros.runinfo)
     for p in params.values():
         p['run_id'] = run_id
-    n_proc = len(scn.names) - len(remote) + 2 + (1 if a.record else 0) + (1 if a.foxglove is not None else 0)
+    n_proc = len(groups) + 2 + (1 if a.record else 0) + (1 if a.foxglove is not None else 0)
     use_server = not a.in_process and (a.discovery == 'server' or (a.discovery == 'auto' and (
         n_proc > dds.SIMPLE_LIMIT or bool(remote))))
+    if not a.in_process and per > 1:
+        # the world waits for the step relay's readers (one per agent process) and, with a
+        # recorder, for the /clock readers (lone agents, and containers that follow /clock)
+        lone = sum(len(g) == 1 for g in groups)
+        params['/world'].update(step_readers=len(groups) + len(remote),
+                                clock_readers=lone + len(remote) + 2
+                                + (len(groups) - lone if a.mode == 'realtime' else 0))
+    per_text = '' if a.in_process or per == 1 else f' ({per} agents per process)'
     print(f'swarm run: run {run_id}: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '
-          f'{"one process" if a.in_process else f"{n_proc} processes"}, t = {scn.duration:g}, dt = {scn.dt:g}',
-          flush=True)
+          f'{"one process" if a.in_process else f"{n_proc} processes"}{per_text}, t = {scn.duration:g}, '
+          f'dt = {scn.dt:g}', flush=True)
     t0 = time.monotonic()
     if a.in_process:
         if a.record:
@@ -560,7 +606,6 @@ def main(argv=None) -> int:
             except (ValueError, OSError) as err:
                 print(f'swarm run: {err}', file=sys.stderr)
                 return 2
-            local = [nm for i, nm in enumerate(scn.names) if i not in set(remote)]
             if remote:
                 same = ''.join(f' --{k} {v}' for k, v in (('seed', a.seed), ('dt', a.dt), ('duration', a.duration),
                                                           ('mode', a.mode if a.mode != 'lockstep' else None))
@@ -570,7 +615,7 @@ def main(argv=None) -> int:
                       + same + (' --recorded' if a.record else ''), flush=True)
             code = run_processes(params, pfile, local, env, record=a.record, out_dir=out,
                                  pid_file=pid_file, events_file=out / 'events.jsonl', foxglove=a.foxglove,
-                                 server=server)
+                                 server=server, groups=groups)
     wall = time.monotonic() - t0
     if code in (0, 130) and traj_file.exists():      # 130: Ctrl-C; the world saved the steps done
         try:
@@ -595,7 +640,8 @@ def main(argv=None) -> int:
             salvage(scn, out, a.record, a.mode, wall, figure=not a.no_figure)
     try:
         write_atomic(out / 'run.json', json.dumps(dict(exit_code=code, wall_seconds=wall, mode=a.mode,
-                                                       processes=not a.in_process, agents=len(scn.names))))
+                                                       processes=not a.in_process, agents=len(scn.names),
+                                                       agents_per_process=per)))
     except OSError as err:
         print(write_failed('swarm run', out, err), file=sys.stderr)
     return code

@@ -32,6 +32,10 @@ WORLD = {
     'collision_distance': (0.01, 'pairs closer than this count as a collision', dict(lo=0.0, hi=1e6)),
     'missing_timeout': (10.0, 'lockstep: drop an agent whose state has not come after this many wall s',
                         dict(lo=0.1, hi=1e6)),
+    'step_readers': (0, 'lockstep: readers of the step relay to wait for (one per agent process; 0: one per '
+                     'agent)', dict(lo=0, hi=100000)),
+    'clock_readers': (0, 'with wait_for_recorder: /clock readers to wait for (0: agents + commander + '
+                      'recorder)', dict(lo=0, hi=100000)),
     'pid_file': ('', 'JSON {agent: pid} of the agent processes, for kill/pause ("": none)', {}),
     'events_file': ('', 'append every event here as JSON lines ("": output_dir/events.jsonl)', {}),
     'trail_length': (200, 'trail points per agent in the markers', dict(lo=0, hi=100000)),

@@ -10,8 +10,11 @@ class StartWatch:
     than the agents and the commander (a late recorder would lose the first, volatile /clock
     messages), for at most ``recorder_wait`` s."""
 
-    def __init__(self, now, n, *, start_timeout, wait_for_recorder=False, recorder_wait=0.0):
+    def __init__(self, now, n, *, start_timeout, wait_for_recorder=False, recorder_wait=0.0,
+                 relay_want=0, clock_want=0):
         self.n = n
+        self.relay_want = relay_want or n          # agent containers: one relay reader per process
+        self.clock_want = clock_want or n + 2      # agents, commander, recorder
         self.start_timeout = start_timeout
         self.wait_for_recorder = wait_for_recorder
         self.recorder_wait = recorder_wait
@@ -22,8 +25,8 @@ class StartWatch:
         """``'start'``, ``'start_without_recorder'`` (waited ``recorder_wait`` in vain),
         ``'time_out'`` (not started within ``start_timeout``) or None (wait).  ``states``: every
         state of step 0 is held."""
-        ok = states and relay_readers >= self.n and commander_readers >= 1 and decision_writers >= 1
-        if ok and self.wait_for_recorder and clock_readers < self.n + 2:     # agents, commander, recorder
+        ok = states and relay_readers >= self.relay_want and commander_readers >= 1 and decision_writers >= 1
+        if ok and self.wait_for_recorder and clock_readers < self.clock_want:
             if self.recorder_wait_from is None:
                 self.recorder_wait_from = now
             if now - self.recorder_wait_from >= self.recorder_wait:

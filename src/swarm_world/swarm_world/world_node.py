@@ -132,6 +132,7 @@ class WorldNode(Node):
         self.obs = Observer(self.collision_distance, self.w, self.progress_every)
         self.newest = {}         # name -> (t, x, y, qz, qw) newest accepted
         self.start_watch = StartWatch(time.monotonic(), self.n, start_timeout=self.start_timeout,
+                                      relay_want=self.step_readers, clock_want=self.clock_readers,
                                       wait_for_recorder=self.wait_for_recorder,
                                       recorder_wait=P.RECORDER_MATCH_WAIT)
         self.watch = StallWatch(time.monotonic(), missing_timeout=self.missing_timeout,
@@ -309,8 +310,8 @@ class WorldNode(Node):
                 self.get_logger().warning(f'pid_file {self.pid_file}: {err}; faults only leave agents out')
                 self.pids = {}
         pid = self.pids.get(self.names[i])
-        if pid is None:
-            return
+        if pid is None or list(self.pids.values()).count(pid) > 1:
+            return                    # a container holds this agent: it obeys /swarm/events itself
         # only a live child of our launcher running that agent's node (never any pid in a file)
         refused = may_signal(pid, self.names[i], os.getppid())
         if refused is not None:
@@ -405,7 +406,7 @@ class WorldNode(Node):
                 commander_readers=self.pub_lock_states.get_subscription_count(),
                 decision_writers=self.sub_decision.handle.get_publisher_count(), clock_readers=clock_readers)
             if go == 'start_without_recorder':
-                self.get_logger().warning(f'{P.CLOCK}: {clock_readers} readers matched, not {self.n + 2}, after '
+                self.get_logger().warning(f'{P.CLOCK}: {clock_readers} readers matched, not {self.start_watch.clock_want}, after '
                                           f'{P.RECORDER_MATCH_WAIT:g} s; starting anyway')
             if go in ('start', 'start_without_recorder'):
                 self.started = True

@@ -1,0 +1,114 @@
+"""swarm_agents: an agent container — several agents of the swarm in one process.
+
+Usage: ``swarm_agents AGENT [AGENT ...] --ros-args --params-file FILE`` (``swarm run
+--agents-per-process K`` starts it). Every agent is its own rclpy node ``/AGENT/agent`` (its
+own parameters from FILE, logger, ``steering`` subscription and ``/swarm/states``
+publisher), as an agent process would be. What the agents share is done once per process, on
+a host node ``/agent_container_<first index>``: one subscription each to the step relay
+(lockstep: decoded once, the controls of all agents from one law call, see
+`swarm_agent.container_core`), ``/swarm/states`` (realtime: every agent's neighbour table),
+λ, leaders, target, barrier and ``/swarm/events``, and one sim clock.
+
+Sim time: in lockstep the agents' clocks are set from each step message (parameter
+``lockstep_clock`` = step, default; no ``/clock`` reader) or follow ``/clock`` (topic); in
+realtime they follow ``/clock`` through one subscription of the host node.
+
+Faults: the world does not signal a process that holds several agents; the container obeys
+the fault events on ``/swarm/events`` for its own agents (kill: the agent stops for good;
+freeze ... resume), and the others go on. Killing the process kills all its agents.
+"""
+from __future__ import annotations
+
+import sys
+
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.time import Time
+from rclpy.time_source import TimeSource
+
+from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node
+
+from .agent_node import AgentNode, shared_inputs, step_message
+from .container_core import ContainerCore
+
+CLOCKS = ('step', 'topic')
+
+
+class AgentContainer(Node):
+    """The host node of a container and its agents (`agents`)."""
+
+    def __init__(self, names=None, *, context=None, parameter_overrides=None, agent_overrides=None):
+        names = list(names if names is not None else AGENT_NAMES)
+        if not names:
+            raise ParameterError('swarm_agents: name at least one agent (swarm_agents AGENT [AGENT ...])')
+        agent_overrides = agent_overrides or {}
+        self.agents = [AgentNode('agent', namespace=nm, context=context, contained=True,
+                                 parameter_overrides=agent_overrides.get(nm)) for nm in names]
+        first = self.agents[0]
+        super().__init__(f'agent_container_{first.index}', context=context,
+                         parameter_overrides=[Parameter('use_sim_time', value=False)] + list(parameter_overrides or []))
+        self.mode = first.mode
+        self.n = first.n
+        if any(a.mode != self.mode or a.roster != first.roster for a in self.agents):
+            raise ParameterError('swarm_agents: the agents of a container need the same mode and agent_names')
+        self.lockstep_clock = declare(self, 'lockstep_clock', 'step', "lockstep: the agents' sim time from each "
+                                      'step message (step) or from /clock (topic)', choices=CLOCKS)
+        self.reject = RejectLog(self.get_logger())
+        self.lock = ContainerCore([a.core for a in self.agents])
+        for j, a in enumerate(self.agents):
+            a.lock_kill = (lambda j=j: self.lock.kill(j))
+        # one sim clock for all agents: their own /clock readers go, their clocks follow one source
+        self.clock_source = TimeSource()
+        for a in self.agents:
+            a._time_source.detach_node()
+            self.clock_source.attach_clock(a.get_clock())
+        if self.mode == 'realtime' or self.lockstep_clock == 'topic':
+            self.clock_source.attach_node(self)
+            self.clock_source.ros_time_is_active = True
+        else:
+            self.clock_source.ros_time_is_active = True          # set by hand from the step messages
+        for typ, topic, cb, qos, raw in shared_inputs(self):
+            self.create_subscription(typ, topic, cb, qos, raw=raw)
+        self.get_logger().info(f'{len(self.agents)} agents: {", ".join(a.agent_name for a in self.agents)}')
+
+    # the shared inputs, handed to every agent
+    def _on_step(self, raw):
+        s = step_message(raw, self.lock, self.agents, self)
+        if s is not None and self.lockstep_clock == 'step':
+            now = Time(nanoseconds=int(round(s.t * 1e9)))
+            for a in self.agents:
+                a.get_clock().set_ros_time_override(now)
+
+    def _fan(name):                             # noqa: N805 - builds a method
+        def handler(self, msg):
+            for a in self.agents:
+                getattr(a, name)(msg)
+        handler.__name__ = name
+        return handler
+
+    _on_lambda = _fan('_on_lambda')
+    _on_leaders = _fan('_on_leaders')
+    _on_target = _fan('_on_target')
+    _on_barrier = _fan('_on_barrier')
+    _on_event = _fan('_on_event')
+    _on_state = _fan('_on_state')
+    del _fan
+
+    def destroy_node(self):
+        for a in self.agents:
+            a.destroy_node()
+        return super().destroy_node()
+
+
+AGENT_NAMES: list = []
+
+
+def main(argv=None):
+    from rclpy.utilities import remove_ros_args
+    args = sys.argv if argv is None else argv
+    AGENT_NAMES[:] = [a for a in remove_ros_args(list(args))[1:] if a not in ('-h', '--help')]
+    return run_node(AgentContainer, 'swarm_agents', args, more_nodes=lambda c: c.agents)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

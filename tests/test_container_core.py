@@ -1,0 +1,142 @@
+"""Agent containers without DDS (`swarm_agent.container_core`): K agents of one process, driven
+by the step messages the world would send, reproduce `swarm_core.engine.simulate` bit for bit
+(one law call per container and step), with faults; the ``auto`` rule; the grouping."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from swarm_agent.agent_core import AgentCore
+from swarm_agent.container_core import (CONTAINER_SIZE, PROCESSES_PER_CORE, ContainerCore, agents_per_process,
+                                        split_agents)
+from swarm_core import laws
+from swarm_core.engine import simulate
+from swarm_core.scenario import load
+
+FAULTS = """\
+name: container_faults
+seed: 0
+dt: 0.05
+duration: 12
+agents:
+  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
+  headings: {rule: cone, half_width: 0.7853981633974483}
+law: {kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0,
+      leader_gain: 30.0, q0: 1.0}
+lambda: {kind: tanh_window, rise_at: 3, fall_at: 1000, tau: 1}
+leaders: {rule: lateral_extremes, at: 1, programs: [{kind: constant, curvature: 0.05},
+                                                   {kind: constant, curvature: -0.05}]}
+faults:
+  - {at: 2, freeze: agent_1, for: 2.0}
+  - {at: 5, kill: agent_4}
+noise: {position: 0.001, heading: 0.001}
+"""
+
+
+def drive(scn, groups):
+    """Run the agents as containers (``groups``: agent indices per process) on the batch
+    engine's own step inputs (what the world relays: λ, leaders, s_k, who is in the table),
+    checking u and positions against the engine step by step; returns the agent-steps moved."""
+    from swarm_core.engine import SwarmStepper
+    from swarm_core.frenet import quaternion_from_heading
+    eng = SwarmStepper(scn)
+    n = len(scn.names)
+    cores = [AgentCore(i, n, *scn.pos0[i], scn.theta0[i], scn.law, scn.dt,
+                       (scn.spec.noise.position, scn.spec.noise.heading), scn.noise_rng(i)) for i in range(n)]
+    boxes = [ContainerCore([cores[i] for i in g]) for g in groups]
+    x, y = scn.pos0[:, 0].copy(), scn.pos0[:, 1].copy()
+    qz, qw = quaternion_from_heading(scn.theta0)
+    moved = silent = in_table = 0
+    for step in range(scn.steps):
+        t, lam, is_leader, steering, frame = eng.inputs()
+        alive = eng.faults.alive.copy()
+        in_table += int(alive.sum())
+        s = SimpleNamespace(n=step, t=t, lam=lam, flags=is_leader, steering=np.asarray(steering, float),
+                            x=x.copy(), y=y.copy(), qz=qz.copy(), qw=qw.copy(), u=np.zeros(n), alive=alive,
+                            target=scn.target, barrier=scn.barrier, rendezvous=eng.plan.rendezvous_now)
+        u = np.full(n, np.nan)
+        for box in boxes:
+            for j, kind, detail in box.on_step(s):
+                assert kind in ('moved', 'silent', 'back'), (kind, detail)
+                if kind == 'moved':
+                    u[box.cores[j].index] = detail
+                    moved += 1
+                silent += kind == 'silent'
+        want = eng.control(t, eng.pos, eng.theta, lam, is_leader, steering, frame)
+        np.testing.assert_array_equal(u[alive], want[alive])
+        assert np.isnan(u[~alive]).all()
+        eng.advance(t, want, lam, is_leader, steering)
+        for i, c in enumerate(cores):          # what the agents publish (the others keep their last)
+            if alive[i]:
+                x[i], y[i] = c.pos[0]
+                qz[i], qw[i] = c.quaternion
+        np.testing.assert_array_equal(np.stack([x, y], 1), eng.pos)
+    assert silent >= 2                         # the frozen one and the dead one left the table
+    return moved, in_table
+
+
+@pytest.fixture
+def counted(monkeypatch):
+    """Count the calls of the core law made by container_core (one per container and step)."""
+    import swarm_agent.container_core as cc
+    calls = {'n': 0, 'idle': 0}
+    real = laws.swarm_control
+
+    def wrapped(*a, **k):
+        calls['n'] += 1
+        return real(*a, **k)
+    monkeypatch.setattr(cc, 'swarm_control', wrapped)
+    return calls
+
+
+@pytest.mark.parametrize('groups', [[[0, 1, 2], [3, 4, 5]], [[0, 1, 2, 3, 4, 5]], [[0], [1, 5], [2, 3, 4]]],
+                         ids=['2x3', '1x6', 'mixed'])
+def test_containers_equal_simulate_with_faults(tmp_path, counted, groups):
+    path = tmp_path / 'f.yaml'
+    path.write_text(FAULTS)
+    scn = load(str(path))
+    ref = simulate(scn)
+    alive = np.isfinite(ref.u)
+    assert not alive.all()                             # the faults took agents out
+    moved, in_table = drive(scn, groups)
+    # one law call per container and step, none for a container whose agents are all out
+    idle = sum(int(sum(not alive[k, g].any() for k in range(scn.steps))) for g in groups)
+    assert counted['n'] == scn.steps * len(groups) - idle
+    assert moved == in_table                           # every agent in the table moved, once
+
+
+def test_repeat_reject_and_kill():
+    scn = load('homotopy_global', duration=1.0)
+    n = len(scn.names)
+    cores = [AgentCore(i, n, *scn.pos0[i], scn.theta0[i], scn.law, scn.dt) for i in range(n)]
+    box = ContainerCore(cores[:3])
+    from swarm_core.frenet import quaternion_from_heading
+    qz, qw = quaternion_from_heading(scn.theta0)
+
+    def msg(k, alive=None):
+        return SimpleNamespace(n=k, t=k * scn.dt, lam=0.0, flags=np.zeros(n, bool), steering=np.zeros(n),
+                               x=scn.pos0[:, 0], y=scn.pos0[:, 1], qz=qz, qw=qw, u=np.zeros(n),
+                               alive=np.ones(n, bool) if alive is None else alive, target=None, barrier=None,
+                               rendezvous=None)
+    assert [k for _, k, _ in box.on_step(msg(0))] == ['moved'] * 3
+    assert [k for _, k, _ in box.on_step(msg(0))] == ['repeat'] * 3       # the world's stall recovery
+    assert [k for _, k, _ in box.on_step(msg(5))] == ['back'] * 3 + ['moved'] * 3
+    out = box.on_step(msg(3))
+    assert [k for _, k, _ in out] == ['reject'] * 3 and 'this agent is at step 6' in out[0][2][1]
+    box.kill(1)
+    alive = np.ones(n, bool)
+    alive[2] = False
+    assert [(j, k) for j, k, _ in box.on_step(msg(6, alive))] == [(2, 'silent'), (0, 'moved')]
+    assert cores[1].step == 6 and cores[0].step == 7
+
+
+def test_auto_rule_and_groups():
+    assert agents_per_process(6, 2) == 1 and agents_per_process(PROCESSES_PER_CORE * 4, 4) == 1
+    assert agents_per_process(7, 2) == 4 and agents_per_process(24, 2) == 12
+    assert agents_per_process(1000, 2) == 100 and agents_per_process(1000, 32) == 32
+    for n in (24, 96, 240, 500, 1000, 5000):
+        k = agents_per_process(n, 2)
+        groups = split_agents([f'a{i}' for i in range(n)], k)
+        assert len(groups) >= 2 and max(map(len, groups)) <= CONTAINER_SIZE
+        assert sum(map(len, groups)) == n
+    assert split_agents(['a', 'b', 'c'], 2) == [['a', 'b'], ['c']]

@@ -1,0 +1,170 @@
+"""Agent containers end to end: `swarm run --agents-per-process K` (K agents per OS process,
+each its own node) in lockstep equals `swarm simulate` exactly, the ROS graph lists every agent
+node, and faults hit one agent of a container while the others in that process go on."""
+import json
+import subprocess
+import time
+
+import numpy as np
+import pytest
+import yaml
+
+from swarm_core.engine import simulate
+from swarm_core.scenario import load
+from swarm_core.trajectory import Trajectory
+
+from conftest import Lines, short_homotopy
+
+pytestmark = pytest.mark.ros
+
+
+def scenario(tmp_path, n, duration):
+    """The short homotopy scenario (leaders at t = 2, λ rising from t = 4) with n agents."""
+    path = short_homotopy(tmp_path / f'containers_{n}.yaml', duration=duration,
+                          lam='{kind: tanh_window, rise_at: 4, fall_at: 1000, tau: 1}', at=2)
+    if n != 6:
+        doc = yaml.safe_load(path.read_text())
+        side = int(np.ceil(np.sqrt(n)))
+        doc['agents']['positions'] = [[float(i % side), float(i // side)] for i in range(n)]
+        path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def graph_agents(ctx_node, want, proc, timeout):
+    """The agent nodes the graph shows, polled until all of ``want`` are there (or ``proc``
+    ends). As `ros2 node list` does (ros2cli, ros2node/api/__init__.py `get_node_names`):
+    ``node.get_node_names_and_namespaces()``, full name = namespace + '/' + name."""
+    end = time.monotonic() + timeout
+    seen = set()
+    while time.monotonic() < end and proc.poll() is None:
+        seen = {(ns.rstrip('/') + '/' + nm) for nm, ns in ctx_node.get_node_names_and_namespaces()}
+        if want <= seen:
+            break
+        time.sleep(0.2)
+    return seen
+
+
+@pytest.mark.parametrize('n,per', [(6, 1), (6, 3), (6, 6), (24, 12)], ids=['6x1', '2x3', '1x6', '24-2x12'])
+def test_containers_lockstep_equal_simulate(n, per, tmp_path, ros_domain, rclpy_context, processes, swarm_cmd):
+    from rclpy.node import Node
+
+    from swarm_agent.container_core import split_agents
+    from swarm_tools.launch import agent_commands, node_parameters, write_params_file
+    path = scenario(tmp_path, n, duration=10.0 if n == 6 else 6.0)
+    scn = load(str(path))
+    # the graph: the agent processes as the launcher spawns them (`agent_commands`), on their own
+    # (a run may end before a watcher has discovered it): every agent node, one host per container
+    params = write_params_file(node_parameters(scn, str(path), 'lockstep'), tmp_path / 'params.yaml')
+    groups = split_agents(scn.names, per)
+    agents = [processes.start(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
+              for _, _, cmd in agent_commands(groups, ['--ros-args', '--params-file', str(params)])]
+    watcher = Node('graph_watch', context=rclpy_context)
+    want = {f'/{nm}/agent' for nm in scn.names}
+    hosts = set() if per == 1 else {f'/agent_container_{i}' for i in range(0, n, per)}
+    seen = graph_agents(watcher, want | hosts, agents[0], 180)
+    watcher.destroy_node()
+    for a in agents:
+        a.terminate()
+    for a in agents:
+        a.wait(timeout=30)
+    assert want <= seen, f'graph lacks {sorted(want - seen)[:5]}'
+    assert {nm for nm in seen if nm.startswith('/agent_container_')} == hosts, seen   # one host node per container
+    # the run
+    out = tmp_path / 'run'
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--agents-per-process', str(per)],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
+    text = ''.join(lines.lines)
+    if per > 1:
+        assert f'({per} agents per process)' in text
+    got = Trajectory.load(out / 'trajectory.npz')
+    ref = simulate(scn)
+    np.testing.assert_array_equal(got.r, ref.r)                # exact
+    np.testing.assert_array_equal(got.u, ref.u)
+    assert np.array_equal(got.lam, ref.lam) and np.array_equal(got.leader, ref.leader)
+    assert ref.leader.any() and ref.lam.max() > 0.5            # leaders and λ were in the run
+    pids = json.loads((out / 'pids.json').read_text())
+    assert len(set(pids.values())) == n // per                 # agents of a container share its pid
+
+
+FAULTS = """\
+faults:
+  - {at: 3, freeze: agent_1, for: 2.0}
+  - {at: 6, kill: agent_4}
+"""
+
+
+def test_container_fault_one_agent_killed_one_frozen(tmp_path, ros_domain, processes, swarm_cmd):
+    """All six agents in one process: agent_4 killed, agent_1 frozen for 2 s; the four others
+    in the same process go on, and the run equals the batch engine with the same faults."""
+    path = scenario(tmp_path, 6, duration=12.0)
+    path.write_text(path.read_text() + FAULTS)
+    out = tmp_path / 'run'
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--agents-per-process', '6'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
+    text = ''.join(lines.lines)
+    assert 'fault: kill (in-process' in text and 'not in the table from step' in text, text[-3000:]
+    scn = load(str(path))
+    ref = simulate(scn)
+    got = Trajectory.load(out / 'trajectory.npz')
+    assert np.array_equal(np.isfinite(got.r), np.isfinite(ref.r))
+    fin = np.isfinite(ref.r)
+    np.testing.assert_array_equal(got.r[fin], ref.r[fin])
+    both = np.isfinite(got.u) & np.isfinite(ref.u)
+    assert np.isnan(got.u[np.isnan(ref.u)]).all()
+    np.testing.assert_array_equal(got.u[both], ref.u[both])
+    k_kill, k_freeze = int(round(6 / scn.dt)), int(round(3 / scn.dt))
+    assert np.isnan(got.r[k_kill + 1:, 4]).all()                    # dead from its kill on
+    others = [0, 2, 3, 5]
+    assert np.isfinite(got.r[:, others]).all()                      # the process's other agents went on
+    assert np.all(np.diff(got.r[k_freeze + 2:k_freeze + 38, 1, 0]) == 0)   # agent_1 held still while frozen
+    assert np.any(np.diff(got.r[-20:, 1, 0]) != 0)                 # ... and moves again
+    want = sorted((e['kind'], e.get('agent'), e['t']) for e in ref.meta['events'])
+    events = [json.loads(ln) for ln in (out / 'events.jsonl').read_text().splitlines()]
+    assert sorted((e['kind'], e.get('agent'), e['t']) for e in events) == want
+    pids = json.loads((out / 'pids.json').read_text())
+    assert len(set(pids.values())) == 1                             # one process held all six
+
+
+def test_container_live_faults_and_a_killed_container(tmp_path, ros_domain, processes, swarm_cmd):
+    """Three containers of two: `swarm kill agent_4` and `swarm pause agent_1 5` act on that
+    agent alone (its container partner goes on); SIGKILL to the container of agent_2 and agent_3
+    kills both, and the world drops them as lost after its missing_timeout."""
+    import os
+    import signal
+    path = scenario(tmp_path, 6, duration=150.0)
+    out = tmp_path / 'run'
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--agents-per-process', '2',
+                         '--missing-timeout', '3', '--progress-every', '25'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait_for('discovered in', 120), ''.join(lines.lines)
+    cli = [processes.start([swarm_cmd, 'kill', 'agent_4'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True),
+           processes.start([swarm_cmd, 'pause', 'agent_1', '5'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           text=True)]
+    pids = json.loads((out / 'pids.json').read_text())
+    assert pids['agent_2'] == pids['agent_3'] and len(set(pids.values())) == 3
+    os.kill(pids['agent_2'], signal.SIGKILL)                   # the whole container, from outside
+    for c in cli:
+        msg, _ = c.communicate(timeout=60)
+        assert c.returncode == 0, msg
+    assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
+    text = ''.join(lines.lines)
+    assert 'agents[agent_2..agent_3] exited with code' in text and 'its 2 agents are gone' in text, text[-3000:]
+    events = [json.loads(ln) for ln in (out / 'events.jsonl').read_text().splitlines()]
+    by = {(e['kind'], e.get('agent')): e for e in events}
+    kill, freeze, resume = by[('kill', 'agent_4')], by[('freeze', 'agent_1')], by[('resume', 'agent_1')]
+    assert ('lost', 'agent_2') in by and ('lost', 'agent_3') in by
+    live = Trajectory.load(out / 'trajectory.npz')
+    assert np.isnan(live.r[kill['step']:, 4]).all() and np.isfinite(live.r[:kill['step'], 4]).all()
+    for nm in ('agent_2', 'agent_3'):
+        k = by[('lost', nm)]['step']
+        i = int(nm[-1])
+        assert np.isnan(live.r[k:, i]).all() and np.isfinite(live.r[:k, i]).all()
+    assert np.isfinite(live.r[:, [0, 1, 5]]).all()             # the partners went on to the end
+    k0, k1 = freeze['step'], resume['step']
+    assert np.array_equal(live.r[k1, 1], live.r[k0, 1])       # agent_1 held still while paused
+    assert not np.array_equal(live.r[-1, 1], live.r[k1, 1])    # ... and flew on
