@@ -53,6 +53,9 @@ from swarm_ros.rosutil import ParameterError, declare, gid_key, run_node, steady
 from swarm_ros.runinfo import declare_run_id
 
 SETPOINT = P.LAMBDA_SETPOINT
+#: depth of the commander's λ and steering writers (transient-local): a command reader made
+#: later may receive that many of the commander's own last values
+OWN_ECHO = P.STEP_DEPTH
 #: wall seconds between looks at the graph for new command writers
 COMMAND_POLL = 0.05
 
@@ -192,19 +195,22 @@ class CommanderNode(Node):
                     c.sub = None
                 if writers:
                     c.sub = self.create_subscription(c.msg_type, c.topic, c.callback, P.qos_reliable())
-                if c.own is not None:
-                    self.own_sent.pop(c.own, None)
+                if c.own is not None and c.own in self.own_sent:
+                    # a new reader may still get the last OWN_ECHO values of our own writer
+                    # (its transient-local history): keep those to recognise them
+                    del self.own_sent[c.own][:-OWN_ECHO]
             c.writers = writers
 
     def _join_lockstep(self):
         self.create_subscription(Float64MultiArray, P.LOCK_STATES, self._on_states, P.qos_latched(), raw=True)
 
     def _send(self, topic, pub, value):
-        if self.commands[topic].sub is not None:      # it comes back only while the reader exists
-            fifo = self.own_sent.setdefault(topic, [])
-            fifo.append(value)
-            if len(fifo) > 1000:
-                del fifo[:500]
+        fifo = self.own_sent.setdefault(topic, [])
+        fifo.append(value)
+        if self.commands[topic].sub is None:          # no reader: only the writer's history can come back
+            del fifo[:-OWN_ECHO]
+        elif len(fifo) > 1000:
+            del fifo[:500]
         pub.publish(Float64(data=value))
 
     def _from_self(self, topic, value):
