@@ -119,11 +119,11 @@ def test_colcon_build_and_ros2_run_finds_every_executable(tmp_path, ros_domain):
     # interpreter's directory nor PATH has them (a colcon install under a system Python)
     exes = ['swarm', 'swarm_world', 'swarm_agent', 'homotopy_commander']
     probe = ("import json, sys; sys.executable = '/nonexistent/python3'; "
-             "from swarm_tools.launch import _exe; print(json.dumps({e: _exe(e) for e in %r}))" % exes)
+             "from swarm_tools.processes import _exe; print(json.dumps({e: _exe(e) for e in %r}))" % exes)
     launch = subprocess.run(['bash', '-c', f'source {setup} && PATH=/usr/bin:/bin exec {sys.executable} -c "$PROBE"'],
                             capture_output=True, text=True, timeout=120, env=dict(env, PROBE=probe))
     assert launch.returncode == 0, launch.stdout + launch.stderr
-    from swarm_tools.launch import EXE_PACKAGE
+    from swarm_tools.processes import EXE_PACKAGE
     assert json.loads(launch.stdout) == {e: found[EXE_PACKAGE[e]]['found'][e] for e in exes}
     # the installed copies are the ones imported once the workspace is sourced
     where = sourced('python3 -c "import swarm_agent; print(swarm_agent.__file__)"', timeout=60)

@@ -141,18 +141,18 @@ def test_swarm_run_parameters_grow_linearly_and_agents_are_limited(tmp_path):
 
     import yaml
 
-    from swarm_tools import launch
+    from swarm_tools import launch, node_params
 
     def params_size(n):
         scn = parse(dict(name='big', agents=dict(count=n)), 'x.yaml')
-        params = launch.node_parameters(scn, 'x.yaml', 'lockstep')
-        path = launch.write_params_file(params, tmp_path / f'p{n}.yaml')
+        params = node_params.node_parameters(scn, 'x.yaml', 'lockstep')
+        path = node_params.write_params_file(params, tmp_path / f'p{n}.yaml')
         return params, path
 
     (p1, f1), (p4, f4) = params_size(250), params_size(1000)
     assert f4.stat().st_size < 4.6 * f1.stat().st_size          # O(N²) gives ~16×
     doc = yaml.safe_load(f4.read_text())
-    shared = doc[launch.AGENTS_SECTION]['ros__parameters']
+    shared = doc[node_params.AGENTS_SECTION]['ros__parameters']
     for fqn in ('/agent_0/agent', '/agent_999/agent'):       # each agent still gets everything
         assert {**shared, **doc[fqn]['ros__parameters']} == p4[fqn]
     assert doc['/world']['ros__parameters'] == p4['/world']

@@ -104,7 +104,8 @@ def test_lockstep_live_commands_replay_in_the_batch_engine(tmp_path, rclpy_conte
     from swarm_core.engine import simulate
     from swarm_core.scenario import load
     from swarm_core.command_plan import read_commands
-    from swarm_tools.launch import build_nodes, node_parameters
+    from swarm_tools.launch import build_nodes
+    from swarm_tools.node_params import node_parameters
     from swarm_ros.rosutil import make_executor
     from conftest import spin_for
 

@@ -22,7 +22,8 @@ from swarm_agent.agent_node import AgentNode  # noqa: E402
 from swarm_core.engine import simulate
 from swarm_core.trajectory import Trajectory  # noqa: E402
 from swarm_core.scenario import load  # noqa: E402
-from swarm_tools.launch import agent_parameters, build_nodes, node_parameters  # noqa: E402
+from swarm_tools.launch import build_nodes  # noqa: E402
+from swarm_tools.node_params import agent_parameters, node_parameters  # noqa: E402
 from swarm_ros import protocol as P  # noqa: E402
 from swarm_ros.rosutil import make_executor  # noqa: E402
 

@@ -49,7 +49,8 @@ def test_containers_lockstep_equal_simulate(n, per, tmp_path, ros_domain, rclpy_
     from rclpy.node import Node
 
     from swarm_agent.container_core import split_agents
-    from swarm_tools.launch import agent_commands, node_parameters, write_params_file
+    from swarm_tools.node_params import node_parameters, write_params_file
+    from swarm_tools.processes import agent_commands
     path = scenario(tmp_path, n, duration=10.0 if n == 6 else 6.0)
     scn = load(str(path))
     # the graph: the agent processes as the launcher spawns them (`agent_commands`), on their own

@@ -20,7 +20,8 @@ from std_msgs.msg import Float64, String
 
 from swarm_agent.agent_node import AgentNode
 from swarm_core.scenario import load
-from swarm_tools.launch import agent_parameters, build_nodes, node_parameters
+from swarm_tools.launch import build_nodes
+from swarm_tools.node_params import agent_parameters, node_parameters
 from swarm_ros import protocol as P
 from swarm_ros.rosutil import make_executor
 from swarm_ros.runinfo import run_json

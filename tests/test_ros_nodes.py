@@ -19,7 +19,8 @@ from swarm_core.trajectory import Trajectory  # noqa: E402
 from swarm_core.laws import swarm_control  # noqa: E402
 from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading  # noqa: E402
 from swarm_core.scenario import load  # noqa: E402
-from swarm_tools.launch import agent_parameters, node_parameters, run_in_process  # noqa: E402
+from swarm_tools.launch import run_in_process  # noqa: E402
+from swarm_tools.node_params import agent_parameters, node_parameters  # noqa: E402
 from swarm_ros import protocol as P  # noqa: E402
 from swarm_ros.rosutil import ParameterError, make_executor  # noqa: E402
 from swarm_world.world_node import WorldNode  # noqa: E402

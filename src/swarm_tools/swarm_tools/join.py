@@ -24,7 +24,9 @@ from pathlib import Path
 from swarm_core.scenario import ScenarioError, load
 
 from . import dds
-from .launch import Supervisor, _exe, add_network_options, node_parameters, parse_agents, write_params_file
+from .launch import add_network_options, parse_agents
+from .node_params import node_parameters, write_params_file
+from .processes import Supervisor, _exe
 
 #: wall seconds the world may stay out of the graph before ``swarm join`` takes the run as over
 GONE_AFTER = 3.0
