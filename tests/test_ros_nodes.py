@@ -373,3 +373,18 @@ def test_realtime_world_resolves_leader_i_from_the_commanders_events(tmp_path, r
     assert len(kills) == 1 and kills[0]['slot'] == 1 and kills[0]['agent'] == chosen[0]['slots'][1], world.events
     for nd in nodes:
         nd.destroy_node()
+
+
+def test_string_parameters_that_look_like_numbers_stay_strings(tmp_path, rclpy_context):
+    """A run id such as ``7710e017`` written by `write_params_file` reaches the node as a string
+    (ROS's parameter-file parser reads it as a double unless it is quoted)."""
+    from swarm_tools.node_params import write_params_file
+    path = write_params_file({'/probe_node': {'run_id': '7710e017', 'other': '1e5', 'n': 3}}, tmp_path / 'p.yaml')
+    node = rclpy.create_node('probe_node', context=rclpy_context,
+                             cli_args=['--ros-args', '--params-file', str(path)])
+    try:
+        assert node.declare_parameter('run_id', '').value == '7710e017'
+        assert node.declare_parameter('other', '').value == '1e5'
+        assert node.declare_parameter('n', 0).value == 3
+    finally:
+        node.destroy_node()

@@ -8,6 +8,20 @@ from pathlib import Path
 import yaml
 
 
+class _QuotedStrings(yaml.SafeDumper):
+    """Strings that ROS's parameter-file parser could read as a number or a boolean are quoted:
+    it reads a plain ``7710e017`` (a run id) as the double 7.71e+20, where PyYAML would not."""
+
+
+def _str(dumper, value):
+    looks = value[:1] in tuple('0123456789+-.') or value.lower() in (
+        '', 'true', 'false', 'yes', 'no', 'on', 'off', 'null', '~', 'y', 'n', 'nan', 'inf')
+    return dumper.represent_scalar('tag:yaml.org,2002:str', value, style="'" if looks else None)
+
+
+_QuotedStrings.add_representer(str, _str)
+
+
 def agent_parameters(scn, i: int, mode: str) -> dict:
     noise = scn.spec.noise
     return dict(agent_name=scn.names[i], agent_index=i, agent_names=list(scn.names), leader=False,
@@ -50,5 +64,5 @@ def write_params_file(params: dict, path: Path) -> Path:
             shared = {}
         for fqn, p in agents.items():
             doc[fqn] = {'ros__parameters': {k: v for k, v in p.items() if k not in shared}}
-    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    path.write_text(yaml.dump(doc, Dumper=_QuotedStrings, sort_keys=False))
     return path
