@@ -36,7 +36,7 @@ from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import RejectLog, Senders, check_values, may_signal, reason
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
-from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, run_json
+from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, older_runs, run_json
 
 from .inputs import fault_request, format_points, leader_flags, parse_geometry, parse_point, parse_points
 from .lockstep import LockstepBarrier, comms_schedule, decision_valid
@@ -109,6 +109,7 @@ class WorldNode(Node):
         self.since = time.time()
         self.pub_run.publish(String(data=run_json(self.run_id, self.scn.name, self.mode, self.names, self.since)))
         self.runs = RunWatch(self)
+        self.second_world_at = None     # when a second /world node was first seen (no announcement yet)
         if self.mode == 'realtime':
             self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_latched(10))  # the commander's
             # the leaders as the commander announces them (lockstep: in each decision)
@@ -227,6 +228,12 @@ class WorldNode(Node):
         """Stop (one error line, exit 1) rather than mix with an older run (runinfo.give_way)."""
         worlds = 1 if self.started else sum(
             1 for nm, ns in self.get_node_names_and_namespaces() if nm == 'world' and ns == '/')
+        if worlds > 1 and not older_runs(self.runs.runs, self.run_id, self.since):
+            # a second world seen before its /swarm/run: hold the start a moment to hear which run
+            now = time.monotonic()
+            self.second_world_at = self.second_world_at or now
+            if now - self.second_world_at < 3.0:
+                return True
         self.failed = give_way(self.runs.runs, self.run_id, self.since, worlds, self.started,
                                os.environ.get('ROS_DOMAIN_ID', '0'))
         if self.failed is None:
