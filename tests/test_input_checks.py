@@ -169,3 +169,26 @@ def test_the_younger_of_two_runs_gives_way():
     assert 'a second /world node' in give_way({}, 'me', 20.0, 2, False, '7')
     assert give_way({}, 'me', 20.0, 2, True, '7') is None
     assert give_way({'me': dict(old, run_id='me')}, 'me', 20.0, 1, False, '7') is None
+
+
+def test_agent_states_batches_are_checked_and_bound_to_their_process():
+    from swarm_ros.msg_checks import ProcessSenders, check_agent_states
+    good = np.array([[1.0, 2.0], [3.0, 4.0], [0.0, np.sin(0.3)], [1.0, np.cos(0.3)]])
+    u = np.zeros(2)
+    assert check_agent_states(5.0, np.array([0, 3]), good, u, 4) is None
+    assert check_agent_states(5.0, np.array([0, 4]), good, u, 4).kind == 'unknown-agent'
+    assert check_agent_states(5.0, np.array([1, 1]), good, u, 4).kind == 'duplicate'
+    bad = good.copy()
+    bad[0, 1] = np.inf
+    assert check_agent_states(5.0, np.array([0, 3]), bad, u, 4).kind == 'non-finite'
+    bad = good.copy()
+    bad[2, 0] = 0.5
+    assert check_agent_states(5.0, np.array([0, 3]), bad, u, 4).kind == 'not-planar'
+    s = ProcessSenders(4)
+    ok, why = s.check(np.array([0, 3]), 5.0)
+    assert ok.all() and why is None
+    s.accept(np.array([0, 3]), 5.0)
+    ok, why = s.check(np.array([2, 3]), 6.0)          # agent 3 is bound to process 5
+    assert ok.tolist() == [True, False] and why.kind == 'second-publisher'
+    s.accept(np.array([2]), 6.0)
+    assert s.tag[[0, 2, 3]].tolist() == [5.0, 6.0, 5.0] and np.isnan(s.tag[1])

@@ -44,6 +44,21 @@ def graph_agents(ctx_node, want, proc, timeout):
     return seen
 
 
+def node_services(ctx_node, ns, lean, proc, timeout):
+    """The service names of node ``<ns>/agent`` as `ros2 service list` finds them per node
+    (rclpy ``get_service_names_and_types_by_node``), polled until its parameter services are
+    there (``lean`` False) or, for a lean node, until its /swarm/states writer is known."""
+    end = time.monotonic() + timeout
+    names = set()
+    while time.monotonic() < end and proc.poll() is None:
+        names = {nm for nm, _ in ctx_node.get_service_names_and_types_by_node('agent', ns)}
+        pubs = {nm for nm, _ in ctx_node.get_publisher_names_and_types_by_node('agent', ns)}
+        if (f'{ns}/agent/set_parameters' in names) if not lean else '/swarm/states' in pubs:
+            break
+        time.sleep(0.2)
+    return names
+
+
 @pytest.mark.parametrize('n,per', [(6, 1), (6, 3), (6, 6), (24, 12)], ids=['6x1', '2x3', '1x6', '24-2x12'])
 def test_containers_lockstep_equal_simulate(n, per, tmp_path, ros_domain, rclpy_context, processes, swarm_cmd):
     from rclpy.node import Node
@@ -57,12 +72,14 @@ def test_containers_lockstep_equal_simulate(n, per, tmp_path, ros_domain, rclpy_
     # (a run may end before a watcher has discovered it): every agent node, one host per container
     params = write_params_file(node_parameters(scn, str(path), 'lockstep'), tmp_path / 'params.yaml')
     groups = split_agents(scn.names, per)
+    lean = n == 24          # the agent nodes without services (`swarm run --agent-services off`)
     agents = [processes.start(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
-              for _, _, cmd in agent_commands(groups, ['--ros-args', '--params-file', str(params)])]
+              for _, _, cmd in agent_commands(groups, ['--ros-args', '--params-file', str(params)], not lean)]
     watcher = Node('graph_watch', context=rclpy_context)
     want = {f'/{nm}/agent' for nm in scn.names}
     hosts = set() if per == 1 else {f'/agent_container_{i}' for i in range(0, n, per)}
     seen = graph_agents(watcher, want | hosts, agents[0], 180)
+    services = node_services(watcher, '/agent_1', lean, agents[0], 60) if want <= seen else set()
     watcher.destroy_node()
     for a in agents:
         a.terminate()
@@ -70,15 +87,17 @@ def test_containers_lockstep_equal_simulate(n, per, tmp_path, ros_domain, rclpy_
         a.wait(timeout=30)
     assert want <= seen, f'graph lacks {sorted(want - seen)[:5]}'
     assert {nm for nm in seen if nm.startswith('/agent_container_')} == hosts, seen   # one host node per container
+    assert ('/agent_1/agent/set_parameters' in services) != lean, services
     # the run
     out = tmp_path / 'run'
-    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--agents-per-process', str(per)],
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--agents-per-process', str(per)]
+                        + (['--agent-services', 'off'] if lean else []),
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = Lines(p)
     assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
     text = ''.join(lines.lines)
     if per > 1:
-        assert f'({per} agents per process)' in text
+        assert f'({per} agents per process' + (', agent nodes without services)' if lean else ')') in text
     got = Trajectory.load(out / 'trajectory.npz')
     ref = simulate(scn)
     np.testing.assert_array_equal(got.r, ref.r)                # exact

@@ -265,33 +265,34 @@ def test_bad_startup_parameters_are_named(rclpy_context):
 
 
 def test_bad_states_are_rejected_by_the_world(rclpy_context):
-    """Unknown name, NaN pose, a stamp from the past, a duplicate name: one log line each; the
-    world's record holds no NaN and the valid state is kept."""
+    """Lockstep: the world reads its agents' states from /lockstep/agent_states (one message per
+    agent process).  An unknown agent, a NaN state, a second process claiming an agent, a state
+    of a later step: one log line each; the record holds no NaN and the valid state is kept."""
     ctx = rclpy_context
     ex = make_executor(ctx)
     world = WorldNode(context=ctx, parameter_overrides=overrides(dict(scenario='homotopy_global', duration=1.0)),
                       log=lambda *a, **k: None)
     probe = rclpy.create_node('probe', context=ctx)
-    pub = probe.create_publisher(Odometry, P.STATES, P.qos_latched())
+    pub = probe.create_publisher(Float64MultiArray, P.LOCK_AGENT_STATES, P.qos_latched())
     ex.add_node(world)
     ex.add_node(probe)
     assert spin_for(ex, lambda: pub.get_subscription_count() >= 1)
+    qz, qw = math.sin(0.25), math.cos(0.25)
 
-    sent = [odom('agent_3', 1.0, 2.0, 0.5, 0.0),            # valid
-            odom('intruder', 0.0, 0.0, 0.0, 0.0),           # unknown name
-            odom('agent_4', float('nan'), 0.0, 0.0, 0.0),   # NaN pose
-            odom('agent_3', 5.0, 5.0, 0.1, 0.0)]            # same agent, same stamp, other state
+    def batch(tag, idx, step, x, y, u=0.0):
+        return P.float64_array_to_cdr(P.pack_agent_states(tag, [idx], [step], [x], [y], [qz], [qw], [u]))
+    sent = [batch(1.0, 3, 0, 1.0, 2.0),                  # valid
+            batch(1.0, 9, 0, 0.0, 0.0),                  # no agent 9 in a roster of 6
+            batch(1.0, 4, 0, float('nan'), 0.0),         # NaN
+            batch(2.0, 3, 0, 5.0, 5.0),                  # agent_3 from a second process
+            batch(1.0, 5, 3, 0.0, 0.0),                  # a step the world is not at
+            b'\x00\x01\x00\x00' + bytes(8)]            # a message with 0 values
     for m in sent:
         pub.publish(m)
         spin_for(ex, lambda: False, 0.2)
-    world.newest['agent_5'] = (3.0, 0.0, 0.0, 0.0, 1.0)
-    pub.publish(odom('agent_5', 0.0, 0.0, 0.0, 1.0))          # older than agent_5's newest
-    assert spin_for(ex, lambda: len(world.reject.lines) >= 4)
-    lines = world.reject.lines
-    assert any("unknown agent 'intruder'" in ln for ln in lines)
-    assert any("'agent_4'" in ln and 'non-finite' in ln for ln in lines)
-    assert any("'agent_3'" in ln and 'duplicate agent name' in ln for ln in lines)
-    assert any("'agent_5'" in ln and 'stamp from the past' in ln for ln in lines)
+    assert spin_for(ex, lambda: len(world.reject.lines) >= 5)
+    kinds = set(world.reject.kinds)
+    assert {'unknown-agent', 'non-finite', 'second-publisher', 'step', 'state-decode'} <= kinds, world.reject.lines
     assert world.lock.have.tolist() == [False, False, False, True, False, False]
     assert np.all(np.isfinite(world.lock.buf))
     assert world.lock.buf[0, 3] == 1.0 and world.lock.buf[1, 3] == 2.0

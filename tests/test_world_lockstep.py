@@ -185,3 +185,53 @@ def test_headings_unwrap_in_time_from_the_initial_heading():
     assert out[1, 0] == pytest.approx(2 * np.pi - 3.1 + 2 * np.pi)
     assert out[0, 0] == pytest.approx(3.1 + 2 * np.pi)
     assert np.isnan(out[1, 1]) and out[2, 1] == pytest.approx(0.1)
+
+
+def feed_batch(b, k, agents=range(3), u=0.1):
+    """`feed_states` as one agent process's /lockstep/agent_states (packed and unpacked)."""
+    agents = list(agents)
+    vals = np.array([state(i, k) for i in agents]).T
+    data = P.pack_agent_states(7.0, agents, [k] * len(agents), *vals, [u * (i + 1) for i in agents])
+    tag, idx, ks, v, us = P.unpack_agent_states(data)
+    assert tag == 7.0 and list(idx) == agents
+    late, acts = b.on_states(idx, ks, v, us)
+    assert late == []
+    return acts
+
+
+@pytest.mark.parametrize('feed', [feed_states, feed_batch])
+def test_states_in_one_message_per_process_make_the_same_run(feed):
+    """A freeze, a kill and a repeat, fed one state at a time and as batches: the same actions
+    and the same record, bit for bit."""
+    runs = []
+    for f in (feed_states, feed):
+        b = make(steps=6, faults=[Fault(1.0, 'freeze', 'c', 1.0), Fault(2.5, 'kill', 'a')])
+        out = [b.start()]
+        for k in range(7):
+            alive = [i for i in range(3) if b.faults.alive[i] and not b.have[i]]   # a resumed c is held
+            out.append(f(b, k, alive))
+            if k == 2:                             # c's state of its freeze step, late
+                out.append(f(b, 2, [2], u=0.7 / 3))
+            if k == 4 and f is feed_batch:         # a repeat of step 4 (stall recovery) is ignored
+                assert b.on_states(np.array([1]), np.array([3]), np.array([state(1, 3)]).T, np.array([0.2])) == ([], [])
+            out.append(decide(b, k))
+        runs.append((b.rec.trajectory(), [kinds(a) for a in out]))
+    (t1, k1), (t2, k2) = runs
+    assert k1 == k2
+    assert np.array_equal(t1.r, t2.r, equal_nan=True) and np.array_equal(t1.u, t2.u, equal_nan=True)
+
+
+def test_a_batch_state_of_a_later_step_is_named():
+    b = make()
+    b.start()
+    late, acts = b.on_states(np.array([0, 1]), np.array([0, 2]), np.array([state(0, 0), state(1, 2)]).T,
+                             np.array([0.0, 0.0]))
+    assert late == ["state of 'b' for step 2 while the world is at step 0"] and acts == []
+    assert b.have.tolist() == [True, False, False]
+
+
+def test_agent_states_layout_is_checked():
+    with pytest.raises(ValueError, match='do not hold'):
+        P.unpack_agent_states([2.0, 1.0, 0.0])
+    with pytest.raises(ValueError, match='whole number'):
+        P.unpack_agent_states(P.pack_agent_states(1.0, [0.5], [0], [0.0], [0.0], [0.0], [1.0], [0.0]))

@@ -33,6 +33,7 @@ import numpy as np
 from geometry_msgs.msg import PointStamped, PolygonStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_core.comms import CommModel, StreamRadio, change_from_event
@@ -51,9 +52,13 @@ MODES = ('lockstep', 'realtime')
 
 class AgentNode(Node):
     def __init__(self, node_name='agent', *, namespace=None, context=None, parameter_overrides=None,
-                 cli_args=None, contained=False):
+                 cli_args=None, contained=False, services=True):
+        if not services:         # in a big container: no parameter/type-description services, no /rosout
+            parameter_overrides = list(parameter_overrides or []) + [
+                Parameter('start_type_description_service', value=False)]
         super().__init__(node_name, namespace=namespace, context=context, cli_args=cli_args,
-                         parameter_overrides=parameter_overrides)
+                         parameter_overrides=parameter_overrides, enable_rosout=services,
+                         start_parameter_services=services)
         self.contained = contained
         self.halted = None       # contained: 'kill' or 'freeze' (fault events for this agent)
         ns = self.get_namespace().strip('/')
@@ -80,8 +85,9 @@ class AgentNode(Node):
         noise = (d('noise_position', 0.0, 'uniform noise half-width on x, y per step', lo=0.0, hi=1e6),
                  d('noise_heading', 0.0, 'uniform noise half-width on θ per step', lo=0.0, hi=1e6))
         seed = d('seed', 0, 'scenario seed (noise stream)', lo=0, hi=2**31 - 1)
-        self.state_subscribers = d('state_subscribers', 1, 'lockstep: publish the first state only once this '
-                                   'many readers of /swarm/states have matched (2 = world and recorder)', lo=1, hi=100000)
+        self.state_subscribers = d('state_subscribers', 0, 'lockstep: publish the first state only once this '
+                                   'many readers of /swarm/states have matched (1 = the recorder; the world '
+                                   'reads /lockstep/agent_states)', lo=0, hi=100000)
         self.stale_after = d('stale_after', 2.0, 'realtime: ignore neighbour states older than this (sim s)',
                              lo=0.0, hi=1e9)
         self.catch_up_limit = d('catch_up_limit', 4, 'realtime: most control periods one timer call '
@@ -144,14 +150,25 @@ class AgentNode(Node):
         self.own = None          # (sec, nanosec, x, y, qz, qw, u) last published
         if self.mode == 'realtime':
             self.timer = self.create_timer(self.dt, self._on_tick)
-        if self.mode == 'lockstep' and self.state_subscribers > 1:
-            # a recorder matched late would miss the first states (the writer keeps 100): the world
-            # starts step 0 only when it holds every agent's first state, so wait for the readers
+            self.publish_state()
+        elif not contained:          # a lone agent: a container of one for the world
+            self.batch = AgentStatesWriter(self)
+            self.start_lockstep(lambda agent: self.batch.publish([agent]))
+
+    def start_lockstep(self, on_first):
+        """Publish the first state, then call ``on_first(self)`` (the process sends it to the
+        world on /lockstep/agent_states).  With ``state_subscribers`` > 0 only once that many
+        readers of /swarm/states matched: a recorder matched late would miss the first states
+        (the writer keeps 100), and the world starts step 0 only when it holds every first state."""
+        def first():
+            self.publish_state()
+            on_first(self)
+        if self.state_subscribers > 0:
             when_matched(self, lambda: self.pub.get_subscription_count() >= self.state_subscribers,
-                         self.publish_state, P.RECORDER_MATCH_WAIT,
+                         first, P.RECORDER_MATCH_WAIT,
                          f'{P.STATES}: fewer than {self.state_subscribers} readers matched')
         else:
-            self.publish_state()
+            first()
 
     # ------------------------------------------------------------ output
     def publish_state(self):
@@ -393,10 +410,29 @@ def shared_inputs(node):
     return subs
 
 
+class AgentStatesWriter:
+    """``/lockstep/agent_states`` of one agent process (`node`: the lone agent or the
+    container's host node): its agents' states in one message for the world."""
+
+    def __init__(self, node):
+        self.node = node
+        self.tag = new_sender_tag()
+        self.pub = node.create_publisher(Float64MultiArray, P.LOCK_AGENT_STATES, P.qos_latched())
+
+    def publish(self, agents):
+        """The state each of ``agents`` last published on /swarm/states."""
+        if not agents:
+            return
+        own = np.array([a.own[2:] for a in agents]).T          # x, y, qz, qw, u
+        data = P.pack_agent_states(self.tag, [a.index for a in agents], [a.step for a in agents], *own)
+        self.pub.publish(P.float64_array_to_cdr(data, agents[0].run_id))
+
+
 def step_message(raw, lock, agents, log_node):
     """One ``/lockstep/step`` message for the agents of a process: decoded once, decided by
-    their `ContainerCore` (one law call), carried out by each agent.  A step of another run
-    (its id, swarm_ros.runinfo) is rejected."""
+    their `ContainerCore` (one law call), carried out by each agent; then the states of the
+    agents that answered go to the world in one message (``log_node.batch``).  A step of
+    another run (its id, swarm_ros.runinfo) is rejected."""
     run_id = agents[0].run_id
     if run_id and P.cdr_run_id(raw) != run_id:
         log_node.reject('other-run', f'{P.LOCK_STEP} of run {P.cdr_run_id(raw) or "(none)"!r}, not this run '
@@ -407,8 +443,12 @@ def step_message(raw, lock, agents, log_node):
     except Exception as err:
         log_node.reject('step-decode', f'/lockstep/step message: {err}')
         return None
+    said = []
     for j, kind, detail in lock.on_step(s):
         agents[j].lockstep_outcome(kind, detail, s)
+        if kind in ('moved', 'repeat'):
+            said.append(agents[j])
+    log_node.batch.publish(said)
     return s
 
 

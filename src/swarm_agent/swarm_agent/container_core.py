@@ -15,7 +15,8 @@ Rules per agent and step message ``s`` (as an agent process has always followed 
 - otherwise move: u from the law (with a radio model: from the agent's own beliefs, one law
   call per agent), one ZOH step (batched over the agents), the agent's own noise.
 
-`agents_per_process` is the rule behind ``swarm run --agents-per-process auto``.
+`agents_per_process` is the rule behind ``swarm run --agents-per-process auto``, and
+`agent_services` the one behind ``--agent-services auto``.
 """
 from __future__ import annotations
 
@@ -48,6 +49,23 @@ def agents_per_process(n: int, cores: int | None = None) -> int:
         return 1
     containers = max(cores, -(-n // CONTAINER_SIZE))
     return max(1, -(-n // containers))
+
+
+#: ``--agent-services auto``: contained agent nodes keep their services in runs up to this size
+SERVICES_UP_TO = 100
+
+
+def agent_services(n: int, k: int, choice: str = 'auto') -> bool:
+    """Do contained agent nodes get their parameter services, type-description service and
+    /rosout writer (``swarm run --agent-services``)?  ``auto``: yes up to SERVICES_UP_TO agents
+    in the run.  They are 15 of an agent node's 17 DDS endpoints; without them a 1,000-agent run
+    discovers and starts several times faster and holds a fraction of the memory (BENCHMARKS.md).
+    A lone agent (k = 1) always keeps them."""
+    if k <= 1 or choice == 'on':
+        return True
+    if choice == 'off':
+        return False
+    return int(n) <= SERVICES_UP_TO
 
 
 def split_agents(names, k: int) -> list[list]:

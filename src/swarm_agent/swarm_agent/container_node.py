@@ -1,12 +1,14 @@
 """swarm_agents: an agent container — several agents of the swarm in one process.
 
-Usage: ``swarm_agents AGENT [AGENT ...] --ros-args --params-file FILE`` (``swarm run
---agents-per-process K`` starts it). Every agent is its own rclpy node ``/AGENT/agent`` (its
+Usage: ``swarm_agents [--no-services] AGENT [AGENT ...] --ros-args --params-file FILE``
+(``swarm run --agents-per-process K`` starts it; ``--no-services``: the agent nodes have no
+parameter services, type-description service or /rosout writer, see ``--agent-services``). Every agent is its own rclpy node ``/AGENT/agent`` (its
 own parameters from FILE, logger, ``steering`` subscription and ``/swarm/states``
 publisher), as an agent process would be. What the agents share is done once per process, on
 a host node ``/agent_container_<first index>``: one subscription each to the step relay
 (lockstep: decoded once, the controls of all agents from one law call, see
-`swarm_agent.container_core`), ``/swarm/states`` (realtime: every agent's neighbour table),
+`swarm_agent.container_core`; the agents' new states go to the world in ONE
+``/lockstep/agent_states`` message), ``/swarm/states`` (realtime: every agent's neighbour table),
 λ, leaders, target, barrier and ``/swarm/events``, and one sim clock.
 
 Sim time: in lockstep the agents' clocks are set from each step message (parameter
@@ -28,7 +30,7 @@ from rclpy.time_source import TimeSource
 
 from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node
 
-from .agent_node import AgentNode, shared_inputs, step_message
+from .agent_node import AgentNode, AgentStatesWriter, shared_inputs, step_message
 from .container_core import ContainerCore
 
 CLOCKS = ('step', 'topic')
@@ -37,12 +39,13 @@ CLOCKS = ('step', 'topic')
 class AgentContainer(Node):
     """The host node of a container and its agents (`agents`)."""
 
-    def __init__(self, names=None, *, context=None, parameter_overrides=None, agent_overrides=None):
+    def __init__(self, names=None, *, context=None, parameter_overrides=None, agent_overrides=None, services=None):
         names = list(names if names is not None else AGENT_NAMES)
+        services = SERVICES[0] if services is None else services
         if not names:
             raise ParameterError('swarm_agents: name at least one agent (swarm_agents AGENT [AGENT ...])')
         agent_overrides = agent_overrides or {}
-        self.agents = [AgentNode('agent', namespace=nm, context=context, contained=True,
+        self.agents = [AgentNode('agent', namespace=nm, context=context, contained=True, services=services,
                                  parameter_overrides=agent_overrides.get(nm)) for nm in names]
         first = self.agents[0]
         super().__init__(f'agent_container_{first.index}', context=context,
@@ -69,7 +72,16 @@ class AgentContainer(Node):
             self.clock_source.ros_time_is_active = True          # set by hand from the step messages
         for typ, topic, cb, qos, raw in shared_inputs(self):
             self.create_subscription(typ, topic, cb, qos, raw=raw)
+        if self.mode == 'lockstep':
+            self.batch = AgentStatesWriter(self)     # the agents' states for the world, in one message
+            for a in self.agents:
+                a.start_lockstep(self._first_state)
         self.get_logger().info(f'{len(self.agents)} agents: {", ".join(a.agent_name for a in self.agents)}')
+
+    def _first_state(self, _agent):
+        """Lockstep: once every agent has published its first state, send them to the world."""
+        if all(a.own is not None for a in self.agents):
+            self.batch.publish(self.agents)
 
     # the shared inputs, handed to every agent
     def _on_step(self, raw):
@@ -101,12 +113,18 @@ class AgentContainer(Node):
 
 
 AGENT_NAMES: list = []
+SERVICES = [True]
+#: ``swarm_agents --no-services AGENT ...``: the agent nodes without parameter services,
+#: type-description service and /rosout (see `container_core.agent_services`)
+NO_SERVICES = '--no-services'
 
 
 def main(argv=None):
     from rclpy.utilities import remove_ros_args
     args = sys.argv if argv is None else argv
-    AGENT_NAMES[:] = [a for a in remove_ros_args(list(args))[1:] if a not in ('-h', '--help')]
+    own = remove_ros_args(list(args))[1:]
+    SERVICES[0] = NO_SERVICES not in own
+    AGENT_NAMES[:] = [a for a in own if a not in ('-h', '--help', NO_SERVICES)]
     return run_node(AgentContainer, 'swarm_agents', args, more_nodes=lambda c: c.agents)
 
 

@@ -92,6 +92,45 @@ class Senders:
             self.bound.setdefault(name, sender)
 
 
+class ProcessSenders:
+    """Lockstep: binds each agent (row) to the first agent process whose
+    ``/lockstep/agent_states`` carried it (its sender tag), as `Senders` does per name."""
+
+    def __init__(self, n):
+        import numpy as np
+        self.tag = np.full(int(n), np.nan)
+
+    def check(self, index, tag):
+        """(rows to take: a bool mask over ``index``, a `Reason` for the others or None)."""
+        bound = self.tag[index]
+        ok = (bound != bound) | (bound == tag)           # unbound (NaN) or this sender
+        if ok.all():
+            return ok, None
+        return ok, reason('second-publisher', f'/lockstep/agent_states from a second process (sender '
+                          f'{_show(float(tag))}) for {int((~ok).sum())} agents bound to another one')
+
+    def accept(self, index, tag):
+        unbound = self.tag[index] != self.tag[index]
+        self.tag[index[unbound]] = tag
+
+
+def check_agent_states(tag, index, vals, u, n):
+    """Why a decoded ``/lockstep/agent_states`` (`protocol.unpack_agent_states`) must be
+    rejected as a whole (a `Reason`), or None: an agent index outside the roster or twice, a
+    non-finite value, an orientation that is not a planar unit quaternion."""
+    import numpy as np
+    if index.size and (index.max() >= n):
+        return reason('unknown-agent', f'/lockstep/agent_states with agent index {int(index.max())} '
+                      f'(the roster has {n})')
+    if np.unique(index).size != index.size:
+        return reason('duplicate', '/lockstep/agent_states names an agent twice')
+    if not (math.isfinite(tag) and np.all(np.isfinite(vals)) and np.all(np.isfinite(u))):
+        return reason('non-finite', '/lockstep/agent_states with a non-finite state or u')
+    if np.any(np.abs(vals[2] ** 2 + vals[3] ** 2 - 1.0) > 1e-6):
+        return reason('not-planar', '/lockstep/agent_states: an orientation is not a planar unit quaternion')
+    return None
+
+
 def _show(sender):
     if isinstance(sender, (bytes, bytearray)):
         return bytes(sender).hex()[:12] + '…'

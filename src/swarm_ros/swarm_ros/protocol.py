@@ -50,7 +50,8 @@ Every input is paired with the step it belongs to.  For step n (t_n = n·dt):
 
 1. every agent has published its state of t_n on ``/swarm/states``;
 2. the world, once it holds all N states of t_n (rows in agent-index order = the scenario's
-   roster), publishes ``/clock`` = t_n (every ``clock_every`` steps, default every step) and
+   roster; in lockstep it reads them from ``/lockstep/agent_states``, one message per agent
+   process), publishes ``/clock`` = t_n (every ``clock_every`` steps, default every step) and
    the packed states on ``/lockstep/states``;
 3. the commander runs its `CommandPlan` (λ schedule, leader rule, steering programs, live
    set-points) on exactly those states and answers on ``/lockstep/decision``; it also
@@ -59,7 +60,8 @@ Every input is paired with the step it belongs to.  For step n (t_n = n·dt):
    geometry) — each agent reads one message per step (O(N) deliveries, not N²);
 5. each agent computes u_n with `swarm_core.laws.swarm_control` from that table (its own
    row from its own θ), integrates with `zoh_step`, adds its seeded noise and publishes its
-   state of t_{n+1} with twist.angular.z = u_n.
+   state of t_{n+1} with twist.angular.z = u_n on ``/swarm/states``; each agent process also
+   sends its agents' states together on ``/lockstep/agent_states`` (what the world reads).
 The world relays step ``steps`` too (so the last u is known) and then finishes.  All
 lockstep topics are reliable + transient-local depth 1, so a reader that matches late still
 gets the last message; every node answers a repeated message for a step it already handled by
@@ -73,6 +75,13 @@ label ``run:<id>`` of one ``layout`` dimension of size 0 (``data`` unchanged), a
 Packed layouts (std_msgs/Float64MultiArray, ``layout`` empty or the run label, ``data`` as below; N agents)
 ``/lockstep/states``    [n, t_n, N,  x(N), y(N), qz(N), qw(N), alive(N)]
 ``/lockstep/decision``  [n, t_n, N,  λ, leader flags(N) (0/1), s(N), slot(N), R]
+``/lockstep/agent_states`` [K, tag, index(K), step(K), x(K), y(K), qz(K), qw(K), u(K)]
+    what one agent process (a lone agent or a container of K agents) answers per step: the
+    same states its agents publish on ``/swarm/states`` (the state of t_step, carrying u), in
+    ONE message for the world, which reads only this topic in lockstep (one message per
+    process and step to decode, not one per agent).  ``tag``: the process's sender tag (the
+    world binds each agent to the first process heard for it).  Reliable, transient-local;
+    the world's reader keeps max(100, 4 N) messages (many writers share it).
 ``/lockstep/step``      [n, t_n, N,  λ, leader flags(N), s(N), x(N), y(N), qz(N), qw(N),
                          has_target, target_x, target_y, M, barrier x(M), barrier y(M),
                          u(N), alive(N), R]
@@ -108,6 +117,7 @@ METRICS = '/world/metrics'
 LOCK_STATES = '/lockstep/states'
 LOCK_DECISION = '/lockstep/decision'
 LOCK_STEP = '/lockstep/step'
+LOCK_AGENT_STATES = '/lockstep/agent_states'
 EVENTS = '/swarm/events'
 FAULT_REQUEST = '/swarm/fault_request'
 RUN = '/swarm/run'
@@ -232,6 +242,27 @@ def pack_step(n, t, lam, flags, steering, x, y, qz, qw, target=None, barrier=Non
     return np.concatenate([[n, t, len(x), lam], np.asarray(flags, float), steering, x, y, qz, qw,
                            geo, [len(b)], b[:, 0], b[:, 1], u, alive,
                            pack_rendezvous(rendezvous)]).astype(float)
+
+
+def pack_agent_states(tag: float, index, step, x, y, qz, qw, u) -> np.ndarray:
+    """``/lockstep/agent_states`` of one agent process (see the layouts above)."""
+    index = np.asarray(index, float)
+    return np.concatenate([[len(index), float(tag)], index, np.asarray(step, float), x, y, qz, qw, u]).astype(float)
+
+
+def unpack_agent_states(d):
+    """(tag, index (K,) int, step (K,) int, values (4, K): x, y, qz, qw, u (K,)) of a packed
+    ``/lockstep/agent_states``; ValueError if its size does not match K or an index or step
+    is not a whole number ≥ 0."""
+    d = np.asarray(d, dtype=float)
+    if d.size < 2 or not math.isfinite(d[0]) or d[0] < 0 or d[0] != int(d[0]) or d.size != 2 + 7 * int(d[0]):
+        raise ValueError(f'{d.size} values do not hold K = {d[0] if d.size else "?"} agents (want 2 + 7 K)')
+    k = int(d[0])
+    body = d[2:].reshape(7, k)
+    whole = body[:2]
+    if not np.all(np.isfinite(whole)) or np.any(whole < 0) or np.any(whole != np.floor(whole)):
+        raise ValueError('an agent index or step is not a whole number ≥ 0')
+    return float(d[1]), body[0].astype(np.intp), body[1].astype(np.int64), body[2:6], body[6]
 
 
 class Step:

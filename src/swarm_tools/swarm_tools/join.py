@@ -78,7 +78,7 @@ def main(argv=None) -> int:
     params = {f'/{nm}/agent': params[f'/{nm}/agent'] for nm in names}
     if a.recorded and a.mode == 'lockstep':
         for p in params.values():
-            p['state_subscribers'] = 2
+            p['state_subscribers'] = 1
     stopping = {'sig': None}
 
     def on_signal(signum, frame):

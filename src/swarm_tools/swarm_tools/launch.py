@@ -136,6 +136,10 @@ def _parser():
     p.add_argument('--agents-per-process', default='1', metavar='K', help=(
         'processes: K agents per process (agent containers; each agent still its own node), or auto '
         '(1 for a small swarm, larger containers when the agents outnumber the cores; default 1)'))
+    p.add_argument('--agent-services', choices=('auto', 'on', 'off'), default='auto', help=(
+        'processes: do the agent nodes in containers keep their parameter services, type-description '
+        'service and /rosout writer (15 of their 17 DDS endpoints)? auto: yes up to 100 agents in the '
+        'run (default auto; a lone agent always keeps them)'))
     p.add_argument('--dds', choices=dds.CHOICES, default='auto', help=(
         'DDS set-up of the processes: auto (default: a generated Fast DDS profile, UDP on '
         '127.0.0.1 without shared memory, unless FASTRTPS_DEFAULT_PROFILES_FILE names one), udp '
@@ -214,7 +218,7 @@ def main(argv=None) -> int:
     if remote and a.discovery == 'simple':
         print('swarm run: --remote-agents needs a discovery server (--discovery server or auto)', file=sys.stderr)
         return 2
-    from swarm_agent.container_core import agents_per_process, split_agents
+    from swarm_agent.container_core import agent_services, agents_per_process, split_agents
     if a.agents_per_process == 'auto':
         per = agents_per_process(len(scn.names) - len(remote), os.cpu_count())
     else:
@@ -265,7 +269,7 @@ def main(argv=None) -> int:
                                               start_timeout=float(a.start_timeout)))
     if a.record and not a.in_process and a.mode == 'lockstep':
         for nm in scn.names:            # the recorder must hear every state from step 0
-            params[f'/{nm}/agent']['state_subscribers'] = 2
+            params[f'/{nm}/agent']['state_subscribers'] = 1
         params['/world']['wait_for_recorder'] = True          # ... every /clock
         params['/commander']['wait_for_recorder'] = True      # ... and every λ and steering message
     from swarm_ros.runinfo import new_run_id
@@ -282,7 +286,8 @@ def main(argv=None) -> int:
         params['/world'].update(step_readers=len(groups) + len(remote),
                                 clock_readers=lone + len(remote) + 2
                                 + (len(groups) - lone if a.mode == 'realtime' else 0))
-    per_text = '' if a.in_process or per == 1 else f' ({per} agents per process)'
+    per_text = '' if a.in_process or per == 1 else f' ({per} agents per process' + (
+        '' if agent_services(len(scn.names), per, a.agent_services) else ', agent nodes without services') + ')'
     print(f'swarm run: run {run_id}: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '
           f'{"one process" if a.in_process else f"{n_proc} processes"}{per_text}, t = {scn.duration:g}, '
           f'dt = {scn.dt:g}', flush=True)
@@ -314,7 +319,8 @@ def main(argv=None) -> int:
                       + same + (' --recorded' if a.record else ''), flush=True)
             code = run_processes(params, pfile, local, env, record=a.record, out_dir=out,
                                  pid_file=pid_file, events_file=out / 'events.jsonl', foxglove=a.foxglove,
-                                 server=server, groups=groups)
+                                 server=server, groups=groups,
+                                 services=agent_services(len(scn.names), per, a.agent_services))
     wall = time.monotonic() - t0
     if code in (0, 130) and traj_file.exists():      # 130: Ctrl-C; the world saved the steps done
         try:

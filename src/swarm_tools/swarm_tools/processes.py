@@ -14,6 +14,8 @@ import threading
 import time
 from pathlib import Path
 
+from swarm_ros import protocol as P
+
 from . import dds
 
 STOP_GRACE = 4.0
@@ -154,20 +156,23 @@ def killed_agents(events_file) -> set:
     return out
 
 
-def agent_commands(groups, ros) -> list:
+def agent_commands(groups, ros, services=True) -> list:
     """(label, agent names, command) of each agent process: ``swarm_agent`` for a group of one
-    (label: the agent's name), the container ``swarm_agents`` for more (label: ``agents[a..b]``)."""
+    (label: the agent's name), the container ``swarm_agents`` for more (label: ``agents[a..b]``;
+    ``services`` False: its agent nodes without services, `container_core.agent_services`)."""
     out = []
+    lean = [] if services else ['--no-services']
     for g in groups:
         if len(g) == 1:
             out.append((g[0], g, [_exe('swarm_agent')] + ros + ['-r', '__node:=agent', '-r', f'__ns:=/{g[0]}']))
         else:
-            out.append((f'agents[{g[0]}..{g[-1]}]', g, [_exe('swarm_agents'), *g] + ros))
+            out.append((f'agents[{g[0]}..{g[-1]}]', g, [_exe('swarm_agents'), *lean, *g] + ros))
     return out
 
 
 def run_processes(params: dict, params_file: Path, names, env, record=None, out_dir=None,
-                  pid_file=None, events_file=None, foxglove=None, server=None, groups=None) -> int:
+                  pid_file=None, events_file=None, foxglove=None, server=None, groups=None,
+                  services=True) -> int:
     """``names``: the agents started here (a run spread over hosts starts the others with
     ``swarm join``); ``server``: a `dds.DiscoveryServer` started first, stopped with the rest;
     ``groups``: the agents of each agent process (default: one process per agent)."""
@@ -190,7 +195,9 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
             print(f'swarm run: discovery server on {server.locator}; tools in another shell: '
                   f'{dds.user_line(server.address, server.port)}', flush=True)
         if record:
-            rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record)], dds.super_client(env),
+            # /lockstep/agent_states holds the /swarm/states again, batched per process: not kept
+            rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record), '--exclude', P.LOCK_AGENT_STATES],
+                            dds.super_client(env),
                             stderr=subprocess.PIPE, text=True, bufsize=1)
             if not wait_until_ready(rec, 'swarm record: ready', RECORDER_READY_TIMEOUT):
                 print(f'swarm run: the recorder did not say it was ready within '
@@ -201,7 +208,7 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
         sup.start('commander', [_exe('homotopy_commander')] + ros + ['-r', '__node:=commander'],
                   dds.super_client(env))
         members = {}                    # agent process label -> its agents
-        for label, group, cmd in agent_commands(groups or [[nm] for nm in names], ros):
+        for label, group, cmd in agent_commands(groups or [[nm] for nm in names], ros, services):
             sup.start(label, cmd, env)
             members[label] = group
         if foxglove is not None:        # the live view (swarm view), a process of the run

@@ -3,7 +3,7 @@ and what the world sends then.
 
 One step n (the cycle in docs/ros-graph.md):
 
-1. `on_state` takes each agent's state of t_n; once every agent in the table has sent one
+1. `on_state` (`on_states`: several at once) takes each agent's state of t_n; once every agent in the table has sent one
    (`complete`), the barrier records the step and asks the node to send ``/clock`` and the
    packed states to the commander;
 2. `on_decision` takes the commander's decision for step n; the barrier records λ and the
@@ -85,6 +85,36 @@ class LockstepBarrier:
         Returns (reason, actions): reason None if the state was taken, else why not (the
         state was for another step).  A dead or frozen agent's state is kept only if it is
         the state of its freeze step."""
+        why, acts = self._take(i, k, vals, u)
+        return why, (acts if why is not None or not self.faults.alive[i] else acts + self.advance())
+
+    def on_states(self, rows, ks, vals, us):
+        """`on_state` for the agents ``rows`` of one agent process at once (its
+        ``/lockstep/agent_states``: steps ``ks``, values (4, K) and u (K,)), with ONE check of
+        the step's completion.  States of a step the world already holds (a repeat) are
+        ignored; returns (reasons for the states of later steps, actions)."""
+        rows = np.asarray(rows, np.intp)
+        ks = np.asarray(ks, np.int64)
+        alive = self.faults.alive[rows]
+        take = alive & (ks == self.want[rows])
+        r, k = rows[take], ks[take]
+        self.buf[:, r] = vals[:, take]
+        self.buf_u[r] = us[take]
+        self.have[r] = True
+        fresh = k == self.cur
+        self.fresh[r] = fresh
+        held = ~fresh & (k > 0) & (k <= self.steps)        # resumed agents' held states
+        if held.any():
+            self.rec.u[k[held] - 1, r[held]] = us[take][held]
+        acts, why = [], []
+        for j in np.flatnonzero(~alive):                   # dead or frozen: their own rules
+            acts += self._take(int(rows[j]), int(ks[j]), vals[:, j], float(us[j]))[1]
+        for j in np.flatnonzero(alive & ~take & (ks > self.want[rows])):
+            why.append(f'state of {self.names[rows[j]]!r} for step {ks[j]} while the world is at step {self.cur}')
+        return why, acts + (self.advance() if take.any() else [])
+
+    def _take(self, i, k, vals, u):
+        """`on_state` without the completion check."""
         if not self.faults.alive[i]:
             acts = []
             if self.faults.frozen[i] and k == self.faults.frozen_at[i]:
@@ -101,7 +131,7 @@ class LockstepBarrier:
         self.fresh[i] = k == self.cur
         if k != self.cur and 0 < k <= self.steps:     # a resumed agent's held state
             self.rec.u[k - 1, i] = u
-        return None, self.advance()
+        return None, []
 
     def on_decision(self, n, lam, flags, steering, slots, rendezvous):
         """The commander's decision for step n; ignored unless it is the one awaited."""

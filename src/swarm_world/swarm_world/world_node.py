@@ -34,7 +34,8 @@ from swarm_core.scenario import ScenarioError, load
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import RejectLog, Senders, check_values, may_signal, reason
+from swarm_ros.msg_checks import (ProcessSenders, RejectLog, Senders, check_agent_states, check_values, may_signal,
+                                  reason)
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, older_runs, run_json
 
@@ -102,8 +103,13 @@ class WorldNode(Node):
         self.pub_metrics = self.create_publisher(DiagnosticArray, P.METRICS, 10)
         self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
         self.create_subscription(String, P.FAULT_REQUEST, self._on_fault_request, P.qos_latched(10))
-        self.sub_states = self.create_subscription(Odometry, P.STATES, self._on_state,
-                                                   P.qos_latched(max(100, 4 * self.n)), raw=True)
+        if self.mode == 'realtime':
+            self.sub_states = self.create_subscription(Odometry, P.STATES, self._on_state,
+                                                       P.qos_latched(max(100, 4 * self.n)), raw=True)
+        else:       # one message per agent process and step (protocol: /lockstep/agent_states)
+            self.sub_states = self.create_subscription(Float64MultiArray, P.LOCK_AGENT_STATES, self._on_agent_states,
+                                                       P.qos_latched(max(100, 4 * self.n)), raw=True)
+            self.process_senders = ProcessSenders(self.n)
         # the run's identity; other runs on this domain are heard here (and refused before the start)
         self.pub_run = self.create_publisher(String, P.RUN, P.qos_latched())
         self.since = time.time()
@@ -176,15 +182,14 @@ class WorldNode(Node):
 
     # ------------------------------------------------------------ inputs
     def _on_state(self, raw):
-        """A serialized /swarm/states message (decoded without building an Odometry)."""
+        """Realtime: a serialized /swarm/states message (decoded without building an Odometry)."""
         try:
             name, sec, nsec, pose, wz, tag = P.cdr_to_odometry_tagged(raw)
         except Exception as err:
             self.reject('state-decode', f'{P.STATES} message that does not decode: {err}')
             return
         t = sec + nsec * 1e-9
-        now = self.sim_t if self.mode == 'realtime' else None     # lockstep: the step check below
-        why = check_values(name, t, pose, wz, self.row, self.newest, now, self.future_tolerance)
+        why = check_values(name, t, pose, wz, self.row, self.newest, self.sim_t, self.future_tolerance)
         if why is None:
             why = self.senders.check(name, tag)
         if why is not None:
@@ -193,17 +198,34 @@ class WorldNode(Node):
             return
         i = self.row[name]
         vals = (pose[0], pose[1], pose[4], pose[5])
-        if self.mode == 'realtime':
-            self.senders.accept(name, tag)
-            self.newest[name] = (t, *vals)
-            self.rec.record_realtime(i, P.step_of(t, self.dt), vals, wz, self.lam_now, self.leaders_now)
-            return
-        why, acts = self.lock.on_state(i, P.step_of(t, self.dt), vals, wz)
-        if why is not None:
-            self.reject('step', why)
-            return
         self.senders.accept(name, tag)
         self.newest[name] = (t, *vals)
+        self.rec.record_realtime(i, P.step_of(t, self.dt), vals, wz, self.lam_now, self.leaders_now)
+
+    def _on_agent_states(self, raw):
+        """Lockstep: the states of one agent process's agents (serialized /lockstep/agent_states)."""
+        if self.run_id and P.cdr_run_id(raw) != self.run_id:
+            self.reject('other-run', f'{P.LOCK_AGENT_STATES} of run {P.cdr_run_id(raw) or "(none)"!r}, not this '
+                        f'run {self.run_id!r}: another swarm run on this ROS_DOMAIN_ID?')
+            return
+        try:
+            tag, idx, ks, vals, u = P.unpack_agent_states(P.cdr_to_float64_array(raw))
+        except Exception as err:
+            self.reject('state-decode', f'{P.LOCK_AGENT_STATES} message that does not decode: {err}')
+            return
+        why = check_agent_states(tag, idx, vals, u, self.n)
+        if why is None:
+            ok, why = self.process_senders.check(idx, tag)
+            if not ok.all():
+                idx, ks, vals, u = idx[ok], ks[ok], vals[:, ok], u[ok]
+        if why is not None:
+            self.reject(why.kind, why)
+        if idx.size == 0 or why is not None and why.kind != 'second-publisher':
+            return
+        self.process_senders.accept(idx, tag)
+        late, acts = self.lock.on_states(idx, ks, vals, u)
+        for text in late[:1]:
+            self.reject('step', text)
         self.watch.progressed(time.monotonic())
         self.act(acts)
 
