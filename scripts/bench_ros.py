@@ -320,8 +320,6 @@ def main(argv=None) -> int:
             for rep in range(a.repeat):
                 for kind, n, k in cases:
                     for label, exe in exes:
-                        if k != '1' and label != exes[0][0]:
-                            continue                # older launchers know one agent per process only
                         if k == '1' and kind == 'processes' and n > a.max_processes:
                             print(f'  [{label}] processes n={n} K=1: skipped (more than --max-processes)', flush=True)
                             continue

@@ -10,6 +10,7 @@ from pathlib import Path
 import sys
 
 import numpy as np
+import pytest
 
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import (MAX_BARRIER_POINTS, RejectLog, Senders, check_barrier, check_values,
@@ -174,16 +175,20 @@ def test_the_younger_of_two_runs_gives_way():
 def test_agent_states_batches_are_checked_and_bound_to_their_process():
     from swarm_ros.msg_checks import ProcessSenders, check_agent_states
     good = np.array([[1.0, 2.0], [3.0, 4.0], [0.0, np.sin(0.3)], [1.0, np.cos(0.3)]])
-    u = np.zeros(2)
-    assert check_agent_states(5.0, np.array([0, 3]), good, u, 4) is None
-    assert check_agent_states(5.0, np.array([0, 4]), good, u, 4).kind == 'unknown-agent'
-    assert check_agent_states(5.0, np.array([1, 1]), good, u, 4).kind == 'duplicate'
-    bad = good.copy()
-    bad[0, 1] = np.inf
-    assert check_agent_states(5.0, np.array([0, 3]), bad, u, 4).kind == 'non-finite'
+    assert check_agent_states(np.array([0, 3]), good, 4) is None
+    assert check_agent_states(np.array([0, 4]), good, 4).kind == 'unknown-agent'
+    assert check_agent_states(np.array([1, 1]), good, 4).kind == 'duplicate'
     bad = good.copy()
     bad[2, 0] = 0.5
-    assert check_agent_states(5.0, np.array([0, 3]), bad, u, 4).kind == 'not-planar'
+    assert check_agent_states(np.array([0, 3]), bad, 4).kind == 'not-planar'
+    with pytest.raises(ValueError, match='not finite'):
+        P.unpack_agent_states(P.pack_agent_states(1.0, [0], [0], [np.inf], [0.0], [0.0], [1.0], [0.0]))
+    with pytest.raises(ValueError, match='not finite'):
+        P.unpack_agent_states(P.pack_agent_states(np.nan, [0], [0], [0.0], [0.0], [0.0], [1.0], [0.0]))
+    with pytest.raises(ValueError, match='whole number'):
+        P.unpack_agent_states(P.pack_agent_states(1.0, [-1], [0], [0.0], [0.0], [0.0], [1.0], [0.0]))
+    with pytest.raises(ValueError, match='do not hold'):
+        P.unpack_agent_states([np.nan, 1.0])
     s = ProcessSenders(4)
     ok, why = s.check(np.array([0, 3]), 5.0)
     assert ok.all() and why is None

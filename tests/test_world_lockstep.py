@@ -235,3 +235,13 @@ def test_agent_states_layout_is_checked():
         P.unpack_agent_states([2.0, 1.0, 0.0])
     with pytest.raises(ValueError, match='whole number'):
         P.unpack_agent_states(P.pack_agent_states(1.0, [0.5], [0], [0.0], [0.0], [0.0], [1.0], [0.0]))
+
+
+def test_agent_states_bytes_are_the_packed_array():
+    rows = [(3, 7, 1.5, -2.0, 0.1, 0.99, 0.25), (0, 7, 0.0, 1.0, 0.0, 1.0, -0.5)]
+    want = P.pack_agent_states(9.0, *[list(c) for c in zip(*rows)])
+    for run_id in ('', 'abc12345'):
+        raw = P.agent_states_to_cdr(9.0, rows, run_id)
+        assert raw == P.float64_array_to_cdr(want, run_id)
+        assert P.cdr_run_id(raw) == run_id
+        assert np.array_equal(P.cdr_to_float64_array(raw), want)

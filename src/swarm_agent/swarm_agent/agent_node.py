@@ -421,11 +421,9 @@ class AgentStatesWriter:
 
     def publish(self, agents):
         """The state each of ``agents`` last published on /swarm/states."""
-        if not agents:
-            return
-        own = np.array([a.own[2:] for a in agents]).T          # x, y, qz, qw, u
-        data = P.pack_agent_states(self.tag, [a.index for a in agents], [a.step for a in agents], *own)
-        self.pub.publish(P.float64_array_to_cdr(data, agents[0].run_id))
+        if agents:
+            self.pub.publish(P.agent_states_to_cdr(self.tag, [(a.index, a.step, *a.own[2:]) for a in agents],
+                                                   agents[0].run_id))
 
 
 def step_message(raw, lock, agents, log_node):

@@ -252,15 +252,17 @@ def pack_agent_states(tag: float, index, step, x, y, qz, qw, u) -> np.ndarray:
 
 def unpack_agent_states(d):
     """(tag, index (K,) int, step (K,) int, values (4, K): x, y, qz, qw, u (K,)) of a packed
-    ``/lockstep/agent_states``; ValueError if its size does not match K or an index or step
-    is not a whole number ≥ 0."""
+    ``/lockstep/agent_states``; ValueError if its size does not match K, a value is not
+    finite, or an index or step is not a whole number ≥ 0."""
     d = np.asarray(d, dtype=float)
-    if d.size < 2 or not math.isfinite(d[0]) or d[0] < 0 or d[0] != int(d[0]) or d.size != 2 + 7 * int(d[0]):
+    k = int(d[0]) if d.size >= 2 and 0 <= d[0] <= d.size else -1       # NaN fails the test
+    if k < 0 or d.size != 2 + 7 * k or d[0] != k:
         raise ValueError(f'{d.size} values do not hold K = {d[0] if d.size else "?"} agents (want 2 + 7 K)')
-    k = int(d[0])
+    if not np.isfinite(d).all():
+        raise ValueError('a value is not finite')
     body = d[2:].reshape(7, k)
     whole = body[:2]
-    if not np.all(np.isfinite(whole)) or np.any(whole < 0) or np.any(whole != np.floor(whole)):
+    if (whole != np.abs(np.floor(whole))).any():
         raise ValueError('an agent index or step is not a whole number ≥ 0')
     return float(d[1]), body[0].astype(np.intp), body[1].astype(np.int64), body[2:6], body[6]
 
@@ -304,13 +306,29 @@ def float64_array_to_cdr(data: np.ndarray, run_id: str = '') -> bytes:
     """Serialized std_msgs/Float64MultiArray (what publish() accepts): an empty layout, or with
     ``run_id`` one dimension labelled ``run:<run_id>`` (size 0; ``data`` is unchanged)."""
     data = np.ascontiguousarray(data, dtype='<f8')
+    return float64_array_header(data.size, run_id) + data.tobytes()
+
+
+def float64_array_header(size: int, run_id: str = '') -> bytes:
+    """The bytes of a serialized Float64MultiArray before its ``size`` doubles (see
+    `float64_array_to_cdr`); the doubles follow little-endian."""
     if not run_id:
-        return _HEADER + struct.pack('<IIII', 0, 0, data.size, 0) + data.tobytes()
+        return _HEADER + struct.pack('<IIII', 0, 0, size, 0)
     label = f'run:{run_id}'.encode() + b'\0'
     body = struct.pack('<II', 1, len(label)) + label
-    body += b'\0' * ((-len(body)) % 4) + struct.pack('<IIII', 0, 0, 0, data.size)
+    body += b'\0' * ((-len(body)) % 4) + struct.pack('<IIII', 0, 0, 0, size)
     body += b'\0' * ((-len(body)) % 8)
-    return _HEADER + body + data.tobytes()
+    return _HEADER + body
+
+
+def agent_states_to_cdr(tag: float, rows, run_id: str = '') -> bytes:
+    """Serialized ``/lockstep/agent_states`` (`pack_agent_states`) from ``rows`` of (index,
+    step, x, y, qz, qw, u), without numpy (a lone agent sends one row per step)."""
+    k = len(rows)
+    values = [float(k), float(tag)]
+    for col in zip(*rows):
+        values += col
+    return float64_array_header(len(values), run_id) + struct.pack(f'<{len(values)}d', *values)
 
 
 def cdr_run_id(raw: bytes) -> str:

@@ -96,22 +96,25 @@ class LockstepBarrier:
         rows = np.asarray(rows, np.intp)
         ks = np.asarray(ks, np.int64)
         alive = self.faults.alive[rows]
-        take = alive & (ks == self.want[rows])
-        r, k = rows[take], ks[take]
-        self.buf[:, r] = vals[:, take]
-        self.buf_u[r] = us[take]
+        want = self.want[rows]
+        take = alive & (ks == want)
+        every = take.all()
+        r, k, v, u = (rows, ks, vals, us) if every else (rows[take], ks[take], vals[:, take], us[take])
+        self.buf[:, r] = v
+        self.buf_u[r] = u
         self.have[r] = True
         fresh = k == self.cur
         self.fresh[r] = fresh
-        held = ~fresh & (k > 0) & (k <= self.steps)        # resumed agents' held states
-        if held.any():
-            self.rec.u[k[held] - 1, r[held]] = us[take][held]
+        if not fresh.all():                                 # resumed agents' held states
+            held = ~fresh & (k > 0) & (k <= self.steps)
+            self.rec.u[k[held] - 1, r[held]] = u[held]
         acts, why = [], []
-        for j in np.flatnonzero(~alive):                   # dead or frozen: their own rules
-            acts += self._take(int(rows[j]), int(ks[j]), vals[:, j], float(us[j]))[1]
-        for j in np.flatnonzero(alive & ~take & (ks > self.want[rows])):
-            why.append(f'state of {self.names[rows[j]]!r} for step {ks[j]} while the world is at step {self.cur}')
-        return why, acts + (self.advance() if take.any() else [])
+        if not every:
+            for j in np.flatnonzero(~alive):               # dead or frozen: their own rules
+                acts += self._take(int(rows[j]), int(ks[j]), vals[:, j], float(us[j]))[1]
+            for j in np.flatnonzero(alive & ~take & (ks > want)):
+                why.append(f'state of {self.names[rows[j]]!r} for step {ks[j]} while the world is at step {self.cur}')
+        return why, acts + (self.advance() if r.size else [])
 
     def _take(self, i, k, vals, u):
         """`on_state` without the completion check."""

@@ -211,9 +211,10 @@ class WorldNode(Node):
         try:
             tag, idx, ks, vals, u = P.unpack_agent_states(P.cdr_to_float64_array(raw))
         except Exception as err:
-            self.reject('state-decode', f'{P.LOCK_AGENT_STATES} message that does not decode: {err}')
+            kind = 'non-finite' if 'finite' in str(err) else 'state-decode'
+            self.reject(kind, f'{P.LOCK_AGENT_STATES} message rejected: {err}')
             return
-        why = check_agent_states(tag, idx, vals, u, self.n)
+        why = check_agent_states(idx, vals, self.n)
         if why is None:
             ok, why = self.process_senders.check(idx, tag)
             if not ok.all():
