@@ -10,6 +10,7 @@ in a run.  Then it times ticks of ``_watch_commands``, interleaved in rounds:
 - before: every command topic every tick (the commander's `CommandWatch` with a slice of n:
   what the commander did before, plus the node-list query, timed alone as ``nodes``);
 - after: the commander's own `CommandWatch` (λ, set-point, a slice of 64 steering topics).
+Both include the node-list query of each tick.
 
 Per tick: wall ms and this thread's CPU ms (the graph queries run in the calling thread).
 Then the delay until a new writer gets its reader: of a new node (a window opens: next tick)
@@ -30,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_ros import claim_domain, loadavg, scenario_file  # noqa: E402
 
 
-def parse_ints(text):
+def agent_counts(text):
     try:
         out = [int(x) for x in text.split(',') if x.strip()]
     except ValueError:
@@ -88,7 +89,7 @@ def measure(n, dom, ticks, rounds, tmp):
         cmd._watch_commands()
         time.sleep(FULL_LOOK + 0.2)                             # past the window of the start
         after = cmd.watch
-        before = CommandWatch([P.LAMBDA, SETPOINT], cmd.names, per_tick=n, ours=cmd._ours)
+        before = CommandWatch([P.LAMBDA, SETPOINT], cmd.names, per_tick=n, ours=cmd.watch.ours)
         before.nodes_seen(0.0, cmd.get_node_names_and_namespaces())
         res = {'n': n, 'before': ([], []), 'after': ([], []), 'load': loadavg()}
         for watch in (before, after):                           # warm up, untimed
@@ -131,14 +132,15 @@ def summary(r):
             'after wall/cpu ms': f"{ms('after', 0):.2f}/{ms('after', 1):.2f}",
             'cpu ratio': f"{ms('before', 1) / max(ms('after', 1), 1e-9):.1f}",
             'node list ms': f"{statistics.mean(r['nodes'][1]):.3f}",
-            'reader after (ticks): new node / old node': f"{r['new_node_ticks']} / {r['old_node_ticks']} (≤ {r['period']})",
+            'reader after (ticks): new node / old node':
+                f"{r['new_node_ticks']} / {r['old_node_ticks']} (≤ {r['period']})",
             'load': r['load']}
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split('\n\n', 1)[1])
-    ap.add_argument('--agents', type=parse_ints, default=[6, 96, 1000], help='agent counts (default 6,96,1000)')
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0], epilog=__doc__.split('\n\n', 1)[1],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument('--agents', type=agent_counts, default=[6, 96, 1000], help='agent counts (default 6,96,1000)')
     ap.add_argument('--ticks', type=int, default=20, help='ticks timed per round and variant (default 20)')
     ap.add_argument('--rounds', type=int, default=5, help='rounds of before, after (default 5)')
     ap.add_argument('--out', type=Path, help='also write the raw numbers to this JSON file')

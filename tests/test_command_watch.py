@@ -1,7 +1,7 @@
 """CommandWatch: which command topics the commander looks at on each tick (plain pytest)."""
 import pytest
 
-from homotopy_commander.command_watch import CommandWatch
+from homotopy_commander.command_watch import CommandWatch, of_swarm
 
 FIXED = ['/swarm/lambda', '/commander/lambda_setpoint']
 ME = ('commander', '/')
@@ -12,7 +12,7 @@ def agents(n):
 
 
 def ours(node):
-    return node[0] == 'agent' or node[0].startswith('agent_container_')
+    return of_swarm(node, set(agents(1000)))
 
 
 def settled(n, per_tick=64, window=2.0, nodes=(ME,)):
@@ -89,3 +89,11 @@ def test_bad_arguments():
         CommandWatch(FIXED, agents(3), per_tick=0)
     with pytest.raises(ValueError, match='window'):
         CommandWatch(FIXED, agents(3), window=float('nan'))
+
+
+def test_of_swarm():
+    roster = {'agent_0', 'agent_7'}
+    assert of_swarm(('agent', '/agent_7'), roster) and of_swarm(('agent_container_3', '/'), roster)
+    assert not of_swarm(('agent', '/agent_8'), roster)             # not in the roster
+    assert not of_swarm(('_ros2cli_4242', '/'), roster) and not of_swarm(('commander', '/'), roster)
+    assert not of_swarm(('swarm_lambda', '/'), roster)

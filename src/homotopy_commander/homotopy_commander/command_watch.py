@@ -31,6 +31,13 @@ STEERING_PER_TICK = 64
 FULL_LOOK = 2.0
 
 
+def of_swarm(node, agents) -> bool:
+    """True for a node of the swarm itself: an agent (``/<agent>/agent``, ``agents``: the
+    roster) or an agent container (``agent_container_<k>``).  ``node``: (name, namespace)."""
+    name, namespace = node
+    return (name == 'agent' and namespace[1:] in agents) or name.startswith('agent_container_')
+
+
 class CommandWatch:
     """Picks the command topics to look at on each tick.
 

@@ -53,7 +53,7 @@ from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders
 from swarm_ros.rosutil import ParameterError, declare, gid_key, run_node, steady_clock, when_matched
 from swarm_ros.runinfo import declare_run_id
 
-from homotopy_commander.command_watch import CommandWatch
+from homotopy_commander.command_watch import CommandWatch, of_swarm
 
 SETPOINT = P.LAMBDA_SETPOINT
 #: depth of the commander's λ and steering writers (transient-local): a command reader made
@@ -149,7 +149,7 @@ class CommanderNode(Node):
                                               lambda msg, nm=nm: self._on_steering(nm, msg), nm)
         # λ and the set-point every tick, the steering topics in turn (every one every tick up
         # to 64 agents), all of them for a while after a node other than the swarm's appeared
-        self.watch = CommandWatch([P.LAMBDA, SETPOINT], self.names, ours=self._ours)
+        self.watch = CommandWatch([P.LAMBDA, SETPOINT], self.names, ours=lambda nd: of_swarm(nd, self.row))
         self.reading = set()         # keys of the commands whose reader exists
         self.create_timer(COMMAND_POLL, self._watch_commands, clock=steady_clock())
         if self.mode == 'lockstep':
@@ -219,11 +219,6 @@ class CommanderNode(Node):
                     # (its transient-local history): keep those to recognise them
                     del self.own_sent[c.own][:-OWN_ECHO]
             c.writers = writers
-
-    def _ours(self, node):
-        """A node of the swarm itself (an agent, an agent container): it writes no command."""
-        name, namespace = node
-        return (name == 'agent' and namespace[1:] in self.row) or name.startswith('agent_container_')
 
     def _join_lockstep(self):
         self.create_subscription(Float64MultiArray, P.LOCK_STATES, self._on_states, P.qos_latched(), raw=True)
