@@ -35,6 +35,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+import time
 
 import numpy as np
 from nav_msgs.msg import Odometry
@@ -52,11 +53,13 @@ from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders
 from swarm_ros.rosutil import ParameterError, declare, gid_key, run_node, steady_clock, when_matched
 from swarm_ros.runinfo import declare_run_id
 
+from homotopy_commander.command_watch import CommandWatch, of_swarm
+
 SETPOINT = P.LAMBDA_SETPOINT
 #: depth of the commander's λ and steering writers (transient-local): a command reader made
 #: later may receive that many of the commander's own last values
 OWN_ECHO = P.STEP_DEPTH
-#: wall seconds between looks at the graph for new command writers
+#: wall seconds between looks at the graph for new command writers (which topics: CommandWatch)
 COMMAND_POLL = 0.05
 
 
@@ -144,6 +147,10 @@ class CommanderNode(Node):
         for nm in self.names:
             self.commands[nm] = CommandReader(P.steering_topic(nm), Float64,
                                               lambda msg, nm=nm: self._on_steering(nm, msg), nm)
+        # λ and the set-point every tick, the steering topics in turn (every one every tick up
+        # to 64 agents), all of them for a while after a node other than the swarm's appeared
+        self.watch = CommandWatch([P.LAMBDA, SETPOINT], self.names, ours=lambda nd: of_swarm(nd, self.row))
+        self.reading = set()         # keys of the commands whose reader exists
         self.create_timer(COMMAND_POLL, self._watch_commands, clock=steady_clock())
         if self.mode == 'lockstep':
             self.last_decision = None
@@ -180,9 +187,18 @@ class CommanderNode(Node):
         side before the reader's side knows the writer, and the reader then drops the sample
         (the tool has exited 0.1 s later, so it is never repaired).  A reader made after this
         participant discovered the writer is paired with it when it is made, before the tool
-        can see it: the first sample is always taken."""
+        can see it: the first sample is always taken.
+
+        One graph query per topic looked at: `CommandWatch` picks which (all of them in a swarm
+        of up to 64 agents; in a bigger one all of them only for 2 s after a new node appeared,
+        else a round-robin slice, so a writer is seen within len/64 ticks)."""
         me = (self.get_name(), self.get_namespace())
-        for c in self.commands.values():
+        try:
+            keys = self.watch.tick(time.monotonic(), self.get_node_names_and_namespaces(), self.reading)
+        except Exception:                # the context is going down
+            return
+        for key in keys:
+            c = self.commands[key]
             try:
                 infos = self.get_publishers_info_by_topic(c.topic)
             except Exception:            # the context is going down
@@ -195,6 +211,9 @@ class CommanderNode(Node):
                     c.sub = None
                 if writers:
                     c.sub = self.create_subscription(c.msg_type, c.topic, c.callback, P.qos_reliable())
+                    self.reading.add(key)
+                else:
+                    self.reading.discard(key)
                 if c.own is not None and c.own in self.own_sent:
                     # a new reader may still get the last OWN_ECHO values of our own writer
                     # (its transient-local history): keep those to recognise them

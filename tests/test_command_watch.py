@@ -1,0 +1,99 @@
+"""CommandWatch: which command topics the commander looks at on each tick (plain pytest)."""
+import pytest
+
+from homotopy_commander.command_watch import CommandWatch, of_swarm
+
+FIXED = ['/swarm/lambda', '/commander/lambda_setpoint']
+ME = ('commander', '/')
+
+
+def agents(n):
+    return [f'agent_{i}' for i in range(n)]
+
+
+def ours(node):
+    return of_swarm(node, set(agents(1000)))
+
+
+def settled(n, per_tick=64, window=2.0, nodes=(ME,)):
+    """A watch past the window its first node list opened (t = 0 .. window)."""
+    w = CommandWatch(FIXED, agents(n), per_tick=per_tick, window=window, ours=ours)
+    assert w.nodes_seen(0.0, nodes)          # the first list: everything is new
+    assert not w.full(window)
+    return w
+
+
+@pytest.mark.parametrize('n', [1, 6, 64])
+def test_small_swarm_every_topic_every_tick(n):
+    w = settled(n)
+    for k in range(5):
+        assert w.tick(10.0 + k, [ME]) == FIXED + agents(n)
+
+
+def test_big_swarm_round_robin_bounded_and_covering():
+    n, per = 1000, 64
+    w = settled(n, per)
+    seen_at = {}
+    for k in range(w.period()):
+        keys = w.tick(10.0 + 0.05 * k, [ME])
+        assert keys[:2] == FIXED and len(keys) == 2 + per and len(set(keys)) == len(keys)
+        for key in keys[2:]:
+            seen_at.setdefault(key, k)
+    assert w.period() == 16 and set(seen_at) == set(agents(n))     # 16 ticks = 0.8 s at 0.05 s
+    # and it goes on: the next slice starts where the last one stopped
+    assert w.tick(20.0, [ME])[2] == agents(n)[(16 * per) % n]
+
+
+def test_window_after_a_new_node_then_back_to_slices():
+    w = settled(1000)
+    assert len(w.tick(10.0, [ME])) == 66
+    tool = ('_ros2cli_4242', '/')
+    assert len(w.tick(10.05, [ME, tool])) == 1002          # ros2 topic pub appeared
+    assert len(w.tick(11.9, [ME, tool])) == 1002           # still inside 2 s
+    assert len(w.tick(12.1, [ME, tool])) == 66             # window over, the node list unchanged
+    assert len(w.tick(12.2, [ME])) == 66                   # a node leaving opens no window
+    assert len(w.tick(12.3, [ME, tool])) == 1002           # the same name coming back does
+    # a second node of the same name (counted, not a set)
+    w = settled(1000, nodes=[ME, tool])
+    assert len(w.tick(10.0, [ME, tool, tool])) == 1002
+    # the same nodes in another order is no change
+    w = settled(1000, nodes=[ME, tool])
+    assert len(w.tick(10.0, [tool, ME])) == 66
+
+
+def test_swarm_nodes_open_no_window():
+    w = settled(1000)
+    swarm = [('agent', f'/agent_{i}') for i in range(1000)] + [('agent_container_0', '/')]
+    assert len(w.tick(10.0, [ME] + swarm)) == 66
+    assert len(w.tick(10.05, [ME] + swarm + [('swarm_lambda', '/')])) == 1002
+
+
+def test_read_topics_every_tick_bounded():
+    w = settled(1000, per_tick=64)
+    keys = w.tick(10.0, [ME], reading={'agent_900', '/swarm/lambda'})
+    assert keys[:2] == FIXED and keys[2] == 'agent_900' and len(keys) == 67
+    for k in range(20):                                    # not only when its turn comes
+        assert 'agent_900' in w.tick(10.1 + k, [ME], reading={'agent_900'})
+    # more topics read than per_tick: those are looked at in turn too, at most per_tick a tick
+    many = set(agents(1000)[::5])                          # 200 topics read
+    got = set()
+    for k in range(4):
+        keys = w.tick(40.0 + k, [ME], reading=many)
+        assert len(keys) <= 2 + 2 * 64
+        got |= many & set(keys)
+    assert got == many
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match='per_tick'):
+        CommandWatch(FIXED, agents(3), per_tick=0)
+    with pytest.raises(ValueError, match='window'):
+        CommandWatch(FIXED, agents(3), window=float('nan'))
+
+
+def test_of_swarm():
+    roster = {'agent_0', 'agent_7'}
+    assert of_swarm(('agent', '/agent_7'), roster) and of_swarm(('agent_container_3', '/'), roster)
+    assert not of_swarm(('agent', '/agent_8'), roster)             # not in the roster
+    assert not of_swarm(('_ros2cli_4242', '/'), roster) and not of_swarm(('commander', '/'), roster)
+    assert not of_swarm(('swarm_lambda', '/'), roster)
