@@ -34,6 +34,7 @@ from geometry_msgs.msg import PointStamped, PolygonStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.time import Time
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_core.comms import CommModel, StreamRadio, change_from_event
@@ -48,6 +49,8 @@ from .agent_core import AgentCore, catch_up
 from .container_core import ContainerCore
 
 MODES = ('lockstep', 'realtime')
+#: lockstep: where an agent's sim time comes from (parameter ``lockstep_clock``)
+CLOCKS = ('step', 'topic')
 
 
 class AgentNode(Node):
@@ -93,6 +96,9 @@ class AgentNode(Node):
         self.catch_up_limit = d('catch_up_limit', 4, 'realtime: most control periods one timer call '
                                 'integrates when the sim clock jumped (u held); a longer gap (a stopped '
                                 'or starved process) moves the agent this many', lo=1, hi=10**6)
+        self.lockstep_clock = d('lockstep_clock', 'step', 'lockstep: sim time from each step message (step: '
+                                'no /clock reader) or from /clock (topic); in a container its host '
+                                "node's parameter applies", choices=CLOCKS)
         comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect)")
         self.run_id = declare_run_id(self, 'lockstep steps of another run are rejected')
         self.future_tolerance = d('future_tolerance', FUTURE_TOLERANCE, 'realtime: reject neighbour states '
@@ -152,6 +158,8 @@ class AgentNode(Node):
             self.timer = self.create_timer(self.dt, self._on_tick)
             self.publish_state()
         elif not contained:          # a lone agent: a container of one for the world
+            if self.lockstep_clock == 'step':
+                self._time_source.detach_node()      # the step messages carry the time: no /clock reader
             self.batch = AgentStatesWriter(self)
             self.start_lockstep(lambda agent: self.batch.publish([agent]))
 
@@ -210,7 +218,9 @@ class AgentNode(Node):
 
     # ------------------------------------------------------------ lockstep
     def _on_step(self, raw):
-        step_message(raw, self.lock, [self], self)
+        s = step_message(raw, self.lock, [self], self)
+        if s is not None and self.lockstep_clock == 'step':
+            step_time([self], s)
 
     def lockstep_outcome(self, kind, detail, s):
         """Carry out one `ContainerCore.on_step` decision for this agent."""
@@ -424,6 +434,13 @@ class AgentStatesWriter:
         if agents:
             self.pub.publish(P.agent_states_to_cdr(self.tag, [(a.index, a.step, *a.own[2:]) for a in agents],
                                                    agents[0].run_id))
+
+
+def step_time(agents, s):
+    """Lockstep without /clock: the agents' sim time is that of step message ``s``."""
+    now = Time(nanoseconds=int(round(s.t * 1e9)))
+    for a in agents:
+        a.get_clock().set_ros_time_override(now)
 
 
 def step_message(raw, lock, agents, log_node):

@@ -25,15 +25,12 @@ import sys
 
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.time import Time
 from rclpy.time_source import TimeSource
 
 from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node
 
-from .agent_node import AgentNode, AgentStatesWriter, shared_inputs, step_message
+from .agent_node import CLOCKS, AgentNode, AgentStatesWriter, shared_inputs, step_message, step_time
 from .container_core import ContainerCore
-
-CLOCKS = ('step', 'topic')
 
 
 class AgentContainer(Node):
@@ -87,9 +84,7 @@ class AgentContainer(Node):
     def _on_step(self, raw):
         s = step_message(raw, self.lock, self.agents, self)
         if s is not None and self.lockstep_clock == 'step':
-            now = Time(nanoseconds=int(round(s.t * 1e9)))
-            for a in self.agents:
-                a.get_clock().set_ros_time_override(now)
+            step_time(self.agents, s)
 
     def _fan(name):                             # noqa: N805 - builds a method
         def handler(self, msg):

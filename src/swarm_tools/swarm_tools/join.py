@@ -6,7 +6,9 @@ a discovery server and prints its ``ADDR:PORT``.  Here ``swarm join SCENARIO --a
 --server ADDR:PORT --interface THIS_ADDR`` starts those agents with the same parameters (the
 same scenario, seed, dt, duration and mode) as clients of that server.  They take part in
 lockstep like local ones.  ``swarm join`` ends when the world has gone from the graph (the run
-is over), on Ctrl-C, or if the world does not appear within ``--wait`` seconds.
+is over), on Ctrl-C, or if the run does not appear within ``--wait`` seconds.  It starts the
+agents once it has heard the run's announcement (``/swarm/run``): they get its run id, so they
+take part in that run only.
 
 Faults: the world signals agents by pid on its own host only; ``swarm kill`` of an agent that
 runs here leaves it out of the table (it stops moving and speaking) but does not end its process.
@@ -21,12 +23,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from swarm_core.scenario import ScenarioError, load
 
 from . import dds
 from .launch import add_network_options, parse_agents
-from .node_params import node_parameters, write_params_file
-from .processes import Supervisor, _exe
+from .node_params import load_scenario, node_parameters, write_params_file
+from .processes import agent_commands, supervised
 
 #: wall seconds the world may stay out of the graph before ``swarm join`` takes the run as over
 GONE_AFTER = 3.0
@@ -55,10 +56,8 @@ def world_present(node) -> bool:
 
 def main(argv=None) -> int:
     a = _parser().parse_args(argv)
-    try:
-        scn = load(a.scenario, seed=a.seed, duration=a.duration, dt=a.dt)
-    except ScenarioError as err:
-        print(f'swarm join: {err}', file=sys.stderr)
+    scn, ref = load_scenario('swarm join', a)
+    if scn is None:
         return 2
     try:
         idx = parse_agents(a.agents, len(scn.names))
@@ -70,51 +69,59 @@ def main(argv=None) -> int:
     if not a.wait > 0:
         print(f'swarm join: --wait {a.wait}: must be > 0', file=sys.stderr)
         return 2
-    ref = a.scenario
-    if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
-        ref = str(Path(a.scenario).resolve())
     params = node_parameters(scn, ref, a.mode, duration=scn.duration)
     names = [scn.names[i] for i in idx]
     params = {f'/{nm}/agent': params[f'/{nm}/agent'] for nm in names}
     if a.recorded and a.mode == 'lockstep':
         for p in params.values():
             p['state_subscribers'] = 1
-    stopping = {'sig': None}
-
-    def on_signal(signum, frame):
-        stopping['sig'] = signum
-
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    sup = Supervisor()
     code = 1
-    with tempfile.TemporaryDirectory(prefix='swarm_join_') as tmp:
-        pfile = write_params_file(params, Path(tmp) / 'params.yaml')
+    with tempfile.TemporaryDirectory(prefix='swarm_join_') as tmp, \
+            supervised('swarm join', signals=(signal.SIGINT, signal.SIGTERM)) as (sup, stopped):
         env = dds.environment(len(names) + 1, Path(tmp), interface=interface, server=f'{addr}:{port}')
         for k in [k for k in os.environ if k not in env]:
             del os.environ[k]               # this process's own graph watcher: a client like the agents
         os.environ.update(env)
         import rclpy
         from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+
+        from swarm_ros.runinfo import RunWatch, describe, one_run
         ctx = Context()
         try:
-            ros = ['--ros-args', '--params-file', str(pfile)]
-            for nm in names:
-                sup.start(nm, [_exe('swarm_agent')] + ros + ['-r', '__node:=agent', '-r', f'__ns:=/{nm}'], env)
-            print(f'swarm join: {len(names)} agents ({a.agents}) joining the run at {addr}:{port}', flush=True)
             rclpy.init(context=ctx)
             node = rclpy.create_node('swarm_join', context=ctx, start_parameter_services=False)
-            t0, seen, gone_since = time.monotonic(), False, None
+            watch = RunWatch(node)          # the run's id: its agents take part only in that run
+            ex = SingleThreadedExecutor(context=ctx)
+            ex.add_node(node)
+            t0, run, seen, gone_since = time.monotonic(), None, False, None
+            print(f'swarm join: waiting for the run at {addr}:{port}', flush=True)
             while True:
-                if stopping['sig'] is not None:
-                    print(f'swarm join: {signal.Signals(stopping["sig"]).name}: stopping {len(sup.alive())} agents',
-                          file=sys.stderr, flush=True)
+                if stopped():
                     code = 130
                     break
-                if not sup.alive():
+                ex.spin_once(timeout_sec=0.2)
+                now = time.monotonic()
+                if run is None:
+                    run, err = one_run(watch.runs, 'swarm join')
+                    if err is None and run is not None and list(run.get('agents', [])) != list(scn.names):
+                        err = (f'swarm join: {describe(run)} has other agents than {a.scenario}: '
+                               'give the same scenario options as the run')
+                    if err:
+                        print(err, file=sys.stderr, flush=True)
+                        code = 1
+                        break
+                    if run is not None:
+                        for p in params.values():
+                            p['run_id'] = run['run_id']
+                        ros = ['--ros-args', '--params-file', str(write_params_file(params, Path(tmp) / 'params.yaml'))]
+                        for label, _, cmd in agent_commands([[nm] for nm in names], ros):
+                            sup.start(label, cmd, env)
+                        print(f'swarm join: {len(names)} agents ({a.agents}) joining {describe(run)}', flush=True)
+                elif not sup.alive():
                     print('swarm join: every agent here has exited', file=sys.stderr, flush=True)
                     code = 1
                     break
-                now = time.monotonic()
                 if world_present(node):
                     if not seen:
                         print(f'swarm join: the world found after {now - t0:.1f} s', flush=True)
@@ -125,14 +132,10 @@ def main(argv=None) -> int:
                         print('swarm join: the world has left the graph; the run is over', flush=True)
                         code = 0
                         break
-                elif now - t0 > a.wait:
-                    print(f'swarm join: no world at {addr}:{port} after {a.wait:g} s', file=sys.stderr, flush=True)
+                if run is None and now - t0 > a.wait:
+                    print(f'swarm join: no run at {addr}:{port} after {a.wait:g} s', file=sys.stderr, flush=True)
                     code = 1
                     break
-                time.sleep(0.2)
         finally:
-            sup.stop()
             rclpy.try_shutdown(context=ctx)
-            for s, h in old.items():
-                signal.signal(s, h)
     return code

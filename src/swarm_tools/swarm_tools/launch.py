@@ -38,11 +38,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from swarm_core.scenario import ScenarioError, load
 from swarm_core.analysis import check_output_dir, write_atomic, write_failed
 
 from . import dds
-from .node_params import node_parameters, write_params_file
+from .node_params import load_scenario, node_parameters, write_params_file
 from .processes import read_events, run_processes
 
 STOP_GRACE = 4.0
@@ -198,10 +197,8 @@ def main(argv=None) -> int:
     if a.rtf is not None and not (a.rtf > 0 and a.rtf < 1e4):
         print(f'swarm run: --rtf {a.rtf}: must be in (0, 1e4)', file=sys.stderr)
         return 2
-    try:
-        scn = load(a.scenario, seed=a.seed, duration=a.duration, dt=a.dt)
-    except ScenarioError as err:
-        print(f'swarm run: {err}', file=sys.stderr)
+    scn, ref = load_scenario('swarm run', a)
+    if scn is None:
         return 2
     try:
         interface = dds.check_local(dds.check_address(a.interface, '--interface'), '--interface')
@@ -232,9 +229,6 @@ def main(argv=None) -> int:
             return 2
     local = [nm for i, nm in enumerate(scn.names) if i not in set(remote)]
     groups = split_agents(local, per)
-    ref = a.scenario
-    if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
-        ref = str(Path(a.scenario).resolve())
     if len(scn.names) > MAX_RUN_AGENTS:
         print(f'swarm run: {len(scn.names)} agents: at most {MAX_RUN_AGENTS} per run (one node each); '
               'use swarm simulate for larger swarms', file=sys.stderr)
@@ -280,12 +274,8 @@ def main(argv=None) -> int:
     use_server = not a.in_process and (a.discovery == 'server' or (a.discovery == 'auto' and (
         n_proc > dds.SIMPLE_LIMIT or bool(remote))))
     if not a.in_process and per > 1:
-        # the world waits for the step relay's readers (one per agent process) and, with a
-        # recorder, for the /clock readers (lone agents, and containers that follow /clock)
-        lone = sum(len(g) == 1 for g in groups)
-        params['/world'].update(step_readers=len(groups) + len(remote),
-                                clock_readers=lone + len(remote) + 2
-                                + (len(groups) - lone if a.mode == 'realtime' else 0))
+        # the world waits for the step relay's readers: one per agent process
+        params['/world'].update(step_readers=len(groups) + len(remote))
     per_text = '' if a.in_process or per == 1 else f' ({per} agents per process' + (
         '' if agent_services(len(scn.names), per, a.agent_services) else ', agent nodes without services') + ')'
     print(f'swarm run: run {run_id}: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '

@@ -3,6 +3,7 @@ parameters (`node_parameters`), and one parameters file holds them all (`write_p
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import yaml
@@ -20,6 +21,23 @@ def _str(dumper, value):
 
 
 _QuotedStrings.add_representer(str, _str)
+
+
+def load_scenario(prog: str, a):
+    """(scenario, the reference the nodes load it by) from a command's ``scenario``, ``seed``,
+    ``duration`` and ``dt`` options; a bad scenario prints one line ``PROG: ...`` and gives
+    (None, None).  The reference is the resolved path of a YAML file (the nodes may start in
+    another directory), else the shipped name."""
+    from swarm_core.scenario import ScenarioError, load
+    try:
+        scn = load(a.scenario, seed=a.seed, duration=a.duration, dt=a.dt)
+    except ScenarioError as err:
+        print(f'{prog}: {err}', file=sys.stderr)
+        return None, None
+    ref = a.scenario
+    if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
+        ref = str(Path(a.scenario).resolve())
+    return scn, ref
 
 
 def agent_parameters(scn, i: int, mode: str) -> dict:

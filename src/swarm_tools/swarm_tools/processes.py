@@ -3,6 +3,7 @@ launcher: ``PR_SET_PDEATHSIG``), where their executables are, and the loop that 
 until the world ends (agents may die: faults; a dead recorder is a warning)."""
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import json
 import os
@@ -96,6 +97,31 @@ class Supervisor:
 RECORDER_READY_TIMEOUT = 30.0
 
 
+@contextlib.contextmanager
+def supervised(prog: str, signals=(signal.SIGINT, signal.SIGTERM, signal.SIGHUP), first=()):
+    """The processes of one command (``swarm run``, ``swarm join``): yields (`Supervisor`,
+    ``stopped``).  ``signals`` set a flag instead of raising in the middle of a start;
+    ``stopped()`` says whether one came (printing ``PROG: SIGINT: stopping N processes``
+    once).  When the block ends, also on an error, every process is stopped (``first``
+    first: the recorder, so it can finish its file) and the old handlers are back."""
+    sup = Supervisor()
+    got, said = [], []
+    old = {s: signal.signal(s, lambda signum, _frame: got.append(signum)) for s in signals}
+
+    def stopped() -> bool:
+        if got and not said:
+            said.append(got[0])
+            print(f'{prog}: {signal.Signals(got[0]).name}: stopping {len(sup.alive())} processes',
+                  file=sys.stderr, flush=True)
+        return bool(got)
+    try:
+        yield sup, stopped
+    finally:
+        sup.stop(first=first)
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
 def wait_until_ready(proc, marker: str, timeout: float) -> bool:
     """Forward ``proc``'s stderr lines to ours (on a thread, for its whole life) and wait until
     one contains ``marker`` (the recorder has subscribed to the swarm's topics, so nothing
@@ -176,16 +202,9 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
     """``names``: the agents started here (a run spread over hosts starts the others with
     ``swarm join``); ``server``: a `dds.DiscoveryServer` started first, stopped with the rest;
     ``groups``: the agents of each agent process (default: one process per agent)."""
-    sup = Supervisor()
-    stopping = {'sig': None}
-
-    def on_signal(signum, frame):
-        stopping['sig'] = signum
-
-    old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     ros = ['--ros-args', '--params-file', str(params_file)]
     code = 1
-    try:
+    with supervised('swarm run', first=('record',)) as (sup, stopped):
         if server is not None:
             try:
                 server.start(sup.start, env, Path(params_file).parent)
@@ -223,9 +242,7 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
         agents = set(members)
         gone = set()
         while True:
-            if stopping['sig'] is not None:
-                print(f'swarm run: {signal.Signals(stopping["sig"]).name}: stopping {len(sup.alive())} processes',
-                      file=sys.stderr, flush=True)
+            if stopped():
                 code = 130
                 break
             rc = world.poll()
@@ -257,10 +274,6 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
                 code = 1
                 break
             time.sleep(0.05)
-    finally:
-        sup.stop(first=('record',))
-        for s, h in old.items():
-            signal.signal(s, h)
     return code
 
 

@@ -34,8 +34,8 @@ WORLD = {
                         dict(lo=0.1, hi=1e6)),
     'step_readers': (0, 'lockstep: readers of the step relay to wait for (one per agent process; 0: one per '
                      'agent)', dict(lo=0, hi=100000)),
-    'clock_readers': (0, 'with wait_for_recorder: /clock readers to wait for (0: agents + commander + '
-                      'recorder)', dict(lo=0, hi=100000)),
+    'clock_readers': (0, 'with wait_for_recorder: /clock readers to wait for (0: commander + recorder; '
+                      'lockstep agents take their time from the step messages)', dict(lo=0, hi=100000)),
     'pid_file': ('', 'JSON {agent: pid} of the agent processes, for kill/pause ("": none)', {}),
     'events_file': ('', 'append every event here as JSON lines ("": output_dir/events.jsonl)', {}),
     'trail_length': (200, 'trail points per agent in the markers', dict(lo=0, hi=100000)),
