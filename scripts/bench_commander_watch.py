@@ -9,12 +9,13 @@ in a run.  Then it times ticks of ``_watch_commands``, interleaved in rounds:
 
 - before: every command topic every tick (the commander's `CommandWatch` with a slice of n:
   what the commander did before, plus the node-list query, timed alone as ``nodes``);
-- after: the commander's own `CommandWatch` (λ, set-point, a slice of 64 steering topics).
+- after: the commander's own `CommandWatch` (λ, set-point, every steering topic up to 64
+  agents, else 8 a tick in turn, and the topics of nodes that appeared in the last 2 s).
 Both include the node-list query of each tick.
 
 Per tick: wall ms and this thread's CPU ms (the graph queries run in the calling thread).
-Then the delay until a new writer gets its reader: of a new node (a window opens: next tick)
-and of a node already in the graph (the round robin: at most n/64 ticks), in ticks of 0.05 s.
+Then the delay until a new writer gets its reader: of a new node (asked for its topics: next tick)
+and of a node already in the graph (the turns: at most n/8 ticks), in ticks of 0.05 s.
 """
 from __future__ import annotations
 
@@ -69,7 +70,7 @@ def measure(n, dom, ticks, rounds, tmp):
     from rclpy.parameter import Parameter
     from std_msgs.msg import Float64
 
-    from homotopy_commander.command_watch import FULL_LOOK, CommandWatch
+    from homotopy_commander.command_watch import NEW_NODE_LOOK, CommandWatch
     from homotopy_commander.commander_node import SETPOINT, CommanderNode
     from swarm_ros import protocol as P
 
@@ -87,9 +88,9 @@ def measure(n, dom, ticks, rounds, tmp):
         writer = rclpy.create_node('bench_writer', **bare)      # a node already in the graph
         nodes.append(writer)
         cmd._watch_commands()
-        time.sleep(FULL_LOOK + 0.2)                             # past the window of the start
+        time.sleep(NEW_NODE_LOOK + 0.2)                             # past the window of the start
         after = cmd.watch
-        before = CommandWatch([P.LAMBDA, SETPOINT], cmd.names, per_tick=n, ours=cmd.watch.ours)
+        before = CommandWatch([P.LAMBDA, SETPOINT], cmd.names, per_tick=n, turn=n, ours=cmd.watch.ours)
         before.nodes_seen(0.0, cmd.get_node_names_and_namespaces())
         res = {'n': n, 'before': ([], []), 'after': ([], []), 'load': loadavg()}
         for watch in (before, after):                           # warm up, untimed
@@ -112,7 +113,7 @@ def measure(n, dom, ticks, rounds, tmp):
         res['new_node_ticks'] = ticks_until(cmd, lambda: cmd.commands[last].sub is not None)
         tool.destroy_publisher(pub)
         res['dropped_ticks'] = ticks_until(cmd, lambda: cmd.commands[last].sub is None)
-        time.sleep(FULL_LOOK + 0.2)
+        time.sleep(NEW_NODE_LOOK + 0.2)
         far = cmd.names[(after.cursor + len(cmd.names) - 1) % len(cmd.names)]   # the last in turn
         pub = writer.create_publisher(Float64, P.steering_topic(far), P.qos_reliable())
         res['old_node_ticks'] = ticks_until(cmd, lambda: cmd.commands[far].sub is not None)

@@ -16,10 +16,10 @@ def ours(node):
 
 
 def settled(n, per_tick=64, window=2.0, nodes=(ME,)):
-    """A watch past the window its first node list opened (t = 0 .. window)."""
+    """A watch that took its first node list at t = 0 (everything new) and let it age."""
     w = CommandWatch(FIXED, agents(n), per_tick=per_tick, window=window, ours=ours)
     assert w.nodes_seen(0.0, nodes)          # the first list: everything is new
-    assert not w.full(window)
+    assert w.recent(window) == []
     return w
 
 
@@ -28,50 +28,54 @@ def test_small_swarm_every_topic_every_tick(n):
     w = settled(n)
     for k in range(5):
         assert w.tick(10.0 + k, [ME]) == FIXED + agents(n)
+    assert w.period() == 1
 
 
-def test_big_swarm_round_robin_bounded_and_covering():
-    n, per = 1000, 64
-    w = settled(n, per)
+def test_big_swarm_turns_bounded_and_covering():
+    n, turn = 1000, 8
+    w = settled(n)
     seen_at = {}
     for k in range(w.period()):
         keys = w.tick(10.0 + 0.05 * k, [ME])
-        assert keys[:2] == FIXED and len(keys) == 2 + per and len(set(keys)) == len(keys)
+        assert keys[:2] == FIXED and len(keys) == 2 + turn and len(set(keys)) == len(keys)
         for key in keys[2:]:
             seen_at.setdefault(key, k)
-    assert w.period() == 16 and set(seen_at) == set(agents(n))     # 16 ticks = 0.8 s at 0.05 s
-    # and it goes on: the next slice starts where the last one stopped
-    assert w.tick(20.0, [ME])[2] == agents(n)[(16 * per) % n]
+    assert w.period() == 125 and set(seen_at) == set(agents(n))     # 125 ticks = 6.25 s at 0.05 s
+    # and it goes on: the next turn starts where the last one stopped
+    assert w.tick(20.0, [ME])[2] == agents(n)[(125 * turn) % n]
 
 
-def test_window_after_a_new_node_then_back_to_slices():
+def test_a_new_node_is_asked_for_its_topics_for_a_while():
     w = settled(1000)
-    assert len(w.tick(10.0, [ME])) == 66
+    assert len(w.tick(10.0, [ME])) == 10
     tool = ('_ros2cli_4242', '/')
-    assert len(w.tick(10.05, [ME, tool])) == 1002          # ros2 topic pub appeared
-    assert len(w.tick(11.9, [ME, tool])) == 1002           # still inside 2 s
-    assert len(w.tick(12.1, [ME, tool])) == 66             # window over, the node list unchanged
-    assert len(w.tick(12.2, [ME])) == 66                   # a node leaving opens no window
-    assert len(w.tick(12.3, [ME, tool])) == 1002           # the same name coming back does
+    assert w.nodes_seen(10.05, [ME, tool]) and w.recent(10.05) == [tool]      # ros2 topic pub appeared
+    keys = w.pick(10.05, found=['agent_777', '/swarm/lambda', 'not_a_key'])   # what it writes
+    assert keys[:3] == FIXED + ['agent_777'] and 'not_a_key' not in keys and len(keys) == 11
+    assert w.recent(11.9) == [tool]                        # still inside 2 s
+    assert w.recent(12.1) == []                            # window over
+    assert not w.nodes_seen(12.2, [ME])                    # a node leaving is nothing new
+    assert w.nodes_seen(12.3, [ME, tool]) and w.recent(12.3) == [tool]    # the same name coming back is
     # a second node of the same name (counted, not a set)
     w = settled(1000, nodes=[ME, tool])
-    assert len(w.tick(10.0, [ME, tool, tool])) == 1002
+    assert w.nodes_seen(10.0, [ME, tool, tool]) and w.recent(10.0) == [tool]
     # the same nodes in another order is no change
     w = settled(1000, nodes=[ME, tool])
-    assert len(w.tick(10.0, [tool, ME])) == 66
+    assert not w.nodes_seen(10.0, [tool, ME]) and w.recent(10.0) == []
 
 
-def test_swarm_nodes_open_no_window():
+def test_swarm_nodes_are_not_asked():
     w = settled(1000)
     swarm = [('agent', f'/agent_{i}') for i in range(1000)] + [('agent_container_0', '/')]
-    assert len(w.tick(10.0, [ME] + swarm)) == 66
-    assert len(w.tick(10.05, [ME] + swarm + [('swarm_lambda', '/')])) == 1002
+    assert not w.nodes_seen(10.0, [ME] + swarm) and w.recent(10.0) == []
+    assert w.nodes_seen(10.05, [ME] + swarm + [('swarm_lambda', '/')])
+    assert w.recent(10.05) == [('swarm_lambda', '/')]
 
 
 def test_read_topics_every_tick_bounded():
     w = settled(1000, per_tick=64)
     keys = w.tick(10.0, [ME], reading={'agent_900', '/swarm/lambda'})
-    assert keys[:2] == FIXED and keys[2] == 'agent_900' and len(keys) == 67
+    assert keys[:2] == FIXED and keys[2] == 'agent_900' and len(keys) == 11
     for k in range(20):                                    # not only when its turn comes
         assert 'agent_900' in w.tick(10.1 + k, [ME], reading={'agent_900'})
     # more topics read than per_tick: those are looked at in turn too, at most per_tick a tick
@@ -79,7 +83,7 @@ def test_read_topics_every_tick_bounded():
     got = set()
     for k in range(4):
         keys = w.tick(40.0 + k, [ME], reading=many)
-        assert len(keys) <= 2 + 2 * 64
+        assert len(keys) <= 2 + 64 + 8
         got |= many & set(keys)
     assert got == many
 
@@ -87,6 +91,8 @@ def test_read_topics_every_tick_bounded():
 def test_bad_arguments():
     with pytest.raises(ValueError, match='per_tick'):
         CommandWatch(FIXED, agents(3), per_tick=0)
+    with pytest.raises(ValueError, match='turn'):
+        CommandWatch(FIXED, agents(3), turn=0)
     with pytest.raises(ValueError, match='window'):
         CommandWatch(FIXED, agents(3), window=float('nan'))
 

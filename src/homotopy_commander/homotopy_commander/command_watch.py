@@ -2,33 +2,38 @@
 
 The commander makes a command topic's reader only once it has seen a writer of another node
 on that topic (``CommanderNode._watch_commands``).  One look is one graph query per topic, and
-there is one steering topic per agent, so looking at every topic every tick costs about 35 ms
-per tick at 1,000 agents.  `CommandWatch` bounds that:
+there is one steering topic per agent: looking at every topic every tick costs about 35 ms per
+tick at 1,000 agents in an empty graph, and a query costs more the more endpoints the graph
+holds.  `CommandWatch` bounds that:
 
 - the fixed topics (λ and the set-point) are looked at every tick;
-- the steering topics in a round-robin slice of at most ``per_tick`` a tick: a swarm of up to
-  ``per_tick`` agents still has every topic looked at every tick, 1,000 agents every 16 ticks;
+- a swarm of up to ``per_tick`` agents has every steering topic looked at every tick;
+- in a bigger one, ``turn`` steering topics a tick, in turn (1,000 agents: every 125 ticks);
 - topics whose reader exists (``reading``) every tick too (up to ``per_tick`` of them, in turn
   if there are more), so a reader is dropped soon after its writers left;
-- every topic every tick for ``window`` seconds after a node appeared in the graph.
-  ``ros2 topic pub`` is a new node, so its writer is matched at once.  The node and its writer
-  are discovered in either order, hence a window and not one look.  Nodes of the swarm itself
-  (``ours``: agents, agent containers) open no window: they write no command topic, and
-  1,000 of them appearing at start-up would otherwise keep the window open.
+- for ``window`` seconds after a node appeared in the graph, the caller asks that node which
+  topics it writes (one cheap query per node) and passes the command topics among them
+  (``found``): ``ros2 topic pub`` is a new node, so its writer is matched at once.  The node
+  and its writer are discovered in either order, hence a window and not one look.  Nodes of
+  the swarm itself (``ours``: agents, agent containers) are not asked: they write no command
+  topic, and there may be 1,000 of them.
 
-Missing a window (a node that left and another of the same name that came between two ticks)
-costs only time: the round robin still finds the writer within ``len(rotating) / per_tick``
-ticks, and a tool that waits for a match, as ``ros2 topic pub`` does, publishes after that.
+A writer that a node already in the graph adds later, or one missed between two ticks (a node
+that left and another of the same name that came), is found by the turns, within
+``len(rotating) / turn`` ticks; a tool that waits for a match, as ``ros2 topic pub`` does,
+publishes after that.
 """
 from __future__ import annotations
 
 import math
 from collections import Counter
 
-#: at most this many steering topics looked at per tick outside a window (besides the fixed ones)
+#: a swarm of up to this many agents has every steering topic looked at every tick
 STEERING_PER_TICK = 64
-#: seconds of looking at every topic every tick after a node appeared in the graph
-FULL_LOOK = 2.0
+#: steering topics looked at per tick, in turn, in a bigger swarm
+STEERING_TURN = 8
+#: seconds during which a node that appeared in the graph is asked which topics it writes
+NEW_NODE_LOOK = 2.0
 
 
 def of_swarm(node, agents) -> bool:
@@ -44,46 +49,48 @@ class CommandWatch:
     ``fixed``: keys looked at every tick; ``rotating``: keys looked at in turn; ``ours(node)``:
     True for a node (an item of the node list) that opens no window."""
 
-    def __init__(self, fixed, rotating, per_tick: int = STEERING_PER_TICK, window: float = FULL_LOOK,
-                 ours=None):
-        if per_tick < 1:
-            raise ValueError(f'per_tick={per_tick!r}: must be at least 1')
+    def __init__(self, fixed, rotating, per_tick: int = STEERING_PER_TICK, window: float = NEW_NODE_LOOK,
+                 ours=None, turn: int = STEERING_TURN):
+        if per_tick < 1 or turn < 1:
+            raise ValueError(f'per_tick={per_tick!r}, turn={turn!r}: must be at least 1')
         if not window >= 0:
             raise ValueError(f'window={window!r}: must be ≥ 0')
         self.fixed = list(fixed)
         self.rotating = list(rotating)
         self.every = list(dict.fromkeys(self.fixed + self.rotating))
         self.place = {k: i for i, k in enumerate(self.rotating)}
-        self.per_tick, self.window = int(per_tick), float(window)
+        self.per_tick, self.turn, self.window = int(per_tick), int(turn), float(window)
         self.ours = ours or (lambda node: False)
         self.nodes = Counter()
         self.node_list = None
-        self.full_until = -math.inf
-        self.cursor = 0              # next rotating key of the round robin
+        self.new = {}                # node -> until when it is asked for its topics
+        self.cursor = 0              # next rotating key of the turns
         self.read_cursor = 0         # next key among those read, when more than per_tick are
 
     def nodes_seen(self, now: float, nodes) -> bool:
-        """Take the graph's node list; True (and a window opens) if a node not ours appeared."""
+        """Take the graph's node list; True if a node not ours appeared (it is asked for its
+        topics for ``window`` s: `recent`)."""
         nodes = list(nodes)
         if nodes == self.node_list:
             return False
         self.node_list = nodes
         now_nodes = Counter(nodes)
-        new = now_nodes - self.nodes
+        new = [nd for nd in now_nodes - self.nodes if not self.ours(nd)]
         self.nodes = now_nodes
-        if any(not self.ours(nd) for nd in new):
-            self.full_until = now + self.window
-            return True
-        return False
+        for nd in new:
+            self.new[nd] = now + self.window
+        return bool(new)
 
-    def full(self, now: float) -> bool:
-        """True while a window is open."""
-        return now < self.full_until
+    def recent(self, now: float) -> list:
+        """The nodes to ask which topics they write: those that appeared less than ``window`` s ago."""
+        for nd in [nd for nd, until in self.new.items() if now >= until]:
+            del self.new[nd]
+        return list(self.new)
 
-    def pick(self, now: float, reading=()) -> list:
+    def pick(self, now: float, reading=(), found=()) -> list:
         """The keys to look at now (each once, the fixed ones first).  ``reading``: keys whose
-        reader exists."""
-        if self.full(now) or len(self.rotating) <= self.per_tick:
+        reader exists; ``found``: keys that a recent node writes."""
+        if len(self.rotating) <= self.per_tick:
             return list(self.every)
         out = dict.fromkeys(self.fixed)
         read = sorted((k for k in reading if k in self.place and k not in out), key=self.place.__getitem__)
@@ -92,17 +99,20 @@ class CommandWatch:
             read = (read + read)[start:start + self.per_tick]
             self.read_cursor = start + self.per_tick
         out.update(dict.fromkeys(read))
+        out.update(dict.fromkeys(k for k in found if k in self.place or k in out))
         n = len(self.rotating)
         start = self.cursor % n
-        out.update(dict.fromkeys(self.rotating[(start + i) % n] for i in range(self.per_tick)))
-        self.cursor = (start + self.per_tick) % n
+        out.update(dict.fromkeys(self.rotating[(start + i) % n] for i in range(min(self.turn, n))))
+        self.cursor = (start + self.turn) % n
         return list(out)
 
-    def tick(self, now: float, nodes, reading=()) -> list:
+    def tick(self, now: float, nodes, reading=(), found=()) -> list:
         """`nodes_seen` then `pick`: the keys to look at on this tick."""
         self.nodes_seen(now, nodes)
-        return self.pick(now, reading)
+        return self.pick(now, reading, found)
 
     def period(self) -> int:
-        """Ticks between two looks at a rotating key outside a window (at most)."""
-        return max(1, math.ceil(len(self.rotating) / self.per_tick))
+        """Ticks between two looks at a rotating key in its turn (at most)."""
+        if len(self.rotating) <= self.per_tick:
+            return 1
+        return max(1, math.ceil(len(self.rotating) / self.turn))

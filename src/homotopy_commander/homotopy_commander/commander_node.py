@@ -148,8 +148,9 @@ class CommanderNode(Node):
             self.commands[nm] = CommandReader(P.steering_topic(nm), Float64,
                                               lambda msg, nm=nm: self._on_steering(nm, msg), nm)
         # λ and the set-point every tick, the steering topics in turn (every one every tick up
-        # to 64 agents), all of them for a while after a node other than the swarm's appeared
+        # to 64 agents), and those a node other than the swarm's writes, for a while after it appeared
         self.watch = CommandWatch([P.LAMBDA, SETPOINT], self.names, ours=lambda nd: of_swarm(nd, self.row))
+        self.command_key = {c.topic: key for key, c in self.commands.items()}
         self.reading = set()         # keys of the commands whose reader exists
         self.create_timer(COMMAND_POLL, self._watch_commands, clock=steady_clock())
         if self.mode == 'lockstep':
@@ -190,13 +191,22 @@ class CommanderNode(Node):
         can see it: the first sample is always taken.
 
         One graph query per topic looked at: `CommandWatch` picks which (all of them in a swarm
-        of up to 64 agents; in a bigger one all of them only for 2 s after a new node appeared,
-        else a round-robin slice, so a writer is seen within len/64 ticks)."""
+        of up to 64 agents; in a bigger one those a new node writes, asked by node for 2 s after
+        it appeared, and 8 more a tick in turn)."""
         me = (self.get_name(), self.get_namespace())
+        now = time.monotonic()
         try:
-            keys = self.watch.tick(time.monotonic(), self.get_node_names_and_namespaces(), self.reading)
+            self.watch.nodes_seen(now, self.get_node_names_and_namespaces())
         except Exception:                # the context is going down
             return
+        found = []
+        for name, ns in self.watch.recent(now):
+            try:
+                writes = self.get_publisher_names_and_types_by_node(name, ns)
+            except Exception:            # gone again, or the context is going down
+                continue
+            found += [self.command_key[t] for t, _ in writes if t in self.command_key]
+        keys = self.watch.pick(now, self.reading, found)
         for key in keys:
             c = self.commands[key]
             try:
