@@ -182,6 +182,16 @@ def stop_on_signals():
     return stop, wake, restore
 
 
+def settle_garbage():
+    """Once the nodes are built: move every object alive now out of the garbage collector's
+    reach (`gc.freeze`).  The nodes' objects live as long as the process; without this the
+    collector walks all of them again and again while each step's short-lived objects come and
+    go (measured: a container of 100 agents spent a third of its step time in the collector)."""
+    import gc
+    gc.collect()
+    gc.freeze()
+
+
 def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, on_stop=None,
              more_nodes=None) -> int:
     """The ``main()`` of a node executable: init rclpy from ``argv``, build ``node_class()``
@@ -215,6 +225,7 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
     ex.add_node(node)
     for other in (more_nodes(node) if more_nodes is not None else ()):
         ex.add_node(other)
+    settle_garbage()
     spin_until(ex, ctx, (lambda: bool(stop) or done(node)) if done is not None else (lambda: bool(stop)),
                wake=wake)
     if stop and on_stop is not None:

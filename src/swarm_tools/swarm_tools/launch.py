@@ -75,7 +75,7 @@ def run_in_process(params: dict, domain_id=None) -> int:
     from rclpy.context import Context
     from rclpy.signals import SignalHandlerOptions
 
-    from swarm_ros.rosutil import ParameterError, make_executor, spin_until, stop_on_signals
+    from swarm_ros.rosutil import ParameterError, make_executor, settle_garbage, spin_until, stop_on_signals
     stop, wake, restore_signals = stop_on_signals()
     ctx = Context()
     rclpy.init(context=ctx, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
@@ -88,6 +88,7 @@ def run_in_process(params: dict, domain_id=None) -> int:
         ex = make_executor(ctx)
         for nd in [world, commander, *agents]:
             ex.add_node(nd)
+        settle_garbage()
         spin_until(ex, ctx, lambda: world.done or bool(stop), wake=wake)
         code = 0 if world.done and world.failed is None else (1 if world.failed else 130)
         if code == 130:
