@@ -10,12 +10,12 @@ in a run.  Then it times ticks of ``_watch_commands``, interleaved in rounds:
 - before: every command topic every tick (the commander's `CommandWatch` with a slice of n:
   what the commander did before, plus the node-list query, timed alone as ``nodes``);
 - after: the commander's own `CommandWatch` (λ, set-point, every steering topic up to 64
-  agents, else 8 a tick in turn, and the topics of nodes that appeared in the last 2 s).
+  agents, else 4 a tick in turn, and the topics of nodes that appeared in the last 2 s).
 Both include the node-list query of each tick.
 
 Per tick: wall ms and this thread's CPU ms (the graph queries run in the calling thread).
 Then the delay until a new writer gets its reader: of a new node (asked for its topics: next tick)
-and of a node already in the graph (the turns: at most n/8 ticks), in ticks of 0.05 s.
+and of a node already in the graph (the turns: at most n/4 ticks), in ticks of 0.05 s.
 """
 from __future__ import annotations
 

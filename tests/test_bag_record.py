@@ -232,7 +232,8 @@ def test_recorded_run_reads_back_with_two_readers(rclpy_context, processes, swar
 def test_bag_metadata_as_rosbag2_writes_it(rclpy_context, processes, swarm_cmd, tmp_path):
     from mcap.reader import make_reader
 
-    from swarm_tools.bag import SEPARATOR, parse_qos_yaml
+    from swarm_tools.bag import parse_qos_yaml
+    from swarm_tools.msgdefs import SEPARATOR
 
     out = tmp_path / 'meta.mcap'
     rc, stdout, stderr, _ = _record(rclpy_context, processes, swarm_cmd, out, 5,
@@ -317,7 +318,7 @@ def test_bag_directory_as_rosbag2_lays_it_out(rclpy_context, processes, swarm_cm
 
 
 def _share(pkg, name):
-    from swarm_tools.bag import share_dirs
+    from swarm_tools.msgdefs import share_dirs
     for d in share_dirs():
         f = d / pkg / 'msg' / f'{name}.msg'
         if f.is_file():

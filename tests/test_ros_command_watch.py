@@ -31,7 +31,7 @@ def test_topic_pub_once_reaches_a_200_agent_commander(tmp_path, rclpy_context):
 
     path = scenario_file(200, 10, tmp_path)
     cmd = CommanderNode(context=rclpy_context, parameter_overrides=[Parameter('scenario', value=str(path))])
-    assert cmd.watch.period() == 25                     # 200 topics, 8 a tick in turn
+    assert cmd.watch.period() == 50                     # 200 topics, 4 a tick in turn
     ex = make_executor(rclpy_context, events=False)
     ex.add_node(cmd)
     tries = [('/swarm/lambda', None, 0.5)] + [(f'/agent_{i}/steering', f'agent_{i}', 0.001 * (k + 1))

@@ -8,7 +8,7 @@ holds.  `CommandWatch` bounds that:
 
 - the fixed topics (λ and the set-point) are looked at every tick;
 - a swarm of up to ``per_tick`` agents has every steering topic looked at every tick;
-- in a bigger one, ``turn`` steering topics a tick, in turn (1,000 agents: every 125 ticks);
+- in a bigger one, ``turn`` steering topics a tick, in turn (1,000 agents: every 250 ticks);
 - topics whose reader exists (``reading``) every tick too (up to ``per_tick`` of them, in turn
   if there are more), so a reader is dropped soon after its writers left;
 - for ``window`` seconds after a node appeared in the graph, the caller asks that node which
@@ -31,7 +31,7 @@ from collections import Counter
 #: a swarm of up to this many agents has every steering topic looked at every tick
 STEERING_PER_TICK = 64
 #: steering topics looked at per tick, in turn, in a bigger swarm
-STEERING_TURN = 8
+STEERING_TURN = 4
 #: seconds during which a node that appeared in the graph is asked which topics it writes
 NEW_NODE_LOOK = 2.0
 

@@ -149,7 +149,9 @@ class CommanderNode(Node):
                                               lambda msg, nm=nm: self._on_steering(nm, msg), nm)
         # λ and the set-point every tick, the steering topics in turn (every one every tick up
         # to 64 agents), and those a node other than the swarm's writes, for a while after it appeared
-        self.watch = CommandWatch([P.LAMBDA, SETPOINT], self.names, ours=lambda nd: of_swarm(nd, self.row))
+        me = (self.get_name(), self.get_namespace())
+        self.watch = CommandWatch([P.LAMBDA, SETPOINT], self.names,
+                                  ours=lambda nd: nd == me or of_swarm(nd, self.row))
         self.command_key = {c.topic: key for key, c in self.commands.items()}
         self.reading = set()         # keys of the commands whose reader exists
         self.create_timer(COMMAND_POLL, self._watch_commands, clock=steady_clock())

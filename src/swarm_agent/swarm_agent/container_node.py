@@ -29,7 +29,8 @@ from rclpy.time_source import TimeSource
 
 from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node
 
-from .agent_node import CLOCKS, AgentNode, AgentStatesWriter, shared_inputs, step_message, step_time
+from .agent_node import AgentNode
+from .process_io import CLOCKS, AgentStatesWriter, shared_inputs, step_message, step_time
 from .container_core import ContainerCore
 
 

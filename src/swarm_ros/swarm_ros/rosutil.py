@@ -182,6 +182,24 @@ def stop_on_signals():
     return stop, wake, restore
 
 
+def profiler():
+    """``SWARM_PROFILE=DIR`` in the environment: profile this node process's spin (cProfile);
+    returns a function that writes ``DIR/<name>-<pid>.prof`` (None without the variable)."""
+    import os
+    where = os.environ.get('SWARM_PROFILE')
+    if not where:
+        return None
+    import cProfile
+    prof = cProfile.Profile()
+    prof.enable()
+
+    def dump(name):
+        prof.disable()
+        os.makedirs(where, exist_ok=True)
+        prof.dump_stats(os.path.join(where, f'{name}-{os.getpid()}.prof'))
+    return dump
+
+
 def settle_garbage():
     """Once the nodes are built: move every object alive now out of the garbage collector's
     reach (`gc.freeze`).  The nodes' objects live as long as the process; without this the
@@ -226,8 +244,11 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
     for other in (more_nodes(node) if more_nodes is not None else ()):
         ex.add_node(other)
     settle_garbage()
+    profile = profiler()
     spin_until(ex, ctx, (lambda: bool(stop) or done(node)) if done is not None else (lambda: bool(stop)),
                wake=wake)
+    if profile is not None:
+        profile(f'{logger_name}-{node.get_name()}')
     if stop and on_stop is not None:
         on_stop(node)
     reject = getattr(node, 'reject', None)

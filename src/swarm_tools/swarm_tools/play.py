@@ -15,7 +15,8 @@ import signal
 import sys
 import time
 
-from .bag import bag_topics, has_leading_stamp, iter_messages, leading_stamp_ns, replay_qos, resolve_bag
+from .bag import bag_topics, iter_messages, replay_qos, resolve_bag
+from .msgdefs import has_leading_stamp, leading_stamp_ns
 from .record import message_class
 
 CLOCK = '/clock'

@@ -21,7 +21,8 @@ import signal
 import sys
 import time
 
-from .bag import BagWriter, DefinitionNotFound, _msg_file, bag_paths, parse_odometry, qos_dict
+from .bag import BagWriter, bag_paths, parse_odometry, qos_dict
+from .msgdefs import DefinitionNotFound, _msg_file
 
 #: the graph is polled this often for new topics and publishers (seconds)
 POLL_PERIOD = 0.2

@@ -8,7 +8,7 @@ Built on the ``foxglove-sdk`` WebSocket server:
 
 * every ROS topic with a publisher is a channel: message encoding ``cdr`` (the ROS 2 bytes as
   they came), schema ``ros2msg`` named ``pkg/msg/Type`` holding the full definition with its
-  dependencies, built by the recorder's `swarm_tools.bag.message_definition` (what rosbag2 and
+  dependencies, built by the recorder's `swarm_tools.msgdefs.message_definition` (what rosbag2 and
   foxglove_bridge send);
 * a topic is read from ROS only while a client subscribes to its channel (as foxglove_bridge
   does), with the QoS its publishers offer (`swarm_tools.record.request_qos`);
@@ -32,7 +32,8 @@ import sys
 import time
 from pathlib import Path
 
-from .bag import DefinitionNotFound, has_leading_stamp, leading_stamp_ns, message_definition, parse_float64
+from .bag import parse_float64
+from .msgdefs import DefinitionNotFound, has_leading_stamp, leading_stamp_ns, message_definition
 
 DEFAULT_PORT = 8765
 #: where the shipped layout lives (regenerate it with ``swarm view --write-layout FILE``)

@@ -1,7 +1,7 @@
 """WorldNode: sim time, the lockstep barrier, target and barrier, swarm view and metrics.
 
-The node holds parameters, publishers, subscriptions, timers, signals and files; the logic
-lives in pure modules: `lockstep` (the barrier), `realtime` (the realtime schedule),
+The node holds parameters, publishers, subscriptions, timers, signals and files (its realtime
+inputs and tick in `realtime_node`); the logic lives in pure modules: `lockstep` (the barrier), `realtime` (the realtime schedule),
 `wallclock` (start, stalls, time-outs), `observe` (checks, progress), `inputs` (parsing),
 `markers` (messages) and `swarm_core.trajectory` (the record).  The world writes
 ``trajectory.npz`` to ``output_dir`` at the end and every event to ``events_file``.
@@ -12,7 +12,6 @@ SIGKILL / SIGSTOP / SIGCONT by the pids in ``pid_file``.  See docs/ros-graph.md 
 from __future__ import annotations
 
 import json
-import math
 import os
 import signal
 import sys
@@ -34,24 +33,24 @@ from swarm_core.scenario import ScenarioError, load
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import (ProcessSenders, RejectLog, Senders, check_agent_states, check_values, may_signal,
-                                  reason)
+from swarm_ros.msg_checks import ProcessSenders, RejectLog, Senders, check_agent_states, may_signal, reason
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, older_runs, run_json
 
-from .inputs import fault_request, format_points, leader_flags, parse_geometry, parse_point, parse_points
+from .inputs import fault_request, format_points, parse_geometry, parse_point, parse_points
 from .lockstep import LockstepBarrier, comms_schedule, decision_valid
-from .markers import Trails, geometry_messages, markers_message, metrics_message, stamp, view_values
+from .markers import Trails, geometry_messages, markers_message, metrics_message, view_values
 from .observe import Observer
 from .parameters import SCENARIO, WORLD
-from .realtime import RealtimeSchedule, newest_view
+from .realtime import RealtimeSchedule
+from .realtime_node import RealtimeWorld
 from .wallclock import StallWatch, StartWatch
 
 
 SIGNALS = {'kill': signal.SIGKILL, 'stop': signal.SIGSTOP, 'cont': signal.SIGCONT}
 
 
-class WorldNode(Node):
+class WorldNode(RealtimeWorld, Node):
     def __init__(self, node_name='world', *, namespace=None, context=None, parameter_overrides=None,
                  cli_args=None, log=print):
         super().__init__(node_name, namespace=namespace, context=context, cli_args=cli_args,
@@ -181,27 +180,6 @@ class WorldNode(Node):
         self.pub_barrier.publish(barrier)
 
     # ------------------------------------------------------------ inputs
-    def _on_state(self, raw):
-        """Realtime: a serialized /swarm/states message (decoded without building an Odometry)."""
-        try:
-            name, sec, nsec, pose, wz, tag = P.cdr_to_odometry_tagged(raw)
-        except Exception as err:
-            self.reject('state-decode', f'{P.STATES} message that does not decode: {err}')
-            return
-        t = sec + nsec * 1e-9
-        why = check_values(name, t, pose, wz, self.row, self.newest, self.sim_t, self.future_tolerance)
-        if why is None:
-            why = self.senders.check(name, tag)
-        if why is not None:
-            if why != 'repeat':
-                self.reject(why.kind, why)
-            return
-        i = self.row[name]
-        vals = (pose[0], pose[1], pose[4], pose[5])
-        self.senders.accept(name, tag)
-        self.newest[name] = (t, *vals)
-        self.rec.record_realtime(i, P.step_of(t, self.dt), vals, wz, self.lam_now, self.leaders_now)
-
     def _on_agent_states(self, raw):
         """Lockstep: the states of one agent process's agents (serialized /lockstep/agent_states)."""
         if self.run_id and P.cdr_run_id(raw) != self.run_id:
@@ -381,43 +359,6 @@ class WorldNode(Node):
             return
         self.pub_markers.publish(markers_message(t, pos, theta, labels, idx, self.leaders_now, self.trails,
                                                  self.target, self.barrier))
-
-    # ------------------------------------------------------------ realtime
-    def _on_lambda(self, msg):
-        if math.isfinite(msg.data) and 0.0 <= msg.data <= 1.0:
-            self.lam_now = msg.data
-
-    def _on_leaders(self, msg):
-        """Realtime: /swarm/leaders (comma-separated names) → the leader flags recorded."""
-        self.leaders_now, unknown = leader_flags(msg.data, self.row)
-        if unknown:
-            self.reject('leaders', f'{P.LEADERS}: unknown agent(s) {", ".join(unknown)}')
-
-    def rt_tick(self):
-        now = time.monotonic()
-        if self.other_run():
-            return
-        if not self.started:
-            if len(self.newest) < self.n:
-                return
-            self.started, self.run_wall = True, now
-            self.log(f'[world] realtime: {self.n} agents discovered in {now - self.wall_start:.1f} s; '
-                     f'clock at rtf {self.rtf}', flush=True)
-        self.sim_t = (now - self.run_wall) * self.rtf
-        self.pub_clock.publish(Clock(clock=stamp(self.sim_t)))
-        k = P.step_of(self.sim_t, self.dt)
-        self.act(self.rt.comms_due(k))
-        if self.rt.view_due(k):
-            pos, theta = newest_view(self.newest, self.names)
-            t = k * self.dt
-            md = M.min_distance(pos)
-            line = self.obs.progress(t, pos, md, self.lam_now)
-            if line:
-                self.log(line, flush=True)
-            self.publish_view(t, pos, theta, md)
-        self.act(self.rt.faults_due(min(k, self.steps)))
-        if self.sim_t >= self.scn.duration:
-            self.finish()
 
     # ------------------------------------------------------------ timer, end
     def _on_timer(self):

@@ -1,0 +1,79 @@
+"""What the agents of one process share, whether it holds one agent (`agent_node`) or several
+(`container_node`): the subscriptions every agent reads alike, the step relay decoded once and
+decided for all (lockstep), the sim time from the step messages, and the one
+``/lockstep/agent_states`` message per step that carries the agents' new states to the world."""
+from __future__ import annotations
+
+from geometry_msgs.msg import PointStamped, PolygonStamped
+from nav_msgs.msg import Odometry
+from rclpy.time import Time
+from std_msgs.msg import Float64, Float64MultiArray, String
+
+from swarm_ros import protocol as P
+from swarm_ros.msg_checks import new_sender_tag
+
+#: lockstep: where an agent's sim time comes from (parameter ``lockstep_clock``)
+CLOCKS = ('step', 'topic')
+
+
+def shared_inputs(node):
+    """(type, topic, callback, QoS, raw) of the subscriptions whose messages every agent of a
+    process reads alike (a container makes each once and hands the messages to its agents;
+    `node` is the agent or the container)."""
+    subs = [(Float64, P.LAMBDA, node._on_lambda, P.qos_latched(10), False),      # the λ in force
+            (String, P.LEADERS, node._on_leaders, P.qos_latched(), False),
+            (PointStamped, P.TARGET, node._on_target, P.qos_latched(), False),
+            (PolygonStamped, P.BARRIER, node._on_barrier, P.qos_latched(), False),
+            (String, P.EVENTS, node._on_event, P.qos_latched(100), False)]
+    if node.mode == 'lockstep':
+        subs.append((Float64MultiArray, P.LOCK_STEP, node._on_step, P.qos_latched(), True))
+    else:
+        subs.append((Odometry, P.STATES, node._on_state, P.qos_latched(max(50, 4 * node.n)), False))
+    return subs
+
+
+class AgentStatesWriter:
+    """``/lockstep/agent_states`` of one agent process (`node`: the lone agent or the
+    container's host node): its agents' states in one message for the world."""
+
+    def __init__(self, node):
+        self.node = node
+        self.tag = new_sender_tag()
+        self.pub = node.create_publisher(Float64MultiArray, P.LOCK_AGENT_STATES, P.qos_latched())
+
+    def publish(self, agents):
+        """The state each of ``agents`` last published on /swarm/states."""
+        if agents:
+            self.pub.publish(P.agent_states_to_cdr(self.tag, [(a.index, a.step, *a.own[2:]) for a in agents],
+                                                   agents[0].run_id))
+
+
+def step_time(agents, s):
+    """Lockstep without /clock: the agents' sim time is that of step message ``s``."""
+    now = Time(nanoseconds=int(round(s.t * 1e9)))
+    for a in agents:
+        a.get_clock().set_ros_time_override(now)
+
+
+def step_message(raw, lock, agents, log_node):
+    """One ``/lockstep/step`` message for the agents of a process: decoded once, decided by
+    their `ContainerCore` (one law call), carried out by each agent; then the states of the
+    agents that answered go to the world in one message (``log_node.batch``).  A step of
+    another run (its id, swarm_ros.runinfo) is rejected."""
+    run_id = agents[0].run_id
+    if run_id and P.cdr_run_id(raw) != run_id:
+        log_node.reject('other-run', f'{P.LOCK_STEP} of run {P.cdr_run_id(raw) or "(none)"!r}, not this run '
+                        f'{run_id!r}: another swarm run on this ROS_DOMAIN_ID?')
+        return None
+    try:
+        s = P.Step(P.cdr_to_float64_array(raw))
+    except Exception as err:
+        log_node.reject('step-decode', f'/lockstep/step message: {err}')
+        return None
+    said = []
+    for j, kind, detail in lock.on_step(s):
+        agents[j].lockstep_outcome(kind, detail, s)
+        if kind in ('moved', 'repeat'):
+            said.append(agents[j])
+    log_node.batch.publish(said)
+    return s

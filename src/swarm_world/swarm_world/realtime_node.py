@@ -1,0 +1,80 @@
+"""The world in realtime mode: its inputs and its timer tick, as a part of `WorldNode`.
+
+Realtime agents publish on their own clocks; the world records each state as it comes
+(``/swarm/states``), publishes the clock at the real-time factor, and checks, views and
+applies faults on its tick.  The schedule itself is pure (`swarm_world.realtime`)."""
+from __future__ import annotations
+
+import math
+import time
+
+from rosgraph_msgs.msg import Clock
+
+from swarm_core import metrics as M
+from swarm_ros import protocol as P
+from swarm_ros.msg_checks import check_values
+
+from .inputs import leader_flags
+from .markers import stamp
+from .realtime import newest_view
+
+
+class RealtimeWorld:
+    """`WorldNode`'s realtime methods (a mixin: they use the node's attributes)."""
+
+    def _on_state(self, raw):
+        """Realtime: a serialized /swarm/states message (decoded without building an Odometry)."""
+        try:
+            name, sec, nsec, pose, wz, tag = P.cdr_to_odometry_tagged(raw)
+        except Exception as err:
+            self.reject('state-decode', f'{P.STATES} message that does not decode: {err}')
+            return
+        t = sec + nsec * 1e-9
+        why = check_values(name, t, pose, wz, self.row, self.newest, self.sim_t, self.future_tolerance)
+        if why is None:
+            why = self.senders.check(name, tag)
+        if why is not None:
+            if why != 'repeat':
+                self.reject(why.kind, why)
+            return
+        i = self.row[name]
+        vals = (pose[0], pose[1], pose[4], pose[5])
+        self.senders.accept(name, tag)
+        self.newest[name] = (t, *vals)
+        self.rec.record_realtime(i, P.step_of(t, self.dt), vals, wz, self.lam_now, self.leaders_now)
+
+    def _on_lambda(self, msg):
+        if math.isfinite(msg.data) and 0.0 <= msg.data <= 1.0:
+            self.lam_now = msg.data
+
+    def _on_leaders(self, msg):
+        """Realtime: /swarm/leaders (comma-separated names) → the leader flags recorded."""
+        self.leaders_now, unknown = leader_flags(msg.data, self.row)
+        if unknown:
+            self.reject('leaders', f'{P.LEADERS}: unknown agent(s) {", ".join(unknown)}')
+
+    def rt_tick(self):
+        now = time.monotonic()
+        if self.other_run():
+            return
+        if not self.started:
+            if len(self.newest) < self.n:
+                return
+            self.started, self.run_wall = True, now
+            self.log(f'[world] realtime: {self.n} agents discovered in {now - self.wall_start:.1f} s; '
+                     f'clock at rtf {self.rtf}', flush=True)
+        self.sim_t = (now - self.run_wall) * self.rtf
+        self.pub_clock.publish(Clock(clock=stamp(self.sim_t)))
+        k = P.step_of(self.sim_t, self.dt)
+        self.act(self.rt.comms_due(k))
+        if self.rt.view_due(k):
+            pos, theta = newest_view(self.newest, self.names)
+            t = k * self.dt
+            md = M.min_distance(pos)
+            line = self.obs.progress(t, pos, md, self.lam_now)
+            if line:
+                self.log(line, flush=True)
+            self.publish_view(t, pos, theta, md)
+        self.act(self.rt.faults_due(min(k, self.steps)))
+        if self.sim_t >= self.scn.duration:
+            self.finish()
