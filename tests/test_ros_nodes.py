@@ -25,7 +25,7 @@ from swarm_ros import protocol as P  # noqa: E402
 from swarm_ros.rosutil import ParameterError, make_executor  # noqa: E402
 from swarm_world.world_node import WorldNode  # noqa: E402
 
-from conftest import odom, overrides, run_nodes, short_homotopy, spin_for  # noqa: E402
+from conftest import overrides, run_nodes, short_homotopy, spin_for  # noqa: E402
 
 
 def short_scenario(tmp_path, seed=0, duration=40.0, rise=10.0, fall=30.0, tau=3.0, at=5.0):
