@@ -169,7 +169,7 @@ class Run:
                     self.rss[pid] = (r, max(old, kib))
                     first = self.cpu[pid][1] if pid in self.cpu else (now, cpu)
                     self.cpu[pid] = (r, first, (now, cpu))
-            time.sleep(0.5)
+            time.sleep(0.1)
 
     def go(self) -> dict:
         Run.current = self
