@@ -17,6 +17,11 @@ from pathlib import Path
 
 import pytest
 
+# A suite started as a background job of a script (`bash .ci/run &`) inherits SIGINT ignored,
+# and every process it starts would ignore the Ctrl-C that the tests send them: undo that here.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 ROOT = Path(__file__).resolve().parents[1]
 VENV_BIN = Path(sys.executable).parent
 

@@ -43,7 +43,7 @@ def test_overrides_match_what_the_publishers_offer():
 @pytest.mark.ros
 def test_rosbag2_style_recorder_with_overrides_loses_no_state(ros_domain, processes, swarm_cmd, tmp_path):
     """`ros2 bag record -a --qos-profile-overrides-path FILE` started before a lockstep
-    `swarm run`: each agent's states of steps 0..last all arrive.  (The run has fewer states
+    `swarm run --state-readers 1`: each agent's states of steps 0..last all arrive.  (The run has fewer states
     than the override's depth; what a slower recorder loses in a long run is measured by
     scripts/bench_bag_qos.py.)"""
     steps, dt = 120, 0.05
@@ -52,7 +52,9 @@ def test_rosbag2_style_recorder_with_overrides_loses_no_state(ros_domain, proces
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                           env=dict(os.environ, PYTHONPATH=str(ROOT / 'tests')))
     assert 'ready' in rec.stderr.readline()
-    run = processes.start([swarm_cmd, 'run', scn, '--mode', 'lockstep', '--no-figure',
+    # --state-readers 1: the agents' first states wait for the recorder's reader (a short run
+    # is over before a recorder that has not yet discovered an agent's writer could match it)
+    run = processes.start([swarm_cmd, 'run', scn, '--mode', 'lockstep', '--no-figure', '--state-readers', '1',
                            '--out', tmp_path / 'run'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                           text=True)
     out = processes.communicate(run, timeout=600)

@@ -197,3 +197,13 @@ def test_agent_states_batches_are_checked_and_bound_to_their_process():
     assert ok.tolist() == [True, False] and why.kind == 'second-publisher'
     s.accept(np.array([2]), 6.0)
     assert s.tag[[0, 2, 3]].tolist() == [5.0, 6.0, 5.0] and np.isnan(s.tag[1])
+
+
+def test_refused_logs_reasons_and_drops_repeats_silently():
+    from swarm_ros.msg_checks import reason, refused
+    lines = []
+    log = RejectLog(type('L', (), {'warning': staticmethod(lines.append)})())
+    assert refused(log, None) is False and log.count == 0
+    assert refused(log, 'repeat') is True and log.count == 0
+    assert refused(log, reason('future-stamp', 'state of x from the future')) is True
+    assert log.count == 1 and lines == ['rejected state of x from the future']

@@ -39,7 +39,8 @@ from swarm_core.comms import CommModel, StreamRadio, change_from_event
 from swarm_core.laws import LAW_PARAMETERS, LawConfig
 from swarm_core.scenario import noise_rng
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, check_barrier, check_state, new_sender_tag
+from swarm_ros.msg_checks import (FUTURE_TOLERANCE, RejectLog, Senders, check_barrier, check_state, new_sender_tag,
+                                  refused)
 from swarm_ros.rosutil import ParameterError, declare, run_node, when_matched
 from swarm_ros.runinfo import declare_run_id
 
@@ -340,14 +341,9 @@ class AgentNode(Node):
                 self.reject('dup-self', f'state claiming to be {name!r} (this agent) from another publisher: '
                             'duplicate agent name')
             return
-        why = check_state(msg, self.row, self.heard if self.radio_on else self.neigh, self._now(),
-                          self.future_tolerance)
         tag = msg.pose.covariance[P.SENDER_TAG_INDEX]
-        if why is None:
-            why = self.senders.check(name, tag)
-        if why is not None:
-            if why != 'repeat':
-                self.reject(why.kind, why)
+        if refused(self.reject, check_state(msg, self.row, self.heard if self.radio_on else self.neigh, self._now(),
+                                            self.future_tolerance) or self.senders.check(name, tag)):
             return
         self.senders.accept(name, tag)
         p = msg.pose.pose

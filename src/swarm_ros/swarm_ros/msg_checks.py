@@ -69,6 +69,16 @@ def check_values(name, t, pose, wz, row, newest, now=None, tolerance=FUTURE_TOLE
     return None
 
 
+def refused(reject, why) -> bool:
+    """True if a state must be dropped: ``why`` is a `Reason` (logged with ``reject``, a
+    `RejectLog`) or 'repeat' (an exact repeat: dropped silently)."""
+    if why is None:
+        return False
+    if why != 'repeat':
+        reject(why.kind, why)
+    return True
+
+
 class Senders:
     """Binds each agent name to the first sender heard for it and rejects the others.
 

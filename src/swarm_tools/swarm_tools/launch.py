@@ -118,6 +118,10 @@ def _parser():
         'clock at --rtf)'))
     p.add_argument('--rtf', type=float, default=1.0, help='realtime: sim seconds per wall second (default 1)')
     p.add_argument('--record', metavar='BAG.mcap', help='also record the run (swarm record)')
+    p.add_argument('--state-readers', type=int, default=0, metavar='N', help=(
+        'lockstep: each agent publishes its first state only once N readers of /swarm/states besides '
+        "the run's own recorder have matched it (at most 30 s), e.g. 1 for a `ros2 bag record` started "
+        'before the run, so that it gets every state from step 0 (default 0)'))
     p.add_argument('--foxglove', metavar='PORT', nargs='?', type=int, const=8765, default=None, help=(
         'also serve the run live to the Foxglove app (swarm view) on ws://127.0.0.1:PORT '
         '(default 8765; 0: a free port, printed)'))
@@ -195,6 +199,9 @@ def main(argv=None) -> int:
     if a.foxglove is not None and not 0 <= a.foxglove <= 65535:
         print(f'swarm run: --foxglove {a.foxglove}: must be a port in 0..65535', file=sys.stderr)
         return 2
+    if not 0 <= a.state_readers <= 1000:
+        print(f'swarm run: --state-readers {a.state_readers}: must be in 0..1000', file=sys.stderr)
+        return 2
     if a.rtf is not None and not (a.rtf > 0 and a.rtf < 1e4):
         print(f'swarm run: --rtf {a.rtf}: must be in (0, 1e4)', file=sys.stderr)
         return 2
@@ -262,9 +269,11 @@ def main(argv=None) -> int:
                              extra_world=dict(progress_every=float(a.progress_every), clock_every=int(a.clock_every),
                                               missing_timeout=float(a.missing_timeout),
                                               start_timeout=float(a.start_timeout)))
+    readers = a.state_readers + (1 if a.record and not a.in_process else 0)
+    if readers and a.mode == 'lockstep':
+        for nm in scn.names:            # the recorders must hear every state from step 0
+            params[f'/{nm}/agent']['state_subscribers'] = readers
     if a.record and not a.in_process and a.mode == 'lockstep':
-        for nm in scn.names:            # the recorder must hear every state from step 0
-            params[f'/{nm}/agent']['state_subscribers'] = 1
         params['/world']['wait_for_recorder'] = True          # ... every /clock
         params['/commander']['wait_for_recorder'] = True      # ... and every λ and steering message
     from swarm_ros.runinfo import new_run_id

@@ -12,7 +12,7 @@ from rosgraph_msgs.msg import Clock
 
 from swarm_core import metrics as M
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import check_values
+from swarm_ros.msg_checks import check_values, refused
 
 from .inputs import leader_flags
 from .markers import stamp
@@ -30,12 +30,8 @@ class RealtimeWorld:
             self.reject('state-decode', f'{P.STATES} message that does not decode: {err}')
             return
         t = sec + nsec * 1e-9
-        why = check_values(name, t, pose, wz, self.row, self.newest, self.sim_t, self.future_tolerance)
-        if why is None:
-            why = self.senders.check(name, tag)
-        if why is not None:
-            if why != 'repeat':
-                self.reject(why.kind, why)
+        if refused(self.reject, check_values(name, t, pose, wz, self.row, self.newest, self.sim_t,
+                                             self.future_tolerance) or self.senders.check(name, tag)):
             return
         i = self.row[name]
         vals = (pose[0], pose[1], pose[4], pose[5])
