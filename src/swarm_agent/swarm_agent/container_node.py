@@ -37,6 +37,8 @@ from .container_core import ContainerCore
 class AgentContainer(Node):
     """The host node of a container and its agents (`agents`)."""
 
+    USAGE_ARGS = '[--no-services] AGENT [AGENT ...]'      # for --help
+
     def __init__(self, names=None, *, context=None, parameter_overrides=None, agent_overrides=None, services=None):
         names = list(names if names is not None else AGENT_NAMES)
         services = SERVICES[0] if services is None else services

@@ -134,7 +134,9 @@ def node_help(node_class, exe) -> str:
     import rclpy
     from rclpy.context import Context
     doc = (sys.modules[node_class.__module__].__doc__ or '').strip().split('\n\n')[0]
-    lines = [f'usage: {exe} [-h] [--ros-args -p NAME:=VALUE ... | --params-file FILE]', '', doc, '',
+    args = getattr(node_class, 'USAGE_ARGS', '')
+    lines = [f'usage: {exe} [-h] {args + " " if args else ""}[--ros-args -p NAME:=VALUE ... | --params-file FILE]',
+             '', doc, '',
              'Usually started by `swarm run` (which writes one parameter file for every node).', '']
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'OFF'     # this node is only looked at
     ctx = Context()
