@@ -172,6 +172,11 @@ def test_the_younger_of_two_runs_gives_way():
     assert give_way({'me': dict(old, run_id='me')}, 'me', 20.0, 1, False, '7') is None
 
 
+def batch(tag, index, step, x):
+    """A one-agent /lockstep/agent_states, as its data (the agents' own encoder)."""
+    return P.cdr_to_float64_array(P.agent_states_to_cdr(tag, [(index, step, x, 0.0, 0.0, 1.0, 0.0)]))
+
+
 def test_agent_states_batches_are_checked_and_bound_to_their_process():
     from swarm_ros.msg_checks import ProcessSenders, check_agent_states
     good = np.array([[1.0, 2.0], [3.0, 4.0], [0.0, np.sin(0.3)], [1.0, np.cos(0.3)]])
@@ -182,11 +187,11 @@ def test_agent_states_batches_are_checked_and_bound_to_their_process():
     bad[2, 0] = 0.5
     assert check_agent_states(np.array([0, 3]), bad, 4).kind == 'not-planar'
     with pytest.raises(ValueError, match='not finite'):
-        P.unpack_agent_states(P.pack_agent_states(1.0, [0], [0], [np.inf], [0.0], [0.0], [1.0], [0.0]))
+        P.unpack_agent_states(batch(1.0, 0, 0, np.inf))
     with pytest.raises(ValueError, match='not finite'):
-        P.unpack_agent_states(P.pack_agent_states(np.nan, [0], [0], [0.0], [0.0], [0.0], [1.0], [0.0]))
+        P.unpack_agent_states(batch(np.nan, 0, 0, 0.0))
     with pytest.raises(ValueError, match='whole number'):
-        P.unpack_agent_states(P.pack_agent_states(1.0, [-1], [0], [0.0], [0.0], [0.0], [1.0], [0.0]))
+        P.unpack_agent_states(batch(1.0, -1, 0, 0.0))
     with pytest.raises(ValueError, match='do not hold'):
         P.unpack_agent_states([np.nan, 1.0])
     s = ProcessSenders(4)
@@ -207,3 +212,13 @@ def test_refused_logs_reasons_and_drops_repeats_silently():
     assert refused(log, 'repeat') is True and log.count == 0
     assert refused(log, reason('future-stamp', 'state of x from the future')) is True
     assert log.count == 1 and lines == ['rejected state of x from the future']
+
+
+def test_other_run_names_the_run_a_lockstep_message_carries():
+    from swarm_ros.msg_checks import other_run
+    raw = P.float64_array_to_cdr(np.zeros(3), 'aaaa1111')
+    assert other_run(raw, 'aaaa1111', '/lockstep/step') is None
+    assert other_run(raw, '', '/lockstep/step') is None                  # a node without a run id takes any
+    why = other_run(raw, 'bbbb2222', '/lockstep/step')
+    assert why.kind == 'other-run' and "/lockstep/step of run 'aaaa1111', not this run 'bbbb2222'" in why
+    assert "of run '(none)'" in other_run(P.float64_array_to_cdr(np.zeros(3)), 'bbbb2222', '/lockstep/states')

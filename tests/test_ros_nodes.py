@@ -280,7 +280,7 @@ def test_bad_states_are_rejected_by_the_world(rclpy_context):
     qz, qw = math.sin(0.25), math.cos(0.25)
 
     def batch(tag, idx, step, x, y, u=0.0):
-        return P.float64_array_to_cdr(P.pack_agent_states(tag, [idx], [step], [x], [y], [qz], [qw], [u]))
+        return P.agent_states_to_cdr(tag, [(idx, step, x, y, qz, qw, u)])
     sent = [batch(1.0, 3, 0, 1.0, 2.0),                  # valid
             batch(1.0, 9, 0, 0.0, 0.0),                  # no agent 9 in a roster of 6
             batch(1.0, 4, 0, float('nan'), 0.0),         # NaN

@@ -190,8 +190,7 @@ def test_headings_unwrap_in_time_from_the_initial_heading():
 def feed_batch(b, k, agents=range(3), u=0.1):
     """`feed_states` as one agent process's /lockstep/agent_states (packed and unpacked)."""
     agents = list(agents)
-    vals = np.array([state(i, k) for i in agents]).T
-    data = P.pack_agent_states(7.0, agents, [k] * len(agents), *vals, [u * (i + 1) for i in agents])
+    data = P.cdr_to_float64_array(P.agent_states_to_cdr(7.0, [(i, k, *state(i, k), u * (i + 1)) for i in agents]))
     tag, idx, ks, v, us = P.unpack_agent_states(data)
     assert tag == 7.0 and list(idx) == agents
     late, acts = b.on_states(idx, ks, v, us)
@@ -234,12 +233,13 @@ def test_agent_states_layout_is_checked():
     with pytest.raises(ValueError, match='do not hold'):
         P.unpack_agent_states([2.0, 1.0, 0.0])
     with pytest.raises(ValueError, match='whole number'):
-        P.unpack_agent_states(P.pack_agent_states(1.0, [0.5], [0], [0.0], [0.0], [0.0], [1.0], [0.0]))
+        P.unpack_agent_states(P.cdr_to_float64_array(P.agent_states_to_cdr(1.0, [(0.5, 0, 0.0, 0.0, 0.0, 1.0, 0.0)])))
 
 
 def test_agent_states_bytes_are_the_packed_array():
     rows = [(3, 7, 1.5, -2.0, 0.1, 0.99, 0.25), (0, 7, 0.0, 1.0, 0.0, 1.0, -0.5)]
-    want = P.pack_agent_states(9.0, *[list(c) for c in zip(*rows)])
+    # [K, tag, index(K), step(K), x(K), y(K), qz(K), qw(K), u(K)]
+    want = np.array([2, 9.0, 3, 0, 7, 7, 1.5, 0.0, -2.0, 1.0, 0.1, 0.0, 0.99, 1.0, 0.25, -0.5])
     for run_id in ('', 'abc12345'):
         raw = P.agent_states_to_cdr(9.0, rows, run_id)
         assert raw == P.float64_array_to_cdr(want, run_id)

@@ -49,7 +49,7 @@ from swarm_core.frenet import frame_from_quaternion
 from swarm_core.scenario import ScenarioError, load
 from swarm_core.command_plan import check_command
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders
+from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, other_run, refused
 from swarm_ros.rosutil import ParameterError, declare, gid_key, run_node, steady_clock, when_matched
 from swarm_ros.runinfo import declare_run_id
 
@@ -194,7 +194,7 @@ class CommanderNode(Node):
 
         One graph query per topic looked at: `CommandWatch` picks which (all of them in a swarm
         of up to 64 agents; in a bigger one those a new node writes, asked by node for 2 s after
-        it appeared, and 8 more a tick in turn)."""
+        it appeared, and 4 more a tick in turn)."""
         me = (self.get_name(), self.get_namespace())
         now = time.monotonic()
         try:
@@ -363,9 +363,7 @@ class CommanderNode(Node):
             self.get_logger().info(f'leaders: {", ".join(leaders)}')
 
     def _on_states(self, raw):
-        if self.run_id and P.cdr_run_id(raw) != self.run_id:
-            self.reject('other-run', f'{P.LOCK_STATES} of run {P.cdr_run_id(raw) or "(none)"!r}, not this run '
-                        f'{self.run_id!r}: another swarm run on this ROS_DOMAIN_ID?')
+        if refused(self.reject, other_run(raw, self.run_id, P.LOCK_STATES)):
             return
         data = P.cdr_to_float64_array(raw)
         n, t, x, y, qz, qw = P.unpack_states(data)

@@ -10,7 +10,7 @@ from rclpy.time import Time
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import new_sender_tag
+from swarm_ros.msg_checks import new_sender_tag, other_run, refused
 
 #: lockstep: where an agent's sim time comes from (parameter ``lockstep_clock``)
 CLOCKS = ('step', 'topic')
@@ -37,7 +37,6 @@ class AgentStatesWriter:
     container's host node): its agents' states in one message for the world."""
 
     def __init__(self, node):
-        self.node = node
         self.tag = new_sender_tag()
         self.pub = node.create_publisher(Float64MultiArray, P.LOCK_AGENT_STATES, P.qos_latched())
 
@@ -60,10 +59,7 @@ def step_message(raw, lock, agents, log_node):
     their `ContainerCore` (one law call), carried out by each agent; then the states of the
     agents that answered go to the world in one message (``log_node.batch``).  A step of
     another run (its id, swarm_ros.runinfo) is rejected."""
-    run_id = agents[0].run_id
-    if run_id and P.cdr_run_id(raw) != run_id:
-        log_node.reject('other-run', f'{P.LOCK_STEP} of run {P.cdr_run_id(raw) or "(none)"!r}, not this run '
-                        f'{run_id!r}: another swarm run on this ROS_DOMAIN_ID?')
+    if refused(log_node.reject, other_run(raw, agents[0].run_id, P.LOCK_STEP)):
         return None
     try:
         s = P.Step(P.cdr_to_float64_array(raw))

@@ -69,6 +69,17 @@ def check_values(name, t, pose, wz, row, newest, now=None, tolerance=FUTURE_TOLE
     return None
 
 
+def other_run(raw: bytes, run_id: str, topic: str):
+    """Why a serialized lockstep message (``topic``) must be rejected because it carries
+    another run's id (`protocol.cdr_run_id`; a second run on the ROS_DOMAIN_ID), or None.
+    A node without a ``run_id`` takes any."""
+    got = P.cdr_run_id(raw) if run_id else run_id
+    if got == run_id:
+        return None
+    return reason('other-run', f'{topic} of run {got or "(none)"!r}, not this run {run_id!r}: another swarm run '
+                  'on this ROS_DOMAIN_ID?')
+
+
 def refused(reject, why) -> bool:
     """True if a state must be dropped: ``why`` is a `Reason` (logged with ``reject``, a
     `RejectLog`) or 'repeat' (an exact repeat: dropped silently)."""

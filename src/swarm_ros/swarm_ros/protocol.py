@@ -244,10 +244,8 @@ def pack_step(n, t, lam, flags, steering, x, y, qz, qw, target=None, barrier=Non
                            pack_rendezvous(rendezvous)]).astype(float)
 
 
-def pack_agent_states(tag: float, index, step, x, y, qz, qw, u) -> np.ndarray:
-    """``/lockstep/agent_states`` of one agent process (see the layouts above)."""
-    index = np.asarray(index, float)
-    return np.concatenate([[len(index), float(tag)], index, np.asarray(step, float), x, y, qz, qw, u]).astype(float)
+class NotFinite(ValueError):
+    """A packed lockstep message with a value that is not finite."""
 
 
 def unpack_agent_states(d):
@@ -259,7 +257,7 @@ def unpack_agent_states(d):
     if k < 0 or d.size != 2 + 7 * k or d[0] != k:
         raise ValueError(f'{d.size} values do not hold K = {d[0] if d.size else "?"} agents (want 2 + 7 K)')
     if not np.isfinite(d).all():
-        raise ValueError('a value is not finite')
+        raise NotFinite('a value is not finite')
     body = d[2:].reshape(7, k)
     whole = body[:2]
     if (whole != np.abs(np.floor(whole))).any():
@@ -322,8 +320,8 @@ def float64_array_header(size: int, run_id: str = '') -> bytes:
 
 
 def agent_states_to_cdr(tag: float, rows, run_id: str = '') -> bytes:
-    """Serialized ``/lockstep/agent_states`` (`pack_agent_states`) from ``rows`` of (index,
-    step, x, y, qz, qw, u), without numpy (a lone agent sends one row per step)."""
+    """Serialized ``/lockstep/agent_states`` (the layout above) from ``rows`` of (index, step,
+    x, y, qz, qw, u), without numpy (a lone agent sends one row per step)."""
     k = len(rows)
     values = [float(k), float(tag)]
     for col in zip(*rows):

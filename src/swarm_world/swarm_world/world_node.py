@@ -33,7 +33,8 @@ from swarm_core.scenario import ScenarioError, load
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import ProcessSenders, RejectLog, Senders, check_agent_states, may_signal, reason
+from swarm_ros.msg_checks import (ProcessSenders, RejectLog, Senders, check_agent_states, may_signal, other_run,
+                                  reason, refused)
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, older_runs, run_json
 
@@ -182,14 +183,12 @@ class WorldNode(RealtimeWorld, Node):
     # ------------------------------------------------------------ inputs
     def _on_agent_states(self, raw):
         """Lockstep: the states of one agent process's agents (serialized /lockstep/agent_states)."""
-        if self.run_id and P.cdr_run_id(raw) != self.run_id:
-            self.reject('other-run', f'{P.LOCK_AGENT_STATES} of run {P.cdr_run_id(raw) or "(none)"!r}, not this '
-                        f'run {self.run_id!r}: another swarm run on this ROS_DOMAIN_ID?')
+        if refused(self.reject, other_run(raw, self.run_id, P.LOCK_AGENT_STATES)):
             return
         try:
             tag, idx, ks, vals, u = P.unpack_agent_states(P.cdr_to_float64_array(raw))
         except Exception as err:
-            kind = 'non-finite' if 'finite' in str(err) else 'state-decode'
+            kind = 'non-finite' if isinstance(err, P.NotFinite) else 'state-decode'
             self.reject(kind, f'{P.LOCK_AGENT_STATES} message rejected: {err}')
             return
         why = check_agent_states(idx, vals, self.n)
@@ -209,9 +208,7 @@ class WorldNode(RealtimeWorld, Node):
         self.act(acts)
 
     def _on_decision(self, raw):
-        if self.run_id and P.cdr_run_id(raw) != self.run_id:
-            self.reject('other-run', f'{P.LOCK_DECISION} of run {P.cdr_run_id(raw) or "(none)"!r}, not this '
-                        f'run {self.run_id!r}: another swarm run on this ROS_DOMAIN_ID?')
+        if refused(self.reject, other_run(raw, self.run_id, P.LOCK_DECISION)):
             return
         data = P.cdr_to_float64_array(raw)
         n, t, lam, flags, steering = P.unpack_decision(data)
