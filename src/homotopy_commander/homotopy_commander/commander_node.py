@@ -46,12 +46,12 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_core.faults import event_names
 from swarm_core.frenet import frame_from_quaternion
-from swarm_core.scenario import ScenarioError, load
 from swarm_core.command_plan import check_command
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, other_run, refused
-from swarm_ros.rosutil import ParameterError, declare, gid_key, run_node, steady_clock, when_matched
+from swarm_ros.rosutil import declare, gid_key, run_node, steady_clock, when_matched
 from swarm_ros.runinfo import declare_run_id
+from swarm_ros.scenario_params import declare_scenario
 
 from homotopy_commander.command_watch import CommandWatch, of_swarm
 
@@ -87,10 +87,33 @@ class CommanderNode(Node):
                  cli_args=None):
         super().__init__(node_name, namespace=namespace, context=context, cli_args=cli_args,
                          parameter_overrides=parameter_overrides)
+        self._declare_parameters()
+        self.names = list(self.scn.names)
+        self.n = len(self.names)
+        self.row = {nm: i for i, nm in enumerate(self.names)}
+        self.dt = self.scn.dt
+        self.plan = self.scn.command_plan()
+        self.reject = RejectLog(self.get_logger())
+        self.senders = Senders()     # realtime: each agent name bound to its first publisher
+        self.t = 0.0
+        self.lam = float(self.plan.schedule.value(0.0))
+        self._declare_live_parameters()
+        self.leaders_sent = None
+        self.steer_sent = {}
+        self.pending = []            # live changes to apply at the next decision
+        self.decisions = 0
+        self._create_outputs()
+        self._create_command_readers()
+        if self.mode == 'lockstep':
+            self._start_lockstep()
+        else:
+            self._start_realtime()
+        self.publish_leaders([])
+
+    def _declare_parameters(self):
+        """The scenario (`declare_scenario`, as the world), the commander's own parameters
+        and the run id."""
         d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
-        scenario = d('scenario', 'homotopy_global', 'scenario name or YAML path (λ schedule, leaders)')
-        seed = d('seed', -1, "seed (-1: the scenario's)", lo=-1, hi=2**31 - 1)
-        dt = d('dt', 0.0, "step (0: the scenario's)", lo=0.0, hi=10.0)
         self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=('lockstep', 'realtime'))
         self.ramp = d('ramp', 20.0, 'ramp duration (sim s) of a λ set-point from /swarm/lambda or the '
                       'lambda parameter (0 = jump)', lo=0.0, hi=1e6)
@@ -104,19 +127,12 @@ class CommanderNode(Node):
         self.publish_every = d('publish_every', 10, 'lockstep: publish /swarm/lambda every this many steps',
                                lo=1, hi=10**9)
         self.run_id = declare_run_id(self, 'lockstep states of another run are rejected, decisions carry it')
-        try:
-            self.scn = load(scenario, seed=None if seed < 0 else seed, dt=dt or None)
-        except ScenarioError as err:
-            raise ParameterError(f'parameter scenario: {err}') from None
-        self.names = list(self.scn.names)
-        self.n = len(self.names)
-        self.row = {nm: i for i, nm in enumerate(self.names)}
-        self.dt = self.scn.dt
-        self.plan = self.scn.command_plan()
-        self.reject = RejectLog(self.get_logger())
-        self.senders = Senders()     # realtime: each agent name bound to its first publisher
-        self.t = 0.0
-        self.lam = float(self.plan.schedule.value(0.0))
+        self.scn = declare_scenario(self)
+
+    def _declare_live_parameters(self):
+        """``lambda`` and ``steering.<agent>``: set during the run (docs/commands.md); checked
+        in the on-set callback, applied in the post-set one."""
+        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
         d('lambda', self.lam, 'set λ: the commander ramps to it over `ramp` s from the next step '
           '(holds the last set-point)', lo=0.0, hi=1.0)
         for nm in self.names:
@@ -125,11 +141,8 @@ class CommanderNode(Node):
         self.add_pre_set_parameters_callback(self._pre_set)
         self.add_on_set_parameters_callback(self._check_params)
         self.add_post_set_parameters_callback(self._apply_params)
-        self.leaders_sent = None
-        self.steer_sent = {}
-        self.pending = []            # live changes to apply at the next decision
-        self.decisions = 0
 
+    def _create_outputs(self):
         # outputs: transient-local, so that a one-shot VOLATILE publisher (ros2 topic pub) matches
         # only the commander's command readers below, not the agents, world or recorder
         self.pub_lambda = self.create_publisher(Float64, P.LAMBDA, P.qos_latched(P.STEP_DEPTH))
@@ -137,6 +150,8 @@ class CommanderNode(Node):
         self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
         self.pub_steer = {nm: self.create_publisher(Float64, P.steering_topic(nm), P.qos_latched(P.STEP_DEPTH))
                           for nm in self.names}
+
+    def _create_command_readers(self):
         # command readers (VOLATILE, as `ros2 topic pub` writes), each made only once a writer of
         # another node is in the graph (see _watch_commands).  rclpy's message info carries no
         # publisher id here, so the commander recognises its own publications by value: its own
@@ -155,24 +170,26 @@ class CommanderNode(Node):
         self.command_key = {c.topic: key for key, c in self.commands.items()}
         self.reading = set()         # keys of the commands whose reader exists
         self.create_timer(COMMAND_POLL, self._watch_commands, clock=steady_clock())
-        if self.mode == 'lockstep':
-            self.last_decision = None
-            self.pub_decision = self.create_publisher(Float64MultiArray, P.LOCK_DECISION, P.qos_latched())
-            if self.wait_for_recorder:
-                # join the lockstep (the world waits for it) only once the recorder's readers
-                # of λ, steering and decisions matched: the first of those messages are volatile
-                when_matched(self, self._recorder_matched, self._join_lockstep, P.RECORDER_MATCH_WAIT,
-                             f'the recorder has not matched {P.LAMBDA}, {P.LOCK_DECISION} and every steering topic')
-            else:
-                self._join_lockstep()
+
+    def _start_lockstep(self):
+        self.last_decision = None
+        self.pub_decision = self.create_publisher(Float64MultiArray, P.LOCK_DECISION, P.qos_latched())
+        if self.wait_for_recorder:
+            # join the lockstep (the world waits for it) only once the recorder's readers
+            # of λ, steering and decisions matched: the first of those messages are volatile
+            when_matched(self, self._recorder_matched, self._join_lockstep, P.RECORDER_MATCH_WAIT,
+                         f'the recorder has not matched {P.LAMBDA}, {P.LOCK_DECISION} and every steering topic')
         else:
-            self.pos = self.scn.pos0.copy()
-            c, s = np.cos(self.scn.theta0), np.sin(self.scn.theta0)
-            self.cos, self.sin = c, s
-            self.last_seen = np.full(self.n, -np.inf)
-            self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)))
-            self.timer = self.create_timer(self.dt, self._on_tick)
-        self.publish_leaders([])
+            self._join_lockstep()
+
+    def _start_realtime(self):
+        """A timer at 1/dt (sim time) decides from the newest /swarm/states."""
+        self.pos = self.scn.pos0.copy()
+        c, s = np.cos(self.scn.theta0), np.sin(self.scn.theta0)
+        self.cos, self.sin = c, s
+        self.last_seen = np.full(self.n, -np.inf)
+        self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)))
+        self.timer = self.create_timer(self.dt, self._on_tick)
 
     def _recorder_matched(self):
         # readers: λ — the agents, the recorder; steering — the agent, the recorder; decisions —

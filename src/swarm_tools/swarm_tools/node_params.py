@@ -8,6 +8,8 @@ from pathlib import Path
 
 import yaml
 
+from swarm_ros.scenario_params import scenario_parameters
+
 
 class _QuotedStrings(yaml.SafeDumper):
     """Strings that ROS's parameter-file parser could read as a number or a boolean are quoted:
@@ -52,10 +54,11 @@ def agent_parameters(scn, i: int, mode: str) -> dict:
 
 def node_parameters(scn, scenario_ref: str, mode: str, rtf: float = 1.0, output_dir: str = '',
                     duration: float = 0.0, extra_world=None) -> dict:
-    """{fully qualified node name: parameters} for every node of a run."""
-    common = dict(scenario=str(scenario_ref), seed=int(scn.seed), dt=float(scn.dt), mode=mode)
-    world = dict(common, duration=float(duration or scn.duration), rtf=float(rtf), output_dir=str(output_dir),
-                 use_sim_time=False, **(extra_world or {}))
+    """{fully qualified node name: parameters} for every node of a run: the world and the
+    commander load the scenario themselves (by reference: swarm_ros.scenario_params), the
+    agents get values (`agent_parameters`)."""
+    common = dict(scenario_parameters(scn, scenario_ref, duration), mode=mode)
+    world = dict(common, rtf=float(rtf), output_dir=str(output_dir), use_sim_time=False, **(extra_world or {}))
     out = {'/world': world, '/commander': dict(common, use_sim_time=True)}
     for i, nm in enumerate(scn.names):
         out[f'/{nm}/agent'] = agent_parameters(scn, i, mode)

@@ -1,18 +1,11 @@
 """The world node's ROS parameters: name → (default, description, limits), one place for each
-default.  The scenario's own values (target, barrier) are declared by the node from the
-scenario it loads."""
+default.  The scenario's (``scenario``, ``seed``, ``duration``, ``dt``) are shared with the
+commander (swarm_ros.scenario_params); its movable target and barrier are declared by the node
+from the scenario it loads."""
 from __future__ import annotations
 
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE
-
-#: read once at start-up (0 / -1: the scenario's own value)
-SCENARIO = {
-    'scenario': ('homotopy_global', 'scenario name or YAML path', {}),
-    'seed': (-1, "seed (-1: the scenario's)", dict(lo=-1, hi=2**31 - 1)),
-    'duration': (0.0, "run length in sim s (0: the scenario's)", dict(lo=0.0, hi=1e9)),
-    'dt': (0.0, "step (0: the scenario's)", dict(lo=0.0, hi=10.0)),
-}
 
 #: kept as attributes of the node
 WORLD = {

@@ -29,7 +29,6 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from visualization_msgs.msg import MarkerArray
 
 from swarm_core import metrics as M
-from swarm_core.scenario import ScenarioError, load
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
 from swarm_ros import protocol as P
@@ -37,12 +36,13 @@ from swarm_ros.msg_checks import (ProcessSenders, RejectLog, Senders, check_agen
                                   reason, refused)
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, older_runs, run_json
+from swarm_ros.scenario_params import declare_scenario
 
 from .inputs import fault_request, format_points, parse_geometry, parse_point, parse_points
 from .lockstep import LockstepBarrier, comms_schedule, decision_valid
 from .markers import Trails, geometry_messages, markers_message, metrics_message, view_values
 from .observe import Observer
-from .parameters import SCENARIO, WORLD
+from .parameters import WORLD
 from .realtime import RealtimeSchedule
 from .realtime_node import RealtimeWorld
 from .wallclock import StallWatch, StartWatch
@@ -56,18 +56,42 @@ class WorldNode(RealtimeWorld, Node):
                  cli_args=None, log=print):
         super().__init__(node_name, namespace=namespace, context=context, cli_args=cli_args,
                          parameter_overrides=parameter_overrides)
-        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
         self.log = log
-        scenario, seed, duration, dt = (d(nm, default, text, **lim) for nm, (default, text, lim) in SCENARIO.items())
+        self._declare_parameters()
+        # faults (swarm_core.faults): the same timeline as the batch engine
+        self.faults = self.scn.fault_timeline()
+        self.events = []
+        self.pids = None
+        self._open_events_file()
+        self.add_on_set_parameters_callback(self._on_params)
+        self.reject = RejectLog(self.get_logger())
+        self.senders = Senders()            # each agent name bound to its first publisher
+        self._create_endpoints()
+        self._create_logic()
+        self.last_msg = None
+        self.started = False
+        self.done = False
+        self.failed = None
+        self.wall_start = time.monotonic()
+        self.run_wall = None
+        self.trails = Trails(self.n, self.trail_length)
+        self.sim_t = 0.0
+        self.lam_now = 0.0
+        self.leaders_now = np.zeros(self.n, bool)
+        self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
+        self.publish_geometry()
+        self.timer = self.create_timer(0.05 if self.mode == 'lockstep' else 0.01, self._on_timer,
+                                       clock=steady_clock())
+
+    def _declare_parameters(self):
+        """The world's parameters (`parameters.WORLD`, kept as attributes), the run id, the
+        scenario (`declare_scenario`) and its movable target and barrier."""
+        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
         for nm, (default, text, lim) in WORLD.items():
             setattr(self, nm, d(nm, default, text, **lim))
         self.run_id = declare_run_id(self, 'carried on the lockstep messages, announced on /swarm/run; '
                                      'an older run on the domain makes the world give way')
-        try:
-            self.scn = load(scenario, seed=None if seed < 0 else seed,
-                            duration=duration or None, dt=dt or None)
-        except ScenarioError as err:
-            raise ParameterError(f'parameter scenario: {err}') from None
+        self.scn = declare_scenario(self)
         self.names = list(self.scn.names)
         self.n = len(self.names)
         self.row = {nm: i for i, nm in enumerate(self.names)}
@@ -83,19 +107,17 @@ class WorldNode(RealtimeWorld, Node):
         except ValueError as err:
             raise ParameterError(f'parameter target/barrier: {err}') from None
         self.barrier_geom = M.Barrier(self.barrier) if self.barrier is not None else None
-        # faults (swarm_core.faults): the same timeline as the batch engine
-        self.faults = self.scn.fault_timeline()
-        self.events = []
-        self.pids = None
+
+    def _open_events_file(self):
+        """``events_file`` (default ``output_dir/events.jsonl``) made empty."""
         if not self.events_file and self.output_dir:
             self.events_file = str(Path(self.output_dir) / 'events.jsonl')
         if self.events_file:
             Path(self.events_file).parent.mkdir(parents=True, exist_ok=True)
             Path(self.events_file).write_text('')
-        self.add_on_set_parameters_callback(self._on_params)
-        self.reject = RejectLog(self.get_logger())
-        self.senders = Senders()            # each agent name bound to its first publisher
 
+    def _create_endpoints(self):
+        """Publishers and subscriptions (protocol: names and QoS); announces the run on /swarm/run."""
         self.pub_clock = self.create_publisher(Clock, P.CLOCK, P.qos_reliable(P.STEP_DEPTH))
         self.pub_target = self.create_publisher(PointStamped, P.TARGET, P.qos_latched())
         self.pub_barrier = self.create_publisher(PolygonStamped, P.BARRIER, P.qos_latched())
@@ -126,7 +148,9 @@ class WorldNode(RealtimeWorld, Node):
             self.sub_decision = self.create_subscription(Float64MultiArray, P.LOCK_DECISION, self._on_decision,
                                                          P.qos_latched(), raw=True)
 
-        # the lockstep barrier or the realtime schedule, the record, the checks (pure modules)
+    def _create_logic(self):
+        """The lockstep barrier or the realtime schedule, the record, the checks and the
+        wall-clock watches (pure modules)."""
         comms_events = comms_schedule(self.scn.spec.comms, self.dt)
         self.rec = TrajectoryRecorder(self.names, self.steps, self.dt, self.scn.theta0,
                                       realtime=self.mode == 'realtime')
@@ -144,20 +168,6 @@ class WorldNode(RealtimeWorld, Node):
                                       recorder_wait=P.RECORDER_MATCH_WAIT)
         self.watch = StallWatch(time.monotonic(), missing_timeout=self.missing_timeout,
                                 step_timeout=self.step_timeout, stall_timeout=self.stall_timeout)
-        self.last_msg = None
-        self.started = False
-        self.done = False
-        self.failed = None
-        self.wall_start = time.monotonic()
-        self.run_wall = None
-        self.trails = Trails(self.n, self.trail_length)
-        self.sim_t = 0.0
-        self.lam_now = 0.0
-        self.leaders_now = np.zeros(self.n, bool)
-        self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
-        self.publish_geometry()
-        self.timer = self.create_timer(0.05 if self.mode == 'lockstep' else 0.01, self._on_timer,
-                                       clock=steady_clock())
 
     # ------------------------------------------------------------ geometry
     def _on_params(self, params):
