@@ -48,7 +48,7 @@ def same(a, b) -> bool:
 
 
 @pytest.mark.parametrize('cls', MESSAGES, ids=lambda c: c.__name__)
-@pytest.mark.parametrize('n', [0, 1, 5])
+@pytest.mark.parametrize('n', [0, 1, 5, 40])          # 40: more than _SMALL doubles, packed by numpy
 def test_every_message_round_trips_with_its_run_id(cls, n):
     rng = np.random.default_rng(n)
     msg = sample(cls, rng, n)
@@ -61,6 +61,11 @@ def test_every_message_round_trips_with_its_run_id(cls, n):
             cls.from_cdr(raw, 'zz')
     with pytest.raises(ValueError, match='longer than'):
         msg.to_cdr('x' * (RUN_ID_BYTES + 1))
+    if n > 1:                                             # a field of the wrong size is not packed
+        a = next(f.name for f in cls.LAYOUT.fields if isinstance(f.count, str)
+                 and f.name != cls.LAYOUT.count_of[f.count])
+        with pytest.raises(ValueError):
+            dataclasses.replace(msg, **{a: np.asarray(getattr(msg, a))[:-1]}).to_cdr()
 
 
 @pytest.mark.parametrize('cls', MESSAGES, ids=lambda c: c.__name__)

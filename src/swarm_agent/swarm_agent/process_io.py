@@ -6,7 +6,6 @@ from __future__ import annotations
 
 from geometry_msgs.msg import PointStamped, PolygonStamped
 from nav_msgs.msg import Odometry
-import numpy as np
 from rclpy.time import Time
 from std_msgs.msg import Float64, Float64MultiArray, String
 
@@ -45,7 +44,7 @@ class AgentStatesWriter:
     def publish(self, agents):
         """The state each of ``agents`` last published on /swarm/states."""
         if agents:
-            rows = np.array([(a.index, a.step, *a.own[2:]) for a in agents]).T
+            rows = list(zip(*[(a.index, a.step, *a.own[2:]) for a in agents]))
             self.pub.publish(AgentStates(self.tag, rows[0], rows[1], rows[2:6], rows[6]).to_cdr(agents[0].run_id))
 
 

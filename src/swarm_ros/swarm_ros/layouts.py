@@ -22,11 +22,13 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
+import struct
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from .protocol import LOCK_AGENT_STATES, LOCK_DECISION, LOCK_STATES, LOCK_STEP, cdr_to_float64_array, float64_array_to_cdr
+from .protocol import LOCK_AGENT_STATES, LOCK_DECISION, LOCK_STATES, LOCK_STEP, cdr_to_float64_array, float64_array_header
 
 #: bytes of the run id field (swarm_ros.runinfo: 1-32 letters, digits, _ or -)
 RUN_ID_BYTES = 32
@@ -103,6 +105,7 @@ class _Plan(NamedTuple):
     slots: tuple             # (field, start, stop, shape) in declared order
     finite: tuple            # (start, stop, field names): finite, whole, int (merged runs)
     whole: tuple             # (start, stop, field names): whole numbers ≥ 0
+    reads: tuple             # (start, stop, ndim, shape, decoder) of each message attribute
 
 
 def _runs(slots) -> tuple:
@@ -116,11 +119,47 @@ def _runs(slots) -> tuple:
 
 
 @functools.lru_cache(maxsize=64)
-def _run_id_doubles(run_id: str) -> np.ndarray:
+def _run_id_field(run_id: str) -> bytes:
     rid = run_id.encode()
     if len(rid) > RUN_ID_BYTES:
         raise ValueError(f'run id {run_id!r} longer than {RUN_ID_BYTES} bytes')
-    return np.frombuffer(rid.ljust(RUN_ID_BYTES, b'\0'), '<f8')
+    return rid.ljust(RUN_ID_BYTES, b'\0')
+
+
+#: records of at most this many doubles (a lone agent's answer) are packed from plain floats:
+#: cheaper than numpy for a few values
+_SMALL = 64
+
+
+def _small_body(plan: _Plan, values: dict, size: int) -> bytes:
+    """The doubles after the run id, packed with struct (a field of the wrong size: ValueError)."""
+    flat = []
+    for f, a, b, shape in plan.slots:
+        v = values[f.name]
+        if not shape:
+            flat.append(v)
+        elif len(shape) == 1:
+            flat.extend(v)
+        else:
+            for row in v:
+                flat.extend(row)
+        if len(flat) != b - _RUN_DOUBLES:
+            raise ValueError(f'{f.name}: {len(flat) - a + _RUN_DOUBLES} values, not {shape}')
+    return struct.pack(f'<{size}d', *flat)
+
+
+def _numpy_body(plan: _Plan, values: dict, size: int) -> bytes:
+    """`_small_body` by numpy (a field of the wrong shape: ValueError)."""
+    data = np.empty(size)
+    for f, a, b, shape in plan.slots:
+        a, b = a - _RUN_DOUBLES, b - _RUN_DOUBLES
+        if len(shape) == 1:
+            data[a:b] = values[f.name]
+        elif shape:
+            data[a:b].reshape(shape)[...] = values[f.name]
+        else:
+            data[a] = values[f.name]
+    return data.tobytes()
 
 
 class Layout:
@@ -140,6 +179,7 @@ class Layout:
         # a count's value when packing: the rows of the first field counted by it
         self.count_of = {c: next(f.name for f in self.fields if f.dims()[0] == c) for c in self.counts}
         assert [fl.name for fl in dataclasses.fields(cls)] == [f.name for f in self.fields if f.kind != 'count'], topic
+        self.encoders = tuple((f.name, _CODECS[f.kind][0]) for f in self.fields if f.kind != 'count')
 
     def text(self) -> str:
         """The layout as docs/ros-graph.md shows it: each field with its count and its kind."""
@@ -161,28 +201,20 @@ class Layout:
         for f in self.fields:
             a = dtype.fields[f.name][1] // 8
             slots.append((f, a, a + dtype[f.name].itemsize // 8, f.shape(c)))
+        reads = tuple((a, b, len(shape), shape, _CODECS[f.kind][1] if shape else _SCALAR[f.kind])
+                      for f, a, b, shape in slots if f.kind != 'count')
         return _Plan(dtype, tuple(slots), _runs([s for s in slots if s[0].kind in ('finite', 'whole', 'int')]),
-                     _runs([s for s in slots if s[0].kind == 'whole']))
+                     _runs([s for s in slots if s[0].kind == 'whole']), reads)
 
     def encode(self, msg, run_id: str = '') -> bytes:
         """The serialized Float64MultiArray of ``msg`` (an instance of ``cls``) with ``run_id``."""
-        values = {}
-        for f in self.fields:
-            if f.kind != 'count':
-                enc = _CODECS[f.kind][0]
-                v = getattr(msg, f.name)
-                values[f.name] = v if enc is None else enc(v)
+        values = {name: getattr(msg, name) if enc is None else enc(getattr(msg, name)) for name, enc in self.encoders}
         counts = tuple(len(values[self.count_of[c]]) for c in self.counts)
         values.update(zip(self.counts, counts))
         plan = self.plan(counts)
-        data = np.empty(plan.dtype.itemsize // 8)
-        data[:_RUN_DOUBLES] = _run_id_doubles(run_id)
-        for f, a, b, shape in plan.slots:
-            if shape:
-                data[a:b].reshape(shape)[...] = values[f.name]
-            else:
-                data[a] = values[f.name]
-        return float64_array_to_cdr(data)
+        size = plan.dtype.itemsize // 8
+        body = (_small_body if size <= _SMALL else _numpy_body)(plan, values, size - _RUN_DOUBLES)
+        return float64_array_header(size) + _run_id_field(run_id) + body
 
     def decode(self, raw: bytes, run_id: str = ''):
         """The one decoder: the message (``cls``) in a serialized Float64MultiArray, or a
@@ -197,7 +229,7 @@ class Layout:
         size = data.size
         if size < self.head:
             raise BadMessage(f'{size} values, fewer than the {self.head} before its counts')
-        if run_id and data[:_RUN_DOUBLES].tobytes() != _run_id_doubles(run_id).tobytes():
+        if run_id and data[:_RUN_DOUBLES].tobytes() != _run_id_field(run_id):
             got = data[:_RUN_DOUBLES].tobytes().rstrip(b'\0').decode('ascii', 'replace')
             raise OtherRun(f'message of run {got or "(none)"!r}, not this run {run_id!r}: another swarm run '
                            'on this ROS_DOMAIN_ID?')
@@ -209,22 +241,23 @@ class Layout:
             raise BadMessage(f'{size} values do not hold {dict(zip(self.counts, counts))} '
                              f'(want {plan.dtype.itemsize // 8})')
         for a, b, names in plan.finite:
-            if not np.isfinite(data[a:b]).all():
+            if not (math.isfinite(data.item(a)) if b - a == 1 else np.isfinite(data[a:b]).all()):
                 raise NotFinite(f'a value of {names} is not finite')
         for a, b, names in plan.whole:
-            v = data[a:b]
-            if (v != np.abs(np.floor(v))).any():
-                raise BadMessage(f'a value of {names} is not a whole number ≥ 0')
+            if b - a == 1:
+                v = data.item(a)
+                if v.is_integer() and v >= 0:
+                    continue
+            elif not (data[a:b] != np.abs(np.floor(data[a:b]))).any():
+                continue
+            raise BadMessage(f'a value of {names} is not a whole number ≥ 0')
         out = []
-        for f, a, b, shape in plan.slots:
-            if f.kind == 'count':
-                continue
-            if not shape:
-                out.append(_SCALAR[f.kind](data.item(a)))
-                continue
-            v = data[a:b] if len(shape) == 1 else data[a:b].reshape(shape)
-            dec = _CODECS[f.kind][1]
-            out.append(v if dec is None else dec(v))
+        for a, b, ndim, shape, dec in plan.reads:
+            if ndim == 0:
+                out.append(dec(data.item(a)))
+            else:
+                v = data[a:b] if ndim == 1 else data[a:b].reshape(shape)
+                out.append(v if dec is None else dec(v))
         return self.cls(*out)
 
 

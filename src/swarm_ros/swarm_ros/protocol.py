@@ -177,7 +177,13 @@ _HEADER = b'\x00\x01\x00\x00'   # CDR little endian
 def float64_array_to_cdr(data: np.ndarray) -> bytes:
     """Serialized std_msgs/Float64MultiArray (what publish() accepts) with an empty layout."""
     data = np.ascontiguousarray(data, dtype='<f8')
-    return _HEADER + struct.pack('<IIII', 0, 0, data.size, 0) + data.tobytes()
+    return float64_array_header(data.size) + data.tobytes()
+
+
+def float64_array_header(size: int) -> bytes:
+    """The bytes of a serialized Float64MultiArray with an empty layout before its ``size``
+    doubles (little-endian)."""
+    return _HEADER + struct.pack('<IIII', 0, 0, size, 0)
 
 
 def cdr_to_float64_array(raw: bytes) -> np.ndarray:
