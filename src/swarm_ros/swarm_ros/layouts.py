@@ -95,7 +95,7 @@ _CODECS = {
                lambda v: v.copy() if len(v) else None),
     'rendezvous': (_rendezvous, _from_rendezvous),
 }
-_SCALAR = {'float': float, 'finite': float, 'whole': int, 'int': int, 'count': int}
+_SCALAR = {'float': float, 'finite': float, 'whole': int, 'int': int}
 
 
 class _Plan(NamedTuple):
@@ -109,6 +109,7 @@ class _Plan(NamedTuple):
 
 
 def _runs(slots) -> tuple:
+    """The places of ``slots`` merged into runs of adjacent doubles: one check per run."""
     out = []
     for f, a, b, _ in slots:
         if out and out[-1][1] == a:
