@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from swarm_ros import protocol as P
+from swarm_ros.layouts import AgentStates, BadMessage, NotFinite
 from swarm_ros.msg_checks import (MAX_BARRIER_POINTS, RejectLog, Senders, check_barrier, check_values,
                                 may_signal, new_sender_tag)
 from swarm_ros.runinfo import describe, one_run, parse_run, run_json, unknown_agent
@@ -116,23 +117,6 @@ def test_only_the_launchers_live_agent_child_may_be_signalled(tmp_path):
     assert 'not running' in may_signal(p.pid, 'agent_2', os.getpid())
 
 
-def test_run_id_rides_in_the_layout_and_data_is_unchanged():
-    from rclpy.serialization import deserialize_message, serialize_message
-    from std_msgs.msg import Float64MultiArray
-    data = np.arange(7, dtype=float) * 0.1
-    for rid in ('', 'a', '1a2b3c4d', 'x' * 32):
-        raw = P.float64_array_to_cdr(data, rid)
-        assert np.array_equal(P.cdr_to_float64_array(raw), data)
-        assert P.cdr_run_id(raw) == rid
-        msg = deserialize_message(raw, Float64MultiArray)      # what rclpy reads from it
-        assert np.array_equal(msg.data, data)
-        if rid:
-            assert msg.layout.dim[0].label == f'run:{rid}' and msg.layout.dim[0].size == 0
-            again = serialize_message(msg)                      # rclpy's bytes, read by ours
-            assert P.cdr_run_id(again) == rid and np.array_equal(P.cdr_to_float64_array(again), data)
-    assert P.cdr_run_id(serialize_message(Float64MultiArray(data=list(data)))) == ''
-
-
 def test_sender_tag_rides_in_the_odometry():
     from nav_msgs.msg import Odometry
     from rclpy.serialization import deserialize_message, serialize_message
@@ -173,8 +157,8 @@ def test_the_younger_of_two_runs_gives_way():
 
 
 def batch(tag, index, step, x):
-    """A one-agent /lockstep/agent_states, as its data (the agents' own encoder)."""
-    return P.cdr_to_float64_array(P.agent_states_to_cdr(tag, [(index, step, x, 0.0, 0.0, 1.0, 0.0)]))
+    """A one-agent /lockstep/agent_states, serialized."""
+    return AgentStates(tag, [index], [step], np.array([[x], [0.0], [0.0], [1.0]]), [0.0]).to_cdr()
 
 
 def test_agent_states_batches_are_checked_and_bound_to_their_process():
@@ -186,14 +170,14 @@ def test_agent_states_batches_are_checked_and_bound_to_their_process():
     bad = good.copy()
     bad[2, 0] = 0.5
     assert check_agent_states(np.array([0, 3]), bad, 4).kind == 'not-planar'
-    with pytest.raises(ValueError, match='not finite'):
-        P.unpack_agent_states(batch(1.0, 0, 0, np.inf))
-    with pytest.raises(ValueError, match='not finite'):
-        P.unpack_agent_states(batch(np.nan, 0, 0, 0.0))
-    with pytest.raises(ValueError, match='whole number'):
-        P.unpack_agent_states(batch(1.0, -1, 0, 0.0))
-    with pytest.raises(ValueError, match='do not hold'):
-        P.unpack_agent_states([np.nan, 1.0])
+    with pytest.raises(NotFinite, match='not finite'):
+        AgentStates.from_cdr(batch(1.0, 0, 0, np.inf))
+    with pytest.raises(NotFinite, match='not finite'):
+        AgentStates.from_cdr(batch(np.nan, 0, 0, 0.0))
+    with pytest.raises(BadMessage, match='whole number'):
+        AgentStates.from_cdr(batch(1.0, -1, 0, 0.0))
+    with pytest.raises(BadMessage, match='whole number'):
+        AgentStates.from_cdr(batch(1.0, 0.5, 0, 0.0))
     s = ProcessSenders(4)
     ok, why = s.check(np.array([0, 3]), 5.0)
     assert ok.all() and why is None
@@ -212,13 +196,3 @@ def test_refused_logs_reasons_and_drops_repeats_silently():
     assert refused(log, 'repeat') is True and log.count == 0
     assert refused(log, reason('future-stamp', 'state of x from the future')) is True
     assert log.count == 1 and lines == ['rejected state of x from the future']
-
-
-def test_other_run_names_the_run_a_lockstep_message_carries():
-    from swarm_ros.msg_checks import other_run
-    raw = P.float64_array_to_cdr(np.zeros(3), 'aaaa1111')
-    assert other_run(raw, 'aaaa1111', '/lockstep/step') is None
-    assert other_run(raw, '', '/lockstep/step') is None                  # a node without a run id takes any
-    why = other_run(raw, 'bbbb2222', '/lockstep/step')
-    assert why.kind == 'other-run' and "/lockstep/step of run 'aaaa1111', not this run 'bbbb2222'" in why
-    assert "of run '(none)'" in other_run(P.float64_array_to_cdr(np.zeros(3)), 'bbbb2222', '/lockstep/states')

@@ -23,6 +23,7 @@ from swarm_core.scenario import load
 from swarm_tools.launch import build_nodes
 from swarm_tools.node_params import agent_parameters, node_parameters
 from swarm_ros import protocol as P
+from swarm_ros.layouts import States, Step
 from swarm_ros.rosutil import make_executor
 from swarm_ros.runinfo import run_json
 from swarm_world.world_node import WorldNode
@@ -118,19 +119,19 @@ def test_a_second_run_on_the_domain_is_refused_and_lockstep_messages_of_another_
     # an agent of run bbbb2222 is handed a step of run aaaa1111: rejected, it does not move
     n = len(scn.names)
     quat = [np.sin(scn.theta0 / 2), np.cos(scn.theta0 / 2)]
-    data = P.pack_step(0, 0.0, 0.0, np.zeros(n, bool), np.zeros(n), scn.pos0[:, 0], scn.pos0[:, 1],
-                       quat[0], quat[1], None, None, np.zeros(n))
-    agent._on_step(P.float64_array_to_cdr(data, 'aaaa1111'))
+    data = Step(0, 0.0, 0.0, np.zeros(n, bool), np.zeros(n), scn.pos0[:, 0], scn.pos0[:, 1],
+                quat[0], quat[1], np.zeros(n), np.ones(n, bool), None, None, None)
+    agent._on_step(data.to_cdr('aaaa1111'))
     assert agent.step == 0 and agent.reject.kinds.get('other-run')
-    agent._on_step(P.float64_array_to_cdr(data, 'bbbb2222'))
+    agent._on_step(data.to_cdr('bbbb2222'))
     assert agent.step == 1
     from homotopy_commander.commander_node import CommanderNode
     cmd = CommanderNode(context=ctx, parameter_overrides=overrides(dict(scenario='homotopy_global',
                                                                         run_id='bbbb2222')))
-    states = P.pack_states(0, 0.0, scn.pos0[:, 0], scn.pos0[:, 1], quat[0], quat[1])
-    cmd._on_states(P.float64_array_to_cdr(states, 'aaaa1111'))
+    states = States(0, 0.0, scn.pos0[:, 0], scn.pos0[:, 1], quat[0], quat[1], np.ones(n, bool))
+    cmd._on_states(states.to_cdr('aaaa1111'))
     assert cmd.decisions == 0 and 'other-run' in cmd.reject.kinds
-    cmd._on_states(P.float64_array_to_cdr(states, 'bbbb2222'))
+    cmd._on_states(states.to_cdr('bbbb2222'))
     assert cmd.decisions == 1
     for nd in (other, world, agent, cmd):
         nd.destroy_node()

@@ -22,6 +22,7 @@ from swarm_core.scenario import load  # noqa: E402
 from swarm_tools.launch import run_in_process  # noqa: E402
 from swarm_tools.node_params import agent_parameters, node_parameters  # noqa: E402
 from swarm_ros import protocol as P  # noqa: E402
+from swarm_ros.layouts import AgentStates, Step  # noqa: E402
 from swarm_ros.rosutil import ParameterError, make_executor  # noqa: E402
 from swarm_world.world_node import WorldNode  # noqa: E402
 
@@ -36,8 +37,9 @@ def short_scenario(tmp_path, seed=0, duration=40.0, rise=10.0, fall=30.0, tau=3.
 
 def step_message(scn, pos, theta, lam, flags, steering, target=None, barrier=None, n=0):
     qz, qw = quaternion_from_heading(theta)
-    return P.float64_array_to_cdr(P.pack_step(n, n * scn.dt, lam, flags, steering, pos[:, 0], pos[:, 1],
-                                              qz, qw, target, barrier))
+    n_agents = len(pos)
+    return Step(n, n * scn.dt, lam, flags, steering, pos[:, 0], pos[:, 1], qz, qw, np.zeros(n_agents),
+                np.ones(n_agents, bool), target, barrier, None).to_cdr()
 
 
 def test_agent_u_equals_core_law_in_lockstep(rclpy_context):
@@ -280,7 +282,7 @@ def test_bad_states_are_rejected_by_the_world(rclpy_context):
     qz, qw = math.sin(0.25), math.cos(0.25)
 
     def batch(tag, idx, step, x, y, u=0.0):
-        return P.agent_states_to_cdr(tag, [(idx, step, x, y, qz, qw, u)])
+        return AgentStates(tag, [idx], [step], np.array([[x], [y], [qz], [qw]]), [u]).to_cdr()
     sent = [batch(1.0, 3, 0, 1.0, 2.0),                  # valid
             batch(1.0, 9, 0, 0.0, 0.0),                  # no agent 9 in a roster of 6
             batch(1.0, 4, 0, float('nan'), 0.0),         # NaN

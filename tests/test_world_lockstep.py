@@ -8,7 +8,7 @@ import pytest
 from swarm_core.faults import Fault, FaultTimeline
 from swarm_core.frenet import quaternion_from_heading
 from swarm_core.trajectory import TrajectoryRecorder, unwrap_headings
-from swarm_ros import protocol as P
+from swarm_ros.layouts import AgentStates, States, Step
 from swarm_world.lockstep import LockstepBarrier
 
 NAMES = ['a', 'b', 'c']
@@ -52,12 +52,12 @@ def test_a_step_waits_for_every_state_then_for_the_decision():
     acts = feed_states(b, 0, [1, 2])
     assert kinds(acts) == ['clock', 'states', 'observe']
     assert acts[0] == ('clock', 0.0)
-    n, t, x, y, qz, qw = P.unpack_states(acts[1][1])
-    assert (n, t) == (0, 0.0) and list(x) == [0.0, 1.0, 2.0]
+    s = States.from_cdr(acts[1][1].to_cdr())                       # as the commander reads it
+    assert (s.n, s.t) == (0, 0.0) and list(s.x) == [0.0, 1.0, 2.0]
     assert decide(b, 1) == []                                        # not the step awaited
     acts = decide(b, 0)
     assert kinds(acts) == ['step']
-    step = P.Step(acts[0][1])
+    step = Step.from_cdr(acts[0][1].to_cdr())                      # as the agents read it
     assert step.n == 0 and step.lam == 0.5 and list(step.flags) == [False, True, False]
     assert list(step.target) == [5.0, 6.0]
     assert b.cur == 1 and not b.have.any()
@@ -112,7 +112,7 @@ def test_a_kill_signals_the_agent_leaves_it_out_and_its_rows_are_nan():
     assert acts[2] == ('signal', 1, 'kill')
     acts = feed_states(b, 2, [0, 2])              # b is not awaited
     assert kinds(acts) == ['clock', 'states', 'observe']
-    assert list(P.states_alive(acts[1][1])) == [True, False, True]
+    assert list(acts[1][1].alive) == [True, False, True]
     tr = b.rec.trajectory()
     assert np.isnan(tr.u[1:, 1]).all() and np.isnan(tr.r[2:, 1]).all()
 
@@ -190,10 +190,10 @@ def test_headings_unwrap_in_time_from_the_initial_heading():
 def feed_batch(b, k, agents=range(3), u=0.1):
     """`feed_states` as one agent process's /lockstep/agent_states (packed and unpacked)."""
     agents = list(agents)
-    data = P.cdr_to_float64_array(P.agent_states_to_cdr(7.0, [(i, k, *state(i, k), u * (i + 1)) for i in agents]))
-    tag, idx, ks, v, us = P.unpack_agent_states(data)
-    assert tag == 7.0 and list(idx) == agents
-    late, acts = b.on_states(idx, ks, v, us)
+    rows = np.array([(i, k, *state(i, k), u * (i + 1)) for i in agents]).reshape(-1, 7).T
+    m = AgentStates.from_cdr(AgentStates(7.0, rows[0], rows[1], rows[2:6], rows[6]).to_cdr())
+    assert m.tag == 7.0 and list(m.index) == agents
+    late, acts = b.on_states(m.index, m.step, m.pose, m.u)
     assert late == []
     return acts
 
@@ -227,21 +227,3 @@ def test_a_batch_state_of_a_later_step_is_named():
                              np.array([0.0, 0.0]))
     assert late == ["state of 'b' for step 2 while the world is at step 0"] and acts == []
     assert b.have.tolist() == [True, False, False]
-
-
-def test_agent_states_layout_is_checked():
-    with pytest.raises(ValueError, match='do not hold'):
-        P.unpack_agent_states([2.0, 1.0, 0.0])
-    with pytest.raises(ValueError, match='whole number'):
-        P.unpack_agent_states(P.cdr_to_float64_array(P.agent_states_to_cdr(1.0, [(0.5, 0, 0.0, 0.0, 0.0, 1.0, 0.0)])))
-
-
-def test_agent_states_bytes_are_the_packed_array():
-    rows = [(3, 7, 1.5, -2.0, 0.1, 0.99, 0.25), (0, 7, 0.0, 1.0, 0.0, 1.0, -0.5)]
-    # [K, tag, index(K), step(K), x(K), y(K), qz(K), qw(K), u(K)]
-    want = np.array([2, 9.0, 3, 0, 7, 7, 1.5, 0.0, -2.0, 1.0, 0.1, 0.0, 0.99, 1.0, 0.25, -0.5])
-    for run_id in ('', 'abc12345'):
-        raw = P.agent_states_to_cdr(9.0, rows, run_id)
-        assert raw == P.float64_array_to_cdr(want, run_id)
-        assert P.cdr_run_id(raw) == run_id
-        assert np.array_equal(P.cdr_to_float64_array(raw), want)

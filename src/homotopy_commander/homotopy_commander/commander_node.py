@@ -48,7 +48,8 @@ from swarm_core.faults import event_names
 from swarm_core.frenet import frame_from_quaternion
 from swarm_core.command_plan import check_command
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, other_run, refused
+from swarm_ros.layouts import Decision, States
+from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, decoded
 from swarm_ros.rosutil import declare, gid_key, run_node, steady_clock, when_matched
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
@@ -380,28 +381,25 @@ class CommanderNode(Node):
             self.get_logger().info(f'leaders: {", ".join(leaders)}')
 
     def _on_states(self, raw):
-        if refused(self.reject, other_run(raw, self.run_id, P.LOCK_STATES)):
+        s = decoded(States, raw, self.run_id, self.reject, 'states-decode')
+        if s is None:
             return
-        data = P.cdr_to_float64_array(raw)
-        n, t, x, y, qz, qw = P.unpack_states(data)
-        if self.last_decision is not None and n == self.last_decision[0]:
+        if self.last_decision is not None and s.n == self.last_decision[0]:
             self.pub_decision.publish(self.last_decision[1])     # a repeat: answer again
             return
-        if len(x) != self.n:
-            self.reject('states-n', f'/lockstep/states with {len(x)} agents (scenario has {self.n})')
+        if len(s.x) != self.n:
+            self.reject('states-n', f'/lockstep/states with {len(s.x)} agents (scenario has {self.n})')
             return
-        cos_t, sin_t = frame_from_quaternion(qz, qw)
-        pos = np.stack([x, y], axis=1)
-        alive = P.states_alive(data)
-        lam, flags, steering = self.decide(t, pos, cos_t, sin_t, heard=alive, step=n)
-        slots = np.full(self.n, -1.0)
+        cos_t, sin_t = frame_from_quaternion(s.qz, s.qw)
+        pos = np.stack([s.x, s.y], axis=1)
+        lam, flags, steering = self.decide(s.t, pos, cos_t, sin_t, heard=s.alive, step=s.n)
+        slots = np.full(self.n, -1)
         for sl, i in self.plan.slots.items():
             slots[i] = sl
-        raw_out = P.float64_array_to_cdr(P.pack_decision(n, t, lam, flags, steering, slots,
-                                                         self.plan.rendezvous_now), self.run_id)
+        raw_out = Decision(s.n, s.t, lam, flags, steering, slots, self.plan.rendezvous_now).to_cdr(self.run_id)
         self.pub_decision.publish(raw_out)
-        self.last_decision = (n, raw_out)
-        self.publish_outputs(lam, flags, steering, force=(n % self.publish_every == 0))
+        self.last_decision = (s.n, raw_out)
+        self.publish_outputs(lam, flags, steering, force=(s.n % self.publish_every == 0))
 
     def _on_state(self, msg):
         i = self.row.get(msg.child_frame_id)

@@ -10,7 +10,8 @@ from rclpy.time import Time
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import new_sender_tag, other_run, refused
+from swarm_ros.layouts import AgentStates, Step
+from swarm_ros.msg_checks import decoded, new_sender_tag
 
 #: lockstep: where an agent's sim time comes from (parameter ``lockstep_clock``)
 CLOCKS = ('step', 'topic')
@@ -43,8 +44,8 @@ class AgentStatesWriter:
     def publish(self, agents):
         """The state each of ``agents`` last published on /swarm/states."""
         if agents:
-            self.pub.publish(P.agent_states_to_cdr(self.tag, [(a.index, a.step, *a.own[2:]) for a in agents],
-                                                   agents[0].run_id))
+            rows = list(zip(*[(a.index, a.step, *a.own[2:]) for a in agents]))
+            self.pub.publish(AgentStates(self.tag, rows[0], rows[1], rows[2:6], rows[6]).to_cdr(agents[0].run_id))
 
 
 def step_time(agents, s):
@@ -59,12 +60,8 @@ def step_message(raw, lock, agents, log_node):
     their `ContainerCore` (one law call), carried out by each agent; then the states of the
     agents that answered go to the world in one message (``log_node.batch``).  A step of
     another run (its id, swarm_ros.runinfo) is rejected."""
-    if refused(log_node.reject, other_run(raw, agents[0].run_id, P.LOCK_STEP)):
-        return None
-    try:
-        s = P.Step(P.cdr_to_float64_array(raw))
-    except Exception as err:
-        log_node.reject('step-decode', f'/lockstep/step message: {err}')
+    s = decoded(Step, raw, agents[0].run_id, log_node.reject, 'step-decode')
+    if s is None:
         return None
     said = []
     for j, kind, detail in lock.on_step(s):

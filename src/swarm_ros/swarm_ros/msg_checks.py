@@ -7,6 +7,7 @@ import math
 import time
 
 from . import protocol as P
+from .layouts import BadMessage
 
 #: most points a /world/barrier polygon may have (more is refused: the law reads the hull each step)
 MAX_BARRIER_POINTS = 1000
@@ -69,15 +70,16 @@ def check_values(name, t, pose, wz, row, newest, now=None, tolerance=FUTURE_TOLE
     return None
 
 
-def other_run(raw: bytes, run_id: str, topic: str):
-    """Why a serialized lockstep message (``topic``) must be rejected because it carries
-    another run's id (`protocol.cdr_run_id`; a second run on the ROS_DOMAIN_ID), or None.
-    A node without a ``run_id`` takes any."""
-    got = P.cdr_run_id(raw) if run_id else run_id
-    if got == run_id:
+def decoded(cls, raw: bytes, run_id: str, reject, kind: str):
+    """The lockstep message ``cls`` (a `swarm_ros.layouts` message class) in ``raw``, or None
+    after logging with ``reject`` (a `RejectLog`) why it is refused: it carries another run's id
+    (kind ``other-run``: a second run on the ROS_DOMAIN_ID; a node without a ``run_id`` takes
+    any), a value that must be finite is not (``non-finite``), or it is malformed (``kind``)."""
+    try:
+        return cls.from_cdr(raw, run_id)
+    except BadMessage as err:
+        reject(err.kind or kind, f'{cls.LAYOUT.topic}: {err}')
         return None
-    return reason('other-run', f'{topic} of run {got or "(none)"!r}, not this run {run_id!r}: another swarm run '
-                  'on this ROS_DOMAIN_ID?')
 
 
 def refused(reject, why) -> bool:
@@ -136,7 +138,7 @@ class ProcessSenders:
 
 
 def check_agent_states(index, vals, n):
-    """Why a decoded ``/lockstep/agent_states`` (`protocol.unpack_agent_states`, which checks
+    """Why a decoded ``/lockstep/agent_states`` (`layouts.AgentStates`, whose decoder checks
     that every value is finite) must be rejected as a whole (a `Reason`), or None: an agent
     index outside the roster or twice, an orientation that is not a planar unit quaternion."""
     import numpy as np

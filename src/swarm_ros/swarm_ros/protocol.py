@@ -68,33 +68,27 @@ gets the last message; every node answers a repeated message for a step it alrea
 re-publishing its answer (stall recovery: the world repeats its last message after
 ``stall_timeout`` seconds without progress).
 
-Run identity: ``swarm run`` gives every node a ``run_id``; the lockstep messages carry it as the
-label ``run:<id>`` of one ``layout`` dimension of size 0 (``data`` unchanged), and a node with a
-``run_id`` rejects lockstep messages of another run (a second run on the same ROS_DOMAIN_ID).
+Run identity: ``swarm run`` gives every node a ``run_id``; each lockstep message carries it as
+its first field, and a node with a ``run_id`` rejects lockstep messages of another run (a
+second run on the same ROS_DOMAIN_ID).
 
-Packed layouts (std_msgs/Float64MultiArray, ``layout`` empty or the run label, ``data`` as below; N agents)
-``/lockstep/states``    [n, t_n, N,  x(N), y(N), qz(N), qw(N), alive(N)]
-``/lockstep/decision``  [n, t_n, N,  λ, leader flags(N) (0/1), s(N), slot(N), R]
-``/lockstep/agent_states`` [K, tag, index(K), step(K), x(K), y(K), qz(K), qw(K), u(K)]
-    what one agent process (a lone agent or a container of K agents) answers per step: the
-    same states its agents publish on ``/swarm/states`` (the state of t_step, carrying u), in
-    ONE message for the world, which reads only this topic in lockstep (one message per
-    process and step to decode, not one per agent).  ``tag``: the process's sender tag (the
-    world binds each agent to the first process heard for it).  Reliable, transient-local;
-    the world's reader keeps max(100, 4 N) messages (many writers share it).
-``/lockstep/step``      [n, t_n, N,  λ, leader flags(N), s(N), x(N), y(N), qz(N), qw(N),
-                         has_target, target_x, target_y, M, barrier x(M), barrier y(M),
-                         u(N), alive(N), R]
-    u(N) (trailing; optional for readers, zeros if absent): the u each agent's state of t_n
-    carries (twist.angular.z, u_{n−1}); an agent with a communication model dead-reckons with it.
-with (faults, failover, reunion; appended at the end so that older readers still work):
+Packed layouts: the four lockstep topics are std_msgs/Float64MultiArray whose ``data`` is one
+record declared in `swarm_ros.layouts` (``AgentStates``, ``States``, ``Decision``, ``Step``;
+docs/ros-graph.md lists them).  ``/lockstep/agent_states`` is what one agent process (a lone
+agent or a container of K agents) answers per step: the same states its agents publish on
+``/swarm/states`` (the state of t_step, carrying u), in ONE message for the world, which reads
+only this topic in lockstep; its ``tag`` is the process's sender tag (the world binds each
+agent to the first process heard for it).  The world's reader keeps max(100, 4 N) messages
+(many writers share it).  In ``/lockstep/step``, u(N) is the u each agent's state of t_n
+carries (twist.angular.z, u_{n−1}); an agent with a communication model dead-reckons with it.
+Faults, failover, reunion:
 ``alive``  1 for the agents heard at step n (in the table), 0 for dead or frozen ones (their
-           x, y, qz, qw are stale and must not be read); absent = all 1;
-``slot``   the leader slot of each agent (faults.py), −1 for none;
-``R``      the reunion of step n (swarm_core.faults.Rendezvous): [on, has_point, x, y, gain γ,
-           normalised, coupling q0 (−1: the law's)]; absent = off.
+           x, y, qz, qw are stale and must not be read);
+``slots``  the leader slot of each agent (faults.py), −1 for none;
+``rendezvous``  the reunion of step n (swarm_core.faults.Rendezvous), or off.
 The world decides ``alive`` (scheduled faults at exactly their step, live requests at its next
-step, agents it gave up waiting for); the commander decides leaders (failover) and R.  An agent
+step, agents it gave up waiting for); the commander decides leaders (failover) and the
+rendezvous.  An agent
 computes u over the alive rows only, in index order (as the batch engine does), and ignores
 steps in which it is not alive; a frozen agent resumes at the first step that lists it alive.
 """
@@ -169,126 +163,6 @@ def stamp_to_time(stamp) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-# ------------------------------------------------------------------ packing
-
-def pack_states(n: int, t: float, x, y, qz, qw, alive=None) -> np.ndarray:
-    alive = np.ones(len(x)) if alive is None else np.asarray(alive, float)
-    return np.concatenate([[n, t, len(x)], x, y, qz, qw, alive]).astype(float)
-
-
-def states_alive(d) -> np.ndarray:
-    """The alive mask of a packed ``/lockstep/states`` (all True if absent)."""
-    d = np.asarray(d, dtype=float)
-    N = int(d[2])
-    a = d[3 + 4 * N:3 + 5 * N]
-    return a > 0.5 if a.size == N else np.ones(N, bool)
-
-
-R_SIZE = 7
-
-
-def pack_rendezvous(rdv) -> list:
-    """R of a plan's ``rendezvous_now`` (None: off), see the layouts above."""
-    if rdv is None:
-        return [0.0] * R_SIZE
-    point, gain, norm, coupling = rdv
-    x, y = (0.0, 0.0) if point is None else point
-    return [1.0, 0.0 if point is None else 1.0, float(x), float(y), float(gain), 1.0 if norm else 0.0,
-            -1.0 if coupling is None else float(coupling)]
-
-
-def unpack_rendezvous(r):
-    r = np.asarray(r, dtype=float)
-    if r.size < R_SIZE or r[0] < 0.5:
-        return None
-    point = (float(r[2]), float(r[3])) if r[1] > 0.5 else None
-    return point, float(r[4]), bool(r[5] > 0.5), None if r[6] < 0 else float(r[6])
-
-
-def unpack_states(d):
-    d = np.asarray(d, dtype=float)
-    n, t, N = int(d[0]), float(d[1]), int(d[2])
-    body = d[3:3 + 4 * N].reshape(4, N)
-    return n, t, body[0], body[1], body[2], body[3]
-
-
-def pack_decision(n: int, t: float, lam: float, flags, steering, slots=None, rendezvous=None) -> np.ndarray:
-    slots = np.full(len(flags), -1.0) if slots is None else np.asarray(slots, float)
-    return np.concatenate([[n, t, len(flags), lam], np.asarray(flags, float), steering, slots,
-                           pack_rendezvous(rendezvous)]).astype(float)
-
-
-def decision_extras(d):
-    """(slots (N,) int, rendezvous or None) of a packed ``/lockstep/decision``."""
-    d = np.asarray(d, dtype=float)
-    N = int(d[2])
-    o = 4 + 2 * N
-    slots = d[o:o + N].astype(int) if d.size >= o + N else np.full(N, -1)
-    return slots, unpack_rendezvous(d[o + N:o + N + R_SIZE])
-
-
-def unpack_decision(d):
-    d = np.asarray(d, dtype=float)
-    n, t, N, lam = int(d[0]), float(d[1]), int(d[2]), float(d[3])
-    return n, t, lam, d[4:4 + N] > 0.5, d[4 + N:4 + 2 * N]
-
-
-def pack_step(n, t, lam, flags, steering, x, y, qz, qw, target=None, barrier=None, u=None, alive=None,
-              rendezvous=None) -> np.ndarray:
-    geo = [1.0, float(target[0]), float(target[1])] if target is not None else [0.0, 0.0, 0.0]
-    b = np.zeros((0, 2)) if barrier is None else np.asarray(barrier, float).reshape(-1, 2)
-    u = np.zeros(len(x)) if u is None else np.asarray(u, float)
-    alive = np.ones(len(x)) if alive is None else np.asarray(alive, float)
-    return np.concatenate([[n, t, len(x), lam], np.asarray(flags, float), steering, x, y, qz, qw,
-                           geo, [len(b)], b[:, 0], b[:, 1], u, alive,
-                           pack_rendezvous(rendezvous)]).astype(float)
-
-
-class NotFinite(ValueError):
-    """A packed lockstep message with a value that is not finite."""
-
-
-def unpack_agent_states(d):
-    """(tag, index (K,) int, step (K,) int, values (4, K): x, y, qz, qw, u (K,)) of a packed
-    ``/lockstep/agent_states``; ValueError if its size does not match K, a value is not
-    finite, or an index or step is not a whole number ≥ 0."""
-    d = np.asarray(d, dtype=float)
-    k = int(d[0]) if d.size >= 2 and 0 <= d[0] <= d.size else -1       # NaN fails the test
-    if k < 0 or d.size != 2 + 7 * k or d[0] != k:
-        raise ValueError(f'{d.size} values do not hold K = {d[0] if d.size else "?"} agents (want 2 + 7 K)')
-    if not np.isfinite(d).all():
-        raise NotFinite('a value is not finite')
-    body = d[2:].reshape(7, k)
-    whole = body[:2]
-    if (whole != np.abs(np.floor(whole))).any():
-        raise ValueError('an agent index or step is not a whole number ≥ 0')
-    return float(d[1]), body[0].astype(np.intp), body[1].astype(np.int64), body[2:6], body[6]
-
-
-class Step:
-    """A decoded ``/lockstep/step`` message."""
-    __slots__ = ('n', 't', 'lam', 'flags', 'steering', 'x', 'y', 'qz', 'qw', 'target', 'barrier', 'u',
-                 'alive', 'rendezvous')
-
-    def __init__(self, d):
-        d = np.asarray(d, dtype=float)
-        self.n, self.t, N, self.lam = int(d[0]), float(d[1]), int(d[2]), float(d[3])
-        o = 4
-        self.flags = d[o:o + N] > 0.5
-        self.steering = d[o + N:o + 2 * N]
-        self.x, self.y, self.qz, self.qw = d[o + 2 * N:o + 6 * N].reshape(4, N)
-        o += 6 * N
-        self.target = d[o + 1:o + 3].copy() if d[o] > 0.5 else None
-        m = int(d[o + 3])
-        self.barrier = np.stack([d[o + 4:o + 4 + m], d[o + 4 + m:o + 4 + 2 * m]], axis=1) if m else None
-        o += 4 + 2 * m
-        self.u = d[o:o + N].copy() if d.size >= o + N else np.zeros(N)
-        o += N
-        a = d[o:o + N]
-        self.alive = a > 0.5 if a.size == N else np.ones(N, bool)
-        self.rendezvous = unpack_rendezvous(d[o + N:o + N + R_SIZE])
-
-
 def event_json(kind: str, t, **fields) -> str:
     """The JSON text of a ``/swarm/events`` message."""
     import json
@@ -300,45 +174,16 @@ def event_json(kind: str, t, **fields) -> str:
 _HEADER = b'\x00\x01\x00\x00'   # CDR little endian
 
 
-def float64_array_to_cdr(data: np.ndarray, run_id: str = '') -> bytes:
-    """Serialized std_msgs/Float64MultiArray (what publish() accepts): an empty layout, or with
-    ``run_id`` one dimension labelled ``run:<run_id>`` (size 0; ``data`` is unchanged)."""
+def float64_array_to_cdr(data: np.ndarray) -> bytes:
+    """Serialized std_msgs/Float64MultiArray (what publish() accepts) with an empty layout."""
     data = np.ascontiguousarray(data, dtype='<f8')
-    return float64_array_header(data.size, run_id) + data.tobytes()
+    return float64_array_header(data.size) + data.tobytes()
 
 
-def float64_array_header(size: int, run_id: str = '') -> bytes:
-    """The bytes of a serialized Float64MultiArray before its ``size`` doubles (see
-    `float64_array_to_cdr`); the doubles follow little-endian."""
-    if not run_id:
-        return _HEADER + struct.pack('<IIII', 0, 0, size, 0)
-    label = f'run:{run_id}'.encode() + b'\0'
-    body = struct.pack('<II', 1, len(label)) + label
-    body += b'\0' * ((-len(body)) % 4) + struct.pack('<IIII', 0, 0, 0, size)
-    body += b'\0' * ((-len(body)) % 8)
-    return _HEADER + body
-
-
-def agent_states_to_cdr(tag: float, rows, run_id: str = '') -> bytes:
-    """Serialized ``/lockstep/agent_states`` (the layout above) from ``rows`` of (index, step,
-    x, y, qz, qw, u), without numpy (a lone agent sends one row per step)."""
-    k = len(rows)
-    values = [float(k), float(tag)]
-    for col in zip(*rows):
-        values += col
-    return float64_array_header(len(values), run_id) + struct.pack(f'<{len(values)}d', *values)
-
-
-def cdr_run_id(raw: bytes) -> str:
-    """The run id of a serialized Float64MultiArray (its first dimension's label
-    ``run:<id>``), '' if it has none."""
-    end = '<' if raw[1] == 1 else '>'
-    ndim, = struct.unpack_from(end + 'I', raw, 4)
-    if ndim == 0:
-        return ''
-    ln, = struct.unpack_from(end + 'I', raw, 8)
-    label = raw[12:12 + max(ln - 1, 0)].decode('utf-8', 'replace')
-    return label[4:] if label.startswith('run:') else ''
+def float64_array_header(size: int) -> bytes:
+    """The bytes of a serialized Float64MultiArray with an empty layout before its ``size``
+    doubles (little-endian)."""
+    return _HEADER + struct.pack('<IIII', 0, 0, size, 0)
 
 
 def cdr_to_float64_array(raw: bytes) -> np.ndarray:

@@ -14,10 +14,10 @@ One step n (the cycle in docs/ros-graph.md):
 Every method returns a list of actions for the node, in order:
 
 - ``('clock', t)``: publish ``/clock``;
-- ``('states', data)``: publish the packed states (``protocol.pack_states``);
+- ``('states', msg)``: publish the states (a `swarm_ros.layouts.States`);
 - ``('observe', k)``: step k's states are recorded (metrics, markers, progress);
 - ``('comms', k, event)``: publish a scheduled radio event (a dict) at step k on ``/swarm/events``;
-- ``('step', data)``: publish the packed step (``protocol.pack_step``);
+- ``('step', msg)``: publish the step (a `swarm_ros.layouts.Step`);
 - ``('event', ev)``: a world event (log it, publish it, write it to the events file);
 - ``('signal', i, what)``: signal agent i's process, ``what`` in ``kill``/``stop``/``cont``;
 - ``('finish',)``: the last u is known; the run is over.
@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from swarm_core.comms import event_step
-from swarm_ros import protocol as P
+from swarm_ros.layouts import States, Step
 
 
 def comms_schedule(comms, dt):
@@ -176,7 +176,7 @@ class LockstepBarrier:
             t = k * self.dt
             if k % self.clock_every == 0 or k == self.steps:
                 acts.append(('clock', t))
-            acts.append(('states', P.pack_states(k, t, x, y, qz, qw, alive)))
+            acts.append(('states', States(k, t, *self.buf.copy(), alive.copy())))     # as of now
             self.states_out = True
             acts.append(('observe', k))
         if self.states_out and self.decision is not None:
@@ -184,10 +184,9 @@ class LockstepBarrier:
             lam, flags, steering, rdv = self.decision
             self.lam, self.leaders = lam, flags & alive
             self.rec.record_decision(k, lam, self.leaders)
-            x, y, qz, qw = self.buf
             target, barrier = self.geometry()
-            data = P.pack_step(k, k * self.dt, lam, flags, steering, x, y, qz, qw, target, barrier,
-                               self.buf_u, alive=alive, rendezvous=rdv)
+            data = Step(k, k * self.dt, lam, flags, steering, *self.buf.copy(), self.buf_u.copy(), alive.copy(),
+                        target, barrier, rdv)
             while self.comms_events and self.comms_events[0][0] <= k:
                 acts.append(('comms', k, self.comms_events.pop(0)[1]))
             acts.append(('step', data))

@@ -32,8 +32,8 @@ from swarm_core import metrics as M
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import (ProcessSenders, RejectLog, Senders, check_agent_states, may_signal, other_run,
-                                  reason, refused)
+from swarm_ros.layouts import AgentStates, Decision
+from swarm_ros.msg_checks import ProcessSenders, RejectLog, Senders, check_agent_states, decoded, may_signal, reason
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, older_runs, run_json
 from swarm_ros.scenario_params import declare_scenario
@@ -193,14 +193,10 @@ class WorldNode(RealtimeWorld, Node):
     # ------------------------------------------------------------ inputs
     def _on_agent_states(self, raw):
         """Lockstep: the states of one agent process's agents (serialized /lockstep/agent_states)."""
-        if refused(self.reject, other_run(raw, self.run_id, P.LOCK_AGENT_STATES)):
+        m = decoded(AgentStates, raw, self.run_id, self.reject, 'state-decode')
+        if m is None:
             return
-        try:
-            tag, idx, ks, vals, u = P.unpack_agent_states(P.cdr_to_float64_array(raw))
-        except Exception as err:
-            kind = 'non-finite' if isinstance(err, P.NotFinite) else 'state-decode'
-            self.reject(kind, f'{P.LOCK_AGENT_STATES} message rejected: {err}')
-            return
+        tag, idx, ks, vals, u = m.tag, m.index, m.step, m.pose, m.u
         why = check_agent_states(idx, vals, self.n)
         if why is None:
             ok, why = self.process_senders.check(idx, tag)
@@ -218,18 +214,14 @@ class WorldNode(RealtimeWorld, Node):
         self.act(acts)
 
     def _on_decision(self, raw):
-        if refused(self.reject, other_run(raw, self.run_id, P.LOCK_DECISION)):
+        d = decoded(Decision, raw, self.run_id, self.reject, 'decision')
+        if d is None or d.n != self.lock.cur or self.lock.decision is not None:
             return
-        data = P.cdr_to_float64_array(raw)
-        n, t, lam, flags, steering = P.unpack_decision(data)
-        if n != self.lock.cur or self.lock.decision is not None:
+        if not decision_valid(d.lam, d.flags, d.steering, self.n):
+            self.reject('decision', f'commander decision for step {d.n}: λ={d.lam}, non-finite or wrong size')
             return
-        if not decision_valid(lam, flags, steering, self.n):
-            self.reject('decision', f'commander decision for step {n}: λ={lam}, non-finite or wrong size')
-            return
-        slots, rdv = P.decision_extras(data)
         self.watch.progressed(time.monotonic())
-        self.act(self.lock.on_decision(n, lam, flags, steering, slots, rdv))
+        self.act(self.lock.on_decision(d.n, d.lam, d.flags, d.steering, d.slots, d.rendezvous))
 
     # ------------------------------------------------------------ lockstep
     def other_run(self):
@@ -258,8 +250,8 @@ class WorldNode(RealtimeWorld, Node):
                 self.sim_t = a[1]
                 self.pub_clock.publish(P.clock_to_cdr(a[1]))
             elif kind == 'states':
-                self.sim_t = float(a[1][1])
-                raw = P.float64_array_to_cdr(a[1], self.run_id)
+                self.sim_t = a[1].t
+                raw = a[1].to_cdr(self.run_id)
                 self.pub_lock_states.publish(raw)
                 self.last_msg = (self.pub_lock_states, raw)
             elif kind == 'observe':
@@ -268,7 +260,7 @@ class WorldNode(RealtimeWorld, Node):
                 self.pub_events.publish(String(data=P.event_json('comms', a[1] * self.dt, source='scenario', **a[2])))
             elif kind == 'step':
                 self.lam_now, self.leaders_now = self.lock.lam, self.lock.leaders
-                raw = P.float64_array_to_cdr(a[1], self.run_id)
+                raw = a[1].to_cdr(self.run_id)
                 self.pub_step.publish(raw)
                 self.last_msg = (self.pub_step, raw)
                 self.watch.stepped(time.monotonic())

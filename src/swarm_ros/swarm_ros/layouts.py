@@ -1,0 +1,351 @@
+"""The packed lockstep messages, each declared once: a field table from which its numpy
+structured dtype, its encoder, its one decoder (with its checks) and its line in
+docs/ros-graph.md all follow.
+
+On the wire each is a ``std_msgs/Float64MultiArray`` with an empty ``layout`` whose ``data``
+is the bytes of ONE record of the message's dtype: the run id (`RUN_ID_BYTES` ASCII bytes,
+NUL-padded: the first four doubles), then float64 fields in declared order.  A field's count
+is fixed (``3``) or names a count field declared before it (``'N'``); the decoder reads the
+counts, checks that the data holds exactly that many values, then reads each field where the
+record's dtype puts it (a view of the received bytes, no copy).  Kinds (what a field's float64 values mean and how they are checked):
+
+``float``  as sent;  ``finite``  rejected if not finite (`NotFinite`);
+``whole``  an integer ≥ 0 (int);  ``count``  a whole number of rows (not a message attribute);
+``int``  an integer, finite (truncated; −1 = none);  ``flag``  1/0 (decoded > 0.5, bool);
+``point``  [has, x, y] → (2,) array or None;  ``points``  rows of (x, y) → (M, 2) array or None
+when M = 0;  ``rendezvous``  [on, has_point, x, y, γ, normalised, q0 (−1: the law's)] →
+(point or None, γ, normalised, q0 or None) of `swarm_core.faults.Rendezvous`, or None (off).
+
+A node with a run id rejects a message of another run (`OtherRun`); a node without one takes any.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import struct
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from .protocol import LOCK_AGENT_STATES, LOCK_DECISION, LOCK_STATES, LOCK_STEP, cdr_to_float64_array, float64_array_header
+
+#: bytes of the run id field (swarm_ros.runinfo: 1-32 letters, digits, _ or -)
+RUN_ID_BYTES = 32
+_RUN_DOUBLES = RUN_ID_BYTES // 8
+
+
+class BadMessage(ValueError):
+    """A packed lockstep message that must be rejected; ``kind`` the log key (None: the reader's)."""
+    kind = None
+
+
+class NotFinite(BadMessage):
+    """A value of a ``finite`` or ``whole`` field is not finite."""
+    kind = 'non-finite'
+
+
+class OtherRun(BadMessage):
+    """The message carries another run's id (a second run on the ROS_DOMAIN_ID)."""
+    kind = 'other-run'
+
+
+class Field(NamedTuple):
+    name: str
+    count: Any = 1          # 1, an int, a count field's name, or a shape tuple of those
+    kind: str = 'float'
+
+    def dims(self) -> tuple:
+        return self.count if isinstance(self.count, tuple) else (self.count,)
+
+    def shape(self, counts) -> tuple:
+        """The numpy shape of the field for the count values ``counts`` (a dict); () = a scalar."""
+        return () if self.count == 1 else tuple(counts[d] if isinstance(d, str) else d for d in self.dims())
+
+    def text(self) -> str:
+        dims = '' if self.count == 1 else f'({", ".join(map(str, self.dims()))})'
+        return f'{self.name}{dims}' + ('' if self.kind == 'float' else f' {self.kind}')
+
+
+def _rendezvous(rdv) -> list:
+    if rdv is None:
+        return [0.0] * 7
+    point, gain, norm, coupling = rdv
+    x, y = (0.0, 0.0) if point is None else point
+    return [1.0, 0.0 if point is None else 1.0, float(x), float(y), float(gain), 1.0 if norm else 0.0,
+            -1.0 if coupling is None else float(coupling)]
+
+
+def _from_rendezvous(r):
+    if r[0] < 0.5:
+        return None
+    point = (float(r[2]), float(r[3])) if r[1] > 0.5 else None
+    return point, float(r[4]), bool(r[5] > 0.5), None if r[6] < 0 else float(r[6])
+
+
+#: kind → (value → what the record holds, what the record holds → value); None = as is
+_CODECS = {
+    'float': (None, None), 'finite': (None, None), 'count': (None, None),
+    'whole': (None, lambda v: v.astype(np.int64)),
+    'int': (None, lambda v: v.astype(int)),
+    'flag': (None, lambda v: v > 0.5),
+    'point': (lambda p: [0.0, 0.0, 0.0] if p is None else [1.0, float(p[0]), float(p[1])],
+              lambda v: v[1:3].copy() if v[0] > 0.5 else None),
+    'points': (lambda p: np.zeros((0, 2)) if p is None else np.asarray(p, float).reshape(-1, 2),
+               lambda v: v.copy() if len(v) else None),
+    'rendezvous': (_rendezvous, _from_rendezvous),
+}
+_SCALAR = {'float': float, 'finite': float, 'whole': int, 'int': int}
+
+
+class _Plan(NamedTuple):
+    """A layout for given count values: its record dtype and, in doubles of ``data``, where
+    each field sits and which runs of doubles must be finite, or whole numbers ≥ 0."""
+    dtype: np.dtype
+    slots: tuple             # (field, start, stop, shape) in declared order
+    finite: tuple            # (start, stop, field names): finite, whole, int (merged runs)
+    whole: tuple             # (start, stop, field names): whole numbers ≥ 0
+    reads: tuple             # (start, stop, ndim, shape, decoder) of each message attribute
+
+
+def _runs(slots) -> tuple:
+    """The places of ``slots`` merged into runs of adjacent doubles: one check per run."""
+    out = []
+    for f, a, b, _ in slots:
+        if out and out[-1][1] == a:
+            out[-1] = (out[-1][0], b, out[-1][2] + ' or ' + f.name)
+        elif b > a:
+            out.append((a, b, f.name))
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=64)
+def _run_id_field(run_id: str) -> bytes:
+    rid = run_id.encode()
+    if len(rid) > RUN_ID_BYTES:
+        raise ValueError(f'run id {run_id!r} longer than {RUN_ID_BYTES} bytes')
+    return rid.ljust(RUN_ID_BYTES, b'\0')
+
+
+#: records of at most this many doubles (a lone agent's answer) are packed from plain floats:
+#: cheaper than numpy for a few values
+_SMALL = 64
+
+
+def _small_body(plan: _Plan, values: dict, size: int) -> bytes:
+    """The doubles after the run id, packed with struct (a field of the wrong size: ValueError)."""
+    flat = []
+    for f, a, b, shape in plan.slots:
+        v = values[f.name]
+        if not shape:
+            flat.append(v)
+        elif len(shape) == 1:
+            flat.extend(v)
+        else:
+            for row in v:
+                flat.extend(row)
+        if len(flat) != b - _RUN_DOUBLES:
+            raise ValueError(f'{f.name}: {len(flat) - a + _RUN_DOUBLES} values, not {shape}')
+    return struct.pack(f'<{size}d', *flat)
+
+
+def _numpy_body(plan: _Plan, values: dict, size: int) -> bytes:
+    """`_small_body` by numpy (a field of the wrong shape: ValueError)."""
+    data = np.empty(size)
+    for f, a, b, shape in plan.slots:
+        a, b = a - _RUN_DOUBLES, b - _RUN_DOUBLES
+        if len(shape) == 1:
+            data[a:b] = values[f.name]
+        elif shape:
+            data[a:b].reshape(shape)[...] = values[f.name]
+        else:
+            data[a] = values[f.name]
+    return data.tobytes()
+
+
+class Layout:
+    """One packed message: ``topic``, its message class ``cls`` (a dataclass whose fields are
+    the declared fields but the counts) and its ``fields`` (`Field`), in wire order."""
+
+    def __init__(self, topic: str, cls, fields):
+        self.topic, self.cls, self.fields = topic, cls, tuple(fields)
+        self.counts, at = {}, _RUN_DOUBLES           # count name → its place (in doubles)
+        for f in self.fields:                        # a count sits at a fixed place, before its use
+            if f.kind == 'count':
+                assert at is not None, f'{topic}: count {f.name} after a counted field'
+                self.counts[f.name] = at
+            assert all(d in self.counts for d in f.dims() if isinstance(d, str)), f'{topic}: {f.name}'
+            at = None if at is None or any(isinstance(d, str) for d in f.dims()) else at + int(np.prod(f.dims()))
+        self.head = max(self.counts.values()) + 1    # doubles up to the last count
+        # a count's value when packing: the rows of the first field counted by it
+        self.count_of = {c: next(f.name for f in self.fields if f.dims()[0] == c) for c in self.counts}
+        assert [fl.name for fl in dataclasses.fields(cls)] == [f.name for f in self.fields if f.kind != 'count'], topic
+        self.encoders = tuple((f.name, _CODECS[f.kind][0]) for f in self.fields if f.kind != 'count')
+
+    def text(self) -> str:
+        """The layout as docs/ros-graph.md shows it: each field with its count and its kind."""
+        lines = [f'{self.topic} [run_id({_RUN_DOUBLES})']
+        for f in self.fields:
+            if len(lines[-1]) + len(f.text()) > 96:
+                lines[-1] += ','
+                lines.append(' ' * (len(self.topic) + 2) + f.text())
+            else:
+                lines[-1] += ', ' + f.text()
+        return '\n'.join(lines) + ']'
+
+    @functools.lru_cache(maxsize=64)
+    def plan(self, counts: tuple) -> _Plan:
+        """The record of this layout for the count values ``counts`` (declared order)."""
+        c = dict(zip(self.counts, counts))
+        dtype = np.dtype([('run_id', f'S{RUN_ID_BYTES}')] + [(f.name, '<f8', f.shape(c)) for f in self.fields])
+        slots = []
+        for f in self.fields:
+            a = dtype.fields[f.name][1] // 8
+            slots.append((f, a, a + dtype[f.name].itemsize // 8, f.shape(c)))
+        reads = tuple((a, b, len(shape), shape, _CODECS[f.kind][1] if shape else _SCALAR[f.kind])
+                      for f, a, b, shape in slots if f.kind != 'count')
+        return _Plan(dtype, tuple(slots), _runs([s for s in slots if s[0].kind in ('finite', 'whole', 'int')]),
+                     _runs([s for s in slots if s[0].kind == 'whole']), reads)
+
+    def encode(self, msg, run_id: str = '') -> bytes:
+        """The serialized Float64MultiArray of ``msg`` (an instance of ``cls``) with ``run_id``."""
+        values = {name: getattr(msg, name) if enc is None else enc(getattr(msg, name)) for name, enc in self.encoders}
+        counts = tuple(len(values[self.count_of[c]]) for c in self.counts)
+        values.update(zip(self.counts, counts))
+        plan = self.plan(counts)
+        size = plan.dtype.itemsize // 8
+        body = (_small_body if size <= _SMALL else _numpy_body)(plan, values, size - _RUN_DOUBLES)
+        return float64_array_header(size) + _run_id_field(run_id) + body
+
+    def decode(self, raw: bytes, run_id: str = ''):
+        """The one decoder: the message (``cls``) in a serialized Float64MultiArray, or a
+        `BadMessage` (`OtherRun` if ``run_id`` is set and the message's differs, `NotFinite`,
+        else a size that does not match its counts or a value not a whole number ≥ 0)."""
+        try:
+            data = cdr_to_float64_array(raw)
+        except Exception as err:                     # struct.error, ...: too short
+            raise BadMessage(f'not a serialized Float64MultiArray ({err})') from None
+        if data.dtype.byteorder == '>':
+            data = data.astype('<f8')
+        size = data.size
+        if size < self.head:
+            raise BadMessage(f'{size} values, fewer than the {self.head} before its counts')
+        if run_id and data[:_RUN_DOUBLES].tobytes() != _run_id_field(run_id):
+            got = data[:_RUN_DOUBLES].tobytes().rstrip(b'\0').decode('ascii', 'replace')
+            raise OtherRun(f'message of run {got or "(none)"!r}, not this run {run_id!r}: another swarm run '
+                           'on this ROS_DOMAIN_ID?')
+        counts = [data.item(i) for i in self.counts.values()]
+        if not all(c.is_integer() and 0 <= c <= size for c in counts):
+            raise BadMessage(f'counts {", ".join(self.counts)} = {counts} are not whole numbers ≥ 0')
+        plan = self.plan(tuple(int(c) for c in counts))
+        if size * 8 != plan.dtype.itemsize:
+            raise BadMessage(f'{size} values do not hold {dict(zip(self.counts, counts))} '
+                             f'(want {plan.dtype.itemsize // 8})')
+        for a, b, names in plan.finite:
+            if not (math.isfinite(data.item(a)) if b - a == 1 else np.isfinite(data[a:b]).all()):
+                raise NotFinite(f'a value of {names} is not finite')
+        for a, b, names in plan.whole:
+            if b - a == 1:
+                v = data.item(a)
+                if v.is_integer() and v >= 0:
+                    continue
+            elif not (data[a:b] != np.abs(np.floor(data[a:b]))).any():
+                continue
+            raise BadMessage(f'a value of {names} is not a whole number ≥ 0')
+        out = []
+        for a, b, ndim, shape, dec in plan.reads:
+            if ndim == 0:
+                out.append(dec(data.item(a)))
+            else:
+                v = data[a:b] if ndim == 1 else data[a:b].reshape(shape)
+                out.append(v if dec is None else dec(v))
+        return self.cls(*out)
+
+
+class Packed:
+    """What every packed message class has: ``to_cdr`` and ``from_cdr`` (its `Layout`)."""
+    LAYOUT: Layout
+
+    def to_cdr(self, run_id: str = '') -> bytes:
+        return self.LAYOUT.encode(self, run_id)
+
+    @classmethod
+    def from_cdr(cls, raw: bytes, run_id: str = ''):
+        return cls.LAYOUT.decode(raw, run_id)
+
+
+def declare(topic, *fields):
+    """Class decorator: ``cls`` is the message of ``topic`` with these `Field` s."""
+    def wrap(cls):
+        cls.LAYOUT = Layout(topic, cls, fields)
+        return cls
+    return wrap
+
+
+@declare(LOCK_AGENT_STATES, Field('K', kind='count'), Field('tag', kind='finite'),
+         Field('index', 'K', 'whole'), Field('step', 'K', 'whole'), Field('pose', (4, 'K'), 'finite'),
+         Field('u', 'K', 'finite'))
+@dataclasses.dataclass(eq=False)
+class AgentStates(Packed):
+    """What one agent process (a lone agent or a container of K agents) sends per step: the
+    state each of its agents published on /swarm/states (the state of t_step, carrying u)."""
+    tag: float               # the process's sender tag (msg_checks.ProcessSenders)
+    index: np.ndarray        # (K,) the agents' rows in the roster
+    step: np.ndarray         # (K,) the step of each state
+    pose: np.ndarray         # (4, K) x, y, qz, qw
+    u: np.ndarray            # (K,) the u the state carries (u_{step−1})
+
+
+@declare(LOCK_STATES, Field('n', kind='whole'), Field('t'), Field('N', kind='count'),
+         Field('x', 'N'), Field('y', 'N'), Field('qz', 'N'), Field('qw', 'N'), Field('alive', 'N', 'flag'))
+@dataclasses.dataclass(eq=False)
+class States(Packed):
+    """The world's table of step n for the commander."""
+    n: int
+    t: float
+    x: np.ndarray
+    y: np.ndarray
+    qz: np.ndarray
+    qw: np.ndarray
+    alive: np.ndarray        # (N,) bool: in the table (False: dead or frozen, x .. qw stale)
+
+
+@declare(LOCK_DECISION, Field('n', kind='whole'), Field('t'), Field('N', kind='count'), Field('lam'),
+         Field('flags', 'N', 'flag'), Field('steering', 'N'), Field('slots', 'N', 'int'),
+         Field('rendezvous', 7, 'rendezvous'))
+@dataclasses.dataclass(eq=False)
+class Decision(Packed):
+    """The commander's answer for step n."""
+    n: int
+    t: float
+    lam: float
+    flags: np.ndarray        # (N,) bool: leaders
+    steering: np.ndarray     # (N,) s_k
+    slots: np.ndarray        # (N,) int: leader slot (swarm_core.faults), −1 for none
+    rendezvous: Any          # the reunion of step n or None
+
+
+@declare(LOCK_STEP, Field('n', kind='whole'), Field('t'), Field('N', kind='count'), Field('M', kind='count'),
+         Field('lam'), Field('flags', 'N', 'flag'), Field('steering', 'N'), Field('x', 'N'), Field('y', 'N'),
+         Field('qz', 'N'), Field('qw', 'N'), Field('u', 'N'), Field('alive', 'N', 'flag'),
+         Field('target', 3, 'point'), Field('barrier', ('M', 2), 'points'), Field('rendezvous', 7, 'rendezvous'))
+@dataclasses.dataclass(eq=False)
+class Step(Packed):
+    """The world's relay of step n to every agent: states, decision and world geometry."""
+    n: int
+    t: float
+    lam: float
+    flags: np.ndarray
+    steering: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    qz: np.ndarray
+    qw: np.ndarray
+    u: np.ndarray            # (N,) the u each state of t_n carries (u_{n−1})
+    alive: np.ndarray
+    target: Any              # (2,) or None
+    barrier: Any             # (M, 2) or None
+    rendezvous: Any
+
+
+MESSAGES = (AgentStates, States, Decision, Step)
