@@ -65,6 +65,34 @@ def received_table(x, y, qz, qw, rows, cores):
     return pos, cos_t, sin_t
 
 
+def roster_index(roster, agent_name: str, index: int) -> tuple[list, int]:
+    """(roster, this agent's row in it) from the parameters agent_names, agent_name and
+    agent_index (-1: look the name up; [''] : the agent alone); ValueError names the bad one."""
+    roster = list(roster)
+    if roster == ['']:
+        roster = [agent_name]
+    if len(set(roster)) != len(roster):
+        raise ValueError('parameter agent_names: names must be unique')
+    if agent_name not in roster:
+        raise ValueError(f'parameter agent_name: {agent_name!r} is not in agent_names')
+    if index < 0:
+        return roster, roster.index(agent_name)
+    if index >= len(roster) or roster[index] != agent_name:
+        raise ValueError(f'parameter agent_index: {index} does not name {agent_name!r} in agent_names')
+    return roster, index
+
+
+def known_table(roster, own: str, own_state, newest: dict, leaders, now: float, stale_after: float):
+    """Realtime without a radio model: (own row, states (m, 4) of x, y, qz, qw, leader flags
+    (m,)) of this agent (``own``, state ``own_state``) and the agents whose newest state
+    (``newest``: name -> (t, x, y, qz, qw, ...)) is at most ``stale_after`` old at ``now``, in
+    roster order."""
+    names = [nm for nm in roster if nm == own or (nm in newest and now - newest[nm][0] <= stale_after)]
+    rows = np.array([newest[nm][1:5] if nm != own else own_state for nm in names])
+    flags = np.array([nm in leaders for nm in names])
+    return names.index(own), rows, flags
+
+
 class AgentCore:
     def __init__(self, index: int, n_agents: int, x: float, y: float, theta: float,
                  law: LawConfig, dt: float, noise=(0.0, 0.0), noise_rng=None):
