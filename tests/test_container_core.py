@@ -9,7 +9,6 @@ import pytest
 from swarm_agent.agent_core import AgentCore
 from swarm_agent.container_core import (CONTAINER_SIZE, PROCESSES_PER_CORE, ContainerCore, agents_per_process,
                                         split_agents)
-from swarm_core import laws
 from swarm_core.engine import simulate
 from swarm_core.scenario import load
 
@@ -80,12 +79,12 @@ def counted(monkeypatch):
     """Count the calls of the core law made by container_core (one per container and step)."""
     import swarm_agent.container_core as cc
     calls = {'n': 0, 'idle': 0}
-    real = laws.swarm_control
+    real = cc.alive_control
 
     def wrapped(*a, **k):
         calls['n'] += 1
         return real(*a, **k)
-    monkeypatch.setattr(cc, 'swarm_control', wrapped)
+    monkeypatch.setattr(cc, 'alive_control', wrapped)
     return calls
 
 

@@ -170,3 +170,35 @@ def test_realtime_catch_up_moves_by_the_elapsed_periods():
         k, t = catch_up(float(now), t, dt, 4)
         periods += k
     assert abs(periods * dt - now) <= dt / 2 + 1e-9         # the agent kept up with the clock
+
+
+def test_realtime_table_holds_the_fresh_neighbours_and_self_in_roster_order():
+    from swarm_agent.agent_core import known_table
+    roster = ['a', 'b', 'c', 'd']
+    newest = {'a': (9.0, 1.0, 2.0, 0.0, 1.0, 0.1),        # fresh
+              'b': (6.9, 5.0, 5.0, 0.0, 1.0, 0.0),        # 2.1 s old: stale
+              'd': (7.0, 3.0, 4.0, 0.6, 0.8, 0.0)}        # exactly stale_after old: kept
+    own, rows, flags = known_table(roster, 'c', (0.5, 0.5, 0.0, 1.0), newest, {'d'}, 9.0, 2.0)
+    assert own == 1
+    np.testing.assert_array_equal(rows, [[1.0, 2.0, 0.0, 1.0], [0.5, 0.5, 0.0, 1.0], [3.0, 4.0, 0.6, 0.8]])
+    assert flags.tolist() == [False, False, True]
+    own, rows, _ = known_table(roster, 'c', (0.5, 0.5, 0.0, 1.0), {}, set(), 9.0, 2.0)
+    assert own == 0 and rows.shape == (1, 4)                # alone: its own row
+
+
+@pytest.mark.parametrize('roster,name,index,want', [
+    ([''], 'agent_3', -1, (['agent_3'], 0)),
+    (['a', 'b', 'c'], 'c', -1, (['a', 'b', 'c'], 2)),
+    (['a', 'b', 'c'], 'b', 1, (['a', 'b', 'c'], 1)),
+    (['a', 'b', 'a'], 'b', -1, 'parameter agent_names: names must be unique'),
+    (['a', 'b'], 'c', -1, "parameter agent_name: 'c' is not in agent_names"),
+    (['a', 'b'], 'b', 0, "parameter agent_index: 0 does not name 'b' in agent_names"),
+    (['a', 'b'], 'b', 2, "parameter agent_index: 2 does not name 'b' in agent_names"),
+])
+def test_roster_index(roster, name, index, want):
+    from swarm_agent.agent_core import roster_index
+    if isinstance(want, str):
+        with pytest.raises(ValueError, match=want):
+            roster_index(roster, name, index)
+    else:
+        assert roster_index(roster, name, index) == want

@@ -7,8 +7,9 @@ import pytest
 from swarm_agent.agent_core import AgentCore
 from swarm_core import outcomes
 from swarm_core.engine import simulate
-from swarm_core.faults import Fault, FaultTimeline, elect_successor, followers_of, track_slots
-from swarm_core.laws import swarm_control
+from swarm_core.faults import (Fault, FaultTimeline, alive_control, elect_successor, followers_of, reunion_law,
+                               track_slots)
+from swarm_core.laws import LawConfig, swarm_control
 from swarm_core.frenet import frame_from_quaternion, heading_frame
 from swarm_core.scenario import ScenarioError, load, parse
 from swarm_core.schedules import ConstantSteering
@@ -189,6 +190,75 @@ def test_agent_cores_reproduce_engine_with_faults_failover_and_reunion():
         assert np.isnan(ref.r[step, faults.dead]).all()
         for i in live:
             agents[i].advance(us[i])
+
+
+# ------------------------------------------------------------------ the table of a step (alive_control)
+
+def _table(n=7, seed=3):
+    rng = np.random.default_rng(seed)
+    pos = rng.uniform(-2.0, 2.0, size=(n, 2))
+    c, s = heading_frame(rng.uniform(-np.pi, np.pi, size=n))
+    flags = np.zeros(n, bool)
+    flags[[1, n - 2]] = True
+    return pos, c, s, flags, rng.uniform(-0.3, 0.3, size=n)
+
+
+LAW = LawConfig(kind='homotopy', q0=0.5)
+
+
+def test_alive_control_leaves_a_killed_agent_out_of_everyones_table():
+    """Agent 3 of 7 dead: the others' u are those of the table without its row (the engine's
+    rule), bit for bit whoever asks (all receivers or one), and the dead agent's u is 0."""
+    pos, c, s, flags, steer = _table()
+    n, dead = len(pos), 3
+    alive = np.ones(n, bool)
+    alive[dead] = False
+    u = alive_control(pos, c, s, np.arange(n), LAW, 0.6, flags, steer, alive=alive)
+    keep = np.flatnonzero(alive)
+    want = swarm_control(pos[keep], c[keep], s[keep], np.arange(keep.size), LAW, lambda_=0.6,
+                         is_leader=flags[keep], steering=steer[keep])
+    np.testing.assert_array_equal(u[keep], want)
+    assert u[dead] == 0.0
+    full = alive_control(pos, c, s, np.arange(n), LAW, 0.6, flags, steer)
+    assert not np.any(full[keep] == u[keep])           # the dead agent's row did count before
+    for k in (0, 4, 6):                                 # one receiver: its row of the same table
+        one = alive_control(pos, c, s, [k], LAW, 0.6, flags, steer[[k]], alive=alive)
+        assert one[0] == u[k]
+    two = alive_control(pos, c, s, [dead, 5], LAW, 0.6, flags, steer[[dead, 5]], alive=alive)
+    assert two[0] == 0.0 and two[1] == u[5]
+
+
+def test_alive_control_reunion_and_pairs_see_the_alive_table():
+    pos, c, s, flags, steer = _table()
+    alive = np.array([1, 1, 0, 1, 0, 1, 1], bool)
+    keep = np.flatnonzero(alive)
+    rdv = ((0.5, -0.5), 0.7, False, 0.2)
+    seen = []
+
+    def pairs(p):
+        seen.append(p.copy())
+        return None
+    u = alive_control(pos, c, s, np.arange(7), LAW, 0.3, flags, steer, target=None, alive=alive, rendezvous=rdv,
+                      pairs=pairs)
+    law, target = reunion_law(LAW, None, rdv)
+    assert law != LAW and target is not None
+    want = swarm_control(pos[keep], c[keep], s[keep], np.arange(keep.size), law, lambda_=0.3,
+                         is_leader=flags[keep], steering=steer[keep], target=target)
+    np.testing.assert_array_equal(u[keep], want)
+    assert len(seen) == 1 and np.array_equal(seen[0], pos[keep])
+
+
+def test_agent_core_row_is_its_place_in_a_table_of_the_agents_it_knows():
+    """Realtime: the table holds only the agents an agent knows; `row` is its own place there,
+    and its index (its place in the roster) is left alone."""
+    pos, c, s, flags, _ = _table(n=5)
+    theta = np.arctan2(s, c)
+    agent = AgentCore(4, 9, *pos[2], theta[2], LAW, 0.05)
+    q = np.array([AgentCore(0, 1, 0, 0, t, LAW, 0.05).quaternion for t in theta])
+    u = agent.control(pos[:, 0], pos[:, 1], q[:, 0], q[:, 1], 0.5, flags, 0.1, row=2)
+    want = swarm_control(pos, *frame_from_quaternion(q[:, 0], q[:, 1]), [2], LAW, lambda_=0.5,
+                         is_leader=flags, steering=[0.1])
+    assert u == want[0] and agent.index == 4
 
 
 # ------------------------------------------------------------------ the shipped scenarios

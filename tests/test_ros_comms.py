@@ -163,15 +163,15 @@ def test_realtime_latency_and_swarm_drop(rclpy_context, swarm_cmd, processes):
             clock.publish(c)
             states.publish(odom('agent_0', -1.0 + t[0], 1.0, 0.0, t[0]))
             spin_for(ex, lambda: False, 0.03)
-            if 0 in agent.stream.newest:                     # agent_0's newest delivered state
-                lags.append(agent._now() - agent.stream.newest[0][0])
+            if 0 in agent.driver.stream.newest:              # agent_0's newest delivered state
+                lags.append(agent._now() - agent.driver.stream.newest[0][0])
 
     def counts():
-        return tuple(agent.radio_count['agent_0'])
+        return tuple(agent.driver.radio_count['agent_0'])
 
     def known():
         """agent_0 is in agent_1's control table (only agent_0 publishes states here)."""
-        _, rows, _ = agent.radio_table(agent._now())
+        _, rows, _ = agent.driver.table(agent._now())
         return len(rows) == 2
 
     tick(30)

@@ -121,9 +121,9 @@ def test_a_second_run_on_the_domain_is_refused_and_lockstep_messages_of_another_
     quat = [np.sin(scn.theta0 / 2), np.cos(scn.theta0 / 2)]
     data = Step(0, 0.0, 0.0, np.zeros(n, bool), np.zeros(n), scn.pos0[:, 0], scn.pos0[:, 1],
                 quat[0], quat[1], np.zeros(n), np.ones(n, bool), None, None, None)
-    agent._on_step(data.to_cdr('aaaa1111'))
+    agent.driver.on_input(data.to_cdr('aaaa1111'))
     assert agent.step == 0 and agent.reject.kinds.get('other-run')
-    agent._on_step(data.to_cdr('bbbb2222'))
+    agent.driver.on_input(data.to_cdr('bbbb2222'))
     assert agent.step == 1
     from homotopy_commander.commander_node import CommanderNode
     cmd = CommanderNode(context=ctx, parameter_overrides=overrides(dict(scenario='homotopy_global',

@@ -80,7 +80,7 @@ def test_agent_u_equals_core_law_in_lockstep(rclpy_context):
                                              is_leader=c['flags'], steering=c['steer'][:1],
                                              target=c['target'], barrier=c['barrier'])[0])
         node = agents[name]
-        node._on_step(step_message(scn6, pos, theta, c['lam'], c['flags'], c['steer'], c['target'], c['barrier']))
+        node.driver.on_input(step_message(scn6, pos, theta, c['lam'], c['flags'], c['steer'], c['target'], c['barrier']))
         assert node.step == 1
         assert node.u_history[-1] == (0, expected[name])
         assert node.odom.twist.twist.angular.z == expected[name]      # what it publishes next
@@ -89,7 +89,7 @@ def test_agent_u_equals_core_law_in_lockstep(rclpy_context):
     assert expected['a1'] == 0.05
     # a repeated step message is answered again, not applied twice
     node = agents['a0']
-    node._on_step(step_message(scn6, pos, theta, 0.0, np.zeros(n, bool), np.zeros(n)))
+    node.driver.on_input(step_message(scn6, pos, theta, 0.0, np.zeros(n, bool), np.zeros(n)))
     assert node.step == 1 and len(node.u_history) == 1
 
 
@@ -191,7 +191,7 @@ def test_realtime_agent_moves_with_the_sim_clock(rclpy_context):
     for nd in (agent, probe):
         ex.add_node(nd)
     assert spin_for(ex, lambda: clock.get_subscription_count() and states)
-    limit = agent.catch_up_limit
+    limit = agent.driver.catch_up_limit
 
     def at(t, steps):
         c = Clock()

@@ -9,8 +9,9 @@ order, exactly as `swarm_core.engine.SwarmStepper` does for the whole swarm:
 2. u = `swarm_control(..., receivers=[own_row])` with λ, leader flags and s_k of that step;
 3. `zoh_step` on 1-element arrays, then the agent's own seeded noise (if any).
 
-With faults (swarm_core.faults) the table holds only the agents alive at that step, in index
-order, and a rendezvous (reunion) switches the target term on, as in the batch engine.
+With faults the table holds only the agents alive at that step, in index order, and a
+rendezvous (reunion) switches the target term on: `swarm_core.faults.alive_control`, the same
+function the batch engine and an agent container call.
 
 Because `swarm_control` reduces each receiver's row of pair terms on its own (numpy row sums
 over the whole table, or `np.bincount` over a neighbour list, in table order) and every other
@@ -26,10 +27,10 @@ from __future__ import annotations
 import math
 import numpy as np
 
-from swarm_core.faults import reunion_law
+from swarm_core.faults import alive_control, reunion_law
 from swarm_core.comms import Beliefs, CommModel, belief_control
 from swarm_core.integrate import zoh_step
-from swarm_core.laws import LawConfig, swarm_control
+from swarm_core.laws import LawConfig
 from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
 
 
@@ -48,6 +49,48 @@ def catch_up(now: float, t_state: float, dt: float, limit: int) -> tuple[int, fl
     if periods > limit:
         return limit, now
     return periods, t_state + periods * dt
+
+
+def received_table(x, y, qz, qw, rows, cores):
+    """pos (N, 2), cos θ, sin θ (N,) of a step's table as received (frames from the
+    quaternions, eq. 3), with rows ``rows`` holding the own states of the agents ``cores``
+    (their positions, their frames through the quaternions they publish)."""
+    pos = np.empty((len(x), 2))
+    pos[:, 0] = x
+    pos[:, 1] = y
+    cos_t, sin_t = frame_from_quaternion(qz, qw)            # new arrays
+    for r, c in zip(rows, cores):
+        pos[r] = c.pos[0]
+        cos_t[r], sin_t[r] = c._own_frame()                 # (cached until the agent moves)
+    return pos, cos_t, sin_t
+
+
+def roster_index(roster, agent_name: str, index: int) -> tuple[list, int]:
+    """(roster, this agent's row in it) from the parameters agent_names, agent_name and
+    agent_index (-1: look the name up; [''] : the agent alone); ValueError names the bad one."""
+    roster = list(roster)
+    if roster == ['']:
+        roster = [agent_name]
+    if len(set(roster)) != len(roster):
+        raise ValueError('parameter agent_names: names must be unique')
+    if agent_name not in roster:
+        raise ValueError(f'parameter agent_name: {agent_name!r} is not in agent_names')
+    if index < 0:
+        return roster, roster.index(agent_name)
+    if index >= len(roster) or roster[index] != agent_name:
+        raise ValueError(f'parameter agent_index: {index} does not name {agent_name!r} in agent_names')
+    return roster, index
+
+
+def known_table(roster, own: str, own_state, newest: dict, leaders, now: float, stale_after: float):
+    """Realtime without a radio model: (own row, states (m, 4) of x, y, qz, qw, leader flags
+    (m,)) of this agent (``own``, state ``own_state``) and the agents whose newest state
+    (``newest``: name -> (t, x, y, qz, qw, ...)) is at most ``stale_after`` old at ``now``, in
+    roster order."""
+    names = [nm for nm in roster if nm == own or (nm in newest and now - newest[nm][0] <= stale_after)]
+    rows = np.array([newest[nm][1:5] if nm != own else own_state for nm in names])
+    flags = np.array([nm in leaders for nm in names])
+    return names.index(own), rows, flags
 
 
 class AgentCore:
@@ -100,29 +143,16 @@ class AgentCore:
         return self._quat
 
     def control(self, x, y, qz, qw, lam, is_leader, steering_own, target=None, barrier=None,
-                alive=None, rendezvous=None):
+                alive=None, rendezvous=None, row=None):
         """u of this agent from the table (arrays of length N in agent-index order).
 
         alive (N,) bool: only these rows are in the table (this agent must be one);
-        rendezvous: the reunion of this step (`faults.reunion_law`), or None."""
-        k = self.index
-        law = self.law
-        if alive is not None and np.count_nonzero(alive) != len(alive):
-            rows = np.flatnonzero(alive)
-            x, y, qz, qw = (np.asarray(v, float)[rows] for v in (x, y, qz, qw))
-            is_leader = np.asarray(is_leader, bool)[rows]
-            k = int(np.searchsorted(rows, self.index))
-        law, target = reunion_law(law, target, rendezvous)
-        pos = np.empty((len(x), 2))
-        pos[:, 0] = x
-        pos[:, 1] = y
-        cos_t, sin_t = frame_from_quaternion(qz, qw)            # new arrays
-        pos[k] = self.pos[0]
-        c, s = self._own_frame()
-        cos_t[k], sin_t[k] = c, s
-        u = swarm_control(pos, cos_t, sin_t, np.array([k]), law, lambda_=float(lam),
-                          is_leader=np.asarray(is_leader, bool), steering=np.array([float(steering_own)]),
-                          target=target, barrier=barrier)
+        rendezvous: the reunion of this step (`faults.reunion_law`), or None; row: this agent's
+        row in the table (default: its index; realtime: its row among the agents it knows)."""
+        k = self.index if row is None else int(row)
+        pos, cos_t, sin_t = received_table(x, y, qz, qw, [k], [self])
+        u = alive_control(pos, cos_t, sin_t, [k], self.law, lam, is_leader, [float(steering_own)], target,
+                          barrier, alive=alive, rendezvous=rendezvous)
         return float(u[0])
 
     def _own_frame(self):

@@ -9,6 +9,12 @@ Realtime: a timer at the control rate (1/dt in sim time) uses the newest states 
 ``/world/barrier``.
 Bad inputs are rejected with one log line naming them; no NaN ever enters the state.
 
+`AgentNode` is what every agent node has whatever its mode (name, parameters, its pure
+`AgentCore`, the ``/swarm/states`` publisher, the inputs every mode reads, the radio and the
+faults); the mode's own work is done by its driver, `LockstepDriver` or `RealtimeDriver`
+(``node.driver``; `DRIVERS` maps the parameter ``mode`` to the class).  A driver declares its
+parameters, takes the mode's own input (`on_input`), and says how a radio change applies.
+
 In an agent container (``swarm_agents``, `swarm_agent.container_node`) the node is built with
 ``contained=True``: it keeps its name, parameters, logger, ``steering`` subscription and
 ``/swarm/states`` publisher, and the container feeds it the inputs its agents share (the step
@@ -44,14 +50,17 @@ from swarm_ros.msg_checks import (FUTURE_TOLERANCE, RejectLog, Senders, check_ba
 from swarm_ros.rosutil import ParameterError, declare, run_node, when_matched
 from swarm_ros.runinfo import declare_run_id
 
-from .agent_core import AgentCore, catch_up
+from .agent_core import AgentCore, catch_up, known_table, roster_index
 from .container_core import ContainerCore
 from .process_io import CLOCKS, AgentStatesWriter, shared_inputs, step_message, step_time
 
-MODES = ('lockstep', 'realtime')
-
 
 class AgentNode(Node):
+    """What every agent node has, whatever its mode: its name and parameters, its `AgentCore`,
+    the ``/swarm/states`` publisher, the inputs every mode reads (λ, steering, leaders, target,
+    barrier, /swarm/events: the radio and, contained, faults).  The mode's own work is its
+    driver's (`DRIVERS`)."""
+
     def __init__(self, node_name='agent', *, namespace=None, context=None, parameter_overrides=None,
                  cli_args=None, contained=False, services=True):
         if not services:         # in a big container: no parameter/type-description services, no /rosout
@@ -62,73 +71,17 @@ class AgentNode(Node):
                          start_parameter_services=services)
         self.contained = contained
         self.halted = None       # contained: 'kill' or 'freeze' (fault events for this agent)
-        ns = self.get_namespace().strip('/')
-        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
-        self.agent_name = d('agent_name', ns or 'agent_0', 'agent name (child_frame_id of its states)')
-        self.roster = list(d('agent_names', [''], 'names of all agents in agent-index order (the table order)'))
-        self.index = d('agent_index', -1, "this agent's row in agent_names (-1: look the name up)", lo=-1, hi=100000)
-        leader = d('leader', False, 'leader (true) or follower until /swarm/leaders says otherwise')
-        x = d('x', 0.0, 'initial x position')
-        y = d('y', 0.0, 'initial y position')
-        theta = d('theta', 0.0, 'initial heading θ (rad)')
-        defaults = LawConfig().parameters()          # one place for the defaults: the core's types
-        law = {}
-        for name, (text, limits) in LAW_PARAMETERS.items():
-            if isinstance(limits, tuple) and isinstance(limits[0], str):
-                law[name] = d(name, defaults[name], text, choices=limits)
-            elif limits is None:
-                law[name] = d(name, defaults[name], text)
-            else:
-                law[name] = d(name, defaults[name], text, lo=limits[0], hi=limits[1])
-        self.law = LawConfig.from_parameters(law)
-        self.dt = d('dt', 0.05, 'control period / integration step (sim s)', lo=1e-6, hi=10.0)
-        self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=MODES)
-        noise = (d('noise_position', 0.0, 'uniform noise half-width on x, y per step', lo=0.0, hi=1e6),
-                 d('noise_heading', 0.0, 'uniform noise half-width on θ per step', lo=0.0, hi=1e6))
-        seed = d('seed', 0, 'scenario seed (noise stream)', lo=0, hi=2**31 - 1)
-        self.state_subscribers = d('state_subscribers', 0, 'lockstep: publish the first state only once this '
-                                   'many readers of /swarm/states have matched (1 = the recorder; the world '
-                                   'reads /lockstep/agent_states)', lo=0, hi=100000)
-        self.stale_after = d('stale_after', 2.0, 'realtime: ignore neighbour states older than this (sim s)',
-                             lo=0.0, hi=1e9)
-        self.catch_up_limit = d('catch_up_limit', 4, 'realtime: most control periods one timer call '
-                                'integrates when the sim clock jumped (u held); a longer gap (a stopped '
-                                'or starved process) moves the agent this many', lo=1, hi=10**6)
-        self.lockstep_clock = d('lockstep_clock', 'step', 'lockstep: sim time from each step message (step: '
-                                'no /clock reader) or from /clock (topic); in a container its host '
-                                "node's parameter applies", choices=CLOCKS)
-        comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect)")
-        self.run_id = declare_run_id(self, 'lockstep steps of another run are rejected')
-        self.future_tolerance = d('future_tolerance', FUTURE_TOLERANCE, 'realtime: reject neighbour states '
-                                  'stamped more than this many sim s ahead of this clock', lo=0.0, hi=1e9)
-        if self.roster == ['']:
-            self.roster = [self.agent_name]
-        if len(set(self.roster)) != len(self.roster):
-            raise ParameterError('parameter agent_names: names must be unique')
-        if self.agent_name not in self.roster:
-            raise ParameterError(f'parameter agent_name: {self.agent_name!r} is not in agent_names')
-        if self.index < 0:
-            self.index = self.roster.index(self.agent_name)
-        elif self.index >= len(self.roster) or self.roster[self.index] != self.agent_name:
-            raise ParameterError(f'parameter agent_index: {self.index} does not name {self.agent_name!r} in agent_names')
+        leader, pose, noise, seed, mode_parameters, comms = self._declare_parameters()
+        try:
+            self.roster, self.index = roster_index(self.roster, self.agent_name, self.index)
+        except ValueError as err:
+            raise ParameterError(str(err)) from None
         self.n = len(self.roster)
         self.row = {nm: i for i, nm in enumerate(self.roster)}
-        rng = noise_rng(seed, self.index)
-        self.core = AgentCore(self.index, self.n, x, y, theta, self.law, self.dt, noise, rng)
+        self.core = AgentCore(self.index, self.n, *pose, self.law, self.dt, noise, noise_rng(seed, self.index))
         self.reject = RejectLog(self.get_logger())
-        self.senders = Senders()     # realtime: each neighbour name bound to its first publisher
-        try:
-            cfg = json.loads(comms) if comms.strip() else None
-            if cfg is not None and not isinstance(cfg, dict):
-                raise ValueError('not a JSON object')
-            self.radio = CommModel.from_config(cfg, self.roster, self.dt, seed)
-        except (ValueError, TypeError, KeyError) as err:
-            raise ParameterError(f'parameter comms: {err}') from None
+        self.radio = self._radio(comms, seed)
         self.radio_on = not self.radio.perfect
-        if self.radio_on:
-            self.core.attach_comms(self.radio)
-        self.heard = {}          # realtime radio: name -> newest state heard (before the radio)
-        self.stream = StreamRadio(self.radio, self.index)
 
         # live inputs (realtime; kept in lockstep for inspection)
         self.lam = 0.0
@@ -136,7 +89,6 @@ class AgentNode(Node):
         self.leaders = {self.agent_name} if leader else set()
         self.target = None
         self.barrier = None
-        self.neigh = {}          # name -> (t, x, y, qz, qw)
         self.step = 0            # the step whose state we hold (lockstep: `core.step`)
         self.t = 0.0
         self.u_history = []      # (step, u) for tests (bounded)
@@ -145,36 +97,58 @@ class AgentNode(Node):
         # transient-local: the commander's λ and steering in force, never a user's one-shot
         # command (that one is for the commander only; docs/commands.md)
         self.create_subscription(Float64, 'steering', self._on_steering, P.qos_latched(10))
+        self.driver = DRIVERS[self.mode](self, **mode_parameters[self.mode])
+        if self.radio_on:
+            self.driver.radio_started()
         if not contained:
-            for typ, topic, cb, qos, raw in shared_inputs(self):
+            for typ, topic, cb, qos, raw in shared_inputs(self, self.driver.on_input):
                 self.create_subscription(typ, topic, cb, qos, raw=raw)
-            self.lock = ContainerCore([self.core])
         self.sender_tag = new_sender_tag()     # who we are on /swarm/states (protocol.SENDER_TAG_INDEX)
         self.serialize_state = P.OdometryWriter(self.agent_name, tag=self.sender_tag)
         self.own = None          # (sec, nanosec, x, y, qz, qw, u) last published
-        if self.mode == 'realtime':
-            self.timer = self.create_timer(self.dt, self._on_tick)
-            self.publish_state()
-        elif not contained:          # a lone agent: a container of one for the world
-            if self.lockstep_clock == 'step':
-                self._time_source.detach_node()      # the step messages carry the time: no /clock reader
-            self.batch = AgentStatesWriter(self)
-            self.start_lockstep(lambda agent: self.batch.publish([agent]))
+        self.driver.start()
 
-    def start_lockstep(self, on_first):
-        """Publish the first state, then call ``on_first(self)`` (the process sends it to the
-        world on /lockstep/agent_states).  With ``state_subscribers`` > 0 only once that many
-        readers of /swarm/states matched: a recorder matched late would miss the first states
-        (the writer keeps 100), and the world starts step 0 only when it holds every first state."""
-        def first():
-            self.publish_state()
-            on_first(self)
-        if self.state_subscribers > 0:
-            when_matched(self, lambda: self.pub.get_subscription_count() >= self.state_subscribers,
-                         first, P.RECORDER_MATCH_WAIT,
-                         f'{P.STATES}: fewer than {self.state_subscribers} readers matched')
-        else:
-            first()
+    def _declare_parameters(self):
+        """Declare every parameter (those of every mode too); the agent's own go on self."""
+        ns = self.get_namespace().strip('/')
+        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
+        self.agent_name = d('agent_name', ns or 'agent_0', 'agent name (child_frame_id of its states)')
+        self.roster = list(d('agent_names', [''], 'names of all agents in agent-index order (the table order)'))
+        self.index = d('agent_index', -1, "this agent's row in agent_names (-1: look the name up)", lo=-1, hi=100000)
+        leader = d('leader', False, 'leader (true) or follower until /swarm/leaders says otherwise')
+        pose = (d('x', 0.0, 'initial x position'), d('y', 0.0, 'initial y position'),
+                d('theta', 0.0, 'initial heading θ (rad)'))
+        self.law = self._declare_law()
+        self.dt = d('dt', 0.05, 'control period / integration step (sim s)', lo=1e-6, hi=10.0)
+        self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=MODES)
+        noise = (d('noise_position', 0.0, 'uniform noise half-width on x, y per step', lo=0.0, hi=1e6),
+                 d('noise_heading', 0.0, 'uniform noise half-width on θ per step', lo=0.0, hi=1e6))
+        seed = d('seed', 0, 'scenario seed (noise stream)', lo=0, hi=2**31 - 1)
+        mode_parameters = {mode: driver.declare(self) for mode, driver in DRIVERS.items()}
+        comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect)")
+        self.run_id = declare_run_id(self, 'lockstep steps of another run are rejected')
+        return leader, pose, noise, seed, mode_parameters, comms
+
+    def _declare_law(self):
+        defaults = LawConfig().parameters()          # one place for the defaults: the core's types
+        law = {}
+        for name, (text, limits) in LAW_PARAMETERS.items():
+            if isinstance(limits, tuple) and isinstance(limits[0], str):
+                law[name] = declare(self, name, defaults[name], text, choices=limits)
+            elif limits is None:
+                law[name] = declare(self, name, defaults[name], text)
+            else:
+                law[name] = declare(self, name, defaults[name], text, lo=limits[0], hi=limits[1])
+        return LawConfig.from_parameters(law)
+
+    def _radio(self, comms, seed):
+        try:
+            cfg = json.loads(comms) if comms.strip() else None
+            if cfg is not None and not isinstance(cfg, dict):
+                raise ValueError('not a JSON object')
+            return CommModel.from_config(cfg, self.roster, self.dt, seed)
+        except (ValueError, TypeError, KeyError) as err:
+            raise ParameterError(f'parameter comms: {err}') from None
 
     # ------------------------------------------------------------ output
     def publish_state(self):
@@ -200,47 +174,13 @@ class AgentNode(Node):
             o.twist.twist.angular.z = u
         return o
 
-    def _apply(self, u):
-        u = self.core.advance(u)
-        self._applied(u)
-
-    def _applied(self, u):
+    def applied(self, u):
+        """Note the control u applied over the step held (`u_history`)."""
         self.u_history.append((self.step, u))
         if len(self.u_history) > 10000:
             del self.u_history[:5000]
 
-    @property
-    def silent(self):
-        """Lockstep: not in the table (frozen, or killed)."""
-        return self.core.silent
-
-    # ------------------------------------------------------------ lockstep
-    def _on_step(self, raw):
-        s = step_message(raw, self.lock, [self], self)
-        if s is not None and self.lockstep_clock == 'step':
-            step_time([self], s)
-
-    def lockstep_outcome(self, kind, detail, s):
-        """Carry out one `ContainerCore.on_step` decision for this agent."""
-        if kind == 'moved':
-            self.lam = s.lam
-            self.step = s.n
-            self._applied(detail)
-            self.step = self.core.step
-            self.t = self.step * self.dt
-            self.publish_state()
-        elif kind == 'repeat':       # a repeat (stall recovery): say our answer again
-            self.publish_state()
-        elif kind == 'silent':
-            # faults: dead or frozen at this step: neither move nor speak (a frozen agent
-            # resumes at the first step that lists it alive, with the state it holds)
-            self.get_logger().info(f'not in the table from step {detail} on (killed or frozen)')
-        elif kind == 'back':         # back after a freeze (maybe stopped before it saw one)
-            self.get_logger().info(f'back in the table at step {s.n} (was frozen at step {detail})')
-        elif kind == 'reject':
-            self.reject(*detail)
-
-    # ------------------------------------------------------------ realtime inputs
+    # ------------------------------------------------------------ inputs of every mode
     def _on_lambda(self, msg):
         v = msg.data
         if not (math.isfinite(v) and 0.0 <= v <= 1.0):
@@ -278,7 +218,7 @@ class AgentNode(Node):
             return
         self.barrier = np.array(pts, float) if pts else None
 
-    # ------------------------------------------------------------ radio (communication model)
+    # ------------------------------------------------------------ radio (communication model), faults
     def _on_event(self, msg):
         """Runtime radio changes from /swarm/events (see swarm_ros.protocol); in a container
         also the faults of this agent (the world cannot signal a process it shares)."""
@@ -294,7 +234,7 @@ class AgentNode(Node):
             return
         if change is None:
             return                    # faults, or scheduled in the scenario (applied from our copy)
-        step = self.step if self.mode == 'lockstep' else P.step_of(self._now(), self.dt)
+        step = self.driver.radio_step()
         try:
             self.radio.apply(change, step)
         except ValueError as err:     # e.g. an unknown agent in a partition
@@ -302,8 +242,7 @@ class AgentNode(Node):
             return
         if not self.radio_on:
             self.radio_on = True
-            if self.mode == 'lockstep':
-                self.core.attach_comms(self.radio)
+            self.driver.radio_started()
         self.get_logger().info(f'radio: {json.dumps(change)} from step {step}')
 
     def fault(self, kind):
@@ -322,79 +261,201 @@ class AgentNode(Node):
     def _now(self):
         return self.get_clock().now().nanoseconds * 1e-9
 
+
+class LockstepDriver:
+    """Lockstep: one ``/lockstep/step`` message per step (alone: its own subscription and a
+    `ContainerCore` of one; contained: the container decides for all its agents and calls
+    `lockstep_outcome`)."""
+
+    @staticmethod
+    def declare(node):
+        """This mode's parameters (every agent node declares those of every mode)."""
+        return dict(
+            state_subscribers=declare(
+                node, 'state_subscribers', 0, 'lockstep: publish the first state only once this many readers '
+                'of /swarm/states have matched (1 = the recorder; the world reads /lockstep/agent_states)',
+                lo=0, hi=100000),
+            lockstep_clock=declare(
+                node, 'lockstep_clock', 'step', 'lockstep: sim time from each step message (step: no /clock '
+                "reader) or from /clock (topic); in a container its host node's parameter applies",
+                choices=CLOCKS))
+
+    def __init__(self, node, state_subscribers, lockstep_clock):
+        self.node = node
+        self.state_subscribers = state_subscribers
+        self.lockstep_clock = lockstep_clock
+        self.lock = None if node.contained else ContainerCore([node.core])
+        self.batch = None
+
+    def start(self):
+        """Alone: a container of one for the world (contained: the container starts it)."""
+        if self.node.contained:
+            return
+        if self.lockstep_clock == 'step':
+            self.node._time_source.detach_node()      # the step messages carry the time: no /clock reader
+        self.batch = AgentStatesWriter(self.node)
+        self.start_lockstep(lambda agent: self.batch.publish([agent]))
+
+    def start_lockstep(self, on_first):
+        """Publish the first state, then call ``on_first(node)`` (the process sends it to the
+        world on /lockstep/agent_states).  With ``state_subscribers`` > 0 only once that many
+        readers of /swarm/states matched: a recorder matched late would miss the first states
+        (the writer keeps 100), and the world starts step 0 only when it holds every first state."""
+        node = self.node
+
+        def first():
+            node.publish_state()
+            on_first(node)
+        if self.state_subscribers > 0:
+            when_matched(node, lambda: node.pub.get_subscription_count() >= self.state_subscribers,
+                         first, P.RECORDER_MATCH_WAIT,
+                         f'{P.STATES}: fewer than {self.state_subscribers} readers matched')
+        else:
+            first()
+
+    def on_input(self, raw):
+        """Alone: one ``/lockstep/step`` message."""
+        s = step_message(raw, self.lock, [self.node], self.node.reject, self.batch)
+        if s is not None and self.lockstep_clock == 'step':
+            step_time([self.node], s)
+
+    def lockstep_outcome(self, kind, detail, s):
+        """Carry out one `ContainerCore.on_step` decision for this agent."""
+        node = self.node
+        if kind == 'moved':
+            node.lam = s.lam
+            node.step = s.n
+            node.applied(detail)
+            node.step = node.core.step
+            node.t = node.step * node.dt
+            node.publish_state()
+        elif kind == 'repeat':       # a repeat (stall recovery): say our answer again
+            node.publish_state()
+        elif kind == 'silent':
+            # faults: dead or frozen at this step: neither move nor speak (a frozen agent
+            # resumes at the first step that lists it alive, with the state it holds)
+            node.get_logger().info(f'not in the table from step {detail} on (killed or frozen)')
+        elif kind == 'back':         # back after a freeze (maybe stopped before it saw one)
+            node.get_logger().info(f'back in the table at step {s.n} (was frozen at step {detail})')
+        elif kind == 'reject':
+            node.reject(*detail)
+
+    def radio_step(self):
+        """The step from which a radio change applies: the step held."""
+        return self.node.step
+
+    def radio_started(self):
+        """The radio is not perfect (any more): receive each step's table through it."""
+        self.node.core.attach_comms(self.node.radio)
+
+
+class RealtimeDriver:
+    """Realtime: a timer at the control rate; neighbour states from ``/swarm/states``
+    (through the radio model if there is one), λ and the rest as they arrive."""
+
+    @staticmethod
+    def declare(node):
+        """This mode's parameters (every agent node declares those of every mode)."""
+        return dict(
+            stale_after=declare(node, 'stale_after', 2.0, 'realtime: ignore neighbour states older than this '
+                                '(sim s)', lo=0.0, hi=1e9),
+            catch_up_limit=declare(
+                node, 'catch_up_limit', 4, 'realtime: most control periods one timer call integrates when the '
+                'sim clock jumped (u held); a longer gap (a stopped or starved process) moves the agent this '
+                'many', lo=1, hi=10**6),
+            future_tolerance=declare(
+                node, 'future_tolerance', FUTURE_TOLERANCE, 'realtime: reject neighbour states stamped more '
+                'than this many sim s ahead of this clock', lo=0.0, hi=1e9))
+
+    def __init__(self, node, stale_after, catch_up_limit, future_tolerance):
+        self.node = node
+        self.stale_after = stale_after
+        self.catch_up_limit = catch_up_limit
+        self.future_tolerance = future_tolerance
+        self.senders = Senders()     # each neighbour name bound to its first publisher
+        self.neigh = {}              # name -> (t, x, y, qz, qw, u): newest state (perfect radio)
+        self.heard = {}              # radio model: name -> newest state heard (before the radio)
+        self.stream = StreamRadio(node.radio, node.index)
+        self.timer = None
+
+    def start(self):
+        self.timer = self.node.create_timer(self.node.dt, self.on_tick)
+        self.node.publish_state()
+
+    def radio_step(self):
+        """The step from which a radio change applies: that of the sim time now."""
+        return P.step_of(self.node._now(), self.node.dt)
+
+    def radio_started(self):
+        """Nothing to switch: `on_input` routes states through the radio from now on."""
+
     @property
     def radio_count(self):
-        """{sender name: [heard, delivered]} of the realtime radio."""
-        r = self.stream
-        return {nm: [int(r.heard[j]), int(r.delivered[j])] for j, nm in enumerate(self.roster) if j != self.index}
+        """{sender name: [heard, delivered]} of the radio."""
+        r, node = self.stream, self.node
+        return {nm: [int(r.heard[j]), int(r.delivered[j])] for j, nm in enumerate(node.roster) if j != node.index}
 
-    def radio_table(self, now):
-        """Like `table`, from what the radio delivered (`comms.StreamRadio`)."""
-        rows, states = self.stream.table(now, (self.core.pos[0, 0], self.core.pos[0, 1], *self.core.quaternion))
-        flags = np.array([self.roster[j] in self.leaders for j in rows])
-        return int(np.searchsorted(rows, self.index)), states, flags
-
-    def _on_state(self, msg):
+    def on_input(self, msg):
+        """A state on ``/swarm/states``."""
+        node = self.node
         name = msg.child_frame_id
-        if name == self.agent_name:
-            if msg.pose.covariance[P.SENDER_TAG_INDEX] != self.sender_tag:
-                self.reject('dup-self', f'state claiming to be {name!r} (this agent) from another publisher: '
+        tag = msg.pose.covariance[P.SENDER_TAG_INDEX]
+        if name == node.agent_name:
+            if tag != node.sender_tag:
+                node.reject('dup-self', f'state claiming to be {name!r} (this agent) from another publisher: '
                             'duplicate agent name')
             return
-        tag = msg.pose.covariance[P.SENDER_TAG_INDEX]
-        if refused(self.reject, check_state(msg, self.row, self.heard if self.radio_on else self.neigh, self._now(),
-                                            self.future_tolerance) or self.senders.check(name, tag)):
+        if refused(node.reject, check_state(msg, node.row, self.heard if node.radio_on else self.neigh,
+                                            node._now(), self.future_tolerance) or self.senders.check(name, tag)):
             return
         self.senders.accept(name, tag)
         p = msg.pose.pose
         vals = (P.stamp_to_time(msg.header.stamp), p.position.x, p.position.y,
                 p.orientation.z, p.orientation.w, msg.twist.twist.angular.z)
-        if self.radio_on:
+        if node.radio_on:
             self.heard[name] = vals
-            self.stream.hear(self.row[name], vals, self.core.pos[0])
+            self.stream.hear(node.row[name], vals, node.core.pos[0])
         else:
             self.neigh[name] = vals
 
-    # ------------------------------------------------------------ realtime control
     def table(self, now):
-        """(x, y, qz, qw, flags) over the agents known at time ``now`` plus self; own row."""
-        names = [nm for nm in self.roster if nm == self.agent_name or
-                 (nm in self.neigh and now - self.neigh[nm][0] <= self.stale_after)]
-        rows = np.array([self.neigh[nm][1:5] if nm != self.agent_name else
-                         (self.core.pos[0, 0], self.core.pos[0, 1], *self.core.quaternion) for nm in names])
-        flags = np.array([nm in self.leaders for nm in names])
-        return names.index(self.agent_name), rows, flags
+        """(own row, states (m, 4) of x, y, qz, qw, leader flags) of the agents known at ``now``."""
+        node, core = self.node, self.node.core
+        own = (core.pos[0, 0], core.pos[0, 1], *core.quaternion)
+        if not node.radio_on:
+            return known_table(node.roster, node.agent_name, own, self.neigh, node.leaders, now, self.stale_after)
+        rows, states = self.stream.table(now, own)     # what the radio delivered (`comms.StreamRadio`)
+        flags = np.array([node.roster[j] in node.leaders for j in rows])
+        return int(np.searchsorted(rows, node.index)), states, flags
 
-    def _on_tick(self):
-        """Realtime: one control period.  The agent moves by the sim time that passed since its
-        last state, in whole periods dt with u held (ZOH; `core.catch_up`), not by one dt per
-        call: a /clock jump may cover two periods and fire the timer once (it catches up), or
-        fire it again at the same time (nothing moves, so no two states share a stamp)."""
-        if self.halted is not None:
+    def on_tick(self):
+        """One control period.  The agent moves by the sim time that passed since its last
+        state, in whole periods dt with u held (ZOH; `core.catch_up`), not by one dt per call:
+        a /clock jump may cover two periods and fire the timer once (it catches up), or fire it
+        again at the same time (nothing moves, so no two states share a stamp)."""
+        node = self.node
+        if node.halted is not None:
             return
-        now = self.get_clock().now().nanoseconds * 1e-9
-        periods, t_new = catch_up(now, self.t, self.dt, self.catch_up_limit)
+        now = node._now()
+        periods, t_new = catch_up(now, node.t, node.dt, self.catch_up_limit)
         if periods == 0:
             return
-        if self.radio_on:
-            own, rows, flags = self.radio_table(now)
-        else:
-            own, rows, flags = self.table(now)
-        saved = self.core.index
-        self.core.index = own
-        try:
-            u = self.core.control(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], self.lam, flags,
-                                  self.steering, self.target, self.barrier)
-        finally:
-            self.core.index = saved
+        own, rows, flags = self.table(now)
+        u = node.core.control(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], node.lam, flags, node.steering,
+                              node.target, node.barrier, row=own)
         if not math.isfinite(u):
-            self.reject('u-nan', f'non-finite control u={u}; holding u=0')
+            node.reject('u-nan', f'non-finite control u={u}; holding u=0')
             u = 0.0
         for _ in range(periods):
-            self._apply(u)
-        self.step += periods
-        self.t = t_new
-        self.publish_state()
+            node.applied(node.core.advance(u))
+        node.step += periods
+        node.t = t_new
+        node.publish_state()
+
+
+#: the modes of an agent node (parameter ``mode``) and the class that drives each
+DRIVERS = {'lockstep': LockstepDriver, 'realtime': RealtimeDriver}
+MODES = tuple(DRIVERS)
 
 
 def main(argv=None):

@@ -24,10 +24,11 @@ import math
 
 import numpy as np
 
-from swarm_core.faults import reunion_law
+from swarm_core.faults import alive_control
 from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.integrate import zoh_step
-from swarm_core.laws import swarm_control
+
+from .agent_core import received_table
 
 #: ``auto``: one process per agent while there are at most this many agents per core
 PROCESSES_PER_CORE = 3
@@ -146,24 +147,9 @@ class ContainerCore:
                               s.barrier, alive=s.alive, rendezvous=s.rendezvous)
                     for c in cores]
         idx = self.rows[go]
-        x, y, qz, qw, flags = s.x, s.y, s.qz, s.qw, s.flags
-        recv = idx
-        if np.count_nonzero(s.alive) != len(s.alive):      # faults: only the agents alive
-            rows = np.flatnonzero(s.alive)
-            x, y, qz, qw = (np.asarray(v, float)[rows] for v in (x, y, qz, qw))
-            flags = np.asarray(flags, bool)[rows]
-            recv = np.searchsorted(rows, idx)
-        law, target = reunion_law(cores[0].law, s.target, s.rendezvous)
-        pos = np.empty((len(x), 2))
-        pos[:, 0] = x
-        pos[:, 1] = y
-        cos_t, sin_t = frame_from_quaternion(qz, qw)            # new arrays
-        for r, c in zip(recv, cores):                           # own rows: the agent's own state
-            pos[r] = c.pos[0]
-            cos_t[r], sin_t[r] = c._own_frame()                 # (cached by `advance`)
-        u = swarm_control(pos, cos_t, sin_t, recv, law, lambda_=float(s.lam),
-                          is_leader=np.asarray(flags, bool), steering=np.asarray(s.steering, float)[idx],
-                          target=target, barrier=s.barrier)
+        pos, cos_t, sin_t = received_table(s.x, s.y, s.qz, s.qw, idx, cores)
+        u = alive_control(pos, cos_t, sin_t, idx, cores[0].law, s.lam, s.flags, np.asarray(s.steering, float)[idx],
+                          s.target, s.barrier, alive=s.alive, rendezvous=s.rendezvous)
         return [float(v) for v in u]
 
     def advance(self, go, us):

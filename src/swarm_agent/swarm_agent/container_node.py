@@ -70,12 +70,13 @@ class AgentContainer(Node):
             self.clock_source.ros_time_is_active = True
         else:
             self.clock_source.ros_time_is_active = True          # set by hand from the step messages
-        for typ, topic, cb, qos, raw in shared_inputs(self):
+        on_input = self._on_step if self.mode == 'lockstep' else self._on_state
+        for typ, topic, cb, qos, raw in shared_inputs(self, on_input):
             self.create_subscription(typ, topic, cb, qos, raw=raw)
         if self.mode == 'lockstep':
             self.batch = AgentStatesWriter(self)     # the agents' states for the world, in one message
             for a in self.agents:
-                a.start_lockstep(self._first_state)
+                a.driver.start_lockstep(self._first_state)
         self.get_logger().info(f'{len(self.agents)} agents: {", ".join(a.agent_name for a in self.agents)}')
 
     def _first_state(self, _agent):
@@ -85,7 +86,7 @@ class AgentContainer(Node):
 
     # the shared inputs, handed to every agent
     def _on_step(self, raw):
-        s = step_message(raw, self.lock, self.agents, self)
+        s = step_message(raw, self.lock, self.agents, self.reject, self.batch)
         if s is not None and self.lockstep_clock == 'step':
             step_time(self.agents, s)
 
@@ -101,8 +102,11 @@ class AgentContainer(Node):
     _on_target = _fan('_on_target')
     _on_barrier = _fan('_on_barrier')
     _on_event = _fan('_on_event')
-    _on_state = _fan('_on_state')
     del _fan
+
+    def _on_state(self, msg):
+        for a in self.agents:
+            a.driver.on_input(msg)
 
     def destroy_node(self):
         for a in self.agents:

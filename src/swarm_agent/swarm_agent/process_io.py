@@ -17,19 +17,20 @@ from swarm_ros.msg_checks import decoded, new_sender_tag
 CLOCKS = ('step', 'topic')
 
 
-def shared_inputs(node):
+def shared_inputs(node, on_input):
     """(type, topic, callback, QoS, raw) of the subscriptions whose messages every agent of a
     process reads alike (a container makes each once and hands the messages to its agents;
-    `node` is the agent or the container)."""
+    `node` is the agent or the container); ``on_input`` takes the mode's own input (lockstep:
+    the step relay; realtime: /swarm/states)."""
     subs = [(Float64, P.LAMBDA, node._on_lambda, P.qos_latched(10), False),      # the λ in force
             (String, P.LEADERS, node._on_leaders, P.qos_latched(), False),
             (PointStamped, P.TARGET, node._on_target, P.qos_latched(), False),
             (PolygonStamped, P.BARRIER, node._on_barrier, P.qos_latched(), False),
             (String, P.EVENTS, node._on_event, P.qos_latched(100), False)]
     if node.mode == 'lockstep':
-        subs.append((Float64MultiArray, P.LOCK_STEP, node._on_step, P.qos_latched(), True))
+        subs.append((Float64MultiArray, P.LOCK_STEP, on_input, P.qos_latched(), True))
     else:
-        subs.append((Odometry, P.STATES, node._on_state, P.qos_latched(max(50, 4 * node.n)), False))
+        subs.append((Odometry, P.STATES, on_input, P.qos_latched(max(50, 4 * node.n)), False))
     return subs
 
 
@@ -55,18 +56,19 @@ def step_time(agents, s):
         a.get_clock().set_ros_time_override(now)
 
 
-def step_message(raw, lock, agents, log_node):
+def step_message(raw, lock, agents, reject, batch):
     """One ``/lockstep/step`` message for the agents of a process: decoded once, decided by
-    their `ContainerCore` (one law call), carried out by each agent; then the states of the
-    agents that answered go to the world in one message (``log_node.batch``).  A step of
-    another run (its id, swarm_ros.runinfo) is rejected."""
-    s = decoded(Step, raw, agents[0].run_id, log_node.reject, 'step-decode')
+    their `ContainerCore` (one law call), carried out by each agent's lockstep driver; then the
+    states of the agents that answered go to the world in one message (``batch``, an
+    `AgentStatesWriter`).  A step of another run (its id, swarm_ros.runinfo) is rejected
+    (``reject``: the process's `RejectLog`)."""
+    s = decoded(Step, raw, agents[0].run_id, reject, 'step-decode')
     if s is None:
         return None
     said = []
     for j, kind, detail in lock.on_step(s):
-        agents[j].lockstep_outcome(kind, detail, s)
+        agents[j].driver.lockstep_outcome(kind, detail, s)
         if kind in ('moved', 'repeat'):
             said.append(agents[j])
-    log_node.batch.publish(said)
+    batch.publish(said)
     return s

@@ -17,9 +17,9 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .faults import event_names, reunion_law
+from .faults import alive_control, event_names, reunion_law
 from .integrate import rk4_step, zoh_step
-from .laws import DENSE_LIMIT, sparse_coupling, swarm_control
+from .laws import DENSE_LIMIT, sparse_coupling
 from .comms import Beliefs, belief_control, delay_stats
 from .frenet import heading_frame, quaternion_from_heading
 from .scenario import Scenario
@@ -94,23 +94,10 @@ class SwarmStepper:
         if self.comms is not None:
             return self._comms_control(pos, theta, lam, is_leader, steering)
         cos_t, sin_t = heading_frame(theta) if frame is None else frame
-        law, target = self._law_target()
-        if self.faults.all_alive:
-            return swarm_control(pos, cos_t, sin_t, self.receivers, law, lambda_=lam,
-                                 is_leader=is_leader, steering=steering, target=target,
-                                 barrier=self.barrier, pairs=self._pairs(pos, lam))
-        # --- faults: the table holds only the agents heard this step, in index order
-        rows = np.flatnonzero(self.faults.alive)
-        u = np.zeros(self.n)
-        p = pos[rows]
-        u[rows] = swarm_control(p, cos_t[rows], sin_t[rows], np.arange(rows.size), law, lambda_=lam,
-                                is_leader=is_leader[rows], steering=steering[rows], target=target,
-                                barrier=self.barrier, pairs=self._pairs(p, lam))
-        return u
-
-    def _law_target(self):
-        """The law and target of this step: a rendezvous (reunion) switches the target term on."""
-        return reunion_law(self.law, self.target, self.plan.rendezvous_now)
+        # faults: the table holds only the agents heard this step, in index order
+        return alive_control(pos, cos_t, sin_t, self.receivers, self.law, lam, is_leader, steering, self.target,
+                             self.barrier, alive=None if self.faults.all_alive else self.faults.alive,
+                             rendezvous=self.plan.rendezvous_now, pairs=lambda p: self._pairs(p, lam))
 
     def inputs(self):
         """t, λ, leader flags (n,), steering (n,) for the current step (the commander's job),
@@ -197,7 +184,7 @@ class SwarmStepper:
             self.beliefs.receive(n, arrival, pos[:, 0], pos[:, 1], qz, qw, self.u_prev, alive=alive)
             self._comms_step = n
         s = np.zeros(self.n) if steering is None else np.asarray(steering, dtype=float)
-        law, target = self._law_target()
+        law, target = reunion_law(self.law, self.target, self.plan.rendezvous_now)
         return np.array([belief_control(law, self.beliefs, k, n, self.comms, pos[k], theta[k], lam,
                                         is_leader, s[k], target, self.barrier) if alive[k] else 0.0
                          for k in range(self.n)])
