@@ -21,11 +21,11 @@ import signal
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
-
 from . import dds
-from .launch import add_network_options, parse_agents
+from .launch import add_network_options, check_interface, parse_agents, set_state_readers
 from .node_params import load_scenario, node_parameters, write_params_file
 from .processes import agent_commands, supervised
 
@@ -54,88 +54,121 @@ def world_present(node) -> bool:
     return any(nm == 'world' and ns == '/' for nm, ns in node.get_node_names_and_namespaces())
 
 
+@dataclass
+class JoinPlan:
+    """The agents ``swarm join`` starts here (`plan`): their names and parameters."""
+    scenario: str               # as given (for messages)
+    roster: list                # every agent of the run
+    agents: str                 # --agents as given
+    names: list                 # the agents started here
+    params: dict                # their parameters; the run id is set once the run is heard
+    server: str                 # the run's discovery server, ADDR:PORT
+    wait: float                 # s to wait for the run
+
+
+def plan(a, scn, ref: str) -> JoinPlan:
+    """What ``a`` (the parsed options) asks to start for the scenario ``scn`` (loaded from
+    ``ref``); ValueError naming the first bad option.  Nothing is started or written."""
+    idx = parse_agents(a.agents, len(scn.names))
+    addr, port = dds.parse_server(a.server)
+    if not a.wait > 0:
+        raise ValueError(f'--wait {a.wait}: must be > 0')
+    names = [scn.names[i] for i in idx]
+    params = node_parameters(scn, ref, a.mode, duration=scn.duration)
+    params = {f'/{nm}/agent': params[f'/{nm}/agent'] for nm in names}
+    set_state_readers(params, 1 if a.recorded else 0, a.mode)
+    return JoinPlan(scenario=a.scenario, roster=list(scn.names), agents=a.agents, names=names, params=params,
+                    server=f'{addr}:{port}', wait=a.wait)
+
+
 def main(argv=None) -> int:
+    """validate and plan (nothing started), then start the agents once the run is heard and
+    watch it until it is over."""
     a = _parser().parse_args(argv)
     scn, ref = load_scenario('swarm join', a)
     if scn is None:
         return 2
     try:
-        idx = parse_agents(a.agents, len(scn.names))
-        addr, port = dds.parse_server(a.server)
-        interface = dds.check_local(dds.check_address(a.interface, '--interface'), '--interface')
+        join = plan(a, scn, ref)
+        interface = check_interface(a.interface)
     except ValueError as err:
         print(f'swarm join: {err}', file=sys.stderr)
         return 2
-    if not a.wait > 0:
-        print(f'swarm join: --wait {a.wait}: must be > 0', file=sys.stderr)
-        return 2
-    params = node_parameters(scn, ref, a.mode, duration=scn.duration)
-    names = [scn.names[i] for i in idx]
-    params = {f'/{nm}/agent': params[f'/{nm}/agent'] for nm in names}
-    if a.recorded and a.mode == 'lockstep':
-        for p in params.values():
-            p['state_subscribers'] = 1
-    code = 1
     with tempfile.TemporaryDirectory(prefix='swarm_join_') as tmp, \
             supervised('swarm join', signals=(signal.SIGINT, signal.SIGTERM)) as (sup, stopped):
-        env = dds.environment(len(names) + 1, Path(tmp), interface=interface, server=f'{addr}:{port}')
+        env = dds.environment(len(join.names) + 1, Path(tmp), interface=interface, server=join.server)
         for k in [k for k in os.environ if k not in env]:
             del os.environ[k]               # this process's own graph watcher: a client like the agents
         os.environ.update(env)
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
 
-        from swarm_ros.runinfo import RunWatch, describe, one_run
-        ctx = Context()
-        try:
-            rclpy.init(context=ctx)
-            node = rclpy.create_node('swarm_join', context=ctx, start_parameter_services=False)
-            watch = RunWatch(node)          # the run's id: its agents take part only in that run
-            ex = SingleThreadedExecutor(context=ctx)
-            ex.add_node(node)
-            t0, run, seen, gone_since = time.monotonic(), None, False, None
-            print(f'swarm join: waiting for the run at {addr}:{port}', flush=True)
-            while True:
-                if stopped():
-                    code = 130
-                    break
-                ex.spin_once(timeout_sec=0.2)
-                now = time.monotonic()
-                if run is None:
-                    run, err = one_run(watch.runs, 'swarm join')
-                    if err is None and run is not None and list(run.get('agents', [])) != list(scn.names):
-                        err = (f'swarm join: {describe(run)} has other agents than {a.scenario}: '
-                               'give the same scenario options as the run')
-                    if err:
-                        print(err, file=sys.stderr, flush=True)
-                        code = 1
-                        break
-                    if run is not None:
-                        for p in params.values():
-                            p['run_id'] = run['run_id']
-                        ros = ['--ros-args', '--params-file', str(write_params_file(params, Path(tmp) / 'params.yaml'))]
-                        for label, _, cmd in agent_commands([[nm] for nm in names], ros):
-                            sup.start(label, cmd, env)
-                        print(f'swarm join: {len(names)} agents ({a.agents}) joining {describe(run)}', flush=True)
-                elif not sup.alive():
-                    print('swarm join: every agent here has exited', file=sys.stderr, flush=True)
-                    code = 1
-                    break
-                if world_present(node):
-                    if not seen:
-                        print(f'swarm join: the world found after {now - t0:.1f} s', flush=True)
-                    seen, gone_since = True, None
-                elif seen:
-                    gone_since = gone_since or now
-                    if now - gone_since > GONE_AFTER:
-                        print('swarm join: the world has left the graph; the run is over', flush=True)
-                        code = 0
-                        break
-                if run is None and now - t0 > a.wait:
-                    print(f'swarm join: no run at {addr}:{port} after {a.wait:g} s', file=sys.stderr, flush=True)
-                    code = 1
-                    break
-        finally:
-            rclpy.try_shutdown(context=ctx)
-    return code
+        def start(run):
+            for p in join.params.values():
+                p['run_id'] = run['run_id']
+            ros = ['--ros-args', '--params-file', str(write_params_file(join.params, Path(tmp) / 'params.yaml'))]
+            for label, _, cmd in agent_commands([[nm] for nm in join.names], ros):
+                sup.start(label, cmd, env)
+        return execute(join, start, sup.alive, stopped)
+
+
+def execute(join: JoinPlan, start, alive, stopped) -> int:
+    """Watch the graph: ``start(run)`` the agents once the run is heard; 0 once the world has
+    left (the run is over), 130 on a signal (``stopped()``), 1 if the run is not heard within
+    the wait, is another, or every agent here (``alive()``) has exited."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    from swarm_ros.runinfo import RunWatch
+    ctx = Context()
+    try:
+        rclpy.init(context=ctx)
+        node = rclpy.create_node('swarm_join', context=ctx, start_parameter_services=False)
+        watch = RunWatch(node)          # the run's id: its agents take part only in that run
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        return _watch(join, node, lambda: ex.spin_once(timeout_sec=0.2), watch, start, alive, stopped)
+    finally:
+        rclpy.try_shutdown(context=ctx)
+
+
+def _heard(join: JoinPlan, watch):
+    """(the run's announcement or None, an error line or None)."""
+    from swarm_ros.runinfo import describe, one_run
+    run, err = one_run(watch.runs, 'swarm join')
+    if err is None and run is not None and list(run.get('agents', [])) != join.roster:
+        err = (f'swarm join: {describe(run)} has other agents than {join.scenario}: '
+               'give the same scenario options as the run')
+    return run, err
+
+
+def _watch(join: JoinPlan, node, spin, watch, start, alive, stopped) -> int:
+    from swarm_ros.runinfo import describe
+    t0, run, seen, gone_since = time.monotonic(), None, False, None
+    print(f'swarm join: waiting for the run at {join.server}', flush=True)
+    while not stopped():
+        spin()
+        now = time.monotonic()
+        if run is None:
+            run, err = _heard(join, watch)
+            if err:
+                print(err, file=sys.stderr, flush=True)
+                return 1
+            if run is not None:
+                start(run)
+                print(f'swarm join: {len(join.names)} agents ({join.agents}) joining {describe(run)}', flush=True)
+        elif not alive():
+            print('swarm join: every agent here has exited', file=sys.stderr, flush=True)
+            return 1
+        if world_present(node):
+            if not seen:
+                print(f'swarm join: the world found after {now - t0:.1f} s', flush=True)
+            seen, gone_since = True, None
+        elif seen:
+            gone_since = gone_since or now
+            if now - gone_since > GONE_AFTER:
+                print('swarm join: the world has left the graph; the run is over', flush=True)
+                return 0
+        if run is None and now - t0 > join.wait:
+            print(f'swarm join: no run at {join.server} after {join.wait:g} s', file=sys.stderr, flush=True)
+            return 1
+    return 130

@@ -27,6 +27,10 @@ the launcher dies, whatever killed it), so a SIGKILLed launcher leaves nothing r
 recorder of ``--record`` is not vital: if it dies the run goes on with a warning.  If the
 world dies, the launcher says what is lost and, with ``--record``, rebuilds what it can from
 the bag.
+
+`main` validates the options and plans the run (`plan`: a `RunPlan` of the processes, their
+parameters and the outputs, made without side effects), executes it and finishes (outputs, exit
+code).
 """
 from __future__ import annotations
 
@@ -36,6 +40,7 @@ import os
 import sys
 import tempfile
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from swarm_core.analysis import check_output_dir, write_atomic, write_failed
@@ -44,7 +49,6 @@ from . import dds
 from .node_params import load_scenario, node_parameters, write_params_file
 from .processes import read_events, run_processes
 
-STOP_GRACE = 4.0
 #: most agents of one ``swarm run`` (each is an OS process, or a node of one executor);
 #: larger swarms are for ``swarm simulate``
 MAX_RUN_AGENTS = 2000
@@ -185,171 +189,279 @@ def parse_agents(text: str, n: int) -> list:
     return sorted(out)
 
 
-def main(argv=None) -> int:
-    a = _parser().parse_args(argv)
-    if not (a.missing_timeout >= 0.1 and a.missing_timeout < 1e6):
-        print(f'swarm run: --missing-timeout {a.missing_timeout}: must be in [0.1, 1e6)', file=sys.stderr)
-        return 2
-    if not (a.start_timeout >= 1 and a.start_timeout <= 1e6):
-        print(f'swarm run: --start-timeout {a.start_timeout}: must be in [1, 1e6]', file=sys.stderr)
-        return 2
-    if a.clock_every < 1:
-        print(f'swarm run: --clock-every {a.clock_every}: must be ≥ 1', file=sys.stderr)
-        return 2
-    if a.foxglove is not None and not 0 <= a.foxglove <= 65535:
-        print(f'swarm run: --foxglove {a.foxglove}: must be a port in 0..65535', file=sys.stderr)
-        return 2
-    if not 0 <= a.state_readers <= 1000:
-        print(f'swarm run: --state-readers {a.state_readers}: must be in 0..1000', file=sys.stderr)
-        return 2
-    if a.rtf is not None and not (a.rtf > 0 and a.rtf < 1e4):
-        print(f'swarm run: --rtf {a.rtf}: must be in (0, 1e4)', file=sys.stderr)
-        return 2
-    scn, ref = load_scenario('swarm run', a)
-    if scn is None:
-        return 2
-    try:
-        interface = dds.check_local(dds.check_address(a.interface, '--interface'), '--interface')
-        remote = parse_agents(a.remote_agents, len(scn.names)) if a.remote_agents else []
-    except ValueError as err:
-        print(f'swarm run: {err}', file=sys.stderr)
-        return 2
-    if not 0 <= a.server_port < 65536:
-        print(f'swarm run: --server-port {a.server_port}: must be 0 (a free port) or in 1..65535', file=sys.stderr)
-        return 2
-    if remote and a.in_process:
-        print('swarm run: --remote-agents needs --processes', file=sys.stderr)
-        return 2
-    if remote and a.discovery == 'simple':
-        print('swarm run: --remote-agents needs a discovery server (--discovery server or auto)', file=sys.stderr)
-        return 2
-    from swarm_agent.container_core import agent_services, agents_per_process, split_agents
+class NotStarted(Exception):
+    """Why the run cannot start (a bad option, output or network set-up): `main` says it in one
+    line ``swarm run: ...`` and exits 2, with nothing left running."""
+
+
+def check_options(a) -> None:
+    """ValueError naming the first option of ``a`` out of its range (checked before the
+    scenario is read)."""
+    for ok, why in ((0.1 <= a.missing_timeout < 1e6, f'--missing-timeout {a.missing_timeout}: must be in [0.1, 1e6)'),
+                    (1 <= a.start_timeout <= 1e6, f'--start-timeout {a.start_timeout}: must be in [1, 1e6]'),
+                    (a.clock_every >= 1, f'--clock-every {a.clock_every}: must be ≥ 1'),
+                    (a.foxglove is None or 0 <= a.foxglove <= 65535,
+                     f'--foxglove {a.foxglove}: must be a port in 0..65535'),
+                    (0 <= a.state_readers <= 1000, f'--state-readers {a.state_readers}: must be in 0..1000'),
+                    (0 < a.rtf < 1e4, f'--rtf {a.rtf}: must be in (0, 1e4)')):
+        if not ok:
+            raise ValueError(why)
+
+
+def check_interface(text: str) -> str:
+    """``--interface``: an IPv4 address of this host (ValueError otherwise)."""
+    return dds.check_local(dds.check_address(text, '--interface'), '--interface')
+
+
+def set_state_readers(params: dict, readers: int, mode: str) -> None:
+    """lockstep: every agent in ``params`` publishes its first state only once ``readers``
+    readers of /swarm/states (recorders) have matched, so they hear every state from step 0."""
+    if readers and mode == 'lockstep':
+        for fqn, p in params.items():
+            if fqn.endswith('/agent'):
+                p['state_subscribers'] = readers
+
+
+@dataclass
+class RunPlan:
+    """What a ``swarm run`` starts and writes (`plan`); making it has no side effects."""
+    scn: object                 # the scenario (`swarm_core.scenario.Scenario`)
+    mode: str                   # lockstep or realtime
+    in_process: bool            # every node in one executor (else a process each, or containers)
+    out: Path                   # the output directory
+    params: dict                # {node: its parameters}: the run's parameters file
+    run_id: str
+    local: list                 # names of the agents this host starts
+    remote: list                # indices of the agents other hosts start (`swarm join`)
+    groups: list                # the agents of each agent process
+    per: int                    # agents per process
+    services: bool              # contained agent nodes keep their services
+    record: str | None = None   # the bag of --record (processes only)
+    foxglove: int | None = None  # the port of the live view (processes only)
+    use_server: bool = False    # a discovery server
+    interface: str = '127.0.0.1'
+    server_port: int = 0
+    dds: str = 'auto'
+    figure: bool = True
+    join: tuple = ('', '')      # the swarm join command for the remote agents: before and after --server
+    ignored: list = field(default_factory=list)     # options the run ignores, one line each
+
+    @property
+    def processes(self) -> int:
+        """OS processes of a --processes run: agent processes, world, commander, recorder, view."""
+        return len(self.groups) + 2 + (self.record is not None) + (self.foxglove is not None)
+
+    @property
+    def traj_file(self) -> Path:
+        return self.out / 'trajectory.npz'
+
+    @property
+    def events_file(self) -> Path:
+        return self.out / 'events.jsonl'
+
+    def summary(self) -> str:
+        """The line that starts the run."""
+        scn = self.scn
+        per = '' if self.in_process or self.per == 1 else f' ({self.per} agents per process' + (
+            '' if self.services else ', agent nodes without services') + ')'
+        return (f'swarm run: run {self.run_id}: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {self.mode}, '
+                f'{"one process" if self.in_process else f"{self.processes} processes"}{per}, '
+                f't = {scn.duration:g}, dt = {scn.dt:g}')
+
+
+def agents_per_process_option(a, n: int, cores) -> int:
+    """``--agents-per-process`` for ``n`` agents started here (auto: by ``cores``)."""
+    from swarm_agent.container_core import agents_per_process
     if a.agents_per_process == 'auto':
-        per = agents_per_process(len(scn.names) - len(remote), os.cpu_count())
-    else:
-        try:
-            per = int(a.agents_per_process)
-            if per < 1:
-                raise ValueError
-        except ValueError:
-            print(f'swarm run: --agents-per-process {a.agents_per_process}: must be a whole number ≥ 1 or auto',
-                  file=sys.stderr)
-            return 2
-    local = [nm for i, nm in enumerate(scn.names) if i not in set(remote)]
-    groups = split_agents(local, per)
-    if len(scn.names) > MAX_RUN_AGENTS:
-        print(f'swarm run: {len(scn.names)} agents: at most {MAX_RUN_AGENTS} per run (one node each); '
-              'use swarm simulate for larger swarms', file=sys.stderr)
-        return 2
-    out = Path(a.out or os.path.join('runs', f'{scn.label}-seed{scn.seed}-ros')).resolve()
-    err = check_output_dir(out)
-    if err:
-        print(f'swarm run: {err}', file=sys.stderr)
-        return 2
-    if a.record and not a.in_process:
-        bag = Path(a.record)
-        if bag.suffix != '.mcap':
-            print(f'swarm run: --record {a.record}: must name a .mcap file', file=sys.stderr)
-            return 2
-        try:
-            bag.resolve().parent.mkdir(parents=True, exist_ok=True)
-        except OSError as err:
-            print(f'swarm run: --record {a.record}: cannot create its directory: {err.strerror or err} ({err.filename})',
-                  file=sys.stderr)
-            return 2
-        if not os.access(bag.resolve().parent, os.W_OK) or (bag.exists() and not os.access(bag, os.W_OK)):
-            print(f'swarm run: --record {a.record}: not writable', file=sys.stderr)
-            return 2
-    traj_file = out / 'trajectory.npz'
-    if traj_file.exists():
-        traj_file.unlink()
-    if (out / 'events.jsonl').exists():
-        (out / 'events.jsonl').unlink()
+        return agents_per_process(n, cores)
+    try:
+        per = int(a.agents_per_process)
+        if per >= 1:
+            return per
+    except ValueError:
+        pass
+    raise ValueError(f'--agents-per-process {a.agents_per_process}: must be a whole number ≥ 1 or auto')
+
+
+def run_parameters(a, scn, ref, out: Path, run_id: str) -> dict:
+    """Every node's parameters for the run ``a`` asks for (`node_parameters` and the options)."""
+    processes = not a.in_process
     params = node_parameters(scn, ref, a.mode, a.rtf, str(out), scn.duration,
                              extra_world=dict(progress_every=float(a.progress_every), clock_every=int(a.clock_every),
                                               missing_timeout=float(a.missing_timeout),
                                               start_timeout=float(a.start_timeout)))
-    readers = a.state_readers + (1 if a.record and not a.in_process else 0)
-    if readers and a.mode == 'lockstep':
-        for nm in scn.names:            # the recorders must hear every state from step 0
-            params[f'/{nm}/agent']['state_subscribers'] = readers
-    if a.record and not a.in_process and a.mode == 'lockstep':
+    set_state_readers(params, a.state_readers + (1 if a.record and processes else 0), a.mode)
+    if a.record and processes and a.mode == 'lockstep':
         params['/world']['wait_for_recorder'] = True          # ... every /clock
         params['/commander']['wait_for_recorder'] = True      # ... and every λ and steering message
-    from swarm_ros.runinfo import new_run_id
-    run_id = new_run_id()               # on the lockstep messages and /swarm/run (swarm_ros.runinfo)
     for p in params.values():
-        p['run_id'] = run_id
-    n_proc = len(groups) + 2 + (1 if a.record else 0) + (1 if a.foxglove is not None else 0)
-    use_server = not a.in_process and (a.discovery == 'server' or (a.discovery == 'auto' and (
-        n_proc > dds.SIMPLE_LIMIT or bool(remote))))
-    if not a.in_process and per > 1:
-        # the world waits for the step relay's readers: one per agent process
-        params['/world'].update(step_readers=len(groups) + len(remote))
-    per_text = '' if a.in_process or per == 1 else f' ({per} agents per process' + (
-        '' if agent_services(len(scn.names), per, a.agent_services) else ', agent nodes without services') + ')'
-    print(f'swarm run: run {run_id}: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {a.mode}, '
-          f'{"one process" if a.in_process else f"{n_proc} processes"}{per_text}, t = {scn.duration:g}, '
-          f'dt = {scn.dt:g}', flush=True)
-    t0 = time.monotonic()
+        p['run_id'] = run_id            # on the lockstep messages and /swarm/run (swarm_ros.runinfo)
+    if processes:
+        params['/world']['events_file'] = str(out / 'events.jsonl')
+    return params
+
+
+def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str = '') -> RunPlan:
+    """The run that ``a`` (the parsed options) asks for with scenario ``scn`` (loaded from
+    ``ref``), on a host of ``cores`` cores: ValueError naming the first bad option.  Pure: it
+    starts, writes and checks on disk nothing."""
+    from swarm_agent.container_core import agent_services, split_agents
+    n = len(scn.names)
+    remote = parse_agents(a.remote_agents, n) if a.remote_agents else []
+    if not 0 <= a.server_port < 65536:
+        raise ValueError(f'--server-port {a.server_port}: must be 0 (a free port) or in 1..65535')
+    if remote and a.in_process:
+        raise ValueError('--remote-agents needs --processes')
+    if remote and a.discovery == 'simple':
+        raise ValueError('--remote-agents needs a discovery server (--discovery server or auto)')
+    per = agents_per_process_option(a, n - len(remote), cores)
+    if n > MAX_RUN_AGENTS:
+        raise ValueError(f'{n} agents: at most {MAX_RUN_AGENTS} per run (one node each); '
+                         'use swarm simulate for larger swarms')
+    out = Path(a.out or os.path.join('runs', f'{scn.label}-seed{scn.seed}-ros')).resolve()
+    local = [nm for i, nm in enumerate(scn.names) if i not in set(remote)]
+    run = RunPlan(scn=scn, mode=a.mode, in_process=a.in_process, out=out, run_id=run_id,
+                  params=run_parameters(a, scn, ref, out, run_id), local=local, remote=remote,
+                  groups=split_agents(local, per), per=per, services=agent_services(n, per, a.agent_services),
+                  interface=interface, server_port=a.server_port, dds=a.dds, figure=not a.no_figure)
     if a.in_process:
-        if a.record:
-            print('swarm run: --record needs --processes (the recorder is a process); ignored', file=sys.stderr)
-        if a.foxglove is not None:
-            print('swarm run: --foxglove needs --processes (the view is a process); ignored', file=sys.stderr)
-        code = run_in_process(params)
-    else:
-        with tempfile.TemporaryDirectory(prefix='swarm_run_') as tmp:
-            pid_file = Path(tmp) / 'pids.json'
-            params['/world'].update(pid_file=str(pid_file), events_file=str(out / 'events.jsonl'))
-            pfile = write_params_file(params, Path(tmp) / 'params.yaml')
-            try:
-                server = dds.DiscoveryServer(interface, a.server_port) if use_server else None
-                env = dds.environment(n_proc, Path(tmp), choice=a.dds, interface=interface,
-                                      server=server.locator if server else None)
-            except (ValueError, OSError) as err:
-                print(f'swarm run: {err}', file=sys.stderr)
-                return 2
-            if remote:
-                same = ''.join(f' --{k} {v}' for k, v in (('seed', a.seed), ('dt', a.dt), ('duration', a.duration),
-                                                          ('mode', a.mode if a.mode != 'lockstep' else None))
-                               if v is not None)
-                print(f'swarm run: waiting for {len(remote)} agents from other hosts: swarm join '
-                      f'{a.scenario} --agents {a.remote_agents} --server {server.locator} --interface ADDR'
-                      + same + (' --recorded' if a.record else ''), flush=True)
-            code = run_processes(params, pfile, local, env, record=a.record, out_dir=out,
-                                 pid_file=pid_file, events_file=out / 'events.jsonl', foxglove=a.foxglove,
-                                 server=server, groups=groups,
-                                 services=agent_services(len(scn.names), per, a.agent_services))
-    wall = time.monotonic() - t0
-    if code in (0, 130) and traj_file.exists():      # 130: Ctrl-C; the world saved the steps done
+        given = (('record', 'recorder', a.record), ('foxglove', 'view', a.foxglove is not None))
+        run.ignored = [f'--{opt} needs --processes (the {what} is a process); ignored' for opt, what, on in given if on]
+        return run
+    run.record, run.foxglove = a.record or None, a.foxglove
+    run.use_server = a.discovery == 'server' or (a.discovery == 'auto' and (
+        run.processes > dds.SIMPLE_LIMIT or bool(remote)))
+    if per > 1:
+        # the world waits for the step relay's readers: one per agent process
+        run.params['/world'].update(step_readers=len(run.groups) + len(remote))
+    same = ''.join(f' --{k} {v}' for k, v in (('seed', a.seed), ('dt', a.dt), ('duration', a.duration),
+                                              ('mode', a.mode if a.mode != 'lockstep' else None)) if v is not None)
+    run.join = (f'{a.scenario} --agents {a.remote_agents}',
+                ' --interface ADDR' + same + (' --recorded' if a.record else ''))
+    return run
+
+
+def prepare_outputs(run: RunPlan) -> None:
+    """The output directory (and the bag's) made and writable, the old trajectory and events
+    gone; ValueError saying what is not writable."""
+    err = check_output_dir(run.out)
+    if err:
+        raise ValueError(err)
+    if run.record:
+        bag = Path(run.record)
+        if bag.suffix != '.mcap':
+            raise ValueError(f'--record {run.record}: must name a .mcap file')
         try:
-            from swarm_core.trajectory import Trajectory
-            from swarm_core.analysis import analyse, write_outputs
-            traj = Trajectory.load(traj_file)
-            traj.meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration, source='ros',
-                             mode=a.mode, wall_seconds=wall, events=read_events(out / 'events.jsonl'),
-                             interrupted=code == 130)
-            series, checks = analyse(traj, scenario=scn)
-            summary = write_outputs(out, scn, traj, series, checks, figure=not a.no_figure)
-            what = (f'stopped (code {code}) at t = {summary["t_end"]:g} after {wall:.1f} s; partial run'
-                    if code else f'done in {wall:.1f} s')
-            print(f'swarm run: {what}; final clusters {summary.get("final_clusters", "?")}; '
-                  f'wrote {out}/trajectory.npz, metrics.json' + ('' if a.no_figure else f', {scn.label}.png'),
-                  flush=True)
-        except Exception as err:  # the trajectory is there; the extras are a bonus
-            print(f'swarm run: wrote {traj_file} (metrics/figure failed: {err})', flush=True)
+            bag.resolve().parent.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise ValueError(f'--record {run.record}: cannot create its directory: '
+                             f'{err.strerror or err} ({err.filename})') from None
+        if not os.access(bag.resolve().parent, os.W_OK) or (bag.exists() and not os.access(bag, os.W_OK)):
+            raise ValueError(f'--record {run.record}: not writable')
+    for old in (run.traj_file, run.events_file):
+        if old.exists():
+            old.unlink()
+
+
+def execute(run: RunPlan) -> tuple[int, float]:
+    """Run it: (exit code, wall seconds).  `NotStarted` if the DDS set-up fails."""
+    print(run.summary(), flush=True)
+    t0 = time.monotonic()
+    if run.in_process:
+        for line in run.ignored:
+            print(f'swarm run: {line}', file=sys.stderr)
+        code = run_in_process(run.params)
+    else:
+        code = _run_processes(run)
+    return code, time.monotonic() - t0
+
+
+def _run_processes(run: RunPlan) -> int:
+    with tempfile.TemporaryDirectory(prefix='swarm_run_') as tmp:
+        pid_file = Path(tmp) / 'pids.json'
+        params = dict(run.params, **{'/world': dict(run.params['/world'], pid_file=str(pid_file))})
+        pfile = write_params_file(params, Path(tmp) / 'params.yaml')
+        try:
+            server = dds.DiscoveryServer(run.interface, run.server_port) if run.use_server else None
+            env = dds.environment(run.processes, Path(tmp), choice=run.dds, interface=run.interface,
+                                  server=server.locator if server else None)
+        except (ValueError, OSError) as err:
+            raise NotStarted(str(err)) from None
+        if run.remote:
+            print(f'swarm run: waiting for {len(run.remote)} agents from other hosts: swarm join '
+                  f'{run.join[0]} --server {server.locator}{run.join[1]}', flush=True)
+        return run_processes(params, pfile, run.local, env, record=run.record, out_dir=run.out,
+                             pid_file=pid_file, events_file=run.events_file, foxglove=run.foxglove,
+                             server=server, groups=run.groups, services=run.services)
+
+
+def finish(run: RunPlan, code: int, wall: float) -> int:
+    """The outputs of a run that has ended with ``code``: trajectory, metrics and figure (or
+    what `salvage` can rebuild), and run.json; gives ``code``."""
+    if code in (0, 130) and run.traj_file.exists():      # 130: Ctrl-C; the world saved the steps done
+        write_run_outputs(run, code, wall)
     elif code != 0:
         print(f'swarm run: stopped (code {code}) after {wall:.1f} s', file=sys.stderr, flush=True)
-        if not a.in_process:
-            salvage(scn, out, a.record, a.mode, wall, figure=not a.no_figure)
+        if not run.in_process:
+            salvage(run.scn, run.out, run.record, run.mode, wall, figure=run.figure)
     try:
-        write_atomic(out / 'run.json', json.dumps(dict(exit_code=code, wall_seconds=wall, mode=a.mode,
-                                                       processes=not a.in_process, agents=len(scn.names),
-                                                       agents_per_process=per)))
+        write_atomic(run.out / 'run.json', json.dumps(dict(
+            exit_code=code, wall_seconds=wall, mode=run.mode, processes=not run.in_process,
+            agents=len(run.scn.names), agents_per_process=run.per)))
     except OSError as err:
-        print(write_failed('swarm run', out, err), file=sys.stderr)
+        print(write_failed('swarm run', run.out, err), file=sys.stderr)
     return code
+
+
+def write_run_outputs(run: RunPlan, code: int, wall: float) -> None:
+    """metrics.json and the figure from the trajectory.npz the world wrote."""
+    scn, out = run.scn, run.out
+    try:
+        from swarm_core.trajectory import Trajectory
+        from swarm_core.analysis import analyse, write_outputs
+        traj = Trajectory.load(run.traj_file)
+        traj.meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration, source='ros',
+                         mode=run.mode, wall_seconds=wall, events=read_events(run.events_file),
+                         interrupted=code == 130)
+        series, checks = analyse(traj, scenario=scn)
+        summary = write_outputs(out, scn, traj, series, checks, figure=run.figure)
+        what = (f'stopped (code {code}) at t = {summary["t_end"]:g} after {wall:.1f} s; partial run'
+                if code else f'done in {wall:.1f} s')
+        print(f'swarm run: {what}; final clusters {summary.get("final_clusters", "?")}; '
+              f'wrote {out}/trajectory.npz, metrics.json' + (f', {scn.label}.png' if run.figure else ''),
+              flush=True)
+    except Exception as err:  # the trajectory is there; the extras are a bonus
+        print(f'swarm run: wrote {run.traj_file} (metrics/figure failed: {err})', flush=True)
+
+
+def validate(a) -> RunPlan | None:
+    """The run ``a`` asks for, planned, its outputs ready; `NotStarted` naming a bad option or
+    output, None for a bad scenario (said)."""
+    try:
+        check_options(a)
+        scn, ref = load_scenario('swarm run', a)
+        if scn is None:
+            return None
+        from swarm_ros.runinfo import new_run_id
+        run = plan(a, scn, ref, interface=check_interface(a.interface), cores=os.cpu_count(), run_id=new_run_id())
+        prepare_outputs(run)
+    except ValueError as err:
+        raise NotStarted(str(err)) from None
+    return run
+
+
+def main(argv=None) -> int:
+    """validate and plan (nothing started), execute, finish (outputs, exit code)."""
+    a = _parser().parse_args(argv)
+    try:
+        run = validate(a)
+        if run is None:
+            return 2
+        code, wall = execute(run)
+    except NotStarted as err:
+        print(f'swarm run: {err}', file=sys.stderr)
+        return 2
+    return finish(run, code, wall)
 
 
 def salvage(scn, out: Path, bag, mode: str, wall: float, figure: bool = True) -> bool:

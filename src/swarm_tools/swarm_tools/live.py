@@ -180,16 +180,26 @@ def _send(verb, request, wait):
     return 1
 
 
-def kill_main(argv) -> int:
-    p = argparse.ArgumentParser(prog='swarm kill', description=(
-        'Kill an agent of a running swarm: the world drops it from the roster at its next step '
-        'and SIGKILLs its process (swarm run --processes).'))
+def _fault_options(verb: str, description: str, argv, seconds: bool = False):
+    """(options, agent name) of ``swarm kill`` / ``swarm pause`` (``seconds``: its SECONDS
+    argument); the name None (said) if AGENT is not an agent name."""
+    p = argparse.ArgumentParser(prog=f'swarm {verb}', description=description)
     p.add_argument('agent', help='agent name, e.g. agent_3')
+    if seconds:
+        p.add_argument('seconds', type=float, help='sim seconds (> 0)')
     add_wait(p, 'the world')
     a = p.parse_args(argv)
     name = _agent_name(a.agent)
     if name is None:
-        print(f'swarm kill: {a.agent!r} is not an agent name', file=sys.stderr)
+        print(f'swarm {verb}: {a.agent!r} is not an agent name', file=sys.stderr)
+    return a, name
+
+
+def kill_main(argv) -> int:
+    a, name = _fault_options('kill', (
+        'Kill an agent of a running swarm: the world drops it from the roster at its next step '
+        'and SIGKILLs its process (swarm run --processes).'), argv)
+    if name is None:
         return 2
     code = _send('kill', dict(kind='kill', agent=name), a.wait)
     if code == 0:
@@ -198,16 +208,10 @@ def kill_main(argv) -> int:
 
 
 def pause_main(argv) -> int:
-    p = argparse.ArgumentParser(prog='swarm pause', description=(
+    a, name = _fault_options('pause', (
         'Freeze an agent of a running swarm for SECONDS of sim time: it neither moves nor is '
-        'heard, its process is stopped (SIGSTOP) and resumed (SIGCONT) with the state it had.'))
-    p.add_argument('agent', help='agent name, e.g. agent_3')
-    p.add_argument('seconds', type=float, help='sim seconds (> 0)')
-    add_wait(p, 'the world')
-    a = p.parse_args(argv)
-    name = _agent_name(a.agent)
+        'heard, its process is stopped (SIGSTOP) and resumed (SIGCONT) with the state it had.'), argv, seconds=True)
     if name is None:
-        print(f'swarm pause: {a.agent!r} is not an agent name', file=sys.stderr)
         return 2
     if not (math.isfinite(a.seconds) and a.seconds > 0):
         print(f'swarm pause: {a.seconds!r} seconds rejected: must be finite and > 0', file=sys.stderr)

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 from swarm_core import analysis
+from swarm_core.scenario import AGENT_NAME, BarrierSpec
 
 from .bag import iter_messages, parse_float64, parse_odometry, parse_string, resolve_bag
 
@@ -92,7 +93,6 @@ def check_states(per_agent: dict, events=(), agents=None, warn=None) -> dict:
     negative or absurd stamps, names that are not agent names, and (``agents`` given) names
     not in the roster, or (no roster) names with few states that no event mentions.  ``warn``
     gets one line per kind of problem, with counts."""
-    from swarm_core.scenario import AGENT_NAME
     warn = warn or (lambda line: print(f'swarm report: {line}', file=sys.stderr))
     bad_values = bad_stamps = 0
     out = {}
@@ -131,76 +131,209 @@ def check_states(per_agent: dict, events=(), agents=None, warn=None) -> dict:
     return out
 
 
+class _Undecodable(Exception):
+    """A message whose bytes do not parse (counted, left out)."""
+
+
+def _parsed(parse, data):
+    try:
+        return parse(data)
+    except (struct.error, IndexError, ValueError):
+        raise _Undecodable from None
+
+
+class _Reading:
+    """What `read_run` has read of a bag so far; each topic's reader adds to it."""
+
+    def __init__(self, cutoff_radius):
+        self.decode = _Decoder()
+        self.per_agent: dict[str, list] = {}
+        self.lam_events, self.leader_msgs, self.events = [], [], []
+        self.target = self.barrier = None
+        self.w = cutoff_radius              # given, else the first found on /world/metrics
+        self.undecodable = 0
+        self.bad_geometry = []
+
+
+def _read_state(r: _Reading, m):
+    s = _parsed(parse_odometry, m.data)
+    r.per_agent.setdefault(s['child_frame_id'], []).append(
+        (s['stamp_ns'], m.log_time, s['x'], s['y'], s['qz'], s['qw'], s['wz']))
+
+
+def _read_lambda(r: _Reading, m):
+    v = _parsed(parse_float64, m.data)
+    if np.isfinite(v) and 0 <= v <= 1:
+        r.lam_events.append((m.log_time, v))
+
+
+def _read_event(r: _Reading, m):
+    try:
+        ev = json.loads(parse_string(m.data))
+    except ValueError:
+        return
+    if isinstance(ev, dict) and isinstance(ev.get('t'), (int, float)):
+        r.events.append(ev)
+
+
+def _read_leaders(r: _Reading, m):
+    r.leader_msgs.append((m.log_time, r.decode(m)))
+
+
+def _read_target(r: _Reading, m):
+    p = r.decode(m).point
+    if np.isfinite([p.x, p.y]).all() and max(abs(p.x), abs(p.y)) <= MAX_COORD:
+        r.target = (float(p.x), float(p.y))
+    else:
+        r.bad_geometry.append(f'target ({p.x}, {p.y})')
+
+
+def _read_barrier(r: _Reading, m):
+    pts = [(float(p.x), float(p.y)) for p in r.decode(m).polygon.points]
+    r.barrier = None
+    if pts:
+        try:
+            r.barrier = [tuple(q) for q in BarrierSpec(points=pts).points]
+        except ValueError as err:
+            r.bad_geometry.append(f'barrier of {len(pts)} points ({" ".join(str(err).split())[:120]})')
+
+
+def _read_metrics(r: _Reading, m):
+    if r.w is not None:
+        return
+    try:
+        for st in r.decode(m).status:
+            for kv in st.values:
+                if kv.key == 'cutoff_radius':
+                    r.w = float(kv.value)
+    except (AttributeError, ValueError):
+        pass
+
+
+#: the reader of each topic `read_run` uses
+READERS = {STATES: _read_state, LAMBDA: _read_lambda, EVENTS: _read_event, LEADERS: _read_leaders,
+           TARGET: _read_target, BARRIER: _read_barrier, METRICS: _read_metrics}
+
+
 def read_run(path, *, cutoff_radius=None, agents=None, warn=None) -> dict:
     """Everything the report needs from a bag: per-agent state lists, λ / leader events,
     target, barrier, and whether the file was cut short.  States are checked
     (`check_states`; ``agents``: the run's roster, if known)."""
-    per_agent: dict[str, list] = {}
-    lam_events, leader_msgs, events = [], [], []
-    target = barrier = None
-    w_from_bag = None
-    decode = _Decoder()
+    r = _Reading(cutoff_radius)
     stats: dict = {}
-    undecodable = 0
-    bad_geometry = []
     for m in iter_messages(path, stats=stats):
-        if m.topic == STATES:
-            try:
-                s = parse_odometry(m.data)
-            except (struct.error, IndexError, ValueError):
-                undecodable += 1
-                continue
-            per_agent.setdefault(s['child_frame_id'], []).append(
-                (s['stamp_ns'], m.log_time, s['x'], s['y'], s['qz'], s['qw'], s['wz']))
-        elif m.topic == LAMBDA:
-            try:
-                v = parse_float64(m.data)
-            except (struct.error, IndexError, ValueError):
-                undecodable += 1
-                continue
-            if np.isfinite(v) and 0 <= v <= 1:
-                lam_events.append((m.log_time, v))
-        elif m.topic == EVENTS:
-            try:
-                ev = json.loads(parse_string(m.data))
-            except ValueError:
-                continue
-            if isinstance(ev, dict) and isinstance(ev.get('t'), (int, float)):
-                events.append(ev)
-        elif m.topic == LEADERS:
-            leader_msgs.append((m.log_time, decode(m)))
-        elif m.topic == TARGET:
-            p = decode(m).point
-            if np.isfinite([p.x, p.y]).all() and max(abs(p.x), abs(p.y)) <= MAX_COORD:
-                target = (float(p.x), float(p.y))
-            else:
-                bad_geometry.append(f'target ({p.x}, {p.y})')
-        elif m.topic == BARRIER:
-            pts = [(float(p.x), float(p.y)) for p in decode(m).polygon.points]
-            barrier = None
-            if pts:
-                from swarm_core.scenario import BarrierSpec
-                try:
-                    barrier = [tuple(q) for q in BarrierSpec(points=pts).points]
-                except ValueError as err:
-                    bad_geometry.append(f'barrier of {len(pts)} points ({" ".join(str(err).split())[:120]})')
-        elif m.topic == METRICS and w_from_bag is None and cutoff_radius is None:
-            try:
-                for st in decode(m).status:
-                    for kv in st.values:
-                        if kv.key == 'cutoff_radius':
-                            w_from_bag = float(kv.value)
-            except (AttributeError, ValueError):
-                pass
+        read = READERS.get(m.topic)
+        if read is None:
+            continue
+        try:
+            read(r, m)
+        except _Undecodable:
+            r.undecodable += 1
     say = warn or (lambda line: print(f'swarm report: {line}', file=sys.stderr))
-    if undecodable:
-        say(f'left out {undecodable} messages that could not be decoded')
-    if bad_geometry:
-        say(f'ignored {len(bad_geometry)} unusable world messages: {bad_geometry[0]}')
-    per_agent = check_states(per_agent, events, agents, warn)
-    return dict(per_agent=per_agent, lam_events=lam_events, leader_msgs=leader_msgs, events=events,
-                target=target, barrier=barrier, truncated=stats.get('truncated', False),
-                w=cutoff_radius if cutoff_radius is not None else w_from_bag)
+    if r.undecodable:
+        say(f'left out {r.undecodable} messages that could not be decoded')
+    if r.bad_geometry:
+        say(f'ignored {len(r.bad_geometry)} unusable world messages: {r.bad_geometry[0]}')
+    per_agent = check_states(r.per_agent, r.events, agents, warn)
+    return dict(per_agent=per_agent, lam_events=r.lam_events, leader_msgs=r.leader_msgs, events=r.events,
+                target=r.target, barrier=r.barrier, truncated=stats.get('truncated', False), w=r.w)
+
+
+def _state_arrays(per_agent: dict) -> dict:
+    """{agent: (stamps, log times, rows of x, y, qz, qw, u)} sorted by stamp; of a repeated
+    stamp the later state counts."""
+    arrays = {}
+    for name, rows in per_agent.items():
+        stamps = np.array([row[0] for row in rows], dtype=np.int64)
+        logs = np.array([row[1] for row in rows], dtype=np.int64)
+        vals = np.array([row[2:] for row in rows], dtype=np.float64)   # x, y, qz, qw, u
+        order = np.argsort(stamps, kind='stable')
+        stamps, logs, vals = stamps[order], logs[order], vals[order]
+        keep = np.ones(len(stamps), dtype=bool)
+        keep[:-1] = stamps[1:] != stamps[:-1]
+        arrays[name] = (stamps[keep], logs[keep], vals[keep])
+    return arrays
+
+
+def _faults(events, agents) -> tuple[dict, dict]:
+    """From the events: ({agent: stamp (ns) it was killed or lost}, {agent: [(from, until)
+    stamps of each freeze]})."""
+    gone, frozen = {}, {}
+    for ev in events:
+        ns = int(round(float(ev['t']) * 1e9))
+        if ev.get('kind') in ('kill', 'lost') and ev.get('agent') in agents:
+            gone[ev['agent']] = min(ns, gone.get(ev['agent'], ns))
+        elif ev.get('kind') == 'freeze' and ev.get('agent') in agents and 'until' in ev:
+            frozen.setdefault(ev['agent'], []).append((ns, int(round(float(ev['until']) * 1e9))))
+    return gone, frozen
+
+
+def _grid(arrays: dict, gone: dict, frozen: dict):
+    """(stamps of the trajectory, alignment): the stamps every agent has (a dead or frozen
+    agent's missing ones do not count) if they are nine in ten of all, 'lockstep'; else every
+    stamp from the first at which all agents have reported, 'forward_filled'."""
+    all_stamps = np.unique(np.concatenate([v[0] for v in arrays.values()]))
+    common = all_stamps
+    for name, v in arrays.items():
+        covered = v[0]
+        if name in gone:
+            covered = np.union1d(covered, all_stamps[all_stamps >= gone[name]])
+        for a, b in frozen.get(name, ()):
+            covered = np.union1d(covered, all_stamps[(all_stamps > a) & (all_stamps <= b)])
+        common = np.intersect1d(common, covered, assume_unique=True)
+    if len(common) >= 0.9 * len(all_stamps):
+        return common, 'lockstep'
+    start = max(v[0][0] for v in arrays.values())
+    return all_stamps[all_stamps >= start], 'forward_filled'
+
+
+def _states_on(grid, names, arrays: dict, gone: dict):
+    """r, theta, u of each agent at each stamp of ``grid`` (its newest state; NaN once it is
+    gone), and the first log time of each stamp's states."""
+    from swarm_core.frenet import yaw_from_quaternion
+    T, n = len(grid), len(names)
+    r, theta, u = np.empty((T, n, 2)), np.empty((T, n)), np.empty((T, n))
+    log_first = np.full(T, np.iinfo(np.int64).max, dtype=np.int64)
+    for k, name in enumerate(names):
+        s, logs, vals = arrays[name]
+        # twist.angular.z of a state is the u held over the step that ended there: the u
+        # applied from one of its states on is the next state's; the newest is unknown
+        u_from = np.append(vals[1:, 4], np.nan)
+        idx = np.searchsorted(s, grid, side='right') - 1
+        rows = vals[idx]
+        r[:, k, 0], r[:, k, 1] = rows[:, 0], rows[:, 1]
+        theta[:, k] = yaw_from_quaternion(rows[:, 2], rows[:, 3])
+        u[:, k] = u_from[idx]
+        log_first = np.minimum(log_first, logs[idx])
+        if name in gone:
+            dead = grid >= gone[name]
+            r[dead, k], theta[dead, k], u[dead, k] = np.nan, np.nan, np.nan
+    return r, theta, u, log_first
+
+
+def _inputs_on(run: dict, names, log_first):
+    """λ and leaders at each stamp: a message belongs to the newest step whose states came
+    before it (in lockstep the commander decides step n's inputs from step n's states), and
+    holds until the next one; before the first message: the first one (λ), none (leaders)."""
+    T = len(log_first)
+    next_first = np.append(log_first[1:], np.iinfo(np.int64).max)
+    lam = np.full(T, np.nan)
+    if run['lam_events']:
+        ev = sorted(run['lam_events'])
+        ev_t = np.array([e[0] for e in ev], dtype=np.int64)
+        ev_v = np.array([e[1] for e in ev])
+        j = np.searchsorted(ev_t, next_first, side='left') - 1
+        lam = ev_v[np.clip(j, 0, None)]
+    leader = np.zeros((T, len(names)), dtype=bool)
+    if run['leader_msgs']:
+        ev = sorted(run['leader_msgs'], key=lambda e: e[0])
+        ev_t = np.array([e[0] for e in ev], dtype=np.int64)
+        sets = [np.isin(names, leader_names(msg, set(names))) for _, msg in ev]
+        j = np.searchsorted(ev_t, next_first, side='left') - 1
+        for i in range(T):
+            if j[i] >= 0:
+                leader[i] = sets[j[i]]
+    return lam, leader
 
 
 def rebuild_trajectory(run: dict):
@@ -214,84 +347,17 @@ def rebuild_trajectory(run: dict):
     missing stamps do not count against lockstep alignment; a frozen agent holds its state
     over the freeze (its stamps there are not missing either)."""
     from swarm_core.trajectory import Trajectory
-    from swarm_core.frenet import yaw_from_quaternion
 
     names = sorted(run['per_agent'], key=natural_key)
     if not names:
         raise ValueError(f'no {STATES} messages in the bag')
-    n = len(names)
-    arrays = {}
-    for name in names:
-        rows = run['per_agent'][name]
-        stamps = np.array([row[0] for row in rows], dtype=np.int64)
-        logs = np.array([row[1] for row in rows], dtype=np.int64)
-        vals = np.array([row[2:] for row in rows], dtype=np.float64)   # x, y, qz, qw, u
-        order = np.argsort(stamps, kind='stable')
-        stamps, logs, vals = stamps[order], logs[order], vals[order]
-        keep = np.ones(len(stamps), dtype=bool)
-        keep[:-1] = stamps[1:] != stamps[:-1]       # a repeated stamp: the later one counts
-        arrays[name] = (stamps[keep], logs[keep], vals[keep])
-    # twist.angular.z of an agent's state is the u it held over the step that ended there:
-    # the u applied from one of its states on is the next state's; the newest is unknown
-    u_from = {name: np.append(v[2][1:, 4], np.nan) for name, v in arrays.items()}
-    all_stamps = np.unique(np.concatenate([v[0] for v in arrays.values()]))
-    gone, frozen = {}, {}
-    for ev in run.get('events', ()):
-        ns = int(round(float(ev['t']) * 1e9))
-        if ev.get('kind') in ('kill', 'lost') and ev.get('agent') in arrays:
-            gone[ev['agent']] = min(ns, gone.get(ev['agent'], ns))
-        elif ev.get('kind') == 'freeze' and ev.get('agent') in arrays and 'until' in ev:
-            frozen.setdefault(ev['agent'], []).append((ns, int(round(float(ev['until']) * 1e9))))
-    common = all_stamps
-    for name, v in arrays.items():
-        covered = v[0]
-        if name in gone:
-            covered = np.union1d(covered, all_stamps[all_stamps >= gone[name]])
-        for a, b in frozen.get(name, ()):
-            covered = np.union1d(covered, all_stamps[(all_stamps > a) & (all_stamps <= b)])
-        common = np.intersect1d(common, covered, assume_unique=True)
-    if len(common) >= 0.9 * len(all_stamps):
-        grid, mode = common, 'lockstep'
-    else:
-        start = max(v[0][0] for v in arrays.values())
-        grid, mode = all_stamps[all_stamps >= start], 'forward_filled'
-    T = len(grid)
-    r = np.empty((T, n, 2))
-    theta = np.empty((T, n))
-    u = np.empty((T, n))
-    log_first = np.full(T, np.iinfo(np.int64).max, dtype=np.int64)
-    for k, name in enumerate(names):
-        s, logs, vals = arrays[name]
-        idx = np.searchsorted(s, grid, side='right') - 1
-        rows = vals[idx]
-        r[:, k, 0], r[:, k, 1] = rows[:, 0], rows[:, 1]
-        theta[:, k] = yaw_from_quaternion(rows[:, 2], rows[:, 3])
-        u[:, k] = u_from[name][idx]
-        log_first = np.minimum(log_first, logs[idx])
-        if name in gone:
-            dead = grid >= gone[name]
-            r[dead, k], theta[dead, k], u[dead, k] = np.nan, np.nan, np.nan
+    arrays = _state_arrays(run['per_agent'])
+    gone, frozen = _faults(run.get('events', ()), arrays)
+    grid, mode = _grid(arrays, gone, frozen)
+    r, theta, u, log_first = _states_on(grid, names, arrays, gone)
+    lam, leader = _inputs_on(run, names, log_first)
     t = grid.astype(np.float64) * 1e-9
-    # λ and leaders: a message belongs to the newest step whose states came before it (in
-    # lockstep the commander decides step n's inputs from step n's states), and holds until
-    # the next one; before the first message: the first one (λ), none (leaders)
-    next_first = np.append(log_first[1:], np.iinfo(np.int64).max)
-    lam = np.full(T, np.nan)
-    if run['lam_events']:
-        ev = sorted(run['lam_events'])
-        ev_t = np.array([e[0] for e in ev], dtype=np.int64)
-        ev_v = np.array([e[1] for e in ev])
-        j = np.searchsorted(ev_t, next_first, side='left') - 1
-        lam = ev_v[np.clip(j, 0, None)]
-    leader = np.zeros((T, n), dtype=bool)
-    if run['leader_msgs']:
-        ev = sorted(run['leader_msgs'], key=lambda e: e[0])
-        ev_t = np.array([e[0] for e in ev], dtype=np.int64)
-        sets = [np.isin(names, leader_names(msg, set(names))) for _, msg in ev]
-        j = np.searchsorted(ev_t, next_first, side='left') - 1
-        for i in range(T):
-            if j[i] >= 0:
-                leader[i] = sets[j[i]]
+    T = len(grid)
     meta = dict(source='bag', alignment=mode, steps=T - 1,
                 dt=float(np.median(np.diff(t))) if T > 1 else 0.0,
                 states=sum(len(v) for v in run['per_agent'].values()),
