@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 from swarm_core import analysis
+from swarm_core.inputs import LAMBDA_BOUND
 
 from .bag import iter_messages, parse_float64, parse_odometry, parse_string, resolve_bag
 
@@ -158,7 +159,7 @@ def read_run(path, *, cutoff_radius=None, agents=None, warn=None) -> dict:
             except (struct.error, IndexError, ValueError):
                 undecodable += 1
                 continue
-            if np.isfinite(v) and 0 <= v <= 1:
+            if LAMBDA_BOUND.ok(v):
                 lam_events.append((m.log_time, v))
         elif m.topic == EVENTS:
             try:
