@@ -74,6 +74,16 @@ def test_schema_and_ros_choices_are_the_same(p):
         _section_model(p, 'magic')
 
 
+def test_reunion_coupling_and_gain_are_q0_and_the_target_gain():
+    from swarm_core.law_parameters import LAW_PARAMETER
+    from swarm_core.scenario import ReunionSpec
+    for key, name in (('coupling', 'q0'), ('gain', 'target_gain')):
+        b = LAW_PARAMETER[name].bound
+        assert getattr(ReunionSpec(at=0, **{'for': 1, key: b.hi}), key) == b.hi
+        with pytest.raises(ValueError):
+            ReunionSpec(at=0, **{'for': 1, key: float(np.nextafter(b.hi, math.inf))})
+
+
 def test_booleans_have_no_range():
     for p in LAW_TABLE:
         if isinstance(p.default, bool):

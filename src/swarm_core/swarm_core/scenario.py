@@ -22,7 +22,7 @@ from .inputs import InputError
 from .law_parameters import LAW_PARAMETER, LAW_TABLE
 from .laws import LawConfig
 from .placement import AGENT_NAME, AgentsSpec, initial_conditions  # noqa: F401  (AGENT_NAME: report.py)
-from .scenario_schema import Finite, Gain, NonNeg, Point, Positive, Strict, bounded
+from .scenario_schema import Finite, NonNeg, Point, Positive, Strict, bounded
 
 #: largest scenario file read (bytes), checked before parsing
 MAX_FILE_BYTES = 2 * 1024 * 1024
@@ -132,11 +132,13 @@ class ReunionSpec(Strict):
     at: NonNeg
     for_: Positive = Field(alias='for')
     point: Union[Literal['centroid', 'none'], Point] = 'centroid'
-    coupling: Optional[Annotated[float, Field(ge=0, le=1)]] = None
-    gain: Gain = 0.05
+    coupling: Optional[bounded(LAW_PARAMETER['q0'].bound)] = None
+    gain: bounded(LAW_PARAMETER['target_gain'].bound) = 0.05
     normalised: bool = False
     track: bool = False          # point: centroid re-taken at every step (moves with the swarm)
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
+
+
 # ------------------------------------------------------------------ communication (comms.py)
 
 Probability = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
