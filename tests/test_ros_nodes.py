@@ -266,6 +266,25 @@ def test_bad_startup_parameters_are_named(rclpy_context):
         WorldNode(context=rclpy_context, parameter_overrides=overrides(dict(scenario='no_such_scenario')))
 
 
+def test_agent_declares_each_law_parameter_with_the_tables_description_and_range(rclpy_context):
+    """The agent's ROS parameters come from `law_parameters.LAW_TABLE`: the same default,
+    description and range (or choices) a scenario is checked against."""
+    from swarm_core.law_parameters import LAW_TABLE
+    node = AgentNode('agent', namespace='described', context=rclpy_context)
+    try:
+        for p in LAW_TABLE:
+            assert node.get_parameter(p.name).value == p.default, p.name
+            d = node.describe_parameter(p.name)
+            assert d.description == p.description, p.name
+            if p.bound is not None:
+                r = d.floating_point_range[0]
+                assert (r.from_value, r.to_value) == (p.bound.lo, p.bound.hi), p.name
+            if p.choices:
+                assert d.additional_constraints == 'one of: ' + ', '.join(p.choices), p.name
+    finally:
+        node.destroy_node()
+
+
 def test_bad_states_are_rejected_by_the_world(rclpy_context):
     """Lockstep: the world reads its agents' states from /lockstep/agent_states (one message per
     agent process).  An unknown agent, a NaN state, a second process claiming an agent, a state

@@ -47,6 +47,7 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from swarm_core.faults import event_names
 from swarm_core.frenet import frame_from_quaternion
 from swarm_core.command_plan import check_command
+from swarm_core.inputs import LAMBDA_BOUND
 from swarm_ros import protocol as P
 from swarm_ros.layouts import Decision, States
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, decoded
@@ -135,7 +136,7 @@ class CommanderNode(Node):
         in the on-set callback, applied in the post-set one."""
         d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
         d('lambda', self.lam, 'set λ: the commander ramps to it over `ramp` s from the next step '
-          '(holds the last set-point)', lo=0.0, hi=1.0)
+          '(holds the last set-point)', lo=LAMBDA_BOUND.lo, hi=LAMBDA_BOUND.hi)
         for nm in self.names:
             d(f'steering.{nm}', math.nan, f'set the steering s_k of {nm} (it becomes a leader) from the next '
               'step; NaN = the scenario\'s program', finite=False)
@@ -323,8 +324,8 @@ class CommanderNode(Node):
             v = p.value
             if p.type_ != Parameter.Type.DOUBLE:
                 return SetParametersResult(successful=False, reason=f'{p.name}: want a double, got {v!r}')
-            if p.name == 'lambda' and not (math.isfinite(v) and 0.0 <= v <= 1.0):
-                return SetParametersResult(successful=False, reason=f'lambda={v!r}: must be finite and in [0, 1]')
+            if p.name == 'lambda' and not LAMBDA_BOUND.ok(v):
+                return SetParametersResult(successful=False, reason=f'lambda: {LAMBDA_BOUND.error(v)}')
             if p.name == 'ramp' and not (math.isfinite(v) and v >= 0.0):
                 return SetParametersResult(successful=False, reason=f'ramp={v!r}: must be finite and ≥ 0')
             if p.name.startswith('steering.') and not math.isfinite(v):

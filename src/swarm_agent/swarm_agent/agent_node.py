@@ -42,6 +42,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import Float64
 
 from swarm_core.comms import CommModel, StreamRadio, change_from_event
+from swarm_core.inputs import LAMBDA_BOUND
 from swarm_core.laws import LAW_PARAMETERS, LawConfig
 from swarm_core.scenario import noise_rng
 from swarm_ros import protocol as P
@@ -183,8 +184,8 @@ class AgentNode(Node):
     # ------------------------------------------------------------ inputs of every mode
     def _on_lambda(self, msg):
         v = msg.data
-        if not (math.isfinite(v) and 0.0 <= v <= 1.0):
-            self.reject('lambda', f'λ={v!r} on {P.LAMBDA}: must be finite and in [0, 1]')
+        if not LAMBDA_BOUND.ok(v):
+            self.reject('lambda', f'{P.LAMBDA}: {LAMBDA_BOUND.error(v)}')
             return
         self.lam = v
 

@@ -13,6 +13,7 @@ from typing import Sequence
 import numpy as np
 
 from .faults import Failover, elect_successor, followers_of
+from .inputs import LAMBDA_BOUND
 from .schedules import (ConstantLambda, ConstantSteering, LambdaSchedule, LiveSchedule, SteeringProgram,
                         RAMP_SHAPES)
 
@@ -38,8 +39,7 @@ def check_command(cmd: dict, n_agents: int) -> dict:
         raise ValueError(f'{kind} value {value!r}: not finite')
     out['value'] = value
     if kind == 'lambda':
-        if not 0.0 <= value <= 1.0:
-            raise ValueError(f'λ={value!r}: must be in [0, 1]')
+        LAMBDA_BOUND.check(value)
         ramp = float(out.get('ramp', 0.0))
         if not (math.isfinite(ramp) and ramp >= 0.0):
             raise ValueError(f'ramp {ramp!r}: must be finite and ≥ 0')

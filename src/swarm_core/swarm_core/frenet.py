@@ -15,16 +15,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .law_parameters import DEFAULTS
+
 
 @dataclass(frozen=True)
 class PairGains:
     """Constants of the pair term u_jk (eq. 5, 6): ``alpha`` (spacing), ``eta`` (baseline),
-    ``mu`` (alignment) and the preferred spacing ``r0``."""
+    ``mu`` (alignment) and the preferred spacing ``r0``; defaults, ranges: `law_parameters`."""
 
-    alpha: float = 0.02
-    eta: float = 0.02
-    mu: float = 0.02
-    r0: float = 1.5
+    alpha: float = DEFAULTS['alpha']
+    eta: float = DEFAULTS['eta']
+    mu: float = DEFAULTS['mu']
+    r0: float = DEFAULTS['r0']
 
 
 def quaternion_from_heading(theta):

@@ -25,19 +25,17 @@ import contextlib
 import functools
 import math
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from .frenet import PairGains
-
-LAW_KINDS = ('global', 'local', 'leader_following', 'homotopy', 'target')
-BARRIER_MODES = ('ahead', 'literal')
+from .law_parameters import BARRIER_MODES, DEFAULTS, LAW_KINDS, LAW_TABLE
 
 
 @dataclass(frozen=True)
 class LawConfig:
-    """Which law and its constants.
+    """Which law and its constants (defaults, ranges and descriptions: `law_parameters`).
 
     cutoff_radius  w, the communication/sensing radius of the cutoff c(ρ, q, w) (eq. 8)
     leader_gain    ℓc ≫ 1, the follower-to-leader coupling (eq. 10, 13)
@@ -47,15 +45,15 @@ class LawConfig:
     barrier_gain   s_b (eq. 16); barrier_mode 'ahead' (default) or 'literal', see docs/model.md
     """
 
-    kind: str = 'homotopy'
+    kind: str = DEFAULTS['law']
     gains: PairGains = field(default_factory=PairGains)
-    cutoff_radius: float = 4.0
-    leader_gain: float = 30.0
-    q0: float = 1.0
-    target_gain: float = 0.0
-    target_normalised: bool = False
-    barrier_gain: float = 0.0
-    barrier_mode: str = 'ahead'
+    cutoff_radius: float = DEFAULTS['cutoff_radius']
+    leader_gain: float = DEFAULTS['leader_gain']
+    q0: float = DEFAULTS['q0']
+    target_gain: float = DEFAULTS['target_gain']
+    target_normalised: bool = DEFAULTS['target_normalised']
+    barrier_gain: float = DEFAULTS['barrier_gain']
+    barrier_mode: str = DEFAULTS['barrier_mode']
 
     def __post_init__(self):
         if self.kind not in LAW_KINDS:
@@ -65,19 +63,13 @@ class LawConfig:
 
     def parameters(self) -> dict:
         """The law as flat parameters with the paper's names (an agent node's ROS parameters)."""
-        g = self.gains
-        return dict(law=self.kind, alpha=g.alpha, eta=g.eta, mu=g.mu, r0=g.r0,
-                    cutoff_radius=self.cutoff_radius, leader_gain=self.leader_gain, q0=self.q0,
-                    target_gain=self.target_gain, target_normalised=self.target_normalised,
-                    barrier_gain=self.barrier_gain, barrier_mode=self.barrier_mode)
+        return {p.name: getattr(self.gains if p.field in _GAIN_FIELDS else self, p.field) for p in LAW_TABLE}
 
     @classmethod
     def from_parameters(cls, p: dict) -> 'LawConfig':
         """The inverse of `parameters`."""
-        return cls(kind=p['law'], gains=PairGains(p['alpha'], p['eta'], p['mu'], p['r0']),
-                   cutoff_radius=p['cutoff_radius'], leader_gain=p['leader_gain'], q0=p['q0'],
-                   target_gain=p['target_gain'], target_normalised=p['target_normalised'],
-                   barrier_gain=p['barrier_gain'], barrier_mode=p['barrier_mode'])
+        gains = PairGains(**{q.field: p[q.name] for q in LAW_TABLE if q.field in _GAIN_FIELDS})
+        return cls(gains=gains, **{q.field: p[q.name] for q in LAW_TABLE if q.field not in _GAIN_FIELDS})
 
     @property
     def uses_leaders(self) -> bool:
@@ -101,23 +93,12 @@ class LawConfig:
         return q0 > 0.0
 
 
-# name → (description, (lowest, highest)) of each law parameter; defaults: `LawConfig()`.
-# Equation numbers here and in every comment are the paper's.
-# A choice parameter has its choices instead of a range; booleans have None.
-LAW_PARAMETERS = {
-    'law': ('control law', LAW_KINDS),
-    'alpha': ('spacing gain α of the pair term (eq. 5)', (0.0, 1e6)),
-    'eta': ('baseline gain η of the pair term (eq. 5)', (0.0, 1e6)),
-    'mu': ('alignment gain μ of the pair term (eq. 5)', (0.0, 1e6)),
-    'r0': ('preferred spacing r0 in f(ρ) (eq. 6)', (1e-9, 1e6)),
-    'cutoff_radius': ('cutoff (communication and sensing) radius w (eq. 8)', (1e-9, 1e9)),
-    'leader_gain': ('leader coupling ℓc ≫ 1 (eq. 10, 13)', (1.0, 1e6)),
-    'q0': ('far-coupling weight q0 at λ = 0 (eq. 12-14)', (0.0, 1.0)),
-    'target_gain': ('target gain γ (eq. 15)', (0.0, 1e6)),
-    'target_normalised': ('use unit vectors in the target term (eq. 15)', None),
-    'barrier_gain': ('barrier gain s_b (eq. 16)', (0.0, 1e6)),
-    'barrier_mode': ('barrier term reading', BARRIER_MODES),
-}
+_GAIN_FIELDS = frozenset(f.name for f in fields(PairGains))
+
+#: name → (description, range (lo, hi) | choices | None for a boolean) of each law parameter,
+#: from `law_parameters.LAW_TABLE`; defaults: `LawConfig().parameters()`
+LAW_PARAMETERS = {p.name: (p.description, p.choices or ((p.bound.lo, p.bound.hi) if p.bound else None))
+                  for p in LAW_TABLE}
 
 
 def all_pairs(receivers, n: int):

@@ -5,7 +5,6 @@ A bad file raises `ScenarioError` with one line naming the field, e.g.
 """
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass
 from importlib import resources
@@ -14,207 +13,44 @@ from typing import Annotated, Literal, Optional, Union, get_args
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
-from .faults import Fault, FaultTimeline, Rendezvous
-from .laws import LawConfig
-from .frenet import PairGains
-from .schedules import (ConstantLambda, ConstantSteering, RampSchedule, SinusoidSteering, TanhWindow,
-                        WaypointSteering)
 from .command_plan import CommandPlan
+from .command_spec import ConstantLambdaSpec, LambdaSpec, LeadersSpec, ProgramSpec, build_program, build_schedule
+from .faults import Fault, FaultTimeline, Rendezvous
+from .inputs import InputError
+from .law_parameters import LAW_PARAMETER, LAW_TABLE
+from .laws import LawConfig
+from .placement import AGENT_NAME, AgentsSpec, initial_conditions  # noqa: F401  (AGENT_NAME: report.py)
+from .scenario_schema import Finite, NonNeg, Point, Positive, Strict, bounded
 
 #: largest scenario file read (bytes), checked before parsing
 MAX_FILE_BYTES = 2 * 1024 * 1024
-#: largest number of agents a scenario may name (lists or ``count``)
-MAX_AGENTS = 1_000_000
-#: largest |coordinate| of a position, target, barrier or waypoint: far from overflow, so
-#: distances, squares and sums of the law stay finite
-MAX_COORD = 1e6
-#: an agent name: one ROS name token (letters, digits, single underscores), at most 64 chars
-AGENT_NAME = re.compile(r'[A-Za-z](?:_?[A-Za-z0-9])*_?')
-AGENT_NAME_MAX = 64
-
-Finite = Annotated[float, Field(allow_inf_nan=False)]
-NonNeg = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD, allow_inf_nan=False)]
-Point = tuple[Coord, Coord]
-#: a gain or curvature: bounded so that u_k and dt·u_k stay finite
-MAX_GAIN = 1e6
-Gain = Annotated[float, Field(ge=0, le=MAX_GAIN, allow_inf_nan=False)]
-Curvature = Annotated[float, Field(ge=-MAX_GAIN, le=MAX_GAIN, allow_inf_nan=False)]
-Length = Annotated[float, Field(gt=0, le=MAX_COORD, allow_inf_nan=False)]
 
 
 class ScenarioError(ValueError):
     """A scenario that cannot run; the message names the file and the field."""
 
 
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra='forbid')
-
-
-# ------------------------------------------------------------------ agents
-
-class GridPositions(_Strict):
-    rule: Literal['grid']
-    spacing: Length = 1.0
-    center: Point = (0.0, 0.0)
-
-
-class DiscPositions(_Strict):
-    rule: Literal['disc']
-    radius: Length = 10.0
-    center: Point = (0.0, 0.0)
-
-
-class ConeHeadings(_Strict):
-    """θ_i uniform in (φ − half_width, φ + half_width), φ uniform in [0, 2π) (the paper's rule)."""
-    rule: Literal['cone']
-    half_width: Annotated[float, Field(ge=0, le=math.pi)] = math.pi / 4
-    center: Optional[Finite] = None   # φ; random when omitted
-
-
-class UniformHeadings(_Strict):
-    rule: Literal['uniform']
-
-
-def check_agent_name(name: str) -> str:
-    """``name`` if it is a valid agent name (one ROS name token: it becomes the agent's
-    namespace), else ValueError saying why."""
-    if not isinstance(name, str) or not name:
-        raise ValueError(f'agent name {name!r}: must not be empty')
-    if len(name) > AGENT_NAME_MAX:
-        raise ValueError(f'agent name {name[:20]!r}...: longer than {AGENT_NAME_MAX} characters')
-    if not AGENT_NAME.fullmatch(name):
-        raise ValueError(f'agent name {name!r}: not a ROS name token (a letter, then letters, '
-                         'digits and single underscores)')
-    return name
-
-
-AgentName = Annotated[str, Field(max_length=AGENT_NAME_MAX)]
-
-
-class AgentsSpec(_Strict):
-    count: Optional[Annotated[int, Field(ge=1, le=MAX_AGENTS)]] = None
-    names: Optional[Annotated[list[AgentName], Field(min_length=1, max_length=MAX_AGENTS)]] = None
-    positions: Union[Annotated[list[Point], Field(min_length=1, max_length=MAX_AGENTS)],
-                     GridPositions, DiscPositions] = Field(default_factory=lambda: GridPositions(rule='grid'))
-    headings: Union[Annotated[list[Finite], Field(min_length=1, max_length=MAX_AGENTS)],
-                    ConeHeadings, UniformHeadings] = Field(default_factory=lambda: ConeHeadings(rule='cone'))
-
-    @field_validator('names')
-    @classmethod
-    def _names(cls, v):
-        for nm in v or ():
-            check_agent_name(nm)
-        return v
-
-    @model_validator(mode='after')
-    def _count(self):
-        sizes = {len(x) for x in (self.names, self.positions, self.headings) if isinstance(x, list)}
-        if self.count is not None:
-            sizes.add(self.count)
-        if len(sizes) > 1:
-            raise ValueError(f'count, names, positions and headings disagree on the number of agents {sorted(sizes)}')
-        if not sizes:
-            raise ValueError('give count, or positions / headings / names as lists')
-        n = sizes.pop()
-        self.count = n
-        if self.names is not None and len(set(self.names)) != n:
-            raise ValueError('agent names must be unique')
-        return self
-
-
 # ------------------------------------------------------------------ law
 
-class LawSpec(_Strict):
-    kind: Literal['global', 'local', 'leader_following', 'homotopy', 'target'] = 'homotopy'
-    alpha: Gain = PairGains.alpha          # defaults: the core's config types (laws.py, frenet.py)
-    eta: Gain = PairGains.eta
-    mu: Gain = PairGains.mu
-    r0: Length = PairGains.r0
-    cutoff_radius: Length = LawConfig.cutoff_radius
-    leader_gain: Annotated[float, Field(ge=1, le=MAX_GAIN, allow_inf_nan=False)] = LawConfig.leader_gain
-    q0: Annotated[float, Field(ge=0, le=1)] = LawConfig.q0
+def _law_field(p):
+    """(type, default) of a law parameter in the schema (`law_parameters.LAW_TABLE`)."""
+    if p.choices:
+        return Literal[p.choices], p.default
+    return (bounded(p.bound) if p.bound else type(p.default)), p.default
 
 
-# ------------------------------------------------------------------ λ schedules
-
-class ConstantLambdaSpec(_Strict):
-    kind: Literal['constant']
-    value: Annotated[float, Field(ge=0, le=1)] = 0.0
-
-
-class TanhWindowSpec(_Strict):
-    kind: Literal['tanh_window']
-    rise_at: Finite = 400.0      # ('on'/'off' are booleans in YAML 1.1, hence these names)
-    fall_at: Finite = 600.0
-    tau: Positive = 30.0
-
-
-class RampSpec(_Strict):
-    at: NonNeg
-    to: Annotated[float, Field(ge=0, le=1)]
-    duration: NonNeg = 20.0
-    shape: Literal['smoothstep', 'linear', 'step', 'tanh'] = 'smoothstep'
-
-
-class RampsSpec(_Strict):
-    kind: Literal['ramps']
-    initial: Annotated[float, Field(ge=0, le=1)] = 0.0
-    ramps: list[RampSpec] = Field(default_factory=list)
-
-
-LambdaSpec = Annotated[Union[ConstantLambdaSpec, TanhWindowSpec, RampsSpec], Field(discriminator='kind')]
-
-
-# ------------------------------------------------------------------ steering programs
-
-class ConstantProgram(_Strict):
-    kind: Literal['constant']
-    curvature: Curvature = 0.0
-
-
-class SinusoidProgram(_Strict):
-    kind: Literal['sinusoid']
-    amplitude: Curvature = 0.01
-    period: Positive = 200.0
-    phase: Finite = 0.0
-    offset: Curvature = 0.0
-
-
-class WaypointProgram(_Strict):
-    kind: Literal['waypoint']
-    point: Point
-    gain: Gain = 0.05
-    max_curvature: Annotated[float, Field(gt=0, le=MAX_GAIN, allow_inf_nan=False)] = 0.05
-
-
-ProgramSpec = Annotated[Union[ConstantProgram, SinusoidProgram, WaypointProgram], Field(discriminator='kind')]
-
-
-class LeadersSpec(_Strict):
-    """Fixed leaders (agent name → program) or a rule that chooses them at time ``at``."""
-    fixed: dict[str, ProgramSpec] = Field(default_factory=dict)
-    rule: Optional[Literal['lateral_extremes']] = None
-    at: NonNeg = 0.0
-    programs: list[ProgramSpec] = Field(default_factory=list)
-
-    @model_validator(mode='after')
-    def _one_way(self):
-        if self.fixed and self.rule:
-            raise ValueError('give either fixed leaders or a rule, not both')
-        if self.rule and not self.programs:
-            raise ValueError('a leader rule needs programs (left leader first, right leader second)')
-        return self
+LawSpec = create_model('LawSpec', __base__=Strict, __module__=__name__,
+                       __doc__='The ``law:`` section: fields, defaults, bounds of `law_parameters.LAW_TABLE`.',
+                       **{p.scenario_key: _law_field(p) for p in LAW_TABLE if p.section == 'law'})
 
 
 # ------------------------------------------------------------------ world
 
-class TargetSpec(_Strict):
+class TargetSpec(Strict):
     position: Point
-    gain: Gain = 0.05            # γ
+    gain: bounded(LAW_PARAMETER['target_gain'].bound) = 0.05      # γ
     normalised: bool = False
 
 
@@ -222,12 +58,12 @@ class TargetSpec(_Strict):
 MAX_BARRIER_POINTS = 1000
 
 
-class BarrierSpec(_Strict):
+class BarrierSpec(Strict):
     """A convex polygon: at least 3 points, not all on one line, each a corner of the hull
     (the intrusion check uses the hull; a point inside it would be silently ignored there)."""
     points: list[Point] = Field(min_length=3, max_length=MAX_BARRIER_POINTS)
-    gain: Gain = 5.0             # s_b
-    mode: Literal['ahead', 'literal'] = 'ahead'
+    gain: bounded(LAW_PARAMETER['barrier_gain'].bound) = 5.0      # s_b
+    mode: Literal[LAW_PARAMETER['barrier_mode'].choices] = LAW_PARAMETER['barrier_mode'].default
 
     @field_validator('points')
     @classmethod
@@ -248,14 +84,14 @@ class BarrierSpec(_Strict):
         return pts
 
 
-class NoiseSpec(_Strict):
+class NoiseSpec(Strict):
     position: NonNeg = 0.0       # half-width of uniform noise on each coordinate, per step
     heading: NonNeg = 0.0        # half-width of uniform noise on θ, per step
 
 
 # ------------------------------------------------------------------ faults, failover, reunion
 
-class FaultSpec(_Strict):
+class FaultSpec(Strict):
     """``{at: 450, kill: agent_2}`` or ``{at: 300, freeze: leader:0, for: 5.0}`` (faults.py)."""
     at: NonNeg
     kill: Optional[str] = None
@@ -285,29 +121,31 @@ class FaultSpec(_Strict):
         return self.kill if self.kill is not None else self.freeze
 
 
-class FailoverSpec(_Strict):
+class FailoverSpec(Strict):
     """Leader failover (faults.py): a leader not heard for ``timeout`` sim s is replaced."""
     timeout: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 1.0
 
 
-class ReunionSpec(_Strict):
+class ReunionSpec(Strict):
     """Over [at, at + for): a shared rendezvous target (eq. 15; point: [x, y], centroid or none)
     and/or far coupling q0 = ``coupling`` (faults.py)."""
     at: NonNeg
     for_: Positive = Field(alias='for')
     point: Union[Literal['centroid', 'none'], Point] = 'centroid'
-    coupling: Optional[Annotated[float, Field(ge=0, le=1)]] = None
-    gain: Gain = 0.05
+    coupling: Optional[bounded(LAW_PARAMETER['q0'].bound)] = None
+    gain: bounded(LAW_PARAMETER['target_gain'].bound) = 0.05
     normalised: bool = False
     track: bool = False          # point: centroid re-taken at every step (moves with the swarm)
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
+
+
 # ------------------------------------------------------------------ communication (comms.py)
 
 Probability = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
 NameOrNames = Union[str, list[str]]
 
 
-class LinkSpec(_Strict):
+class LinkSpec(Strict):
     """Per-agent or per-link values: links from ``sender`` to ``receiver`` (a name or a list of
     names; omitted = every agent) get these values instead of the base ones."""
     sender: Optional[NameOrNames] = None
@@ -317,7 +155,7 @@ class LinkSpec(_Strict):
     jitter: Optional[NonNeg] = None
 
 
-class CommsEventSpec(_Strict):
+class CommsEventSpec(Strict):
     """A change of the radio at sim time ``at`` (from the first step n with n·dt ≥ at)."""
     at: NonNeg
     loss: Optional[Probability] = None
@@ -336,7 +174,7 @@ class CommsEventSpec(_Strict):
         return self
 
 
-class CommsSpec(_Strict):
+class CommsSpec(Strict):
     """The communication model (see swarm_core.comms); the defaults are a perfect radio."""
     seed: Optional[Annotated[int, Field(ge=0)]] = None     # default: the scenario's seed
     radio_range: Optional[Positive] = None                  # None: unlimited (w still applies)
@@ -356,12 +194,12 @@ Window = tuple[NonNeg, NonNeg]
 XWindow = tuple[Finite, Finite]
 
 
-class PolarisationAbove(_Strict):
+class PolarisationAbove(Strict):
     at: NonNeg
     value: Annotated[float, Field(ge=0, le=1)]
 
 
-class FollowsProgram(_Strict):
+class FollowsProgram(Strict):
     slot: Annotated[int, Field(ge=0, le=1000)] = 0
     from_: NonNeg = Field(alias='from')
     to: NonNeg
@@ -369,7 +207,7 @@ class FollowsProgram(_Strict):
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
 
 
-class ExpectSpec(_Strict):
+class ExpectSpec(Strict):
     """The checks of outcomes.py, each with its argument's type (a window is [a, b], a ≤ b)."""
     one_cluster_at: Optional[Window] = None
     polarisation_above: Optional[PolarisationAbove] = None
@@ -393,7 +231,7 @@ class ExpectSpec(_Strict):
         return self
 
 
-class ScenarioSpec(_Strict):
+class ScenarioSpec(Strict):
     name: str
     description: str = ''
     seed: Annotated[int, Field(ge=0)] = 0
@@ -536,25 +374,6 @@ def noise_rng(seed: int, index: int) -> np.random.Generator:
     return np.random.default_rng([seed, 7919, index])
 
 
-def build_schedule(spec):
-    if spec.kind == 'constant':
-        return ConstantLambda(spec.value)
-    if spec.kind == 'tanh_window':
-        return TanhWindow(spec.rise_at, spec.fall_at, spec.tau)
-    sched = RampSchedule(initial=spec.initial)
-    for r in spec.ramps:
-        sched.then(r.at, r.to, r.duration, r.shape)
-    return sched
-
-
-def build_program(spec):
-    if spec.kind == 'constant':
-        return ConstantSteering(spec.curvature)
-    if spec.kind == 'sinusoid':
-        return SinusoidSteering(spec.amplitude, spec.period, spec.phase, spec.offset)
-    return WaypointSteering(tuple(spec.point), spec.gain, spec.max_curvature)
-
-
 def _kinds(union) -> str:
     """'a, b, c': the ``kind`` tags of a discriminated union such as `LambdaSpec`."""
     return ', '.join(get_args(m.model_fields['kind'].annotation)[0] for m in get_args(get_args(union)[0]))
@@ -572,39 +391,13 @@ def _format_error(err: ValidationError) -> str:
         kinds = f' (one of: {_kinds(union)})' if union is not None else ''
         return f'{loc}: needs a `kind:` field{kinds}'
     # discriminated unions put the tag in the path: keep it readable
-    got = e.get('input')
-    got_s = '' if isinstance(got, (dict, list)) or got is None else f' (got {got!r})'
     more = len(err.errors()) - 1
     tail = f' [+{more} more problem{"s" if more > 1 else ""}]' if more else ''
+    if isinstance(e.get('ctx', {}).get('error'), InputError):    # a `Bound`'s one text, as it is
+        return f'{loc}: {e["ctx"]["error"]}{tail}'
+    got = e.get('input')
+    got_s = '' if isinstance(got, (dict, list)) or got is None else f' (got {got!r})'
     return f'{loc}: {e["msg"]}{got_s}{tail}'
-
-
-def initial_conditions(spec: ScenarioSpec):
-    """Names, positions (N, 2) and headings (N,) for the scenario's seed."""
-    a = spec.agents
-    n = a.count
-    rng = np.random.default_rng([spec.seed, 1])
-    names = list(a.names) if a.names else [f'agent_{i}' for i in range(n)]
-    if isinstance(a.positions, list):
-        pos = np.array(a.positions, dtype=float)
-    elif a.positions.rule == 'grid':
-        side = int(math.ceil(math.sqrt(n)))
-        idx = np.arange(n)
-        pos = np.stack([idx % side, idx // side], axis=1) * a.positions.spacing
-        pos = pos - pos.mean(axis=0) + np.array(a.positions.center)
-    else:
-        rr = a.positions.radius * np.sqrt(rng.uniform(size=n))
-        ph = rng.uniform(0, 2 * math.pi, size=n)
-        pos = np.stack([rr * np.cos(ph), rr * np.sin(ph)], axis=1) + np.array(a.positions.center)
-    if isinstance(a.headings, list):
-        theta = np.array(a.headings, dtype=float)
-    elif a.headings.rule == 'cone':
-        phi = rng.uniform(0, 2 * math.pi) if a.headings.center is None else a.headings.center
-        hw = a.headings.half_width
-        theta = phi + rng.uniform(-hw, hw, size=n)
-    else:
-        theta = rng.uniform(0, 2 * math.pi, size=n)
-    return names, pos.astype(float), theta.astype(float)
 
 
 def safe_label(name: str) -> str:
@@ -653,6 +446,15 @@ def resolve(name_or_path: str) -> tuple[str, str]:
     return res.read_text(), f'{name_or_path} (shipped)'
 
 
+def law_config(spec: ScenarioSpec) -> LawConfig:
+    """The law of a validated spec: each parameter from its section (`law_parameters.LAW_TABLE`),
+    its `LawConfig` default where the scenario has no such section (no target, no barrier)."""
+    def value(p):
+        section = getattr(spec, p.section)
+        return p.default if section is None else getattr(section, p.scenario_key)
+    return LawConfig.from_parameters({p.name: value(p) for p in LAW_TABLE})
+
+
 def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
     """Validate a scenario mapping; ``overrides`` (seed, duration, dt) replace its fields."""
     if not isinstance(data, dict):
@@ -663,16 +465,9 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
             data[key] = val
     try:
         spec = ScenarioSpec.model_validate(data)
-        law = LawConfig(kind=spec.law.kind,
-                        gains=PairGains(spec.law.alpha, spec.law.eta, spec.law.mu, spec.law.r0),
-                        cutoff_radius=spec.law.cutoff_radius, leader_gain=spec.law.leader_gain,
-                        q0=spec.law.q0,
-                        target_gain=spec.target.gain if spec.target else 0.0,
-                        target_normalised=spec.target.normalised if spec.target else False,
-                        barrier_gain=spec.barrier.gain if spec.barrier else 0.0,
-                        barrier_mode=spec.barrier.mode if spec.barrier else 'ahead')
     except ValidationError as err:
         raise ScenarioError(f'{source}: {_format_error(err)}') from None
+    law = law_config(spec)
     names = list(spec.agents.names) if spec.agents.names else None
     for who in spec.leaders.fixed:
         known = names or [f'agent_{i}' for i in range(spec.agents.count)]

@@ -39,6 +39,7 @@ import math
 import sys
 import time
 
+from swarm_core.inputs import LAMBDA_BOUND
 from swarm_ros import protocol as P
 from swarm_ros.cliutil import add_wait, cli_node
 
@@ -104,8 +105,8 @@ def lambda_main(argv) -> int:
     p.add_argument('--ramp', type=float, default=20.0, help='ramp duration in sim seconds (default 20; 0 = jump)')
     add_wait(p, 'the swarm')
     a = p.parse_args(argv)
-    if not (math.isfinite(a.value) and 0.0 <= a.value <= 1.0):
-        print(f'swarm lambda: λ={a.value!r} rejected: must be finite and in [0, 1]', file=sys.stderr)
+    if not LAMBDA_BOUND.ok(a.value):
+        print(f'swarm lambda: {LAMBDA_BOUND.error(a.value)}', file=sys.stderr)
         return 2
     if not (math.isfinite(a.ramp) and a.ramp >= 0.0):
         print(f'swarm lambda: --ramp {a.ramp!r} rejected: must be finite and ≥ 0', file=sys.stderr)

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 from swarm_core import analysis
+from swarm_core.inputs import LAMBDA_BOUND
 from swarm_core.scenario import AGENT_NAME, BarrierSpec
 
 from .bag import iter_messages, parse_float64, parse_odometry, parse_string, resolve_bag
@@ -163,7 +164,7 @@ def _read_state(r: _Reading, m):
 
 def _read_lambda(r: _Reading, m):
     v = _parsed(parse_float64, m.data)
-    if np.isfinite(v) and 0 <= v <= 1:
+    if LAMBDA_BOUND.ok(v):
         r.lam_events.append((m.log_time, v))
 
 

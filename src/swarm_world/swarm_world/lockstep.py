@@ -26,11 +26,10 @@ The node keeps the wall clock (stalls, time-outs), the messages and the files.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from swarm_core.comms import event_step
+from swarm_core.inputs import LAMBDA_BOUND
 from swarm_ros.layouts import States, Step
 
 
@@ -42,7 +41,7 @@ def comms_schedule(comms, dt):
 
 def decision_valid(lam, flags, steering, n):
     """A commander decision is usable: λ in [0, 1], finite steering, one flag per agent."""
-    return bool(math.isfinite(lam) and 0.0 <= lam <= 1.0 and np.all(np.isfinite(steering)) and len(flags) == n)
+    return bool(LAMBDA_BOUND.ok(lam) and np.all(np.isfinite(steering)) and len(flags) == n)
 
 
 class LockstepBarrier:

@@ -5,12 +5,12 @@ Realtime agents publish on their own clocks; the world records each state as it 
 applies faults on its tick.  The schedule itself is pure (`swarm_world.realtime`)."""
 from __future__ import annotations
 
-import math
 import time
 
 from rosgraph_msgs.msg import Clock
 
 from swarm_core import metrics as M
+from swarm_core.inputs import LAMBDA_BOUND
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import check_values, refused
 
@@ -40,7 +40,7 @@ class RealtimeWorld:
         self.rec.record_realtime(i, P.step_of(t, self.dt), vals, wz, self.lam_now, self.leaders_now)
 
     def _on_lambda(self, msg):
-        if math.isfinite(msg.data) and 0.0 <= msg.data <= 1.0:
+        if LAMBDA_BOUND.ok(msg.data):
             self.lam_now = msg.data
 
     def _on_leaders(self, msg):

@@ -1,0 +1,39 @@
+"""The building blocks of the scenario schema (no ROS): the strict base model and the bounded
+number types.  A bound declared elsewhere (`inputs`, `law_parameters`) becomes a type here, so
+the schema and the other boundaries accept the same values."""
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+
+from .inputs import LAMBDA_BOUND, MAX_COORD, MAX_GAIN, Bound
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+NonNeg = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD, allow_inf_nan=False)]
+Point = tuple[Coord, Coord]
+#: a gain or curvature: bounded so that u_k and dt·u_k stay finite
+Gain = Annotated[float, Field(ge=0, le=MAX_GAIN, allow_inf_nan=False)]
+Curvature = Annotated[float, Field(ge=-MAX_GAIN, le=MAX_GAIN, allow_inf_nan=False)]
+Length = Annotated[float, Field(gt=0, le=MAX_COORD, allow_inf_nan=False)]
+
+
+def bounded(bound: Bound):
+    """A `Bound` as pydantic constraints (pydantic's error texts, as for the other fields)."""
+    return Annotated[float, Field(ge=bound.lo, le=bound.hi, allow_inf_nan=False)]
+
+
+def checked(bound: Bound):
+    """A number checked by the `Bound`'s own check, so the schema rejects it with the text of
+    every other boundary (`scenario._format_error` shows it as it is)."""
+    return Annotated[float, AfterValidator(bound.check)]
+
+
+#: λ (eq. 12-14), checked as on every other boundary
+Lambda = checked(LAMBDA_BOUND)
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra='forbid')
