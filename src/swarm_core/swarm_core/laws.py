@@ -120,15 +120,6 @@ LAW_PARAMETERS = {
 }
 
 
-def all_pairs(receivers, n: int):
-    """Pairs (receiver position 0..K−1, sender row) for every sender j ≠ k, j ascending."""
-    receivers = np.asarray(receivers, dtype=np.intp)
-    k = np.repeat(np.arange(receivers.size, dtype=np.intp), n)
-    j = np.tile(np.arange(n, dtype=np.intp), receivers.size)
-    keep = j != receivers[k]
-    return k[keep], j[keep]
-
-
 def nearest_leader(pos, receivers, leader_rows):
     """l(k): the table row of the leader nearest (Euclidean) to each receiver; −1 if none.
 
