@@ -246,3 +246,11 @@ def spin_for(ex, cond, timeout=10.0):
             return True
         ex.spin_once(timeout_sec=0.05)
     return cond()
+
+
+def pairs_of_one(pairs, k):
+    """The pairs of receiver ``k`` out of `engine.neighbour_pairs`' (k, j) arrays, as one
+    receiver's (position 0, sender row) list for ``swarm_control(..., receivers=[k])``."""
+    import numpy as np
+    mine = pairs[0] == k
+    return np.zeros(np.count_nonzero(mine), dtype=np.intp), pairs[1][mine]

@@ -181,15 +181,6 @@ def sparse_coupling(n: int, law: LawConfig, lambda_: float) -> bool:
     return n > DENSE_LIMIT and not law.couples_globally(lambda_)
 
 
-def own_neighbour_pairs(pos, row: int, radius: float):
-    """Pairs (0, j) of one receiver with every other row within ``radius``, j ascending: what
-    `engine.neighbour_pairs` gives for that receiver (up to pairs of weight 0)."""
-    d = pos - pos[row]
-    j = np.flatnonzero((d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) <= radius * radius)
-    j = j[j != row]
-    return np.zeros(j.size, dtype=np.intp), j
-
-
 #: row block of the dense path: about this many pair entries per block (the block's scratch
 #: arrays stay in the L2 cache)
 DENSE_BLOCK = 8192
