@@ -46,8 +46,8 @@ def test_odometry_bytes_round_trip_through_rclpy(name):
     assert not any(m.pose.covariance) and not any(m.twist.covariance)
     # and the world's raw reader decodes what rclpy serialises
     m.pose.pose.orientation.x = 0.5
-    assert P.cdr_to_odometry(serialize_message(m)) == (
-        name, 12, 345_000_000, (1.5, -2.25, 0.5, 0.0, math.sin(0.3), math.cos(0.3)), -0.01)
+    assert P.cdr_to_odometry_tagged(serialize_message(m)) == (
+        name, 12, 345_000_000, (1.5, -2.25, 0.5, 0.0, math.sin(0.3), math.cos(0.3)), -0.01, 0.0)
 
 
 def test_lockstep_over_the_udp_profile_equals_simulate(tmp_path, ros_domain, processes, swarm_cmd):
