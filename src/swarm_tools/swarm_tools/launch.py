@@ -44,7 +44,6 @@ from . import dds
 from .node_params import load_scenario, node_parameters, write_params_file
 from .processes import read_events, run_processes
 
-STOP_GRACE = 4.0
 #: most agents of one ``swarm run`` (each is an OS process, or a node of one executor);
 #: larger swarms are for ``swarm simulate``
 MAX_RUN_AGENTS = 2000
