@@ -167,7 +167,9 @@ def test_realtime_latency_and_swarm_drop(rclpy_context, swarm_cmd, processes):
                 lags.append(agent._now() - agent.stream.newest[0][0])
 
     def counts():
-        return tuple(agent.radio_count['agent_0'])
+        """(heard, delivered) of agent_0's states at the radio."""
+        j = agent.roster.index('agent_0')
+        return int(agent.stream.heard[j]), int(agent.stream.delivered[j])
 
     def known():
         """agent_0 is in agent_1's control table (only agent_0 publishes states here)."""

@@ -185,21 +185,6 @@ class AgentNode(Node):
                     float(self.core.u_last))
         self.pub.publish(self.serialize_state(*self.own))
 
-    @property
-    def odom(self):
-        """The last published state as an Odometry message (for inspection, not the hot path)."""
-        o = Odometry()
-        o.header.frame_id, o.child_frame_id = 'world', self.agent_name
-        o.twist.twist.linear.x = 1.0
-        o.pose.covariance[P.SENDER_TAG_INDEX] = self.sender_tag
-        if self.own is not None:
-            sec, nsec, x, y, qz, qw, u = self.own
-            o.header.stamp.sec, o.header.stamp.nanosec = sec, nsec
-            o.pose.pose.position.x, o.pose.pose.position.y = x, y
-            o.pose.pose.orientation.z, o.pose.pose.orientation.w = qz, qw
-            o.twist.twist.angular.z = u
-        return o
-
     def _apply(self, u):
         u = self.core.advance(u)
         self._applied(u)
@@ -321,12 +306,6 @@ class AgentNode(Node):
 
     def _now(self):
         return self.get_clock().now().nanoseconds * 1e-9
-
-    @property
-    def radio_count(self):
-        """{sender name: [heard, delivered]} of the realtime radio."""
-        r = self.stream
-        return {nm: [int(r.heard[j]), int(r.delivered[j])] for j, nm in enumerate(self.roster) if j != self.index}
 
     def radio_table(self, now):
         """Like `table`, from what the radio delivered (`comms.StreamRadio`)."""
