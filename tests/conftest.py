@@ -147,30 +147,34 @@ def swarm_cmd():
     return str(VENV_BIN / 'swarm')
 
 
-#: the six agents of Figs. 3-4 under the homotopy law; a short run for ROS tests
-SHORT_HOMOTOPY = """
-name: homotopy_short
-seed: {seed}
-dt: 0.05
-duration: {duration}
-agents:
-  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
-  headings: {{rule: cone, half_width: 0.7853981633974483}}
-law: {{kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0, leader_gain: 30.0, q0: 1.0}}
-lambda: {lam}
-leaders:
-  rule: lateral_extremes
-  at: {at}
-  programs:
-    - {{kind: constant, curvature: 0.01}}
-    - {{kind: constant, curvature: -0.01}}
-"""
+#: the six agents of Figs. 3-4 under the homotopy law: the scenario of most tests
+SIX_AGENTS = {
+    'name': 'homotopy_short',
+    'seed': 0,
+    'dt': 0.05,
+    'agents': {'positions': [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]],
+               'headings': {'rule': 'cone', 'half_width': 0.7853981633974483}},
+    'law': {'kind': 'homotopy', 'alpha': 0.02, 'eta': 0.02, 'mu': 0.02, 'r0': 1.5, 'cutoff_radius': 4.0,
+            'leader_gain': 30.0, 'q0': 1.0},
+}
 
 
-def short_homotopy(path, *, duration, lam, at, seed=0):
-    """Write the short homotopy scenario (``lam``: a YAML λ schedule) to ``path``; returns it."""
+def short_homotopy(path, *, duration, lam, at, curvature=0.01, **overrides):
+    """Write `SIX_AGENTS` to ``path`` (returned) as a scenario of ``duration`` s: λ schedule
+    ``lam`` (a dict or YAML text), the two lateral-extreme leaders chosen at ``at`` steering
+    ±``curvature``.  ``overrides``: further top-level keys (seed=5, faults=[...]); a dict is
+    merged into the base's dict of that key (law={'cutoff_radius': 5.0})."""
+    import copy
+
+    import yaml
+    data = copy.deepcopy(SIX_AGENTS)
+    data.update(duration=duration, **{'lambda': yaml.safe_load(lam) if isinstance(lam, str) else lam})
+    data['leaders'] = {'rule': 'lateral_extremes', 'at': at,
+                       'programs': [{'kind': 'constant', 'curvature': c} for c in (curvature, -curvature)]}
+    for key, value in overrides.items():
+        data[key] = {**data[key], **value} if isinstance(data.get(key), dict) else value
     path = Path(path)
-    path.write_text(SHORT_HOMOTOPY.format(seed=seed, duration=duration, lam=lam, at=at))
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
 
 
@@ -246,3 +250,11 @@ def spin_for(ex, cond, timeout=10.0):
             return True
         ex.spin_once(timeout_sec=0.05)
     return cond()
+
+
+def pairs_of_one(pairs, k):
+    """The pairs of receiver ``k`` out of `engine.neighbour_pairs`' (k, j) arrays, as one
+    receiver's (position 0, sender row) list for ``swarm_control(..., receivers=[k])``."""
+    import numpy as np
+    mine = pairs[0] == k
+    return np.zeros(np.count_nonzero(mine), dtype=np.intp), pairs[1][mine]

@@ -15,33 +15,17 @@ from collections import defaultdict
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.ros
+from conftest import short_homotopy
 
-SCENARIO = """\
-name: early_split
-description: homotopy_global with the split brought forward (bag tests)
-seed: 0
-dt: 0.05
-duration: 30
-agents:
-  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
-  headings: {rule: cone, half_width: 0.7853981633974483}
-law: {kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 5.0,
-      leader_gain: 30.0, q0: 1.0}
-lambda: {kind: tanh_window, rise_at: 8, fall_at: 1000, tau: 2}
-leaders:
-  rule: lateral_extremes
-  at: 2
-  programs:
-    - {kind: constant, curvature: 0.05}
-    - {kind: constant, curvature: -0.05}
-"""
+pytestmark = pytest.mark.ros
 
 
 @pytest.fixture
 def recorded_run(ros_domain, processes, swarm_cmd, tmp_path):
-    scn_file = tmp_path / 'early_split.yaml'
-    scn_file.write_text(SCENARIO)
+    scn_file = short_homotopy(tmp_path / 'early_split.yaml', name='early_split',
+                              description='homotopy_global with the split brought forward (bag tests)',
+                              duration=30, at=2, curvature=0.05, law={'cutoff_radius': 5.0},
+                              lam={'kind': 'tanh_window', 'rise_at': 8, 'fall_at': 1000, 'tau': 2})
     bag = tmp_path / 'run.mcap'
     out = tmp_path / 'live'
     proc = processes.start([swarm_cmd, 'run', scn_file, '--record', bag, '--out', out,

@@ -114,6 +114,7 @@ def test_ros_verbs_help_shows_defaults(verb, flag):
     test_help_shows_defaults(verb, flag)
 
 
+@pytest.mark.ros          # --help lists the parameters of a node built in a context of its own
 @pytest.mark.parametrize('exe, param', [('swarm_world', 'scenario (str)'), ('swarm_agent', 'leader_gain (float)'),
                                         ('homotopy_commander', 'ramp (float)')])
 def test_node_executables_answer_help_without_starting(ros_domain, swarm_cmd, exe, param):

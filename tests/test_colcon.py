@@ -83,6 +83,7 @@ def test_every_package_installs_its_scripts_to_lib_package():
 
 
 @pytest.mark.slow
+@pytest.mark.ros          # the nodes started get as far as reading their parameters
 def test_colcon_build_and_ros2_run_finds_every_executable(tmp_path, ros_domain):
     colcon = _colcon()
     ws = ROOT / 'ros2_ws'

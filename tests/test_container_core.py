@@ -12,24 +12,7 @@ from swarm_agent.container_core import (CONTAINER_SIZE, PROCESSES_PER_CORE, Cont
 from swarm_core.engine import simulate
 from swarm_core.scenario import load
 
-FAULTS = """\
-name: container_faults
-seed: 0
-dt: 0.05
-duration: 12
-agents:
-  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
-  headings: {rule: cone, half_width: 0.7853981633974483}
-law: {kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0,
-      leader_gain: 30.0, q0: 1.0}
-lambda: {kind: tanh_window, rise_at: 3, fall_at: 1000, tau: 1}
-leaders: {rule: lateral_extremes, at: 1, programs: [{kind: constant, curvature: 0.05},
-                                                   {kind: constant, curvature: -0.05}]}
-faults:
-  - {at: 2, freeze: agent_1, for: 2.0}
-  - {at: 5, kill: agent_4}
-noise: {position: 0.001, heading: 0.001}
-"""
+from conftest import short_homotopy
 
 
 def drive(scn, groups):
@@ -91,8 +74,10 @@ def counted(monkeypatch):
 @pytest.mark.parametrize('groups', [[[0, 1, 2], [3, 4, 5]], [[0, 1, 2, 3, 4, 5]], [[0], [1, 5], [2, 3, 4]]],
                          ids=['2x3', '1x6', 'mixed'])
 def test_containers_equal_simulate_with_faults(tmp_path, counted, groups):
-    path = tmp_path / 'f.yaml'
-    path.write_text(FAULTS)
+    path = short_homotopy(tmp_path / 'f.yaml', name='container_faults', duration=12, at=1, curvature=0.05,
+                          lam={'kind': 'tanh_window', 'rise_at': 3, 'fall_at': 1000, 'tau': 1},
+                          faults=[{'at': 2, 'freeze': 'agent_1', 'for': 2.0}, {'at': 5, 'kill': 'agent_4'}],
+                          noise={'position': 0.001, 'heading': 0.001})
     scn = load(str(path))
     ref = simulate(scn)
     alive = np.isfinite(ref.u)

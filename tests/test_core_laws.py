@@ -12,41 +12,42 @@ from swarm_core.frenet import PairGains, heading_frame
 
 # ------------------------------------------------------------------ pair term by hand
 
+def _u_of_one_pair(dx, dy, th_k, th_j, gains, kind='local', **law):
+    """u of agent k at the origin heading th_k with one neighbour j at r_j = −(dx, dy) heading
+    th_j (r_jk = r_k − r_j = (dx, dy)), from `swarm_control`."""
+    c, s = heading_frame(np.array([th_k, th_j]))
+    pos = np.array([[0.0, 0.0], [-dx, -dy]])
+    return swarm_control(pos, c, s, np.array([0]), LawConfig(kind=kind, gains=gains, **law))[0]
+
+
 def test_pair_terms_hand_computed():
     # k at the origin heading +x (x_k = (1,0), y_k = (0,1)); j at (-1,-1) heading +y.
     # r_jk = r_k - r_j = (1, 1): rho = sqrt(2), r̂·x_k = r̂·y_k = 1/sqrt(2), x_j·y_k = 1.
-    g = PairGains(alpha=0.2, eta=0.3, mu=0.5, r0=1.5)
-    ck, sk = heading_frame(0.0)
-    cj, sj = heading_frame(math.pi / 2)
-    base, spacing, align = model.pair_terms(1.0, 1.0, ck, sk, cj, sj, g)
-    assert base == pytest.approx(-0.3 * 0.5, abs=1e-15)
-    assert spacing == pytest.approx(-0.2 * (1 - 1.5 ** 2 / 2) / math.sqrt(2), abs=1e-15)
-    assert align == pytest.approx(0.5, abs=1e-15)
-    u = model.pair_control(1.0, 1.0, ck, sk, cj, sj, g)
-    assert u == pytest.approx(-0.15 + 0.025 / math.sqrt(2) + 0.5, abs=1e-15)
+    def u(alpha=0.0, eta=0.0, mu=0.0):
+        return _u_of_one_pair(1.0, 1.0, 0.0, math.pi / 2, PairGains(alpha=alpha, eta=eta, mu=mu, r0=1.5))
+    assert u(eta=0.3) == pytest.approx(-0.3 * 0.5, abs=1e-15)                            # baseline
+    assert u(alpha=0.2) == pytest.approx(-0.2 * (1 - 1.5 ** 2 / 2) / math.sqrt(2), abs=1e-15)  # spacing
+    assert u(mu=0.5) == pytest.approx(0.5, abs=1e-15)                                    # alignment
+    assert u(0.2, 0.3, 0.5) == pytest.approx(-0.15 + 0.025 / math.sqrt(2) + 0.5, abs=1e-15)
 
 
 def test_pair_term_signs_follow_the_paper():
     g = PairGains(alpha=1.0, eta=0.0, mu=0.0, r0=1.0)
-    ck, sk = heading_frame(0.0)
     # j straight to the left of k (r_jk = (0, -2), beyond r0): attraction turns k left (u > 0)
-    assert model.pair_control(0.0, -2.0, ck, sk, ck, sk, g) > 0
+    assert _u_of_one_pair(0.0, -2.0, 0.0, 0.0, g) > 0
     # inside r0 it repels: turn right
-    assert model.pair_control(0.0, -0.5, ck, sk, ck, sk, g) < 0
+    assert _u_of_one_pair(0.0, -0.5, 0.0, 0.0, g) < 0
     # alignment alone: j heading at +30° turns k anticlockwise
     g = PairGains(alpha=0.0, eta=0.0, mu=1.0, r0=1.0)
-    cj, sj = heading_frame(math.radians(30))
-    assert model.pair_control(0.0, -2.0, ck, sk, cj, sj, g) == pytest.approx(0.5)
+    assert _u_of_one_pair(0.0, -2.0, 0.0, math.radians(30), g) == pytest.approx(0.5)
 
 
 def test_coincident_agents_contribute_zero_not_nan():
-    g = PairGains()
-    c, s = heading_frame(np.array([0.3, 2.0]))
-    assert model.pair_control(0.0, 0.0, c[0], s[0], c[1], s[1], g) == 0.0
-    assert model.avoidance_control(0.0, 0.0, c[0], s[0], g) == 0.0
     pos = np.zeros((4, 2))
     cos_t, sin_t = heading_frame(np.array([0.0, 1.0, 2.0, 3.0]))
     for kind in laws.LAW_KINDS:
+        u = swarm_control(pos, cos_t, sin_t, np.arange(4), LawConfig(kind=kind))
+        np.testing.assert_allclose(u, 0.0, rtol=0, atol=1e-15, err_msg=kind)   # alignment too
         law = LawConfig(kind=kind, target_gain=0.05, barrier_gain=5.0)
         u = swarm_control(pos, cos_t, sin_t, np.arange(4), law, lambda_=0.5,
                           is_leader=np.array([1, 0, 0, 1], bool), steering=np.full(4, 0.01),
@@ -55,7 +56,12 @@ def test_coincident_agents_contribute_zero_not_nan():
 
 
 def test_cutoff_function():
-    assert list(model.cutoff(np.array([0.0, 3.99, 4.0, 10.0]), 0.25, 4.0)) == [1.0, 1.0, 0.25, 0.25]
+    """c(ρ, q, w) (eq. 8): weight 1 where ρ < w, q from ρ = w on."""
+    g = PairGains()
+    w, q0 = 4.0, 0.25
+    for rho, weight in ((3.99, 1.0), (4.0, q0), (10.0, q0)):
+        u = _u_of_one_pair(0.0, -rho, 0.0, 0.3, g, kind='homotopy', cutoff_radius=w, q0=q0)
+        assert u == pytest.approx(weight * _u_pair_loop((0.0, 0.0), 0.0, (0.0, rho), 0.3, g), rel=1e-12), rho
 
 
 def test_frame_from_quaternion_is_orthonormal_and_matches_heading():
@@ -278,8 +284,8 @@ def test_follower_couples_to_its_nearest_leader():
     law = LawConfig(kind='leader_following', leader_gain=40.0)
     u = swarm_control(pos, c, s, np.array([0]), law, is_leader=leaders)
     g = law.gains
-    by_hand = 40.0 * model.pair_control(-1.0, 0.0, c[0], s[0], c[2], s[2], g) \
-        + model.pair_control(3.0, 0.0, c[0], s[0], c[1], s[1], g)
+    th = [0.0, 0.5, -0.5]
+    by_hand = 40.0 * _u_pair_loop(pos[0], th[0], pos[2], th[2], g) + _u_pair_loop(pos[0], th[0], pos[1], th[1], g)
     assert u[0] == pytest.approx(by_hand, abs=1e-15)
     assert laws.nearest_leader(pos, np.array([0]), np.array([1, 2]))[0] == 2
 
@@ -305,6 +311,8 @@ def test_neighbour_list_equals_whole_table_with_coincident_agents(kind, lam):
     dense result, coincident agents included, and one agent with its own list gets its batch
     value bit for bit."""
     from swarm_core.engine import neighbour_pairs
+
+    from conftest import pairs_of_one
     rng = np.random.default_rng(9)
     n = 200
     pos = rng.uniform(-15, 15, (n, 2))
@@ -320,5 +328,5 @@ def test_neighbour_list_equals_whole_table_with_coincident_agents(kind, lam):
     np.testing.assert_allclose(sparse, dense, rtol=0, atol=1e-14)
     for k in (0, 11, 12, 150):
         kw1 = dict(kw, steering=kw['steering'][[k]])
-        one = swarm_control(pos, c, s, np.array([k]), law, pairs=laws.own_neighbour_pairs(pos, k, law.cutoff_radius), **kw1)
+        one = swarm_control(pos, c, s, np.array([k]), law, pairs=pairs_of_one(pairs, k), **kw1)
         assert one[0] == sparse[k]

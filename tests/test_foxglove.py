@@ -109,6 +109,7 @@ def _typestore(channel):
     return store
 
 
+@pytest.mark.ros
 def test_live_view_serves_states_markers_and_takes_lambda(ros_domain, processes, swarm_cmd, tmp_path):
     """One realtime run with ``--foxglove 0``: the client subscribes to /swarm/states,
     /world/markers and /swarm/lambda, decodes them (rosbags, from the advertised schemas),

@@ -95,13 +95,14 @@ def test_barrier_clearance_is_the_distance_to_the_nearest_barrier_point():
     np.testing.assert_allclose(got, [math.sqrt(8), 3.0, 5.0], rtol=0, atol=1e-15)
 
 
-# ------------------------------------------------------------------ a snapshot, target distance
+# ------------------------------------------------------------------ one record, target distance
 
-def test_snapshot_target_and_intrusions():
+def test_one_record_target_and_intrusions():
     # agents at (0, 0), (2, 0) and (2, 2) (the last inside the square barrier); target (1, 3)
     pos = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]])
-    snap = M.snapshot(pos, [0.0, 0.0, math.pi], 4.0, target=(1.0, 3.0),
-                      barrier=M.Barrier(SQUARE), leaders=[0])
+    s = M.time_series(np.zeros(1), pos[None], np.array([[0.0, 0.0, math.pi]]), np.array([[True, False, False]]),
+                      4.0, target=(1.0, 3.0), barrier_points=SQUARE)
+    snap = {k: v[0] for k, v in s.items() if k not in ('intrusions_total', 'barrier_clearance')}
     assert snap['clusters'] == 1                                   # 2 and 2√2 < 4
     assert snap['polarisation'] == pytest.approx(1 / 3, abs=1e-15)  # |(1 + 1 − 1)/3|
     assert snap['min_distance'] == 2.0
@@ -110,8 +111,8 @@ def test_snapshot_target_and_intrusions():
     assert snap['centroid_target_distance'] == pytest.approx(math.sqrt(50) / 3, abs=1e-14)
     # nearest agent to (1, 3): (2, 2) at √2
     assert snap['min_target_distance'] == pytest.approx(math.sqrt(2), abs=1e-15)
-    assert snap['intrusions'] == 1
-    assert snap['leaders_per_cluster'] == [1]
+    assert snap['intrusions'] == 1 and s['intrusions_total'] == 1
+    assert snap['one_leader_per_cluster']
 
 
 # ------------------------------------------------------------------ time series

@@ -27,37 +27,23 @@ from swarm_tools.node_params import agent_parameters, node_parameters  # noqa: E
 from swarm_ros import protocol as P  # noqa: E402
 from swarm_ros.rosutil import make_executor  # noqa: E402
 
-from conftest import odom, overrides, run_nodes, spin_for  # noqa: E402
+from conftest import odom, overrides, run_nodes, short_homotopy, spin_for  # noqa: E402
 
-SCN = """
-name: comms_short
-seed: 5
-dt: 0.05
-duration: 12.0
-agents:
-  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
-  headings: {rule: cone, half_width: 0.7853981633974483}
-law: {kind: homotopy, q0: 1.0, leader_gain: 30.0}
-lambda: {kind: tanh_window, rise_at: 4.0, fall_at: 9.0, tau: 1.5}
-leaders:
-  rule: lateral_extremes
-  at: 2.0
-  programs: [{kind: constant, curvature: 0.01}, {kind: constant, curvature: -0.01}]
-comms:
-  loss: 0.25
-  latency: 0.1
-  jitter: 0.1
-  timeout: 0.6
-  links: [{sender: agent_0, receiver: agent_3, loss: 0.9}]
-  events:
-    - {at: 5.0, partition: [[agent_0, agent_1, agent_2]]}
-    - {at: 8.0, partition: []}
-"""
+#: a lossy, delayed radio with one worse link and a partition from t = 5 to 8
+COMMS = {'loss': 0.25, 'latency': 0.1, 'jitter': 0.1, 'timeout': 0.6,
+         'links': [{'sender': 'agent_0', 'receiver': 'agent_3', 'loss': 0.9}],
+         'events': [{'at': 5.0, 'partition': [['agent_0', 'agent_1', 'agent_2']]}, {'at': 8.0, 'partition': []}]}
+
+
+def comms_scenario(path, **overrides):
+    """The six agents over `COMMS` for 12 s (λ rises at t = 4, falls at t = 9), ``overrides``:
+    further scenario keys."""
+    return short_homotopy(path, name='comms_short', seed=5, duration=12.0, at=2.0, comms=COMMS,
+                          lam={'kind': 'tanh_window', 'rise_at': 4.0, 'fall_at': 9.0, 'tau': 1.5}, **overrides)
 
 
 def test_lockstep_with_a_lossy_delayed_radio_equals_the_batch_engine(tmp_path, rclpy_context):
-    path = tmp_path / 'comms_short.yaml'
-    path.write_text(SCN)
+    path = comms_scenario(tmp_path / 'comms_short.yaml')
     scn = load(str(path))
     out = tmp_path / 'run'
     params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
@@ -93,22 +79,15 @@ def test_lockstep_with_a_lossy_delayed_radio_equals_the_batch_engine(tmp_path, r
         nd.destroy_node()
 
 
-FAULTS = """
-faults:
-  - {at: 3.0, freeze: agent_4, for: 1.5}
-  - {at: 6.0, kill: "leader:0"}
-failover: {timeout: 0.5}
-reunion:
-  - {at: 9.0, for: 2.0, point: centroid, coupling: 1.0}
-"""
+FAULTS = dict(faults=[{'at': 3.0, 'freeze': 'agent_4', 'for': 1.5}, {'at': 6.0, 'kill': 'leader:0'}],
+              failover={'timeout': 0.5}, reunion=[{'at': 9.0, 'for': 2.0, 'point': 'centroid', 'coupling': 1.0}])
 
 
 def test_lockstep_radio_with_faults_failover_and_reunion_equals_the_batch_engine(tmp_path, rclpy_context):
     """Nodes in one executor (no processes to signal: a dead or frozen agent obeys the table's
     alive mask): the radio hears nothing from agents out of the table, a frozen agent hears
     nothing while frozen, and the run equals the batch engine (positions and u exactly), dead rows and all."""
-    path = tmp_path / 'comms_faults.yaml'
-    path.write_text(SCN + FAULTS)
+    path = comms_scenario(tmp_path / 'comms_faults.yaml', **FAULTS)
     scn = load(str(path))
     ref = simulate(scn)
     kinds = [e['kind'] for e in ref.meta['events']]
@@ -134,7 +113,7 @@ def _perfect(path):
     import yaml
 
     from swarm_core.scenario import parse
-    data = yaml.safe_load(SCN)
+    data = yaml.safe_load(path.read_text())
     data.pop('comms')
     return parse(data, str(path))
 
@@ -167,7 +146,9 @@ def test_realtime_latency_and_swarm_drop(rclpy_context, swarm_cmd, processes):
                 lags.append(agent._now() - agent.driver.stream.newest[0][0])
 
     def counts():
-        return tuple(agent.driver.radio_count['agent_0'])
+        """(heard, delivered) of agent_0's states at the radio."""
+        j = agent.roster.index('agent_0')
+        return int(agent.driver.stream.heard[j]), int(agent.driver.stream.delivered[j])
 
     def known():
         """agent_0 is in agent_1's control table (only agent_0 publishes states here)."""

@@ -12,23 +12,7 @@ from swarm_core.trajectory import Trajectory
 from swarm_core.scenario import load
 from swarm_ros import protocol as P
 
-SHORT = """
-name: dds_short
-seed: 3
-dt: 0.05
-duration: 15
-agents:
-  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
-  headings: {rule: cone, half_width: 0.7853981633974483}
-law: {kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0, leader_gain: 30.0, q0: 1.0}
-lambda: {kind: tanh_window, rise_at: 5, fall_at: 12, tau: 1}
-leaders:
-  rule: lateral_extremes
-  at: 2
-  programs:
-    - {kind: constant, curvature: 0.01}
-    - {kind: constant, curvature: -0.01}
-"""
+from conftest import short_homotopy
 
 
 @pytest.mark.parametrize('name', ['agent_0', 'a', 'ab', 'agent_123', 'ünï'])
@@ -46,14 +30,15 @@ def test_odometry_bytes_round_trip_through_rclpy(name):
     assert not any(m.pose.covariance) and not any(m.twist.covariance)
     # and the world's raw reader decodes what rclpy serialises
     m.pose.pose.orientation.x = 0.5
-    assert P.cdr_to_odometry(serialize_message(m)) == (
-        name, 12, 345_000_000, (1.5, -2.25, 0.5, 0.0, math.sin(0.3), math.cos(0.3)), -0.01)
+    assert P.cdr_to_odometry_tagged(serialize_message(m)) == (
+        name, 12, 345_000_000, (1.5, -2.25, 0.5, 0.0, math.sin(0.3), math.cos(0.3)), -0.01, 0.0)
 
 
+@pytest.mark.ros
 def test_lockstep_over_the_udp_profile_equals_simulate(tmp_path, ros_domain, processes, swarm_cmd):
     """Also with /clock only every 7 steps: lockstep inputs carry their own step and time."""
-    path = tmp_path / 'dds_short.yaml'
-    path.write_text(SHORT)
+    path = short_homotopy(tmp_path / 'dds_short.yaml', name='dds_short', seed=3, duration=15, at=2,
+                          lam={'kind': 'tanh_window', 'rise_at': 5, 'fall_at': 12, 'tau': 1})
     out = tmp_path / 'run'
     p = processes.start([swarm_cmd, 'run', path, '--dds', 'udp', '--clock-every', '7', '--out', out, '--no-figure'],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

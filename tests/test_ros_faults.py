@@ -22,34 +22,12 @@ from swarm_core.engine import simulate
 from swarm_core.trajectory import Trajectory
 from swarm_core.scenario import load
 
-from conftest import Lines
+from conftest import Lines, short_homotopy
 
 pytestmark = pytest.mark.ros
 
-SCENARIO = """\
-name: early_faults
-seed: 0
-dt: 0.05
-duration: {duration}
-agents:
-  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
-  headings: {{rule: cone, half_width: 0.7853981633974483}}
-law: {{kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0,
-      leader_gain: 30.0, q0: 1.0}}
-lambda: {{kind: tanh_window, rise_at: 8, fall_at: 1000, tau: 2}}
-leaders:
-  rule: lateral_extremes
-  at: 2
-  programs:
-    - {{kind: constant, curvature: 0.05}}
-    - {{kind: constant, curvature: -0.05}}
-{extra}
-"""
-SCHEDULED = """\
-faults:
-  - {at: 6, freeze: agent_1, for: 2.0}
-  - {at: 14, kill: "leader:0"}
-"""
+#: the scheduled faults: a follower frozen for 2 s at t = 6, the left leader killed at t = 14
+SCHEDULED = [{'at': 6, 'freeze': 'agent_1', 'for': 2.0}, {'at': 14, 'kill': 'leader:0'}]
 PROGRAM = 0.05
 
 
@@ -80,9 +58,12 @@ def bag_view(bag, names, dt, steps):
     return np.arange(T) * dt, r, th, events, steering
 
 
-def run(processes, swarm_cmd, tmp_path, text, *extra, name='faults'):
-    path = tmp_path / f'{name}.yaml'
-    path.write_text(text)
+def run(processes, swarm_cmd, tmp_path, *extra, name='faults', duration, **scenario):
+    """`swarm run --record` of homotopy_global's swarm with the split brought forward (λ rises at
+    t = 8, leaders chosen at t = 2 steer ±`PROGRAM`), ``scenario``: further keys."""
+    path = short_homotopy(tmp_path / f'{name}.yaml', name='early_faults', duration=duration, at=2,
+                          curvature=PROGRAM, lam={'kind': 'tanh_window', 'rise_at': 8, 'fall_at': 1000, 'tau': 2},
+                          **scenario)
     out, bag = tmp_path / name, tmp_path / f'{name}.mcap'
     p = processes.start([swarm_cmd, 'run', path, '--out', out, '--record', bag, '--no-figure',
                          '--progress-every', '5', *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -92,8 +73,8 @@ def run(processes, swarm_cmd, tmp_path, text, *extra, name='faults'):
 
 @pytest.mark.parametrize('failover', [True, False], ids=['failover', 'no_failover'])
 def test_scheduled_faults_follower_frozen_leader_killed(failover, tmp_path, ros_domain, processes, swarm_cmd):
-    extra = SCHEDULED + ('failover: {timeout: 0.5}\n' if failover else '')
-    path, out, bag, p = run(processes, swarm_cmd, tmp_path, SCENARIO.format(duration=24, extra=extra))
+    extra = {'failover': {'timeout': 0.5}} if failover else {}
+    path, out, bag, p = run(processes, swarm_cmd, tmp_path, duration=24, faults=SCHEDULED, **extra)
     text = processes.communicate(p, 300)
     assert p.returncode == 0, text
     assert 'killed (fault injection)' in text, text
@@ -161,8 +142,7 @@ def agent_pid(out, name):
 
 
 def test_live_kill_pause_and_lost_agent(tmp_path, ros_domain, processes, swarm_cmd):
-    path, out, bag, p = run(processes, swarm_cmd, tmp_path, SCENARIO.format(duration=300, extra=''),
-                            '--missing-timeout', '3', name='live')
+    path, out, bag, p = run(processes, swarm_cmd, tmp_path, '--missing-timeout', '3', name='live', duration=300)
     lines = Lines(p)
     assert lines.wait_for('discovered in', 120), ''.join(lines.lines)
     cli = [processes.start([swarm_cmd, 'kill', 'agent_4'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True),

@@ -83,7 +83,7 @@ def test_agent_u_equals_core_law_in_lockstep(rclpy_context):
         node.driver.on_input(step_message(scn6, pos, theta, c['lam'], c['flags'], c['steer'], c['target'], c['barrier']))
         assert node.step == 1
         assert node.u_history[-1] == (0, expected[name])
-        assert node.odom.twist.twist.angular.z == expected[name]      # what it publishes next
+        assert node.own[6] == expected[name]         # the u of the state it published (angular.z)
     assert len({round(v, 12) for v in expected.values()}) == 4       # every input mattered
     # λ = 1 and a leader: u is exactly the steering program
     assert expected['a1'] == 0.05

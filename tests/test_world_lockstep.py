@@ -27,6 +27,14 @@ def state(i, k, theta=0.0):
     return (float(i), float(k), float(qz), float(qw))
 
 
+def on_state(b, i, k, vals, u):
+    """Agent i's state as a one-row ``/lockstep/agent_states`` (`LockstepBarrier.on_states`):
+    (the reason it was refused or None, actions)."""
+    why, acts = b.on_states(np.array([i]), np.array([k]), np.array([vals]).T, np.array([u]))
+    assert len(why) <= 1
+    return (why[0] if why else None), acts
+
+
 def kinds(acts):
     return [a[0] for a in acts]
 
@@ -34,7 +42,7 @@ def kinds(acts):
 def feed_states(b, k, agents=range(3), u=0.1):
     acts = []
     for i in agents:
-        reason, a = b.on_state(i, k, state(i, k), u * (i + 1))
+        reason, a = on_state(b, i, k, state(i, k), u * (i + 1))
         assert reason is None
         acts += a
     return acts
@@ -46,7 +54,7 @@ def decide(b, n, lam=0.5, flags=(False, True, False)):
 
 def test_a_step_waits_for_every_state_then_for_the_decision():
     b = make()
-    assert b.on_state(0, 0, state(0, 0), 0.0) == (None, [])     # not started: nothing goes out
+    assert on_state(b, 0, 0, state(0, 0), 0.0) == (None, [])     # not started: nothing goes out
     assert b.start() == []                                          # b and c not here yet
     assert not b.complete() and list(b.missing()) == [1, 2]
     acts = feed_states(b, 0, [1, 2])
@@ -67,7 +75,7 @@ def test_a_step_waits_for_every_state_then_for_the_decision():
 def test_states_of_another_step_are_refused_and_named():
     b = make()
     b.start()
-    reason, acts = b.on_state(2, 1, state(2, 1), 0.0)
+    reason, acts = on_state(b, 2, 1, state(2, 1), 0.0)
     assert acts == [] and reason == "state of 'c' for step 1 while the world is at step 0"
     assert not b.have[2]
 
@@ -127,7 +135,7 @@ def test_a_freeze_stops_the_agent_once_its_state_is_held_and_resumes_it():
     assert 2 in b.stop_pending
     acts = feed_states(b, 2, [0, 1])                  # the step completes without c
     assert kinds(acts) == ['clock', 'states', 'observe']
-    reason, acts = b.on_state(2, 2, state(2, 2), 0.7)  # c's state of its freeze step
+    reason, acts = on_state(b, 2, 2, state(2, 2), 0.7)  # c's state of its freeze step
     assert reason is None and acts == [('signal', 2, 'stop')]
     decide(b, 2)
     feed_states(b, 3, [0, 1])

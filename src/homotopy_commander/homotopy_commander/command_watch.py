@@ -106,11 +106,6 @@ class CommandWatch:
         self.cursor = (start + self.turn) % n
         return list(out)
 
-    def tick(self, now: float, nodes, reading=(), found=()) -> list:
-        """`nodes_seen` then `pick`: the keys to look at on this tick."""
-        self.nodes_seen(now, nodes)
-        return self.pick(now, reading, found)
-
     def period(self) -> int:
         """Ticks between two looks at a rotating key in its turn (at most)."""
         if len(self.rotating) <= self.per_tick:

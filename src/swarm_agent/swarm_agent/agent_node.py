@@ -160,21 +160,6 @@ class AgentNode(Node):
                     float(self.core.u_last))
         self.pub.publish(self.serialize_state(*self.own))
 
-    @property
-    def odom(self):
-        """The last published state as an Odometry message (for inspection, not the hot path)."""
-        o = Odometry()
-        o.header.frame_id, o.child_frame_id = 'world', self.agent_name
-        o.twist.twist.linear.x = 1.0
-        o.pose.covariance[P.SENDER_TAG_INDEX] = self.sender_tag
-        if self.own is not None:
-            sec, nsec, x, y, qz, qw, u = self.own
-            o.header.stamp.sec, o.header.stamp.nanosec = sec, nsec
-            o.pose.pose.position.x, o.pose.pose.position.y = x, y
-            o.pose.pose.orientation.z, o.pose.pose.orientation.w = qz, qw
-            o.twist.twist.angular.z = u
-        return o
-
     def applied(self, u):
         """Note the control u applied over the step held (`u_history`)."""
         self.u_history.append((self.step, u))
@@ -389,12 +374,6 @@ class RealtimeDriver:
 
     def radio_started(self):
         """Nothing to switch: `on_input` routes states through the radio from now on."""
-
-    @property
-    def radio_count(self):
-        """{sender name: [heard, delivered]} of the radio."""
-        r, node = self.stream, self.node
-        return {nm: [int(r.heard[j]), int(r.delivered[j])] for j, nm in enumerate(node.roster) if j != node.index}
 
     def on_input(self, msg):
         """A state on ``/swarm/states``."""

@@ -152,7 +152,6 @@ class CommModel:
                 for g in e['partition']:
                     self._index(g, f'events.{i}.partition')
         self._pending_events = [(event_step(float(e['at']), self.dt), e) for e in self.events]
-        self._applied_to = -1
 
     def set_partition(self, groups):
         """Groups of agent names that cannot hear each other ([] or None: no partition)."""
@@ -195,7 +194,6 @@ class CommModel:
         while self._pending_events and self._pending_events[0][0] <= step:
             s, e = self._pending_events.pop(0)
             self.apply(e, s)
-        self._applied_to = step
 
     def burst_at(self, step: int) -> float:
         b, start, end = self.burst

@@ -132,10 +132,6 @@ class FaultTimeline:
             self.alive
         return self._all_alive
 
-    @property
-    def any_fault(self) -> bool:
-        return bool(self.dead.any() or self.frozen.any())
-
     def lose(self, i: int):
         """Agent i is gone without a scheduled fault (the world gave up waiting for it)."""
         self.dead[i] = True

@@ -101,15 +101,6 @@ LAW_PARAMETERS = {p.name: (p.description, p.choices or ((p.bound.lo, p.bound.hi)
                   for p in LAW_TABLE}
 
 
-def all_pairs(receivers, n: int):
-    """Pairs (receiver position 0..K−1, sender row) for every sender j ≠ k, j ascending."""
-    receivers = np.asarray(receivers, dtype=np.intp)
-    k = np.repeat(np.arange(receivers.size, dtype=np.intp), n)
-    j = np.tile(np.arange(n, dtype=np.intp), receivers.size)
-    keep = j != receivers[k]
-    return k[keep], j[keep]
-
-
 def nearest_leader(pos, receivers, leader_rows):
     """l(k): the table row of the leader nearest (Euclidean) to each receiver; −1 if none.
 
@@ -169,15 +160,6 @@ def sparse_coupling(n: int, law: LawConfig, lambda_: float) -> bool:
     whole table.  The batch engine and the agent node both decide with this function, so
     they add the same terms in the same order."""
     return n > DENSE_LIMIT and not law.couples_globally(lambda_)
-
-
-def own_neighbour_pairs(pos, row: int, radius: float):
-    """Pairs (0, j) of one receiver with every other row within ``radius``, j ascending: what
-    `engine.neighbour_pairs` gives for that receiver (up to pairs of weight 0)."""
-    d = pos - pos[row]
-    j = np.flatnonzero((d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) <= radius * radius)
-    j = j[j != row]
-    return np.zeros(j.size, dtype=np.intp), j
 
 
 #: row block of the dense path: about this many pair entries per block (the block's scratch

@@ -1,4 +1,4 @@
-"""Swarm metrics (docs/model.md, 'Metrics'), no ROS: per snapshot and as time series."""
+"""Swarm metrics (docs/model.md, 'Metrics'), no ROS: per state table and as time series."""
 from __future__ import annotations
 
 import numpy as np
@@ -74,24 +74,6 @@ def leader_membership(labels, leader_idx):
     for i in leader_idx:
         out[int(labels[i])].append(int(i))
     return out
-
-
-def snapshot(pos, theta, w, *, target=None, barrier: Barrier | None = None, leaders=()):
-    """All metrics of one instant as a dict of plain numbers and lists."""
-    count, labels = cluster_labels(pos, w)
-    centroid = np.asarray(pos).mean(axis=0)
-    m = dict(clusters=count, polarisation=polarisation(theta), min_distance=min_distance(pos),
-             centroid=[float(centroid[0]), float(centroid[1])])
-    if target is not None:
-        d = np.hypot(*(np.asarray(pos) - np.asarray(target)).T)
-        m['centroid_target_distance'] = float(np.hypot(*(centroid - np.asarray(target))))
-        m['min_target_distance'] = float(d.min())
-    if barrier is not None:
-        m['intrusions'] = int(barrier.inside(pos).sum())
-    if len(leaders):
-        member = leader_membership(labels, leaders)
-        m['leaders_per_cluster'] = sorted(len(v) for v in member.values())
-    return m
 
 
 def time_series(t, r, theta, leader, w, *, target=None, barrier_points=None, every: int = 1):

@@ -196,8 +196,6 @@ class RejectLog:
 
     def __call__(self, kind, text):
         self.count += 1
-        if isinstance(kind, tuple):          # older callers: the first item is the kind
-            kind = kind[0]
         kind = str(kind)
         if kind not in self.kinds and len(self.kinds) >= self.max_kinds:
             kind = 'other'

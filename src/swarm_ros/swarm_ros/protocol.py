@@ -12,7 +12,7 @@ Fixed, user-facing topics (docs/ros-graph.md)
     QoS: reliable, transient-local, depth `STATES_DEPTH` (a late joiner gets each agent's
     newest states; a reader one step behind loses none).  pose.covariance[35] is the agent's
     sender tag (`SENDER_TAG_INDEX`; all other covariances 0).  Agents publish it pre-serialised
-    (`OdometryWriter`) and the world reads it raw (`cdr_to_odometry`): the same bytes as
+    (`OdometryWriter`) and the world reads it raw (`cdr_to_odometry_tagged`): the same bytes as
     rclpy's serializer, without building message objects each step.
 ``/swarm/lambda``  std_msgs/Float64, commander (or a user): λ ∈ [0, 1].
 ``/<agent>/steering``  std_msgs/Float64, commander (or a user): leader steering value s_k.
@@ -285,15 +285,10 @@ def cdr_to_odometry_full(raw: bytes):
     return frame, name, sec, nsec, (x, y, qx, qy, qz, qw), vx, wz, tag
 
 
-def cdr_to_odometry(raw: bytes):
-    """(child_frame_id, sec, nanosec, (x, y, qx, qy, qz, qw), angular.z) of a serialized
-    ``nav_msgs/Odometry`` (either byte order, any frame_id)."""
-    name, sec, nsec, pose, wz, _ = cdr_to_odometry_tagged(raw)
-    return name, sec, nsec, pose, wz
-
-
 def cdr_to_odometry_tagged(raw: bytes):
-    """`cdr_to_odometry` and the sender tag (pose.covariance[`SENDER_TAG_INDEX`])."""
+    """(child_frame_id, sec, nanosec, (x, y, qx, qy, qz, qw), angular.z, sender tag
+    (pose.covariance[`SENDER_TAG_INDEX`])) of a serialized ``nav_msgs/Odometry`` (either
+    byte order, any frame_id)."""
     _, name, sec, nsec, pose, _, wz, tag = cdr_to_odometry_full(raw)
     return name, sec, nsec, pose, wz, tag
 

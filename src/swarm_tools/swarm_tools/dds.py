@@ -33,8 +33,6 @@ import sys
 import sysconfig
 from pathlib import Path
 
-LOCALHOST_LIMIT = 32
-
 PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
 <dds>
  <profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
@@ -270,7 +268,7 @@ def environment(n_processes: int, workdir: Path, base=None, choice: str = 'auto'
 
     choice: 'auto' (the UDP loopback profile, unless the environment already names a profile
     file), 'udp' (the profile in any case), or 'localhost' (rmw_fastrtps' localhost discovery
-    range with Fast DDS's default transports, shared memory + UDP; at most `LOCALHOST_LIMIT`
+    range with Fast DDS's default transports, shared memory + UDP; at most 32
     processes find each other).
 
     Shared memory is off unless asked for: a SIGKILLed peer (fault injection, a crashed agent)

@@ -3,9 +3,9 @@ and what the world sends then.
 
 One step n (the cycle in docs/ros-graph.md):
 
-1. `on_state` (`on_states`: several at once) takes each agent's state of t_n; once every agent in the table has sent one
-   (`complete`), the barrier records the step and asks the node to send ``/clock`` and the
-   packed states to the commander;
+1. `on_states` takes the agents' states of t_n (one agent process's at once); once every
+   agent in the table has sent one (`complete`), the barrier records the step and asks the
+   node to send ``/clock`` and the packed states to the commander;
 2. `on_decision` takes the commander's decision for step n; the barrier records λ and the
    leaders and asks the node to relay ONE ``/lockstep/step`` message to every agent;
 3. `begin_step` applies the faults of step n + 1 (scheduled and live) before its states are
@@ -78,20 +78,13 @@ class LockstepBarrier:
         self.leaders = np.zeros(self.n, bool)
 
     # ------------------------------------------------------------------ inputs
-    def on_state(self, i, k, vals, u):
-        """Agent i's state (x, y, qz, qw) stamped at step k, carrying u_{k-1}.
-
-        Returns (reason, actions): reason None if the state was taken, else why not (the
-        state was for another step).  A dead or frozen agent's state is kept only if it is
-        the state of its freeze step."""
-        why, acts = self._take(i, k, vals, u)
-        return why, (acts if why is not None or not self.faults.alive[i] else acts + self.advance())
-
     def on_states(self, rows, ks, vals, us):
-        """`on_state` for the agents ``rows`` of one agent process at once (its
-        ``/lockstep/agent_states``: steps ``ks``, values (4, K) and u (K,)), with ONE check of
-        the step's completion.  States of a step the world already holds (a repeat) are
-        ignored; returns (reasons for the states of later steps, actions)."""
+        """The states of the agents ``rows`` of one agent process (its
+        ``/lockstep/agent_states``: steps ``ks``, values (x, y, qz, qw) as (4, K), and u (K,):
+        a state stamped at step k carries u_{k-1}), with ONE check of the step's completion.
+        States of a step the world already holds (a repeat) are ignored; a dead or frozen
+        agent's state is kept only if it is the state of its freeze step.  Returns (reasons
+        for the states of later steps, actions)."""
         rows = np.asarray(rows, np.intp)
         ks = np.asarray(ks, np.int64)
         alive = self.faults.alive[rows]
@@ -116,7 +109,8 @@ class LockstepBarrier:
         return why, acts + (self.advance() if r.size else [])
 
     def _take(self, i, k, vals, u):
-        """`on_state` without the completion check."""
+        """One agent's state, without the completion check: (reason it was not taken or None,
+        actions)."""
         if not self.faults.alive[i]:
             acts = []
             if self.faults.frozen[i] and k == self.faults.frozen_at[i]:
