@@ -131,3 +131,44 @@ def test_report_leaves_out_bad_states(traj, tmp_path, swarm_cmd):
     err = r.stderr
     assert 'non-finite or absurd values' in err and 'stamps outside' in err and "'ghost'" in err, err
     assert len(err.strip().splitlines()) <= 4, err       # one line per kind
+
+
+def _chunks(path):
+    from mcap.reader import make_reader
+    with open(path, 'rb') as fh:
+        return sorted((c.chunk_start_offset, c.chunk_length) for c in make_reader(fh).get_summary().chunk_indexes)
+
+
+@pytest.mark.parametrize('where', ['data', 'length'])
+def test_a_damaged_chunk_costs_only_that_chunk(traj, tmp_path, swarm_cmd, where):
+    """One flipped byte mid-bag made `report` and `bag recover` drop every later chunk.
+    ``data``: a byte inside a chunk's compressed records (its CRC fails); ``length``: the
+    chunk's record length (the framing: the read goes on at the next indexed chunk)."""
+    from swarm_tools.bag import iter_messages
+    from swarm_tools.bag_recover import recover
+    from swarm_tools.report import read_run
+    bag = tmp_path / 'bag.mcap'
+    write_bag(traj, bag, flush_every=7).close()
+    total = len(list(iter_messages(bag)))
+    chunks = _chunks(bag)
+    assert len(chunks) >= 8
+    start, length = chunks[len(chunks) // 2]
+    raw = bytearray(bag.read_bytes())
+    raw[start + (length - 40 if where == 'data' else 8)] ^= 0xFF
+    bad = tmp_path / 'bad.mcap'
+    bad.write_bytes(bytes(raw))
+    stats = {}
+    kept = len(list(iter_messages(bad, stats=stats)))
+    per_chunk = 7 * len(traj.names)
+    assert total - per_chunk <= kept < total, (kept, total)
+    assert stats['damaged'] == 1 and not stats['truncated'], stats
+    res = recover(bad, tmp_path / 'fixed.mcap')
+    assert res['messages'] == kept and res['damaged'] == 1, res
+    warned = []
+    run = read_run(bad, warn=warned.append)
+    assert sorted(run['per_agent']) == sorted(traj.names)
+    assert sum(len(v) for v in run['per_agent'].values()) == kept
+    assert any('damaged' in w for w in warned), warned
+    r = subprocess.run([swarm_cmd, 'bag', 'recover', bad, tmp_path / 'cli.mcap'],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and f'{kept} messages' in r.stdout and '1 damaged chunk' in r.stdout, r

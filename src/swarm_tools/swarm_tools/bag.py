@@ -29,11 +29,14 @@ import os
 import struct
 import time
 from dataclasses import dataclass, field
+from io import BytesIO
 from pathlib import Path
 
 import yaml
 from mcap.exceptions import McapError
-from mcap.records import Channel, Chunk, Message, Schema
+from mcap.opcode import Opcode
+from mcap.reader import make_reader
+from mcap.records import Channel, Chunk, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 from swarm_ros.protocol import cdr_byte_order, cdr_string, cdr_to_odometry_full
@@ -43,6 +46,7 @@ from .msgdefs import has_leading_stamp, message_definition
 PROFILE = 'ros2'
 SCHEMA_ENCODING = 'ros2msg'
 MESSAGE_ENCODING = 'cdr'
+MCAP_MAGIC = b'\x89MCAP0\r\n'
 LIBRARY = 'homotopy-swarm swarm_tools (rosbag2_storage_mcap layout)'
 
 
@@ -291,34 +295,85 @@ class BagMessage:
     schema: Schema | None
 
 
+def _chunk_offsets(f) -> list[int]:
+    """Where the chunks start, from the file's summary (chunk indexes); [] without one (a file
+    cut short has no summary) or if it does not read."""
+    try:
+        f.seek(0)
+        summary = make_reader(f).get_summary()
+    except Exception:           # a damaged or missing footer/summary: no offsets to resync by
+        return []
+    return sorted(ci.chunk_start_offset for ci in summary.chunk_indexes) if summary else []
+
+
+_OPCODES = {int(op) for op in Opcode}
+
+
+def _read_record(head: bytes, body: bytes):
+    """One record parsed by mcap from its framing (opcode, length) and body; None for a kind
+    of record MCAP does not define (readers skip those)."""
+    if head[0] not in _OPCODES:
+        return None
+    return next(StreamReader(BytesIO(head + body), skip_magic=True, emit_chunks=True).records)
+
+
 def iter_records_tolerant(path, stats: dict | None = None):
-    """Every record of an MCAP file read front to back, chunks decompressed; a file cut short
-    (writer killed) ends quietly at the last complete record.  ``stats['truncated']`` tells."""
-    if stats is not None:
-        stats['truncated'] = False
+    """Every record of an MCAP file read front to back, chunks decompressed and CRC-checked.
+
+    Each record is framed by its opcode and length and parsed on its own, so a damaged chunk
+    (bad CRC, bad compression, bad fields) costs only that chunk: ``stats['damaged']`` counts
+    them.  If the framing itself is damaged (a length past the end of the file, a record that
+    does not parse), the read goes on at the next chunk the file's summary indexes; without
+    a summary (a file cut short: a writer killed) it ends quietly there, as at a cut:
+    ``stats['truncated']`` tells, ``stats['error']`` says why."""
+    stats = {} if stats is None else stats
+    stats.update(truncated=False, damaged=0)
     with open(path, 'rb') as f:
-        reader = StreamReader(f, skip_magic=False, emit_chunks=True)
-        it = reader.records
+        size = os.fstat(f.fileno()).st_size
+        if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            stats.update(truncated=True, error='not an MCAP file (no magic)')
+            return
+        offsets = None
         while True:
-            try:
-                rec = next(it)
-            except StopIteration:
+            pos = f.tell()
+            head = f.read(9)
+            if not head:
+                stats.update(truncated=True, error='no footer')
                 return
-            except (McapError, EOFError, struct.error, ValueError) as err:
-                if stats is not None:
-                    stats['truncated'] = True
-                    stats['error'] = f'{type(err).__name__}: {err}'
+            err = None
+            if len(head) < 9:
+                err = 'a record cut short'
+            else:
+                length = struct.unpack_from('<Q', head, 1)[0]
+                if length > size - pos - 9:
+                    err = f'a record of {length} bytes at byte {pos}, past the end of the file'
+            if err is None:
+                body = f.read(length)
+                try:
+                    rec = _read_record(head, body)
+                except (McapError, EOFError, struct.error, ValueError, UnicodeDecodeError) as exc:
+                    err = f'a damaged record at byte {pos} ({type(exc).__name__}: {exc})'
+            if err is not None:
+                offsets = _chunk_offsets(f) if offsets is None else offsets
+                later = [o for o in offsets if o > pos]
+                if not later:
+                    stats.update(truncated=True, error=err)
+                    return
+                stats['damaged'] += 1
+                stats.setdefault('damage', err)
+                f.seek(later[0])
+                continue
+            if isinstance(rec, Footer):
                 return
             if isinstance(rec, Chunk):
                 try:
                     inner = breakup_chunk(rec, validate_crc=True)
-                except Exception as err:   # a damaged chunk: stop, as for a cut file
-                    if stats is not None:
-                        stats['truncated'] = True
-                        stats['error'] = f'bad chunk: {err}'
-                    return
+                except Exception as exc:   # bad CRC, compression or fields: this chunk only
+                    stats['damaged'] += 1
+                    stats.setdefault('damage', f'a damaged chunk at byte {pos} ({exc})')
+                    continue
                 yield from inner
-            else:
+            elif rec is not None:
                 yield rec
 
 

@@ -195,6 +195,8 @@ def read_run(path, *, cutoff_radius=None, agents=None, warn=None) -> dict:
     say = warn or (lambda line: print(f'swarm report: {line}', file=sys.stderr))
     if undecodable:
         say(f'left out {undecodable} messages that could not be decoded')
+    if stats.get('damaged'):
+        say(f'skipped {stats["damaged"]} damaged chunks of the bag (first: {stats["damage"]})')
     if bad_geometry:
         say(f'ignored {len(bad_geometry)} unusable world messages: {bad_geometry[0]}')
     per_agent = check_states(per_agent, events, agents, warn)
