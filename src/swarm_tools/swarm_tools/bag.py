@@ -39,7 +39,7 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
-from swarm_ros.protocol import cdr_byte_order, cdr_string, cdr_to_odometry_full
+from swarm_ros.protocol import RUN, cdr_byte_order, cdr_string, cdr_to_odometry_full
 
 from .msgdefs import has_leading_stamp, message_definition
 
@@ -396,25 +396,67 @@ def iter_messages(path, topics=None, stats: dict | None = None):
                              rec.publish_time, ch, sc)
 
 
-def bag_topics(path) -> dict[str, dict]:
-    """{topic: {type, definition, qos (list of dicts), count}} of a bag (tolerant reader)."""
-    out: dict[str, dict] = {}
+def announced_roster(path, warn=None) -> list[str] | None:
+    """The agents of the run a bag recorded, from the world's ``/swarm/run`` announcement
+    (`swarm_ros.runinfo.run_json`); None if the bag has none.  The first announcement counts
+    (the recorder starts before the run); ``warn`` hears of any other run announced."""
+    from swarm_core.scenario import AGENT_NAME
+    from swarm_ros.runinfo import describe, parse_run
+    first, others = None, set()
+    for m in iter_messages(path, topics=[RUN]):
+        try:
+            run = parse_run(parse_string(m.data))
+        except (struct.error, IndexError, ValueError):
+            run = None
+        if run is None:
+            continue
+        if first is None:
+            first = run
+        elif run['run_id'] != first['run_id'] and len(others) < 10:
+            others.add(describe(run))
+    if first is None:
+        return None
+    if others and warn:
+        warn(f'the bag announces more than one run; the first, {describe(first)}, counts '
+             f'(also: {"; ".join(sorted(others))})')
+    return [a for a in first['agents'] if isinstance(a, str) and AGENT_NAME.fullmatch(a)]
+
+
+def bag_topics(path, expected=None) -> dict[str, dict]:
+    """{topic: {type, definition, qos (list of dicts), count, channels, other}} of a bag
+    (tolerant reader).  A topic's type is ``expected(topic)`` where that gives one (the
+    project's own topics), else its first channel's; ``channels``: the ids of its channels of
+    that type, ``count`` their messages, ``definition`` and ``qos`` the first one's; ``other``:
+    {type: messages} on its channels of other types (a stray or hostile publisher).  A topic
+    with no channel of its type has ``type`` None."""
     schemas: dict[int, Schema] = {}
     chans: dict[int, Channel] = {}
+    counts: dict[int, int] = {}
     for rec in iter_records_tolerant(path):
         if isinstance(rec, Schema):
-            schemas[rec.id] = rec
+            schemas.setdefault(rec.id, rec)
         elif isinstance(rec, Channel):
-            chans[rec.id] = rec
-            sc = schemas.get(rec.schema_id)
-            out.setdefault(rec.topic, {
-                'type': sc.name if sc else '', 'definition': sc.data.decode() if sc else '',
-                'qos': parse_qos_yaml(rec.metadata.get('offered_qos_profiles', '')),
-                'count': 0})
-        elif isinstance(rec, Message):
-            ch = chans.get(rec.channel_id)
-            if ch is not None:
-                out[ch.topic]['count'] += 1
+            chans.setdefault(rec.id, rec)
+        elif isinstance(rec, Message) and rec.channel_id in chans:
+            counts[rec.channel_id] = counts.get(rec.channel_id, 0) + 1
+    out: dict[str, dict] = {}
+    for cid, ch in chans.items():          # in the order the channels were written
+        sc = schemas.get(ch.schema_id)
+        kind = sc.name if sc else ''
+        info = out.setdefault(ch.topic, {
+            'type': (expected(ch.topic) if expected else None) or kind, 'definition': '', 'qos': [],
+            'count': 0, 'channels': set(), 'other': {}})
+        if kind != info['type']:
+            info['other'][kind] = info['other'].get(kind, 0) + counts.get(cid, 0)
+            continue
+        if not info['channels']:
+            info['definition'] = sc.data.decode(errors='replace') if sc else ''
+            info['qos'] = parse_qos_yaml(ch.metadata.get('offered_qos_profiles', ''))
+        info['channels'].add(cid)
+        info['count'] += counts.get(cid, 0)
+    for info in out.values():
+        if not info['channels']:
+            info['type'] = None
     return out
 
 

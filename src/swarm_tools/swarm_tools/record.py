@@ -92,20 +92,40 @@ class TopicFilter:
         return not any(p.fullmatch(topic) or p.pattern == topic for p in self.exclude)
 
 
+#: the message type of each of the project's fixed topics (docs/ros-graph.md)
+SWARM_TYPES = {
+    '/swarm/states': 'nav_msgs/msg/Odometry', '/swarm/lambda': 'std_msgs/msg/Float64',
+    '/swarm/leaders': 'std_msgs/msg/String', '/swarm/events': 'std_msgs/msg/String',
+    '/swarm/fault_request': 'std_msgs/msg/String', '/swarm/run': 'std_msgs/msg/String',
+    '/commander/lambda_setpoint': 'std_msgs/msg/Float64MultiArray',
+    '/clock': 'rosgraph_msgs/msg/Clock', '/world/target': 'geometry_msgs/msg/PointStamped',
+    '/world/barrier': 'geometry_msgs/msg/PolygonStamped',
+    '/world/markers': 'visualization_msgs/msg/MarkerArray',
+    '/world/metrics': 'diagnostic_msgs/msg/DiagnosticArray',
+    '/lockstep/states': 'std_msgs/msg/Float64MultiArray',
+    '/lockstep/decision': 'std_msgs/msg/Float64MultiArray',
+    '/lockstep/step': 'std_msgs/msg/Float64MultiArray',
+    '/lockstep/agent_states': 'std_msgs/msg/Float64MultiArray',
+}
+
+
+def swarm_type(topic: str) -> str | None:
+    """The type of one of the project's topics (an agent's ``/NAME/steering`` included), or None
+    for a topic that is not the project's."""
+    if re.fullmatch(r'/[^/]+/steering', topic):
+        return 'std_msgs/msg/Float64'
+    return SWARM_TYPES.get(topic)
+
+
 #: the project's fixed topics whose first messages matter (docs/ros-graph.md), with the durability
 #: their publishers offer (rmw enum: 1 transient-local, 2 volatile): subscribed at start-up,
 #: before any publisher exists, with the QoS the publishers will offer, so that step 0 of a
 #: run is not missed while the graph is polled and no subscription has to be made again (a
 #: re-made subscription can lose what the old one had not yet taken).  If the publishers turn
 #: out to offer other QoS or another type, the subscription is re-made.
-SWARM_TOPICS = {
-    '/swarm/states': ('nav_msgs/msg/Odometry', 1),
-    '/swarm/events': ('std_msgs/msg/String', 1),
-    '/swarm/lambda': ('std_msgs/msg/Float64', 1),
-    '/clock': ('rosgraph_msgs/msg/Clock', 2),
-    '/world/markers': ('visualization_msgs/msg/MarkerArray', 2),
-    '/world/metrics': ('diagnostic_msgs/msg/DiagnosticArray', 2),
-}
+SWARM_TOPICS = {topic: (SWARM_TYPES[topic], durability) for topic, durability in (
+    ('/swarm/states', 1), ('/swarm/events', 1), ('/swarm/lambda', 1), ('/clock', 2),
+    ('/world/markers', 2), ('/world/metrics', 2))}
 
 
 def command_topic(topic: str) -> bool:

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from swarm_core import analysis
 
-from .bag import iter_messages, parse_float64, parse_odometry, parse_string, resolve_bag
+from .bag import announced_roster, iter_messages, parse_float64, parse_odometry, parse_string, resolve_bag
 
 STATES = '/swarm/states'
 LAMBDA = '/swarm/lambda'
@@ -115,7 +115,8 @@ def check_states(per_agent: dict, events=(), agents=None, warn=None) -> dict:
         warn(f'left out {bad_stamps} states with stamps outside 0..{MAX_STAMP_S:g} s')
     named = {ev.get('agent') for ev in events}
     if agents is not None:
-        unknown = sorted(n for n in out if n not in set(agents))
+        roster = set(agents)
+        unknown = sorted(n for n in out if n not in roster)
         why = 'not in the run\'s roster'
     else:
         med = float(np.median([len(v) for v in out.values()])) if out else 0.0
@@ -374,6 +375,10 @@ def animate(traj, path, *, w, target=None, barrier=None, frames=100, fps=12):
     return path
 
 
+def _warn(line):
+    print(f'swarm report: {line}', file=sys.stderr)
+
+
 def parse_args(argv):
     p = argparse.ArgumentParser(
         prog='swarm report',
@@ -410,7 +415,7 @@ def main(argv=None) -> int:
         return 2
     out = Path(a.out) if a.out else given.with_name(given.stem + '_report')
     try:
-        run = read_run(bag, cutoff_radius=a.cutoff_radius)
+        run = read_run(bag, cutoff_radius=a.cutoff_radius, agents=announced_roster(bag, _warn))
         traj = rebuild_trajectory(run)
     except ValueError as err:
         print(f'swarm report: {bag}: {err}', file=sys.stderr)
