@@ -39,6 +39,7 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
+from swarm_core.atomic import open_regular, write_atomic
 from swarm_ros.protocol import RUN, cdr_byte_order, cdr_string, cdr_to_odometry_full
 
 from .msgdefs import has_leading_stamp, message_definition
@@ -148,11 +149,12 @@ class BagWriter:
         self.path = Path(path)
         self.metadata_yaml = Path(metadata_yaml) if metadata_yaml is not None else None
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fh = open(self.path, 'wb')
+        self._fh = open_regular(self.path, 'wb')
         comp = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
                 'none': CompressionType.NONE}[compression]
         self._w = Writer(self._fh, chunk_size=chunk_size, compression=comp)
         self._w.start(profile=PROFILE, library=LIBRARY)
+        self._fh.flush()            # a full disk shows here, before anything is recorded
         self._schemas: dict[str, int] = {}
         self._defs: dict[str, str] = {}
         self.topics: dict[str, TopicInfo] = {}
@@ -241,7 +243,16 @@ class BagWriter:
         os.fsync(self._fh.fileno())
         self._fh.close()
         if self.metadata_yaml is not None:
-            self.metadata_yaml.write_text(meta)
+            write_atomic(self.metadata_yaml, meta)
+
+    def abort(self):
+        """Close the file as it is, without the summary (the disk is full or gone): what was
+        written reads as a cut bag (`iter_records_tolerant`, `swarm bag recover`)."""
+        self.closed = True
+        try:
+            self._fh.close()
+        except OSError:
+            pass                 # the buffered tail could not be written either
 
     def __enter__(self):
         return self
@@ -251,6 +262,19 @@ class BagWriter:
 
 
 # --------------------------------------------------------------------------- layout
+def bag_complete(path) -> bool:
+    """Whether an MCAP file ends as a finished one does (its closing magic after the footer):
+    False for a bag whose recorder died or stopped at a full disk."""
+    try:
+        with open(path, 'rb') as f:
+            if os.fstat(f.fileno()).st_size < 2 * len(MCAP_MAGIC):
+                return False
+            f.seek(-len(MCAP_MAGIC), os.SEEK_END)
+            return f.read() == MCAP_MAGIC
+    except OSError:
+        return False
+
+
 def bag_paths(out) -> tuple[Path, Path | None]:
     """Where to write: ``X.mcap`` is one file (no metadata.yaml); any other path is a rosbag2
     bag directory, ``DIR/DIR_0.mcap`` + ``DIR/metadata.yaml`` (as ``ros2 bag record -o DIR``)."""

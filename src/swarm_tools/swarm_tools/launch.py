@@ -42,6 +42,7 @@ from swarm_core.analysis import check_output_dir, write_atomic, write_failed
 
 from . import dds
 from .node_params import load_scenario, node_parameters, write_params_file
+from .bag import bag_complete
 from .processes import read_events, run_processes
 
 STOP_GRACE = 4.0
@@ -261,10 +262,9 @@ def main(argv=None) -> int:
             print(f'swarm run: --record {a.record}: not writable', file=sys.stderr)
             return 2
     traj_file = out / 'trajectory.npz'
-    if traj_file.exists():
-        traj_file.unlink()
-    if (out / 'events.jsonl').exists():
-        (out / 'events.jsonl').unlink()
+    for old in (traj_file, out / 'events.jsonl'):      # a file or a link (never followed)
+        if old.is_symlink() or old.is_file():
+            old.unlink()
     params = node_parameters(scn, ref, a.mode, a.rtf, str(out), scn.duration,
                              extra_world=dict(progress_every=float(a.progress_every), clock_every=int(a.clock_every),
                                               missing_timeout=float(a.missing_timeout),
@@ -343,6 +343,10 @@ def main(argv=None) -> int:
         print(f'swarm run: stopped (code {code}) after {wall:.1f} s', file=sys.stderr, flush=True)
         if not a.in_process:
             salvage(scn, out, a.record, a.mode, wall, figure=not a.no_figure)
+    if code == 0 and a.record and not a.in_process and not bag_complete(a.record):
+        print(f'swarm run: the bag {a.record} is not complete: its recorder stopped early (see above)',
+              file=sys.stderr, flush=True)
+        code = 1
     try:
         write_atomic(out / 'run.json', json.dumps(dict(exit_code=code, wall_seconds=wall, mode=a.mode,
                                                        processes=not a.in_process, agents=len(scn.names),

@@ -15,9 +15,11 @@ import threading
 import time
 from pathlib import Path
 
+from swarm_core.atomic import write_atomic
 from swarm_ros import protocol as P
 
 from . import dds
+from .node_params import write_params_file
 
 STOP_GRACE = 4.0
 
@@ -196,6 +198,18 @@ def agent_commands(groups, ros, services=True) -> list:
     return out
 
 
+def without_recorder(params: dict) -> dict:
+    """``params`` for a run whose recorder is gone before the start: the world and the commander
+    do not wait for it, and each agent waits for one state reader fewer."""
+    out = {fqn: dict(p) for fqn, p in params.items()}
+    for fqn, p in out.items():
+        if 'wait_for_recorder' in p:
+            p['wait_for_recorder'] = False
+        if fqn.endswith('/agent') and p.get('state_subscribers', 0) > 0:
+            p['state_subscribers'] -= 1
+    return out
+
+
 def run_processes(params: dict, params_file: Path, names, env, record=None, out_dir=None,
                   pid_file=None, events_file=None, foxglove=None, server=None, groups=None,
                   services=True) -> int:
@@ -219,8 +233,13 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
                             dds.super_client(env),
                             stderr=subprocess.PIPE, text=True, bufsize=1)
             if not wait_until_ready(rec, 'swarm record: ready', RECORDER_READY_TIMEOUT):
-                print(f'swarm run: the recorder did not say it was ready within '
-                      f'{RECORDER_READY_TIMEOUT:g} s; starting the run anyway', file=sys.stderr, flush=True)
+                if rec.poll() is not None:          # e.g. a full disk: the nodes must not wait for it
+                    print(f'swarm run: the recorder exited with code {rec.returncode} before the start; '
+                          'the run goes on without a bag', file=sys.stderr, flush=True)
+                    write_params_file(without_recorder(params), params_file)
+                else:
+                    print(f'swarm run: the recorder did not say it was ready within '
+                          f'{RECORDER_READY_TIMEOUT:g} s; starting the run anyway', file=sys.stderr, flush=True)
         world = sup.start('world', [_exe('swarm_world')] + ros + ['-r', '__node:=world'], env)
         # a super client: it opens a command topic's reader once it sees a writer there (ros2 topic
         # pub, swarm lambda), and a plain CLIENT of a discovery server hears only of topics it reads
@@ -238,7 +257,7 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
             tmp.write_text(json.dumps({nm: sup.procs[label].pid for label, g in members.items() for nm in g}))
             tmp.replace(pid_file)
             if out_dir is not None:
-                shutil.copyfile(pid_file, Path(out_dir) / 'pids.json')
+                write_atomic(Path(out_dir) / 'pids.json', Path(pid_file).read_text())
         agents = set(members)
         gone = set()
         while True:

@@ -172,6 +172,7 @@ class Recorder:
         self.sub_type: dict[str, str] = {}
         self.skipped: set[str] = set()
         self.states: dict[str, set] = {}
+        self.write_error: OSError | None = None      # the disk is full or gone: the recording ends
         for topic, (type_name, durability) in (presubscribe or {}).items():
             if wanted(topic):
                 self._subscribe(topic, type_name, request_qos([qos_dict(reliability=1, durability=durability)]))
@@ -268,6 +269,9 @@ class Recorder:
                 if topic not in writer.topics:
                     self._register(topic)
                 writer.write(topic, data, now, info.get('source_timestamp'))
+            except OSError as err:
+                self.failed[topic] += 1
+                self.write_error = self.write_error or err
             except Exception as err:   # keep recording the rest; counted as lost
                 self.failed[topic] += 1
                 if self.failed[topic] == 1:
@@ -372,23 +376,35 @@ def main(argv=None) -> int:
     t_end = time.monotonic() + args.duration if args.duration else None
     try:
         rec.poll()
-        while stop['why'] is None:
+        while stop['why'] is None and rec.write_error is None:
             executor.spin_once(timeout_sec=0.1)
             writer.maybe_flush()
             if t_end is not None and time.monotonic() >= t_end:
                 stop['why'] = 'duration'
         # take what is already delivered before closing
         drain_until = time.monotonic() + 0.3
-        while time.monotonic() < drain_until:
+        while time.monotonic() < drain_until and rec.write_error is None:
             executor.spin_once(timeout_sec=0.05)
+        if rec.write_error is None:
+            writer.close()
+    except OSError as err:
+        rec.write_error = rec.write_error or err
     finally:
         for sub in list(rec.subs.values()):
             node.destroy_subscription(sub)
+        if rec.write_error is not None:
+            writer.abort()
         writer.close()
         executor.shutdown()
         node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
+    if rec.write_error is not None:
+        err = rec.write_error
+        print(f'swarm record: cannot write {args.out}: {err.strerror or err}; the recording stopped '
+              '(the bag keeps what was written before; `swarm bag recover` makes it whole)',
+              file=sys.stderr, flush=True)
+        return 1
     rows = rec.summary()
     lost = sum(r - w for _, r, w in rows)
     if not args.quiet:

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 from swarm_core import analysis
+from swarm_core.atomic import atomic_path
 
 from .bag import announced_roster, iter_messages, parse_float64, parse_odometry, parse_string, resolve_bag
 
@@ -370,13 +371,32 @@ def animate(traj, path, *, w, target=None, barrier=None, frames=100, fps=12):
         return [dots, stars, label, *trails]
 
     anim = FuncAnimation(fig, draw, frames=idx, blit=False)
-    anim.save(str(path), writer=PillowWriter(fps=fps))
+    with atomic_path(path) as tmp:
+        anim.save(str(tmp), writer=PillowWriter(fps=fps))
     plt.close(fig)
     return path
 
 
 def _warn(line):
     print(f'swarm report: {line}', file=sys.stderr)
+
+
+def write_report(out, traj, series, summary, run, a, w) -> list:
+    """trajectory.npz, metrics.json, the figure and (``--animate``) the GIF into ``out``
+    (each written whole, never through a link: `swarm_core.atomic`); the names written."""
+    traj.save(out / 'trajectory.npz')
+    analysis.write_atomic(out / 'metrics.json', analysis.dumps(dict(summary=summary, series=series)))
+    wrote = ['trajectory.npz', 'metrics.json']
+    if not a.no_figure and len(traj.t) > 1:
+        plot(traj, series, out / 'report.png', w=w, target=run['target'], barrier=run['barrier'],
+             title=f'{Path(summary["bag"]).name}: {len(traj.names)} agents, t = {traj.t[0]:g}..{traj.t[-1]:g}')
+        wrote.append('report.png')
+    if a.animate:
+        if animate(traj, out / 'swarm.gif', w=w, target=run['target'], barrier=run['barrier']):
+            wrote.append('swarm.gif')
+        else:
+            _warn('pillow is not installed: no animation')
+    return wrote
 
 
 def parse_args(argv):
@@ -414,6 +434,10 @@ def main(argv=None) -> int:
         print(f'swarm report: {bag}: no such file', file=sys.stderr)
         return 2
     out = Path(a.out) if a.out else given.with_name(given.stem + '_report')
+    err = analysis.check_output_dir(out)          # before the work, not after
+    if err:
+        _warn(err)
+        return 2
     try:
         run = read_run(bag, cutoff_radius=a.cutoff_radius, agents=announced_roster(bag, _warn))
         traj = rebuild_trajectory(run)
@@ -430,20 +454,11 @@ def main(argv=None) -> int:
                                  every_time=a.every)
     summary = report_summary(traj, series, w)
     summary['bag'] = str(bag)
-    out.mkdir(parents=True, exist_ok=True)
-    traj.save(out / 'trajectory.npz')
-    doc = dict(summary=summary, series=series)
-    (out / 'metrics.json').write_text(analysis.dumps(doc))
-    wrote = ['trajectory.npz', 'metrics.json']
-    if not a.no_figure and len(traj.t) > 1:
-        plot(traj, series, out / 'report.png', w=w, target=run['target'], barrier=run['barrier'],
-             title=f'{bag.name}: {len(traj.names)} agents, t = {traj.t[0]:g}..{traj.t[-1]:g}')
-        wrote.append('report.png')
-    if a.animate:
-        if animate(traj, out / 'swarm.gif', w=w, target=run['target'], barrier=run['barrier']):
-            wrote.append('swarm.gif')
-        else:
-            print('swarm report: pillow is not installed: no animation', file=sys.stderr)
+    try:
+        wrote = write_report(out, traj, series, summary, run, a, w)
+    except OSError as err:
+        print(analysis.write_failed('swarm report', out, err), file=sys.stderr)
+        return 1
     changes = ', '.join(f't={t:g}: {c}' for t, c in summary['cluster_changes'][:12])
     print(f'{bag.name}: {summary["agents"]} agents, {summary["steps"]} steps '
           f'({summary["alignment"]}), t = {summary["t_start"]:g}..{summary["t_end"]:g}, '

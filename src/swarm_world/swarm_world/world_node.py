@@ -29,6 +29,7 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from visualization_msgs.msg import MarkerArray
 
 from swarm_core import metrics as M
+from swarm_core.atomic import open_regular
 from swarm_core.scenario import ScenarioError, load
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
@@ -91,7 +92,7 @@ class WorldNode(RealtimeWorld, Node):
             self.events_file = str(Path(self.output_dir) / 'events.jsonl')
         if self.events_file:
             Path(self.events_file).parent.mkdir(parents=True, exist_ok=True)
-            Path(self.events_file).write_text('')
+            open_regular(self.events_file, 'w').close()      # never through a planted link
         self.add_on_set_parameters_callback(self._on_params)
         self.reject = RejectLog(self.get_logger())
         self.senders = Senders()            # each agent name bound to its first publisher
@@ -279,7 +280,7 @@ class WorldNode(RealtimeWorld, Node):
 
     def write_event(self, ev):
         if self.events_file:
-            with open(self.events_file, 'a') as f:
+            with open_regular(self.events_file, 'a') as f:
                 f.write(json.dumps(ev) + '\n')
 
     def _on_event(self, msg):
