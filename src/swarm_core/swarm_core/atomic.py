@@ -41,14 +41,14 @@ def check_replaceable(path):
 
 
 @contextmanager
-def atomic_path(path):
+def atomic_path(path, suffix: str = '.tmp'):
     """A new temporary file's name in ``path``'s directory (created empty, never an existing
-    file or link), for a writer that needs a name; synced and renamed over ``path`` when the
-    block ends, removed if it raises.  ``path`` must be absent or a regular file."""
+    file or link; ending in ``suffix``, for writers that pick the format by it), for a writer
+    that needs a name; synced and renamed over ``path`` when the block ends, removed if it
+    raises.  ``path`` must be absent or a regular file."""
     path = Path(path)
     check_replaceable(path)
-    # the name ends as ``path`` does: writers that pick the format by the suffix (PIL) get it
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.stem}.', suffix=f'.tmp{path.suffix}')
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f'.{path.name}.', suffix=suffix)
     try:
         os.fchmod(fd, 0o666 & ~_UMASK)
         os.close(fd)

@@ -51,6 +51,8 @@ class Supervisor:
         self.pgid = None
 
     def start(self, label, args, env, **kw):
+        if self.pgid is not None and not self.alive():
+            self.pgid = None        # every member has ended (a recorder that failed): so has the group
         kw['process_group'] = 0 if self.pgid is None else self.pgid
         kw['preexec_fn'] = die_with_parent(os.getpid())
         p = subprocess.Popen(args, env=env, **kw)
@@ -128,18 +130,19 @@ def wait_until_ready(proc, marker: str, timeout: float) -> bool:
     """Forward ``proc``'s stderr lines to ours (on a thread, for its whole life) and wait until
     one contains ``marker`` (the recorder has subscribed to the swarm's topics, so nothing
     published from step 0 on is missed); False on timeout or if ``proc`` ends first."""
-    seen = threading.Event()
+    seen, found = threading.Event(), threading.Event()
 
     def pump():
         for line in proc.stderr:
             sys.stderr.write(line)
             sys.stderr.flush()
             if marker in line:
+                found.set()
                 seen.set()
         seen.set()
 
     threading.Thread(target=pump, daemon=True).start()
-    return seen.wait(timeout) and proc.poll() is None
+    return seen.wait(timeout) and found.is_set() and proc.poll() is None
 
 
 #: the package of each executable the launcher starts (``ros2 run PKG EXE``)
@@ -218,6 +221,7 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
     ``groups``: the agents of each agent process (default: one process per agent)."""
     ros = ['--ros-args', '--params-file', str(params_file)]
     code = 1
+    gone = set()
     with supervised('swarm run', first=('record',)) as (sup, stopped):
         if server is not None:
             try:
@@ -233,10 +237,13 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
                             dds.super_client(env),
                             stderr=subprocess.PIPE, text=True, bufsize=1)
             if not wait_until_ready(rec, 'swarm record: ready', RECORDER_READY_TIMEOUT):
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    rec.wait(timeout=2)             # (its stderr ends just before it does)
                 if rec.poll() is not None:          # e.g. a full disk: the nodes must not wait for it
                     print(f'swarm run: the recorder exited with code {rec.returncode} before the start; '
                           'the run goes on without a bag', file=sys.stderr, flush=True)
                     write_params_file(without_recorder(params), params_file)
+                    gone.add('record')
                 else:
                     print(f'swarm run: the recorder did not say it was ready within '
                           f'{RECORDER_READY_TIMEOUT:g} s; starting the run anyway', file=sys.stderr, flush=True)
@@ -259,7 +266,6 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
             if out_dir is not None:
                 write_atomic(Path(out_dir) / 'pids.json', Path(pid_file).read_text())
         agents = set(members)
-        gone = set()
         while True:
             if stopped():
                 code = 130

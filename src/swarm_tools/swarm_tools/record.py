@@ -362,7 +362,7 @@ def main(argv=None) -> int:
         writer = BagWriter(mcap_path, chunk_size=args.chunk_size, flush_interval=args.flush_interval,
                            metadata_yaml=metadata_yaml)
     except OSError as err:
-        print(f'swarm record: cannot write {args.out}: {err.strerror or err} ({err.filename})', file=sys.stderr)
+        print(f'swarm record: cannot write {args.out}: {err.strerror or err}', file=sys.stderr)
         return 2
     rclpy.init(args=None, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('swarm_recorder', enable_rosout=False,

@@ -371,7 +371,7 @@ def animate(traj, path, *, w, target=None, barrier=None, frames=100, fps=12):
         return [dots, stars, label, *trails]
 
     anim = FuncAnimation(fig, draw, frames=idx, blit=False)
-    with atomic_path(path) as tmp:
+    with atomic_path(path, suffix='.tmp.gif') as tmp:       # (PIL picks the format by it)
         anim.save(str(tmp), writer=PillowWriter(fps=fps))
     plt.close(fig)
     return path
