@@ -9,8 +9,6 @@ import sys
 
 import pytest
 
-from swarm_core.atomic import atomic_open, open_regular
-
 SCN = """
 name: tiny
 dt: 0.1
@@ -35,6 +33,7 @@ def _planted(tmp_path):
 
 
 def test_writers_refuse_links_devices_fifos_and_directories(tmp_path):
+    from swarm_core.atomic import atomic_open, open_regular
     victim, d = _planted(tmp_path)
     for name in ('link', 'fifo', 'dir', 'dev'):
         with pytest.raises(OSError, match='not a regular file'):

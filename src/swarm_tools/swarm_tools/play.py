@@ -61,6 +61,25 @@ def foreign_lines(topics: dict) -> list[str]:
     return out
 
 
+def _topics_to_play(a) -> dict | None:
+    """`bag.bag_topics` of the bag, those of ``--topics``, with a type to play; None (said
+    in one line) if there are none."""
+    try:
+        a.bag = str(resolve_bag(a.bag))
+        topics = bag_topics(a.bag, swarm_type)
+    except OSError as err:
+        print(f'swarm play: {err}', file=sys.stderr)
+        return None
+    if a.topics:
+        topics = {t: v for t, v in topics.items() if t in set(a.topics)}
+    for line in foreign_lines(topics):
+        print(f'swarm play: {line}', file=sys.stderr)
+    topics = {t: v for t, v in topics.items() if v['type'] is not None}
+    if not topics:
+        print(f'swarm play: {a.bag}: no topics to play', file=sys.stderr)
+    return topics or None
+
+
 def make_qos(spec: dict):
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     return QoSProfile(
@@ -76,19 +95,8 @@ def main(argv=None) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    try:
-        a.bag = str(resolve_bag(a.bag))
-        topics = bag_topics(a.bag, swarm_type)
-    except OSError as err:
-        print(f'swarm play: {err}', file=sys.stderr)
-        return 2
-    if a.topics:
-        topics = {t: v for t, v in topics.items() if t in set(a.topics)}
-    for line in foreign_lines(topics):
-        print(f'swarm play: {line}', file=sys.stderr)
-    topics = {t: v for t, v in topics.items() if v['type'] is not None}
+    topics = _topics_to_play(a)
     if not topics:
-        print(f'swarm play: {a.bag}: no topics to play', file=sys.stderr)
         return 2
 
     stop = {'why': None}

@@ -213,6 +213,26 @@ def without_recorder(params: dict) -> dict:
     return out
 
 
+def start_recorder(sup, record, env, params: dict, params_file) -> bool:
+    """Start the recorder of ``--record`` and wait until it is ready; False if it ended first
+    (e.g. a full disk): the parameters file is then written again so that no node waits for it."""
+    # /lockstep/agent_states holds the /swarm/states again, batched per process: not kept
+    rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record), '--exclude', P.LOCK_AGENT_STATES],
+                    dds.super_client(env), stderr=subprocess.PIPE, text=True, bufsize=1)
+    if wait_until_ready(rec, 'swarm record: ready', RECORDER_READY_TIMEOUT):
+        return True
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        rec.wait(timeout=2)             # (its stderr ends just before it does)
+    if rec.poll() is None:
+        print(f'swarm run: the recorder did not say it was ready within '
+              f'{RECORDER_READY_TIMEOUT:g} s; starting the run anyway', file=sys.stderr, flush=True)
+        return True
+    print(f'swarm run: the recorder exited with code {rec.returncode} before the start; '
+          'the run goes on without a bag', file=sys.stderr, flush=True)
+    write_params_file(without_recorder(params), params_file)
+    return False
+
+
 def run_processes(params: dict, params_file: Path, names, env, record=None, out_dir=None,
                   pid_file=None, events_file=None, foxglove=None, server=None, groups=None,
                   services=True) -> int:
@@ -231,22 +251,8 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
                 return 1
             print(f'swarm run: discovery server on {server.locator}; tools in another shell: '
                   f'{dds.user_line(server.address, server.port)}', flush=True)
-        if record:
-            # /lockstep/agent_states holds the /swarm/states again, batched per process: not kept
-            rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record), '--exclude', P.LOCK_AGENT_STATES],
-                            dds.super_client(env),
-                            stderr=subprocess.PIPE, text=True, bufsize=1)
-            if not wait_until_ready(rec, 'swarm record: ready', RECORDER_READY_TIMEOUT):
-                with contextlib.suppress(subprocess.TimeoutExpired):
-                    rec.wait(timeout=2)             # (its stderr ends just before it does)
-                if rec.poll() is not None:          # e.g. a full disk: the nodes must not wait for it
-                    print(f'swarm run: the recorder exited with code {rec.returncode} before the start; '
-                          'the run goes on without a bag', file=sys.stderr, flush=True)
-                    write_params_file(without_recorder(params), params_file)
-                    gone.add('record')
-                else:
-                    print(f'swarm run: the recorder did not say it was ready within '
-                          f'{RECORDER_READY_TIMEOUT:g} s; starting the run anyway', file=sys.stderr, flush=True)
+        if record and not start_recorder(sup, record, env, params, params_file):
+            gone.add('record')
         world = sup.start('world', [_exe('swarm_world')] + ros + ['-r', '__node:=world'], env)
         # a super client: it opens a command topic's reader once it sees a writer there (ros2 topic
         # pub, swarm lambda), and a plain CLIENT of a discovery server hears only of topics it reads

@@ -405,11 +405,16 @@ def main(argv=None) -> int:
               '(the bag keeps what was written before; `swarm bag recover` makes it whole)',
               file=sys.stderr, flush=True)
         return 1
+    return _report(args, rec, stop['why'])
+
+
+def _report(args, rec, why) -> int:
+    """The recorder's exit: per topic, messages received and written; 1 if any was lost."""
     rows = rec.summary()
     lost = sum(r - w for _, r, w in rows)
     if not args.quiet:
         width = max([len(t) for t, _, _ in rows] + [5])
-        print(f'swarm record: stopped ({stop["why"]}); {args.out}')
+        print(f'swarm record: stopped ({why}); {args.out}')
         print(f'  {"topic":<{width}}  received   written')
         for t, r, w in rows:
             print(f'  {t:<{width}}  {r:>8}  {w:>8}')
