@@ -131,3 +131,104 @@ def test_report_leaves_out_bad_states(traj, tmp_path, swarm_cmd):
     err = r.stderr
     assert 'non-finite or absurd values' in err and 'stamps outside' in err and "'ghost'" in err, err
     assert len(err.strip().splitlines()) <= 4, err       # one line per kind
+
+
+def _chunks(path):
+    from mcap.reader import make_reader
+    with open(path, 'rb') as fh:
+        return sorted((c.chunk_start_offset, c.chunk_length) for c in make_reader(fh).get_summary().chunk_indexes)
+
+
+@pytest.mark.parametrize('where', ['data', 'length'])
+def test_a_damaged_chunk_costs_only_that_chunk(traj, tmp_path, swarm_cmd, where):
+    """One flipped byte mid-bag made `report` and `bag recover` drop every later chunk.
+    ``data``: a byte inside a chunk's compressed records (its CRC fails); ``length``: the
+    chunk's record length (the framing: the read goes on at the next indexed chunk)."""
+    from swarm_tools.bag import iter_messages
+    from swarm_tools.bag_recover import recover
+    from swarm_tools.report import read_run
+    bag = tmp_path / 'bag.mcap'
+    write_bag(traj, bag, flush_every=7).close()
+    total = len(list(iter_messages(bag)))
+    chunks = _chunks(bag)
+    assert len(chunks) >= 8
+    start, length = chunks[len(chunks) // 2]
+    raw = bytearray(bag.read_bytes())
+    raw[start + (length - 40 if where == 'data' else 8)] ^= 0xFF
+    bad = tmp_path / 'bad.mcap'
+    bad.write_bytes(bytes(raw))
+    stats = {}
+    kept = len(list(iter_messages(bad, stats=stats)))
+    per_chunk = 7 * len(traj.names)
+    assert total - per_chunk <= kept < total, (kept, total)
+    assert stats['damaged'] == 1 and not stats['truncated'], stats
+    res = recover(bad, tmp_path / 'fixed.mcap')
+    assert res['messages'] == kept and res['damaged'] == 1, res
+    warned = []
+    run = read_run(bad, warn=warned.append)
+    assert sorted(run['per_agent']) == sorted(traj.names)
+    assert sum(len(v) for v in run['per_agent'].values()) == kept
+    assert any('damaged' in w for w in warned), warned
+    r = subprocess.run([swarm_cmd, 'bag', 'recover', bad, tmp_path / 'cli.mcap'],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and f'{kept} messages' in r.stdout and '1 damaged chunk' in r.stdout, r
+
+
+def _string(text):
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import String
+    return serialize_message(String(data=text))
+
+
+def test_report_takes_the_roster_from_the_run_announcement(traj, tmp_path, capsys):
+    """A bag with many fake `agent_N` senders (a few states each, more of them than the run's
+    agents) reported each as an agent; the run's /swarm/run announcement names the roster."""
+    from swarm_ros.runinfo import run_json
+    from swarm_tools import report
+    from swarm_tools.bag import qos_dict
+    bag = tmp_path / 'spoofed.mcap'
+    w = write_bag(traj, bag)
+    latched = [qos_dict(history=1, depth=1, reliability=1, durability=1)]
+    w.add_topic('/swarm/run', 'std_msgs/msg/String', latched)
+    w.write('/swarm/run', _string(run_json('1a2b3c4d', 'six', 'lockstep', traj.names, 1.0)), 1)
+    w.write('/swarm/run', _string(run_json('dead0000', 'fake', 'lockstep', ['agent_9'], 2.0)), 2)
+    base = 2_000_000_000 * 10**9
+    for i in range(300):
+        for s in range(3):
+            w.write('/swarm/states', _odom(f'agent_{100 + i}', int(traj.t[s] * 1e9), i, i, 0, 1, 0), base + 3 * i + s)
+    w.close()
+    assert report.main([str(bag), '--out', str(tmp_path / 'rep'), '--no-figure']) == 0
+    doc = json.loads((tmp_path / 'rep' / 'metrics.json').read_text())
+    assert doc['summary']['names'] == list(traj.names)
+    err = capsys.readouterr().err
+    assert "left out 900 states of 300 unknown senders (not in the run's roster)" in err, err
+    assert 'more than one run' in err and 'run 1a2b3c4d' in err, err
+
+
+def test_play_republishes_only_the_projects_types(traj, tmp_path):
+    """A second /swarm/states channel with schema os/msg/system was played as Odometry; a
+    project topic of another type (here /swarm/lambda as String) is not the project's."""
+    from swarm_tools.bag import qos_dict
+    from swarm_tools.play import foreign_lines
+    from swarm_tools.bag import bag_topics
+    from swarm_tools.record import swarm_type
+    bag = tmp_path / 'mixed.mcap'
+    w = write_bag(traj, bag)
+    sid = w._w.register_schema('os/msg/system', 'ros2msg', b'string cmd')
+    cid = w._w.register_channel('/swarm/states', 'cdr', sid, {})
+    for k in range(5):
+        w._w.add_message(cid, 10**18 + k, _string('rm -rf /'), 10**18 + k)
+    w.add_topic('/swarm/lambda', 'std_msgs/msg/String', [qos_dict()])
+    w.write('/swarm/lambda', _string('1.0'), 10**18)
+    w.add_topic('/my/tf', 'std_msgs/msg/String', [qos_dict()])       # not the project's: as recorded
+    w.write('/my/tf', _string('x'), 10**18)
+    w.close()
+    topics = bag_topics(bag, swarm_type)
+    states = topics['/swarm/states']
+    assert states['type'] == 'nav_msgs/msg/Odometry' and states['channels'] == {w.topics['/swarm/states'].channel_id}
+    assert states['count'] == len(traj.t) * len(traj.names) and states['other'] == {'os/msg/system': 5}
+    assert topics['/swarm/lambda']['type'] is None
+    assert topics['/my/tf']['type'] == 'std_msgs/msg/String' and topics['/my/tf']['count'] == 1
+    lines = foreign_lines(topics)
+    assert len(lines) == 2 and '5 messages of type os/msg/system' in lines[1], lines
+    assert 'std_msgs/msg/Float64' in lines[0], lines

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from . import metrics, outcomes
-from .atomic import atomic_open
+from .atomic import write_atomic
 
 
 def analyse(traj, cutoff_radius=None, *, target=None, barrier=None, scenario=None, dt=None,
@@ -114,12 +114,6 @@ def summary_of(scn, traj, series, checks) -> dict:
 def dumps(doc) -> str:
     """``doc`` as indented, valid JSON: numpy values as plain ones, NaN and ±inf as null."""
     return json.dumps(finite(doc), default=jsonable, indent=1)
-
-
-def write_atomic(path, text: str):
-    """Write ``text`` to ``path`` through a temporary file and a rename (no half-written file)."""
-    with atomic_open(path) as fh:
-        fh.write(text)
 
 
 def write_failed(prog, out, err) -> str:

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .atomic import atomic_path
+
 
 def plot_run(traj, series, path, *, title: str = '', w: float = 4.0, target=None, barrier=None):
     """Write the run's figure to ``path`` (PNG) and return the path.
@@ -56,6 +58,7 @@ def plot_run(traj, series, path, *, title: str = '', w: float = 4.0, target=None
     ax_c.set_xlabel('t')
     ax_c.yaxis.get_major_locator().set_params(integer=True)
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format='png')
     plt.close(fig)
     return path

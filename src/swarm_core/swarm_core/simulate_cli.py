@@ -14,6 +14,7 @@ import numpy as np
 
 from . import engine, scenario
 from .analysis import analyse, check_output_dir, dumps, summary_of, write_failed, write_outputs
+from .atomic import write_atomic
 from .command_plan import read_commands
 
 
@@ -308,8 +309,12 @@ def sweep_main(argv) -> int:
                   + (f'; not run: {", ".join(rest)}' if rest else ''), file=sys.stderr)
             break
     if a.out and everything:
-        Path(a.out).write_text('\n\n'.join(tables) + '\n')
-        Path(a.out).with_suffix('.json').write_text(dumps(everything))
+        try:
+            write_atomic(a.out, '\n\n'.join(tables) + '\n')
+            write_atomic(Path(a.out).with_suffix('.json'), dumps(everything))
+        except OSError as err:
+            print(write_failed('swarm sweep', a.out, err), file=sys.stderr)
+            return 1
         print(f'wrote {a.out} and {Path(a.out).with_suffix(".json")}', file=sys.stderr)
     return 130 if interrupted else 0
 
@@ -356,17 +361,35 @@ def study_main(p, a) -> int:
                                     progress=not a.quiet)
     except KeyboardInterrupt:
         interrupted = True
+    except OSError as err:              # the cache (a full or read-only disk)
+        print(write_failed('swarm sweep', out, err), file=sys.stderr)
+        return 1
     wall = time.perf_counter() - t0
     if interrupted:
         done = len(list((out / 'cache').glob('*.json')))
         print(f'swarm sweep: interrupted; finished runs are cached in {out / "cache"} ({done} files): '
               f'the same command resumes', file=sys.stderr)
         return 130
-    (out / 'runs.csv').write_text(st.to_csv(study, rows))
+    try:
+        figures = _write_study(out, study, rows, a)
+    except OSError as err:
+        print(write_failed('swarm sweep', out, err), file=sys.stderr)
+        return 1
+    print(f'swarm sweep: {counts["ran"]} runs done, {counts["cached"]} from the cache, {wall:.1f}s wall; '
+          f'wrote {out}/runs.csv, rates.csv, rates.md' + ''.join(f', {f}' for f in figures),
+          file=sys.stderr)
+    return 0
+
+
+def _write_study(out, study, rows, a) -> list:
+    """runs.csv, rates.csv, rates.md and the figures of a finished study into ``out``; the
+    names of the figures written."""
+    from . import study as st
+    write_atomic(out / 'runs.csv', st.to_csv(study, rows))
     rr = st.rates(study, rows)
-    (out / 'rates.csv').write_text(st.rates_csv(study, rr))
+    write_atomic(out / 'rates.csv', st.rates_csv(study, rr))
     md = st.rates_markdown(study, rr)
-    (out / 'rates.md').write_text(f'### {study.name} ({len(study.seeds)} seeds per cell)\n\n{md}\n')
+    write_atomic(out / 'rates.md', f'### {study.name} ({len(study.seeds)} seeds per cell)\n\n{md}\n')
     print(md)
     checks = [a.check] if a.check else (study.figure.get('checks') or [study.figure.get('check', 'all')])
     have = list(dict.fromkeys(r['check'] for r in rr))
@@ -378,10 +401,7 @@ def study_main(p, a) -> int:
             continue
         name = study.name if check == checks[0] else f'{study.name}-{check}'
         figures.append(st.plot_rates(study, rr, out / f'{name}.png', check=check).name)
-    print(f'swarm sweep: {counts["ran"]} runs done, {counts["cached"]} from the cache, {wall:.1f}s wall; '
-          f'wrote {out}/runs.csv, rates.csv, rates.md' + ''.join(f', {f}' for f in figures),
-          file=sys.stderr)
-    return 0
+    return figures
 
 
 def scenarios_main(argv) -> int:

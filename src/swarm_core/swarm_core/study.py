@@ -18,7 +18,6 @@ import io
 import itertools
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +25,7 @@ import numpy as np
 import yaml
 
 from . import scenario
+from .atomic import atomic_path, write_atomic
 
 #: metrics taken from `analysis.summary_of` into every row
 ROW_METRICS = ('final_clusters', 'max_clusters', 'min_distance', 'final_polarisation',
@@ -365,9 +365,7 @@ class Cache:
             return None
 
     def put(self, key, doc):
-        tmp = self.root / f'.{key}.{os.getpid()}.tmp'
-        tmp.write_text(json.dumps(doc))
-        os.replace(tmp, self._path(key))
+        write_atomic(self._path(key), json.dumps(doc))
 
 
 # ------------------------------------------------------------------ executors
@@ -620,6 +618,7 @@ def plot_rates(study: Study, rates_rows, path, check='all', title=None):
             ax.legend(fontsize=8)
     ax.set_title(title, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format='png')
     plt.close(fig)
     return path

@@ -29,20 +29,25 @@ import os
 import struct
 import time
 from dataclasses import dataclass, field
+from io import BytesIO
 from pathlib import Path
 
 import yaml
 from mcap.exceptions import McapError
-from mcap.records import Channel, Chunk, Message, Schema
+from mcap.opcode import Opcode
+from mcap.reader import make_reader
+from mcap.records import Channel, Chunk, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
-from swarm_ros.protocol import cdr_byte_order, cdr_string, cdr_to_odometry_full
+from swarm_core.atomic import open_regular, write_atomic
+from swarm_ros.protocol import RUN, cdr_byte_order, cdr_string, cdr_to_odometry_full
 
 from .msgdefs import has_leading_stamp, message_definition
 
 PROFILE = 'ros2'
 SCHEMA_ENCODING = 'ros2msg'
 MESSAGE_ENCODING = 'cdr'
+MCAP_MAGIC = b'\x89MCAP0\r\n'
 LIBRARY = 'homotopy-swarm swarm_tools (rosbag2_storage_mcap layout)'
 
 
@@ -144,11 +149,12 @@ class BagWriter:
         self.path = Path(path)
         self.metadata_yaml = Path(metadata_yaml) if metadata_yaml is not None else None
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fh = open(self.path, 'wb')
+        self._fh = open_regular(self.path, 'wb')
         comp = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
                 'none': CompressionType.NONE}[compression]
         self._w = Writer(self._fh, chunk_size=chunk_size, compression=comp)
         self._w.start(profile=PROFILE, library=LIBRARY)
+        self._fh.flush()            # a full disk shows here, before anything is recorded
         self._schemas: dict[str, int] = {}
         self._defs: dict[str, str] = {}
         self.topics: dict[str, TopicInfo] = {}
@@ -237,7 +243,16 @@ class BagWriter:
         os.fsync(self._fh.fileno())
         self._fh.close()
         if self.metadata_yaml is not None:
-            self.metadata_yaml.write_text(meta)
+            write_atomic(self.metadata_yaml, meta)
+
+    def abort(self):
+        """Close the file as it is, without the summary (the disk is full or gone): what was
+        written reads as a cut bag (`iter_records_tolerant`, `swarm bag recover`)."""
+        self.closed = True
+        try:
+            self._fh.close()
+        except OSError:
+            pass                 # the buffered tail could not be written either
 
     def __enter__(self):
         return self
@@ -247,6 +262,19 @@ class BagWriter:
 
 
 # --------------------------------------------------------------------------- layout
+def bag_complete(path) -> bool:
+    """Whether an MCAP file ends as a finished one does (its closing magic after the footer):
+    False for a bag whose recorder died or stopped at a full disk."""
+    try:
+        with open(path, 'rb') as f:
+            if os.fstat(f.fileno()).st_size < 2 * len(MCAP_MAGIC):
+                return False
+            f.seek(-len(MCAP_MAGIC), os.SEEK_END)
+            return f.read() == MCAP_MAGIC
+    except OSError:
+        return False
+
+
 def bag_paths(out) -> tuple[Path, Path | None]:
     """Where to write: ``X.mcap`` is one file (no metadata.yaml); any other path is a rosbag2
     bag directory, ``DIR/DIR_0.mcap`` + ``DIR/metadata.yaml`` (as ``ros2 bag record -o DIR``)."""
@@ -291,34 +319,85 @@ class BagMessage:
     schema: Schema | None
 
 
+def _chunk_offsets(f) -> list[int]:
+    """Where the chunks start, from the file's summary (chunk indexes); [] without one (a file
+    cut short has no summary) or if it does not read."""
+    try:
+        f.seek(0)
+        summary = make_reader(f).get_summary()
+    except Exception:           # a damaged or missing footer/summary: no offsets to resync by
+        return []
+    return sorted(ci.chunk_start_offset for ci in summary.chunk_indexes) if summary else []
+
+
+_OPCODES = {int(op) for op in Opcode}
+
+
+def _read_record(head: bytes, body: bytes):
+    """One record parsed by mcap from its framing (opcode, length) and body; None for a kind
+    of record MCAP does not define (readers skip those)."""
+    if head[0] not in _OPCODES:
+        return None
+    return next(StreamReader(BytesIO(head + body), skip_magic=True, emit_chunks=True).records)
+
+
 def iter_records_tolerant(path, stats: dict | None = None):
-    """Every record of an MCAP file read front to back, chunks decompressed; a file cut short
-    (writer killed) ends quietly at the last complete record.  ``stats['truncated']`` tells."""
-    if stats is not None:
-        stats['truncated'] = False
+    """Every record of an MCAP file read front to back, chunks decompressed and CRC-checked.
+
+    Each record is framed by its opcode and length and parsed on its own, so a damaged chunk
+    (bad CRC, bad compression, bad fields) costs only that chunk: ``stats['damaged']`` counts
+    them.  If the framing itself is damaged (a length past the end of the file, a record that
+    does not parse), the read goes on at the next chunk the file's summary indexes; without
+    a summary (a file cut short: a writer killed) it ends quietly there, as at a cut:
+    ``stats['truncated']`` tells, ``stats['error']`` says why."""
+    stats = {} if stats is None else stats
+    stats.update(truncated=False, damaged=0)
     with open(path, 'rb') as f:
-        reader = StreamReader(f, skip_magic=False, emit_chunks=True)
-        it = reader.records
+        size = os.fstat(f.fileno()).st_size
+        if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            stats.update(truncated=True, error='not an MCAP file (no magic)')
+            return
+        offsets = None
         while True:
-            try:
-                rec = next(it)
-            except StopIteration:
+            pos = f.tell()
+            head = f.read(9)
+            if not head:
+                stats.update(truncated=True, error='no footer')
                 return
-            except (McapError, EOFError, struct.error, ValueError) as err:
-                if stats is not None:
-                    stats['truncated'] = True
-                    stats['error'] = f'{type(err).__name__}: {err}'
+            err = None
+            if len(head) < 9:
+                err = 'a record cut short'
+            else:
+                length = struct.unpack_from('<Q', head, 1)[0]
+                if length > size - pos - 9:
+                    err = f'a record of {length} bytes at byte {pos}, past the end of the file'
+            if err is None:
+                body = f.read(length)
+                try:
+                    rec = _read_record(head, body)
+                except (McapError, EOFError, struct.error, ValueError, UnicodeDecodeError) as exc:
+                    err = f'a damaged record at byte {pos} ({type(exc).__name__}: {exc})'
+            if err is not None:
+                offsets = _chunk_offsets(f) if offsets is None else offsets
+                later = [o for o in offsets if o > pos]
+                if not later:
+                    stats.update(truncated=True, error=err)
+                    return
+                stats['damaged'] += 1
+                stats.setdefault('damage', err)
+                f.seek(later[0])
+                continue
+            if isinstance(rec, Footer):
                 return
             if isinstance(rec, Chunk):
                 try:
                     inner = breakup_chunk(rec, validate_crc=True)
-                except Exception as err:   # a damaged chunk: stop, as for a cut file
-                    if stats is not None:
-                        stats['truncated'] = True
-                        stats['error'] = f'bad chunk: {err}'
-                    return
+                except Exception as exc:   # bad CRC, compression or fields: this chunk only
+                    stats['damaged'] += 1
+                    stats.setdefault('damage', f'a damaged chunk at byte {pos} ({exc})')
+                    continue
                 yield from inner
-            else:
+            elif rec is not None:
                 yield rec
 
 
@@ -341,25 +420,67 @@ def iter_messages(path, topics=None, stats: dict | None = None):
                              rec.publish_time, ch, sc)
 
 
-def bag_topics(path) -> dict[str, dict]:
-    """{topic: {type, definition, qos (list of dicts), count}} of a bag (tolerant reader)."""
-    out: dict[str, dict] = {}
+def announced_roster(path, warn=None) -> list[str] | None:
+    """The agents of the run a bag recorded, from the world's ``/swarm/run`` announcement
+    (`swarm_ros.runinfo.run_json`); None if the bag has none.  The first announcement counts
+    (the recorder starts before the run); ``warn`` hears of any other run announced."""
+    from swarm_core.scenario import AGENT_NAME
+    from swarm_ros.runinfo import describe, parse_run
+    first, others = None, set()
+    for m in iter_messages(path, topics=[RUN]):
+        try:
+            run = parse_run(parse_string(m.data))
+        except (struct.error, IndexError, ValueError):
+            run = None
+        if run is None:
+            continue
+        if first is None:
+            first = run
+        elif run['run_id'] != first['run_id'] and len(others) < 10:
+            others.add(describe(run))
+    if first is None:
+        return None
+    if others and warn:
+        warn(f'the bag announces more than one run; the first, {describe(first)}, counts '
+             f'(also: {"; ".join(sorted(others))})')
+    return [a for a in first['agents'] if isinstance(a, str) and AGENT_NAME.fullmatch(a)]
+
+
+def bag_topics(path, expected=None) -> dict[str, dict]:
+    """{topic: {type, definition, qos (list of dicts), count, channels, other}} of a bag
+    (tolerant reader).  A topic's type is ``expected(topic)`` where that gives one (the
+    project's own topics), else its first channel's; ``channels``: the ids of its channels of
+    that type, ``count`` their messages, ``definition`` and ``qos`` the first one's; ``other``:
+    {type: messages} on its channels of other types (a stray or hostile publisher).  A topic
+    with no channel of its type has ``type`` None."""
     schemas: dict[int, Schema] = {}
     chans: dict[int, Channel] = {}
+    counts: dict[int, int] = {}
     for rec in iter_records_tolerant(path):
         if isinstance(rec, Schema):
-            schemas[rec.id] = rec
+            schemas.setdefault(rec.id, rec)
         elif isinstance(rec, Channel):
-            chans[rec.id] = rec
-            sc = schemas.get(rec.schema_id)
-            out.setdefault(rec.topic, {
-                'type': sc.name if sc else '', 'definition': sc.data.decode() if sc else '',
-                'qos': parse_qos_yaml(rec.metadata.get('offered_qos_profiles', '')),
-                'count': 0})
-        elif isinstance(rec, Message):
-            ch = chans.get(rec.channel_id)
-            if ch is not None:
-                out[ch.topic]['count'] += 1
+            chans.setdefault(rec.id, rec)
+        elif isinstance(rec, Message) and rec.channel_id in chans:
+            counts[rec.channel_id] = counts.get(rec.channel_id, 0) + 1
+    out: dict[str, dict] = {}
+    for cid, ch in chans.items():          # in the order the channels were written
+        sc = schemas.get(ch.schema_id)
+        kind = sc.name if sc else ''
+        info = out.setdefault(ch.topic, {
+            'type': (expected(ch.topic) if expected else None) or kind, 'definition': '', 'qos': [],
+            'count': 0, 'channels': set(), 'other': {}})
+        if kind != info['type']:
+            info['other'][kind] = info['other'].get(kind, 0) + counts.get(cid, 0)
+            continue
+        if not info['channels']:
+            info['definition'] = sc.data.decode(errors='replace') if sc else ''
+            info['qos'] = parse_qos_yaml(ch.metadata.get('offered_qos_profiles', ''))
+        info['channels'].add(cid)
+        info['count'] += counts.get(cid, 0)
+    for info in out.values():
+        if not info['channels']:
+            info['type'] = None
     return out
 
 

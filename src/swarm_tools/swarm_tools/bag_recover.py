@@ -1,12 +1,13 @@
 """``swarm bag recover IN OUT``: rewrite a truncated MCAP file (a recorder killed mid-write)
 as a complete, indexed one, as ``mcap recover`` does.
 
-The input is read front to back without seeking (`swarm_tools.bag.iter_records_tolerant`:
-chunks decompressed and CRC-checked, the read ends quietly at the first incomplete or damaged
-record).  Every schema, channel, message, attachment and metadata record read is written with
-the mcap ``Writer`` (chunked, zstd, with message indexes, summary and footer), so the output
-opens in any MCAP reader.  Messages after the last complete chunk are lost; the command says
-how many it kept and where the input ended.
+The input is read front to back (`swarm_tools.bag.iter_records_tolerant`: chunks
+decompressed and CRC-checked; a damaged chunk is skipped and the read goes on with the next;
+a file cut short ends quietly at its last complete record).  Every schema, channel, message,
+attachment and metadata record read is written with the mcap ``Writer`` (chunked, zstd, with
+message indexes, summary and footer), so the output opens in any MCAP reader.  The messages
+of damaged chunks and after the last complete chunk are lost; the command says how many it
+kept, how many chunks were damaged and where the input ended.
 """
 from __future__ import annotations
 
@@ -72,6 +73,7 @@ def recover(src, dst) -> dict:
         start()
         w.finish()
     return dict(counts, truncated=bool(stats.get('truncated')), error=stats.get('error'),
+                damaged=stats.get('damaged', 0), damage=stats.get('damage'),
                 span_s=(t_last - t_first) * 1e-9 if t_first is not None else 0.0)
 
 
@@ -109,6 +111,9 @@ def main(argv=None) -> int:
         return 1
     how = (f'the input ends early ({res["error"]}); what came after its last complete chunk is lost'
            if res['truncated'] else 'the input was complete')
+    if res['damaged']:
+        how += (f'; {res["damaged"]} damaged chunk{"s" if res["damaged"] > 1 else ""} skipped '
+                f'(first: {res["damage"]})')
     print(f'swarm bag recover: wrote {dst}: {res["messages"]} messages on {res["channels"]} channels '
           f'({res["span_s"]:.1f} s); {how}')
     return 0

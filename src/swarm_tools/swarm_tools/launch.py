@@ -47,6 +47,7 @@ from swarm_core.analysis import check_output_dir, write_atomic, write_failed
 
 from . import dds
 from .node_params import load_scenario, node_parameters, write_params_file
+from .bag import bag_complete
 from .processes import read_events, run_processes
 
 #: most agents of one ``swarm run`` (each is an OS process, or a node of one executor);
@@ -358,8 +359,8 @@ def prepare_outputs(run: RunPlan) -> None:
                              f'{err.strerror or err} ({err.filename})') from None
         if not os.access(bag.resolve().parent, os.W_OK) or (bag.exists() and not os.access(bag, os.W_OK)):
             raise ValueError(f'--record {run.record}: not writable')
-    for old in (run.traj_file, run.events_file):
-        if old.exists():
+    for old in (run.traj_file, run.events_file):      # a file or a link (never followed)
+        if old.is_symlink() or old.is_file():
             old.unlink()
 
 
@@ -404,6 +405,10 @@ def finish(run: RunPlan, code: int, wall: float) -> int:
         print(f'swarm run: stopped (code {code}) after {wall:.1f} s', file=sys.stderr, flush=True)
         if not run.in_process:
             salvage(run.scn, run.out, run.record, run.mode, wall, figure=run.figure)
+    if code == 0 and run.record and not run.in_process and not bag_complete(run.record):
+        print(f'swarm run: the bag {run.record} is not complete: its recorder stopped early (see above)',
+              file=sys.stderr, flush=True)
+        code = 1
     try:
         write_atomic(run.out / 'run.json', json.dumps(dict(
             exit_code=code, wall_seconds=wall, mode=run.mode, processes=not run.in_process,

@@ -7,6 +7,10 @@ messages (``header.stamp``, ``rosgraph_msgs/Clock``) in the order they were rece
 paced so that sim time advances ``--rate`` times as fast as wall time, and ``/clock`` follows:
 the bag's own ``/clock`` messages if it has them, otherwise a ``/clock`` published at every
 advance of the stamps of the bag's busiest stamped topic (``/swarm/states`` in a swarm run).  Nodes watching with ``use_sim_time`` see the run as it happened.
+
+A topic is played with one type: the project's for its own topics (`record.swarm_type`),
+else its first channel's; messages on its channels of another type are not played
+(`foreign_lines`).
 """
 from __future__ import annotations
 
@@ -17,7 +21,7 @@ import time
 
 from .bag import bag_topics, iter_messages, replay_qos, resolve_bag
 from .msgdefs import has_leading_stamp, leading_stamp_ns
-from .record import message_class
+from .record import message_class, swarm_type
 
 CLOCK = '/clock'
 
@@ -45,6 +49,37 @@ def parse_args(argv):
     return a
 
 
+def foreign_lines(topics: dict) -> list[str]:
+    """One line per topic with channels of a type not its own (`bag.bag_topics`: for the
+    project's topics, not the project's type): their messages are not played."""
+    out = []
+    for topic, info in sorted(topics.items()):
+        if info['other']:
+            what = ', '.join(f'{n} messages of type {k or "?"}' for k, n in sorted(info['other'].items()))
+            want = f'the project\'s {topic} is {swarm_type(topic)}' if swarm_type(topic) else f'{topic} is {info["type"]}'
+            out.append(f'{topic}: not playing {what} ({want})')
+    return out
+
+
+def _topics_to_play(a) -> dict | None:
+    """`bag.bag_topics` of the bag, those of ``--topics``, with a type to play; None (said
+    in one line) if there are none."""
+    try:
+        a.bag = str(resolve_bag(a.bag))
+        topics = bag_topics(a.bag, swarm_type)
+    except OSError as err:
+        print(f'swarm play: {err}', file=sys.stderr)
+        return None
+    if a.topics:
+        topics = {t: v for t, v in topics.items() if t in set(a.topics)}
+    for line in foreign_lines(topics):
+        print(f'swarm play: {line}', file=sys.stderr)
+    topics = {t: v for t, v in topics.items() if v['type'] is not None}
+    if not topics:
+        print(f'swarm play: {a.bag}: no topics to play', file=sys.stderr)
+    return topics or None
+
+
 def make_qos(spec: dict):
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     return QoSProfile(
@@ -60,16 +95,8 @@ def main(argv=None) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    try:
-        a.bag = str(resolve_bag(a.bag))
-        topics = bag_topics(a.bag)
-    except OSError as err:
-        print(f'swarm play: {err}', file=sys.stderr)
-        return 2
-    if a.topics:
-        topics = {t: v for t, v in topics.items() if t in set(a.topics)}
+    topics = _topics_to_play(a)
     if not topics:
-        print(f'swarm play: {a.bag}: no topics to play', file=sys.stderr)
         return 2
 
     stop = {'why': None}
@@ -113,7 +140,7 @@ def main(argv=None) -> int:
         counts = {t: 0 for t in pubs}
         loops = 0
         while stop['why'] is None:
-            _play_once(a, pubs, stamped, clock_pub, counts, stop)
+            _play_once(a, pubs, stamped, clock_pub, counts, stop, {t: topics[t]['channels'] for t in pubs})
             loops += 1
             if not a.loop:
                 break
@@ -137,7 +164,7 @@ def main(argv=None) -> int:
     return 0
 
 
-def _play_once(a, pubs, stamped, clock_pub, counts, stop):
+def _play_once(a, pubs, stamped, clock_pub, counts, stop, channels):
     clock_msg = None
     if clock_pub is not None:
         from rosgraph_msgs.msg import Clock
@@ -148,6 +175,8 @@ def _play_once(a, pubs, stamped, clock_pub, counts, stop):
     for m in iter_messages(a.bag, topics=list(pubs)):
         if stop['why'] is not None:
             return
+        if m.channel.id not in channels[m.topic]:
+            continue            # a channel of another type on the topic (`foreign_lines`)
         stamp = leading_stamp_ns(m.data) if stamped[m.topic] else None
         if stamp is not None and (sim_now is None or stamp > sim_now):
             sim_now = stamp

@@ -15,9 +15,11 @@ import threading
 import time
 from pathlib import Path
 
+from swarm_core.atomic import write_atomic
 from swarm_ros import protocol as P
 
 from . import dds
+from .node_params import write_params_file
 
 STOP_GRACE = 4.0
 
@@ -49,6 +51,8 @@ class Supervisor:
         self.pgid = None
 
     def start(self, label, args, env, **kw):
+        if self.pgid is not None and not self.alive():
+            self.pgid = None        # every member has ended (a recorder that failed): so has the group
         kw['process_group'] = 0 if self.pgid is None else self.pgid
         kw['preexec_fn'] = die_with_parent(os.getpid())
         p = subprocess.Popen(args, env=env, **kw)
@@ -126,18 +130,19 @@ def wait_until_ready(proc, marker: str, timeout: float) -> bool:
     """Forward ``proc``'s stderr lines to ours (on a thread, for its whole life) and wait until
     one contains ``marker`` (the recorder has subscribed to the swarm's topics, so nothing
     published from step 0 on is missed); False on timeout or if ``proc`` ends first."""
-    seen = threading.Event()
+    seen, found = threading.Event(), threading.Event()
 
     def pump():
         for line in proc.stderr:
             sys.stderr.write(line)
             sys.stderr.flush()
             if marker in line:
+                found.set()
                 seen.set()
         seen.set()
 
     threading.Thread(target=pump, daemon=True).start()
-    return seen.wait(timeout) and proc.poll() is None
+    return seen.wait(timeout) and found.is_set() and proc.poll() is None
 
 
 #: the package of each executable the launcher starts (``ros2 run PKG EXE``)
@@ -196,6 +201,38 @@ def agent_commands(groups, ros, services=True) -> list:
     return out
 
 
+def without_recorder(params: dict) -> dict:
+    """``params`` for a run whose recorder is gone before the start: the world and the commander
+    do not wait for it, and each agent waits for one state reader fewer."""
+    out = {fqn: dict(p) for fqn, p in params.items()}
+    for fqn, p in out.items():
+        if 'wait_for_recorder' in p:
+            p['wait_for_recorder'] = False
+        if fqn.endswith('/agent') and p.get('state_subscribers', 0) > 0:
+            p['state_subscribers'] -= 1
+    return out
+
+
+def start_recorder(sup, record, env, params: dict, params_file) -> bool:
+    """Start the recorder of ``--record`` and wait until it is ready; False if it ended first
+    (e.g. a full disk): the parameters file is then written again so that no node waits for it."""
+    # /lockstep/agent_states holds the /swarm/states again, batched per process: not kept
+    rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record), '--exclude', P.LOCK_AGENT_STATES],
+                    dds.super_client(env), stderr=subprocess.PIPE, text=True, bufsize=1)
+    if wait_until_ready(rec, 'swarm record: ready', RECORDER_READY_TIMEOUT):
+        return True
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        rec.wait(timeout=2)             # (its stderr ends just before it does)
+    if rec.poll() is None:
+        print(f'swarm run: the recorder did not say it was ready within '
+              f'{RECORDER_READY_TIMEOUT:g} s; starting the run anyway', file=sys.stderr, flush=True)
+        return True
+    print(f'swarm run: the recorder exited with code {rec.returncode} before the start; '
+          'the run goes on without a bag', file=sys.stderr, flush=True)
+    write_params_file(without_recorder(params), params_file)
+    return False
+
+
 def run_processes(params: dict, params_file: Path, names, env, record=None, out_dir=None,
                   pid_file=None, events_file=None, foxglove=None, server=None, groups=None,
                   services=True) -> int:
@@ -204,6 +241,7 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
     ``groups``: the agents of each agent process (default: one process per agent)."""
     ros = ['--ros-args', '--params-file', str(params_file)]
     code = 1
+    gone = set()
     with supervised('swarm run', first=('record',)) as (sup, stopped):
         if server is not None:
             try:
@@ -213,14 +251,8 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
                 return 1
             print(f'swarm run: discovery server on {server.locator}; tools in another shell: '
                   f'{dds.user_line(server.address, server.port)}', flush=True)
-        if record:
-            # /lockstep/agent_states holds the /swarm/states again, batched per process: not kept
-            rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record), '--exclude', P.LOCK_AGENT_STATES],
-                            dds.super_client(env),
-                            stderr=subprocess.PIPE, text=True, bufsize=1)
-            if not wait_until_ready(rec, 'swarm record: ready', RECORDER_READY_TIMEOUT):
-                print(f'swarm run: the recorder did not say it was ready within '
-                      f'{RECORDER_READY_TIMEOUT:g} s; starting the run anyway', file=sys.stderr, flush=True)
+        if record and not start_recorder(sup, record, env, params, params_file):
+            gone.add('record')
         world = sup.start('world', [_exe('swarm_world')] + ros + ['-r', '__node:=world'], env)
         # a super client: it opens a command topic's reader once it sees a writer there (ros2 topic
         # pub, swarm lambda), and a plain CLIENT of a discovery server hears only of topics it reads
@@ -238,9 +270,8 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
             tmp.write_text(json.dumps({nm: sup.procs[label].pid for label, g in members.items() for nm in g}))
             tmp.replace(pid_file)
             if out_dir is not None:
-                shutil.copyfile(pid_file, Path(out_dir) / 'pids.json')
+                write_atomic(Path(out_dir) / 'pids.json', Path(pid_file).read_text())
         agents = set(members)
-        gone = set()
         while True:
             if stopped():
                 code = 130

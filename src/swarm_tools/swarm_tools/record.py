@@ -92,20 +92,40 @@ class TopicFilter:
         return not any(p.fullmatch(topic) or p.pattern == topic for p in self.exclude)
 
 
+#: the message type of each of the project's fixed topics (docs/ros-graph.md)
+SWARM_TYPES = {
+    '/swarm/states': 'nav_msgs/msg/Odometry', '/swarm/lambda': 'std_msgs/msg/Float64',
+    '/swarm/leaders': 'std_msgs/msg/String', '/swarm/events': 'std_msgs/msg/String',
+    '/swarm/fault_request': 'std_msgs/msg/String', '/swarm/run': 'std_msgs/msg/String',
+    '/commander/lambda_setpoint': 'std_msgs/msg/Float64MultiArray',
+    '/clock': 'rosgraph_msgs/msg/Clock', '/world/target': 'geometry_msgs/msg/PointStamped',
+    '/world/barrier': 'geometry_msgs/msg/PolygonStamped',
+    '/world/markers': 'visualization_msgs/msg/MarkerArray',
+    '/world/metrics': 'diagnostic_msgs/msg/DiagnosticArray',
+    '/lockstep/states': 'std_msgs/msg/Float64MultiArray',
+    '/lockstep/decision': 'std_msgs/msg/Float64MultiArray',
+    '/lockstep/step': 'std_msgs/msg/Float64MultiArray',
+    '/lockstep/agent_states': 'std_msgs/msg/Float64MultiArray',
+}
+
+
+def swarm_type(topic: str) -> str | None:
+    """The type of one of the project's topics (an agent's ``/NAME/steering`` included), or None
+    for a topic that is not the project's."""
+    if re.fullmatch(r'/[^/]+/steering', topic):
+        return 'std_msgs/msg/Float64'
+    return SWARM_TYPES.get(topic)
+
+
 #: the project's fixed topics whose first messages matter (docs/ros-graph.md), with the durability
 #: their publishers offer (rmw enum: 1 transient-local, 2 volatile): subscribed at start-up,
 #: before any publisher exists, with the QoS the publishers will offer, so that step 0 of a
 #: run is not missed while the graph is polled and no subscription has to be made again (a
 #: re-made subscription can lose what the old one had not yet taken).  If the publishers turn
 #: out to offer other QoS or another type, the subscription is re-made.
-SWARM_TOPICS = {
-    '/swarm/states': ('nav_msgs/msg/Odometry', 1),
-    '/swarm/events': ('std_msgs/msg/String', 1),
-    '/swarm/lambda': ('std_msgs/msg/Float64', 1),
-    '/clock': ('rosgraph_msgs/msg/Clock', 2),
-    '/world/markers': ('visualization_msgs/msg/MarkerArray', 2),
-    '/world/metrics': ('diagnostic_msgs/msg/DiagnosticArray', 2),
-}
+SWARM_TOPICS = {topic: (SWARM_TYPES[topic], durability) for topic, durability in (
+    ('/swarm/states', 1), ('/swarm/events', 1), ('/swarm/lambda', 1), ('/clock', 2),
+    ('/world/markers', 2), ('/world/metrics', 2))}
 
 
 def command_topic(topic: str) -> bool:
@@ -152,6 +172,7 @@ class Recorder:
         self.sub_type: dict[str, str] = {}
         self.skipped: set[str] = set()
         self.states: dict[str, set] = {}
+        self.write_error: OSError | None = None      # the disk is full or gone: the recording ends
         for topic, (type_name, durability) in (presubscribe or {}).items():
             if wanted(topic):
                 self._subscribe(topic, type_name, request_qos([qos_dict(reliability=1, durability=durability)]))
@@ -248,6 +269,9 @@ class Recorder:
                 if topic not in writer.topics:
                     self._register(topic)
                 writer.write(topic, data, now, info.get('source_timestamp'))
+            except OSError as err:
+                self.failed[topic] += 1
+                self.write_error = self.write_error or err
             except Exception as err:   # keep recording the rest; counted as lost
                 self.failed[topic] += 1
                 if self.failed[topic] == 1:
@@ -338,7 +362,7 @@ def main(argv=None) -> int:
         writer = BagWriter(mcap_path, chunk_size=args.chunk_size, flush_interval=args.flush_interval,
                            metadata_yaml=metadata_yaml)
     except OSError as err:
-        print(f'swarm record: cannot write {args.out}: {err.strerror or err} ({err.filename})', file=sys.stderr)
+        print(f'swarm record: cannot write {args.out}: {err.strerror or err}', file=sys.stderr)
         return 2
     rclpy.init(args=None, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('swarm_recorder', enable_rosout=False,
@@ -352,28 +376,45 @@ def main(argv=None) -> int:
     t_end = time.monotonic() + args.duration if args.duration else None
     try:
         rec.poll()
-        while stop['why'] is None:
+        while stop['why'] is None and rec.write_error is None:
             executor.spin_once(timeout_sec=0.1)
             writer.maybe_flush()
             if t_end is not None and time.monotonic() >= t_end:
                 stop['why'] = 'duration'
         # take what is already delivered before closing
         drain_until = time.monotonic() + 0.3
-        while time.monotonic() < drain_until:
+        while time.monotonic() < drain_until and rec.write_error is None:
             executor.spin_once(timeout_sec=0.05)
+        if rec.write_error is None:
+            writer.close()
+    except OSError as err:
+        rec.write_error = rec.write_error or err
     finally:
         for sub in list(rec.subs.values()):
             node.destroy_subscription(sub)
+        if rec.write_error is not None:
+            writer.abort()
         writer.close()
         executor.shutdown()
         node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
+    if rec.write_error is not None:
+        err = rec.write_error
+        print(f'swarm record: cannot write {args.out}: {err.strerror or err}; the recording stopped '
+              '(the bag keeps what was written before; `swarm bag recover` makes it whole)',
+              file=sys.stderr, flush=True)
+        return 1
+    return _report(args, rec, stop['why'])
+
+
+def _report(args, rec, why) -> int:
+    """The recorder's exit: per topic, messages received and written; 1 if any was lost."""
     rows = rec.summary()
     lost = sum(r - w for _, r, w in rows)
     if not args.quiet:
         width = max([len(t) for t, _, _ in rows] + [5])
-        print(f'swarm record: stopped ({stop["why"]}); {args.out}')
+        print(f'swarm record: stopped ({why}); {args.out}')
         print(f'  {"topic":<{width}}  received   written')
         for t, r, w in rows:
             print(f'  {t:<{width}}  {r:>8}  {w:>8}')

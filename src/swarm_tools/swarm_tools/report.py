@@ -21,10 +21,11 @@ from pathlib import Path
 
 import numpy as np
 from swarm_core import analysis
+from swarm_core.atomic import atomic_path
 from swarm_core.inputs import LAMBDA_BOUND
 from swarm_core.scenario import AGENT_NAME, BarrierSpec
 
-from .bag import iter_messages, parse_float64, parse_odometry, parse_string, resolve_bag
+from .bag import announced_roster, iter_messages, parse_float64, parse_odometry, parse_string, resolve_bag
 
 STATES = '/swarm/states'
 LAMBDA = '/swarm/lambda'
@@ -116,7 +117,8 @@ def check_states(per_agent: dict, events=(), agents=None, warn=None) -> dict:
         warn(f'left out {bad_stamps} states with stamps outside 0..{MAX_STAMP_S:g} s')
     named = {ev.get('agent') for ev in events}
     if agents is not None:
-        unknown = sorted(n for n in out if n not in set(agents))
+        roster = set(agents)
+        unknown = sorted(n for n in out if n not in roster)
         why = 'not in the run\'s roster'
     else:
         med = float(np.median([len(v) for v in out.values()])) if out else 0.0
@@ -233,6 +235,8 @@ def read_run(path, *, cutoff_radius=None, agents=None, warn=None) -> dict:
     say = warn or (lambda line: print(f'swarm report: {line}', file=sys.stderr))
     if r.undecodable:
         say(f'left out {r.undecodable} messages that could not be decoded')
+    if stats.get('damaged'):
+        say(f'skipped {stats["damaged"]} damaged chunks of the bag (first: {stats["damage"]})')
     if r.bad_geometry:
         say(f'ignored {len(r.bad_geometry)} unusable world messages: {r.bad_geometry[0]}')
     per_agent = check_states(r.per_agent, r.events, agents, warn)
@@ -434,9 +438,32 @@ def animate(traj, path, *, w, target=None, barrier=None, frames=100, fps=12):
         return [dots, stars, label, *trails]
 
     anim = FuncAnimation(fig, draw, frames=idx, blit=False)
-    anim.save(str(path), writer=PillowWriter(fps=fps))
+    with atomic_path(path, suffix='.tmp.gif') as tmp:       # (PIL picks the format by it)
+        anim.save(str(tmp), writer=PillowWriter(fps=fps))
     plt.close(fig)
     return path
+
+
+def _warn(line):
+    print(f'swarm report: {line}', file=sys.stderr)
+
+
+def write_report(out, traj, series, summary, run, a, w) -> list:
+    """trajectory.npz, metrics.json, the figure and (``--animate``) the GIF into ``out``
+    (each written whole, never through a link: `swarm_core.atomic`); the names written."""
+    traj.save(out / 'trajectory.npz')
+    analysis.write_atomic(out / 'metrics.json', analysis.dumps(dict(summary=summary, series=series)))
+    wrote = ['trajectory.npz', 'metrics.json']
+    if not a.no_figure and len(traj.t) > 1:
+        plot(traj, series, out / 'report.png', w=w, target=run['target'], barrier=run['barrier'],
+             title=f'{Path(summary["bag"]).name}: {len(traj.names)} agents, t = {traj.t[0]:g}..{traj.t[-1]:g}')
+        wrote.append('report.png')
+    if a.animate:
+        if animate(traj, out / 'swarm.gif', w=w, target=run['target'], barrier=run['barrier']):
+            wrote.append('swarm.gif')
+        else:
+            _warn('pillow is not installed: no animation')
+    return wrote
 
 
 def parse_args(argv):
@@ -474,8 +501,12 @@ def main(argv=None) -> int:
         print(f'swarm report: {bag}: no such file', file=sys.stderr)
         return 2
     out = Path(a.out) if a.out else given.with_name(given.stem + '_report')
+    err = analysis.check_output_dir(out)          # before the work, not after
+    if err:
+        _warn(err)
+        return 2
     try:
-        run = read_run(bag, cutoff_radius=a.cutoff_radius)
+        run = read_run(bag, cutoff_radius=a.cutoff_radius, agents=announced_roster(bag, _warn))
         traj = rebuild_trajectory(run)
     except ValueError as err:
         print(f'swarm report: {bag}: {err}', file=sys.stderr)
@@ -490,20 +521,11 @@ def main(argv=None) -> int:
                                  every_time=a.every)
     summary = report_summary(traj, series, w)
     summary['bag'] = str(bag)
-    out.mkdir(parents=True, exist_ok=True)
-    traj.save(out / 'trajectory.npz')
-    doc = dict(summary=summary, series=series)
-    (out / 'metrics.json').write_text(analysis.dumps(doc))
-    wrote = ['trajectory.npz', 'metrics.json']
-    if not a.no_figure and len(traj.t) > 1:
-        plot(traj, series, out / 'report.png', w=w, target=run['target'], barrier=run['barrier'],
-             title=f'{bag.name}: {len(traj.names)} agents, t = {traj.t[0]:g}..{traj.t[-1]:g}')
-        wrote.append('report.png')
-    if a.animate:
-        if animate(traj, out / 'swarm.gif', w=w, target=run['target'], barrier=run['barrier']):
-            wrote.append('swarm.gif')
-        else:
-            print('swarm report: pillow is not installed: no animation', file=sys.stderr)
+    try:
+        wrote = write_report(out, traj, series, summary, run, a, w)
+    except OSError as err:
+        print(analysis.write_failed('swarm report', out, err), file=sys.stderr)
+        return 1
     changes = ', '.join(f't={t:g}: {c}' for t, c in summary['cluster_changes'][:12])
     print(f'{bag.name}: {summary["agents"]} agents, {summary["steps"]} steps '
           f'({summary["alignment"]}), t = {summary["t_start"]:g}..{summary["t_end"]:g}, '

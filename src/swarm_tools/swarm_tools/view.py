@@ -32,6 +32,8 @@ import sys
 import time
 from pathlib import Path
 
+from swarm_core.atomic import write_atomic
+
 from .bag import parse_float64
 from .msgdefs import DefinitionNotFound, has_leading_stamp, leading_stamp_ns, message_definition
 
@@ -364,7 +366,7 @@ def main(argv=None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     if args.write_layout:
         try:
-            Path(args.write_layout).write_text(layout_json())
+            write_atomic(args.write_layout, layout_json())
         except OSError as err:
             print(f'swarm view: cannot write {args.write_layout}: {err.strerror or err}', file=sys.stderr)
             return 2

@@ -29,6 +29,7 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from visualization_msgs.msg import MarkerArray
 
 from swarm_core import metrics as M
+from swarm_core.atomic import open_regular
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
 from swarm_ros import protocol as P
@@ -114,7 +115,7 @@ class WorldNode(RealtimeWorld, Node):
             self.events_file = str(Path(self.output_dir) / 'events.jsonl')
         if self.events_file:
             Path(self.events_file).parent.mkdir(parents=True, exist_ok=True)
-            Path(self.events_file).write_text('')
+            open_regular(self.events_file, 'w').close()      # never through a planted link
 
     def _create_endpoints(self):
         """Publishers and subscriptions (protocol: names and QoS); announces the run on /swarm/run."""
@@ -281,7 +282,7 @@ class WorldNode(RealtimeWorld, Node):
 
     def write_event(self, ev):
         if self.events_file:
-            with open(self.events_file, 'a') as f:
+            with open_regular(self.events_file, 'a') as f:
                 f.write(json.dumps(ev) + '\n')
 
     def _on_event(self, msg):
