@@ -26,8 +26,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
-PACKAGES = ['homotopy_commander', 'swarm_agent', 'swarm_core', 'swarm_ros', 'swarm_tools', 'swarm_world']
-LIBRARIES = ('swarm_core', 'swarm_ros')     # no executables: the `swarm` command is swarm_tools'
+PACKAGES = ['homotopy_commander', 'swarm_agent', 'swarm_core', 'swarm_robots', 'swarm_ros', 'swarm_tools',
+            'swarm_world']
+LIBRARIES = ('swarm_core', 'swarm_robots', 'swarm_ros')   # no executables: the `swarm` command is swarm_tools'
 
 # the lookup of `ros2 run PKG EXE` (see the module docstring), run in the sourced workspace
 LOOKUP = r'''

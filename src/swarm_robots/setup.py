@@ -1,0 +1,22 @@
+"""ament_python package swarm_robots (also pip-installable)."""
+from setuptools import find_packages, setup
+
+package_name = 'swarm_robots'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    package_data={package_name: []},
+    include_package_data=True,
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='homotopy-swarm developers',
+    maintainer_email='dev@homotopy-swarm.invalid',
+    description='Robots for the swarm: a robot description, a pure emulation of diff_drive_controller and a MuJoCo world of differential-drive robots.',
+    license='Apache-2.0',
+)
