@@ -206,6 +206,8 @@ def test_a_yaml_description_sets_fields_and_keeps_the_burgers_defaults(tmp_path)
     ('max_angular: .nan', 'max_angular'),
     ('wheel_separation: 0.3', 'wheel_separation'),    # wider than the footprint
     ('wheel_mass: 0.6', 'wheel_mass'),
+    ('friction: 0', 'friction'),
+    ('cmd_vel_timeout: true', 'cmd_vel_timeout'),
     ('[1, 2]', 'mapping'),
 ])
 def test_a_bad_yaml_description_names_the_bad_field(tmp_path, text, field):

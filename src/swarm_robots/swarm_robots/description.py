@@ -101,6 +101,6 @@ class RobotDescription:
 
 #: fields that are positions (any sign) and fields where 0 means "none"
 _SIGNED = frozenset({'caster_x', 'com_x'})
-_MAY_BE_ZERO = frozenset({'cmd_vel_timeout', 'friction'})
+_MAY_BE_ZERO = frozenset({'cmd_vel_timeout'})
 
 TURTLEBOT3_BURGER = RobotDescription()
