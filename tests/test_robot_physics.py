@@ -110,9 +110,10 @@ def test_two_robots_driven_into_each_other_touch_and_do_not_pass():
     gap = gt[1, 0] - gt[0, 0]
     assert gap > 2 * BURGER.radius - 0.01           # they push, they do not pass
     assert gt[2, 0] > 0.7                           # the third one drove on untouched
+    assert world.touching.tolist() == [[0, 1]]
     contacts = world.contacts
     drive(world, -0.1, 0.0, 1.0)                    # back off: no new contact event
-    assert world.contacts == contacts
+    assert world.contacts == contacts and world.touching.size == 0
 
 
 def odom_in_world(odom, start):

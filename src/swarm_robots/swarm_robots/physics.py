@@ -174,6 +174,11 @@ class RobotWorld:
         self.contacts += int(np.setdiff1d(pairs, self._touching, assume_unique=True).size)
         self._touching = pairs
 
+    @property
+    def touching(self) -> np.ndarray:
+        """(K, 2) the pairs of robots (i < j) in contact at the end of the last period."""
+        return np.column_stack([self._touching // self.n, self._touching % self.n])
+
     def odometry(self) -> np.ndarray:
         """(N, 5) x, y, yaw, v, ω: wheel odometry, each robot in its own odom frame from
         (0, 0, 0), as diff_drive_controller publishes it."""
