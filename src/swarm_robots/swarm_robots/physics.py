@@ -181,11 +181,13 @@ class RobotWorld:
 
     def odometry(self) -> np.ndarray:
         """(N, 5) x, y, yaw, v, ω: wheel odometry, each robot in its own odom frame from
-        (0, 0, 0), as diff_drive_controller publishes it."""
+        (0, 0, 0), as diff_drive_controller publishes it.  Yaw is not wrapped (odometry.cpp
+        keeps adding to its heading)."""
         return np.column_stack([self.wheel_odometry.pose.T, self.wheel_odometry.velocity.T])
 
     def ground_truth(self) -> np.ndarray:
-        """(N, 5) x, y, yaw, v, ω in the world frame; v and ω in the body frame."""
+        """(N, 5) x, y, yaw, v, ω in the world frame (yaw not wrapped); v and ω in the body
+        frame."""
         q, dq = self._qpos, self._qvel
         yaw = q[:, YAW]
         v = np.cos(yaw) * dq[:, X] + np.sin(yaw) * dq[:, Y]
