@@ -217,3 +217,19 @@ def test_a_bad_yaml_description_names_the_bad_field(tmp_path, text, field):
     with pytest.raises(DescriptionError, match=field) as e:
         RobotDescription.from_yaml(path)
     assert str(path) in str(e.value)
+
+
+def test_advance_runs_whole_controller_periods_without_drift():
+    world = RobotWorld(BURGER, [[0.0, 0.0, 0.0]])
+    step = 0.1 * 0.5 / 0.22                            # 0.227... s: dt 0.1 at L = 0.5, v0 = 0.22
+    for k in range(1, 11):
+        world.advance(step)
+        assert abs(world.time - k * step) <= world.control_dt / 2
+    assert world.data.time == pytest.approx(world.time)
+
+
+@pytest.mark.parametrize('kw, field', [(dict(physics_dt=0.005), 'physics_dt'),
+                                       (dict(physics_dt=0.0015), 'control_dt')])
+def test_a_physics_step_the_wheel_servo_cannot_take_is_refused(kw, field):
+    with pytest.raises(ValueError, match=field):
+        RobotWorld(BURGER, [[0.0, 0.0, 0.0]], **kw)
