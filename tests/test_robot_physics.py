@@ -191,6 +191,9 @@ def test_wheel_odometry_integrates_an_arc_exactly():
                        np.array([right]) / BURGER.wheel_radius, 1.0)
     np.testing.assert_allclose(odom.pose[:, 0], [radius, radius, angle], atol=1e-12)
     np.testing.assert_allclose(odom.velocity[:, 0], [radius * angle, angle], atol=1e-12)
+    both = np.array([left + 0.3, right + 0.3]) / BURGER.wheel_radius    # then 0.3 m straight on
+    assert odom.update(both[:1], both[1:], 2.0)
+    np.testing.assert_allclose(odom.pose[:, 0], [radius, radius + 0.3, angle], atol=1e-12)
 
 
 def test_a_yaml_description_sets_fields_and_keeps_the_burgers_defaults(tmp_path):
