@@ -236,3 +236,10 @@ def test_advance_runs_whole_controller_periods_without_drift():
 def test_a_physics_step_the_wheel_servo_cannot_take_is_refused(kw, field):
     with pytest.raises(ValueError, match=field):
         RobotWorld(BURGER, [[0.0, 0.0, 0.0]], **kw)
+
+
+def test_diverged_physics_is_an_error_not_a_silent_reset():
+    world = RobotWorld(BURGER, [[1.0, 0.0, 0.0]])
+    world.data.qvel[0] = np.inf                    # as a blown-up simulation would have it
+    with pytest.raises(RuntimeError, match='diverged'):
+        world.advance(0.1)

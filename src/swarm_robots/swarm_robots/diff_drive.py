@@ -78,7 +78,7 @@ class DiffDriveControllers:
 
 def wheel_velocities(description: RobotDescription, v, omega):
     """(v, ω) → (left, right) wheel angular velocities, rad/s (diff_drive_controller.cpp)."""
-    half = omega * (description.wheel_separation / 2.0)
+    half = omega * description.wheel_separation / 2.0        # in the C++ order of operations
     return (v - half) / description.wheel_radius, (v + half) / description.wheel_radius
 
 

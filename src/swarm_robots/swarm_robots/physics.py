@@ -38,6 +38,9 @@ CHASSIS_HEIGHT = 0.19
 #: joints per robot in qpos/qvel order: x, y, z, yaw, left wheel, right wheel
 JOINTS = 6
 X, Y, Z, YAW, LEFT, RIGHT = range(JOINTS)
+#: MuJoCo's warnings of a diverged state (after which it resets the state to the model's)
+_DIVERGED = [int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                              mujoco.mjtWarning.mjWARN_BADQACC)]
 # collision bits: wheels and casters touch only the floor, bumpers only other bumpers
 _FLOOR = 'contype="0" conaffinity="1"'
 _ON_FLOOR = 'contype="1" conaffinity="0"'
@@ -156,6 +159,8 @@ class RobotWorld:
         self.data.ctrl[0::2] = left
         self.data.ctrl[1::2] = right
         mujoco.mj_step(self.model, self.data, nstep=self.substeps)
+        if any(self.data.warning[w].number for w in _DIVERGED):     # not a silent reset
+            raise RuntimeError(f'the physics diverged at t = {self.time:.3f} s')
         self._steps += 1
         self.saturated_time += np.where(saturated, self.control_dt, 0.0)
         self.wheel_odometry.update(self._qpos[:, LEFT], self._qpos[:, RIGHT], self.time)
