@@ -78,12 +78,28 @@ def test_a_step_in_the_command_reaches_the_wheels_no_faster_than_max_acceleratio
     assert world.saturated_time[0] == pytest.approx(world.control_dt * np.count_nonzero(ramp < target))
 
 
-def test_speed_beyond_the_limit_is_clipped_and_counted():
+def test_speed_beyond_the_limits_is_clipped_and_counted():
+    """The controller clips (1 m/s, 9 rad/s) to (0.22, 2.84); then the motors clip the outer
+    wheel to its top speed, so the robot drives and turns slower than even that."""
     world = RobotWorld(BURGER, [[0.0, 0.0, 0.0]])
     drive(world, 1.0, 9.0, 2.0)
-    v, omega = wheel_command(world)
-    # both axes at their limits: the wheels get (0.22, 2.84)
-    assert (v, omega) == pytest.approx((BURGER.max_linear, BURGER.max_angular), rel=1e-12)
+    limited = world.controllers.limited_command[:, 0]
+    assert limited.tolist() == [BURGER.max_linear, BURGER.max_angular]
+    top = BURGER.max_wheel_speed
+    inner = (BURGER.max_linear - BURGER.max_angular * BURGER.wheel_separation / 2) / BURGER.wheel_radius
+    np.testing.assert_allclose(world.data.ctrl, [inner, top], rtol=1e-12)
+    v, omega = world.ground_truth()[0, 3:]
+    rim = BURGER.wheel_radius * np.array([inner, top])
+    assert v == pytest.approx(rim.mean(), rel=0.02)
+    assert omega == pytest.approx((rim[1] - rim[0]) / BURGER.wheel_separation, rel=0.02)
+    assert world.saturated_time[0] == pytest.approx(2.0)
+
+
+def test_a_wheel_at_its_top_speed_counts_as_saturated():
+    world = RobotWorld(BURGER, [[0.0, 0.0, 0.0]])
+    drive(world, 0.2, 1.0, 2.0)                    # inside the controller's limits
+    assert world.controllers.limited_command[:, 0].tolist() == [0.2, 1.0]
+    assert world.data.ctrl[1] == BURGER.max_wheel_speed       # (0.2 + 0.08) / 0.033 > 7
     assert world.saturated_time[0] == pytest.approx(2.0)
 
 

@@ -69,6 +69,11 @@ class DiffDriveControllers:
         self._previous = limited
         return wheel_velocities(self.description, limited[0], limited[1]), saturated
 
+    @property
+    def limited_command(self) -> np.ndarray:
+        """(2, N) the last limited (v, ω), as the controller's ``cmd_vel_out`` would publish."""
+        return self._previous.copy()
+
     def fresh(self, now: float, stamp: float) -> bool:
         """Whether the subscriber accepts a command stamped `stamp` at `now` (it drops one
         older than cmd_vel_timeout)."""

@@ -4,9 +4,9 @@
 One MJCF model holds every robot.  A robot is a chassis on four joints (slide x, slide y, slide
 z, hinge yaw: it drives, turns and rests its weight on its wheels and caster, but cannot roll or
 pitch, which a Burger on a flat floor does not do) and two wheels on hinge joints driven by
-velocity servos with a torque limit.  A wheel touches the floor as a sphere of the wheel radius
-(one contact point, as a thin tyre) with the description's friction; the ball caster is a
-frictionless sphere.  Robots touch each other through a sphere of the footprint radius at one
+velocity servos with a speed and a torque limit.  A wheel touches the floor as a sphere of the
+wheel radius (one contact point, as a thin tyre) with the description's friction; the ball
+caster is a frictionless sphere.  Robots touch each other through a sphere of the footprint radius at one
 height, so two robots collide as two discs in the plane; a robot's own parts never collide.
 
 The controllers update every ``control_dt`` (100 Hz) and the physics steps ``physics_dt``
@@ -156,8 +156,10 @@ class RobotWorld:
         """One controller period: the controllers' update, physics_dt substeps, then the
         wheel odometry and the contacts at the period's end."""
         (left, right), saturated = self.controllers.update(self.time, self.control_dt)
-        self.data.ctrl[0::2] = left
-        self.data.ctrl[1::2] = right
+        top = self.description.max_wheel_speed          # the motors' limit, not the controller's
+        saturated |= (np.abs(left) > top) | (np.abs(right) > top)
+        self.data.ctrl[0::2] = np.clip(left, -top, top)
+        self.data.ctrl[1::2] = np.clip(right, -top, top)
         mujoco.mj_step(self.model, self.data, nstep=self.substeps)
         if any(self.data.warning[w].number for w in _DIVERGED):     # not a silent reset
             raise RuntimeError(f'the physics diverged at t = {self.time:.3f} s')
