@@ -254,7 +254,8 @@ def test_a_physics_step_the_wheel_servo_cannot_take_is_refused(kw, field):
         RobotWorld(BURGER, [[0.0, 0.0, 0.0]], **kw)
 
 
-def test_diverged_physics_is_an_error_not_a_silent_reset():
+def test_diverged_physics_is_an_error_not_a_silent_reset(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)                    # MuJoCo writes its warning to MUJOCO_LOG.TXT here
     world = RobotWorld(BURGER, [[1.0, 0.0, 0.0]])
     world.data.qvel[0] = np.inf                    # as a blown-up simulation would have it
     with pytest.raises(RuntimeError, match='diverged'):

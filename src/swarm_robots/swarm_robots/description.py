@@ -7,7 +7,7 @@ caster and centre-of-mass offsets and the wheel mass are those of ``turtlebot3_b
 (``caster_back_joint`` at x = -0.081 m, ``base_link`` inertial origin x = -0.032 m, wheel links
 0.0285 kg).
 
-The acceleration limits are ours (the Burger's own firmware does not publish any): one budget
+The acceleration limits are ours (the Burger's published specification gives none): one budget
 of 1.0 m/s² at the wheel rim for both axes, so ``max_angular_accel`` = 1.0 / (0.160 / 2) =
 12.5 rad/s².  The robot reaches full speed in 0.22 s and full turn rate in 0.23 s, and the rim
 acceleration stays far below what the tyres grip (μ·g ≈ 7.8 m/s² at μ = 0.8), so a robot on a
