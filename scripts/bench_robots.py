@@ -8,7 +8,8 @@ One control step is one lockstep step of the swarm: dt model units = dt·L/v0 ro
 (0.2 s at dt = 0.1, L = 0.3 m, v0 = 0.15 m/s).  Every step each robot gets a cmd_vel
 (v0, clip(v0·u/L, ±ω_max)) with a random curvature u in [-1, 1] (seeded), as an agent would
 send; the robots start on a grid at the scaled radio spacing (1.5·L), so some of them meet.
-The real-time factor is robot seconds per wall second; CPU is this process's CPU time.
+The real-time factor is robot seconds per wall second; CPU is this process's CPU time (robot s
+per CPU s is the real-time factor one free core would give).
 """
 from __future__ import annotations
 
@@ -48,7 +49,7 @@ def measure(n, seconds, length_scale, cruise_speed, dt, seed=0):
     for _ in range(steps):
         one_step()
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    return dict(robots=n, step_s=step, steps=steps, rtf=steps * step / wall,
+    return dict(robots=n, step_s=step, steps=steps, rtf=steps * step / wall, rtf_cpu=steps * step / cpu,
                 wall_ms_per_step=1e3 * wall / steps, cpu_ms_per_step=1e3 * cpu / steps,
                 contacts=world.contacts)
 
@@ -64,10 +65,11 @@ def main(argv=None):
     args = ap.parse_args(argv)
     rows = [measure(int(n), args.seconds, args.length_scale, args.cruise_speed, args.dt)
             for n in args.robots.split(',') if n.strip()]
-    print(f'| robots | step (robot s) | steps | real-time factor | wall ms/step | CPU ms/step | contacts |')
-    print('|---:|---:|---:|---:|---:|---:|---:|')
+    print('| robots | step (robot s) | steps | real-time factor | robot s per CPU s | wall ms/step '
+          '| CPU ms/step | contacts |')
+    print('|---:|---:|---:|---:|---:|---:|---:|---:|')
     for r in rows:
-        print(f'| {r["robots"]} | {r["step_s"]:.3g} | {r["steps"]} | {r["rtf"]:.1f}× | '
+        print(f'| {r["robots"]} | {r["step_s"]:.3g} | {r["steps"]} | {r["rtf"]:.1f}× | {r["rtf_cpu"]:.1f}× | '
               f'{r["wall_ms_per_step"]:.1f} | {r["cpu_ms_per_step"]:.1f} | {r["contacts"]} |')
     if args.out:
         with open(args.out, 'w') as f:
