@@ -282,11 +282,15 @@ GATHER_LIMIT = 512
 
 
 @functools.lru_cache(maxsize=8)
-def _senders(rows: int, n: int):
-    """0 … n−1 repeated ``rows`` times: the sender row of each entry of a (rows, n) block."""
-    j = np.tile(np.arange(n), rows)
-    j.flags.writeable = False
-    return j
+def _gather_rows(n: int, receivers: bytes):
+    """Of a gathered block of the receivers (intp bytes; an agent node or the batch asks for the
+    same every step): the receiver row k and the sender row j of each entry, and the flat
+    index of each self pair (k, k)."""
+    k = np.frombuffer(receivers, dtype=np.intp)
+    rows, senders = k.repeat(n), np.tile(np.arange(n), k.size)
+    self_pair = k + _row_starts(k.size, n)
+    rows.flags.writeable = senders.flags.writeable = self_pair.flags.writeable = False
+    return rows, senders, self_pair
 
 
 def _pair_weights(law, lam, q0, leaders, recv_leader, careful):
@@ -309,16 +313,6 @@ def _pair_weights(law, lam, q0, leaders, recv_leader, careful):
     far_gain = np.array(((q0 * (1.0 - lam), (law.leader_gain - 1.0) * lam + 1.0), (q0, 1.0)))
     far_gain = far_gain.take(recv_leader.astype(np.intp), axis=0)
     return far_gain[:, :1], far_gain[:, 1], leaders.nonzero()[0]
-
-
-@functools.lru_cache(maxsize=8)
-def _gather_rows(n: int, receivers: bytes):
-    """(receiver row of each entry, flat index of each self pair (k, k)) of a gathered block
-    of the receivers (intp bytes): an agent node or the batch asks for the same every step."""
-    k = np.frombuffer(receivers, dtype=np.intp)
-    rows, self_pair = k.repeat(n), k + _row_starts(k.size, n)
-    rows.flags.writeable = self_pair.flags.writeable = False
-    return rows, self_pair
 
 
 @dataclass(frozen=True)
@@ -354,8 +348,7 @@ class _DenseLayout:
         self.gather = gather = block == n_recv and n_recv * n <= GATHER_LIMIT
         xy = pos.T                                              # (2, N): x and y rows
         if gather:                                              # r_k, r_j: (2, K·N)
-            senders = _senders(n_recv, n)
-            recv_rows, self.self_pair = _gather_rows(n, receivers.tobytes())
+            recv_rows, senders, self.self_pair = _gather_rows(n, receivers.tobytes())
             self.xy_recv, self.xy_table = xy.take(recv_rows, axis=1), xy.take(senders, axis=1)
             if gather_frames:                                   # cos θ_j, sin θ_j (weighted later)
                 cos_sin.take(senders, axis=1, out=full.cs_flat)
