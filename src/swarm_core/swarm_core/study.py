@@ -25,7 +25,8 @@ import yaml
 
 from . import scenario
 from .study_tables import ROW_METRICS
-from .study_tables import plot_rates, rates, rates_csv, rates_markdown, to_csv, wilson  # noqa: F401 (the study API)
+# the tables are part of the study API (study.to_csv, study.rates, ...)
+from .study_tables import plot_rates, rates, rates_csv, rates_markdown, to_csv, wilson  # noqa: F401
 
 
 class StudyError(ValueError):
