@@ -21,7 +21,6 @@ nonzero ``barrier_gain`` are given.
 """
 from __future__ import annotations
 
-import contextlib
 import functools
 import math
 import threading
@@ -230,7 +229,6 @@ class _Scratch(threading.local):
 
 
 _scratch = _Scratch()
-_NO_ERRSTATE = contextlib.nullcontext()
 
 
 @functools.lru_cache(maxsize=8)
@@ -247,11 +245,15 @@ GATHER_LIMIT = 512
 
 
 @functools.lru_cache(maxsize=8)
-def _senders(rows: int, n: int):
-    """0 … n−1 repeated ``rows`` times: the sender row of each entry of a (rows, n) block."""
-    j = np.tile(np.arange(n), rows)
-    j.flags.writeable = False
-    return j
+def _gather_rows(n: int, receivers: bytes):
+    """Of a gathered block of the receivers (intp bytes; an agent node or the batch asks for the
+    same every step): the receiver row k and the sender row j of each entry, and the flat
+    index of each self pair (k, k)."""
+    k = np.frombuffer(receivers, dtype=np.intp)
+    rows, senders = k.repeat(n), np.tile(np.arange(n), k.size)
+    self_pair = k + _row_starts(k.size, n)
+    rows.flags.writeable = senders.flags.writeable = self_pair.flags.writeable = False
+    return rows, senders, self_pair
 
 
 def _pair_weights(law, lam, q0, leaders, recv_leader, careful):
@@ -276,143 +278,186 @@ def _pair_weights(law, lam, q0, leaders, recv_leader, careful):
     return far_gain[:, :1], far_gain[:, 1], leaders.nonzero()[0]
 
 
+@dataclass(frozen=True)
+class _Terms:
+    """What a dense call forms, in place of mode flags (one instance per combination: `_terms`)."""
+    target: bool      # eq. 15: only (Hx, Hy), from h within w (·1/ρ if target_normalised)
+    weighted: bool    # the weights W_jk of eq. 8, 13, 14 (else every W_jk = 1)
+    leader: bool      # W with the gain (ℓc − 1)λ + 1 on the pair with the nearest leader (eq. 13)
+    gather: bool      # one small block, its operands gathered with take() (`_DenseLayout`)
+    careful: bool     # coincident pairs (ρ = 0, j ≠ k) get W = 0, else their rows are redone
+    frames: bool      # C, S formed per row (weighted or gathered), else table sums (`_combine`)
+    look: bool        # ρ = 0 looked for before dividing (gathered or careful), else rows after
+
+
+@functools.lru_cache(maxsize=None)
+def _terms(target: bool, weighted: bool, leader: bool, gather: bool, careful: bool) -> _Terms:
+    return _Terms(target, weighted, leader, gather, careful, weighted or gather, gather or careful)
+
+
+class _DenseLayout:
+    """The receivers' rows in blocks of about DENSE_BLOCK pairs over the whole table.  At n = 6
+    the cost is numpy's per-call overhead, not arithmetic: one small block (at most
+    GATHER_LIMIT pairs) gathers r_k, r_j (and the senders' frames, into C, S) with take()
+    instead of broadcasting, and ``const`` makes numbers constant arrays."""
+
+    __slots__ = ('n', 'n_recv', 'block', 'full', 'gather', 'xy_recv', 'xy_table', 'self_pair',
+                 'const', 'table_cos', 'table_sin')
+
+    def __init__(self, pos, cos_sin, receivers, gather_frames: bool):
+        self.n, self.n_recv = n, n_recv = pos.shape[0], receivers.size
+        self.block = block = min(n_recv, max(1, DENSE_BLOCK // max(1, n)))
+        self.full = full = _scratch.get(block, n)
+        self.gather = gather = block == n_recv and n_recv * n <= GATHER_LIMIT
+        xy = pos.T                                              # (2, N): x and y rows
+        if gather:                                              # r_k, r_j: (2, K·N)
+            recv_rows, senders, self.self_pair = _gather_rows(n, receivers.tobytes())
+            self.xy_recv, self.xy_table = xy.take(recv_rows, axis=1), xy.take(senders, axis=1)
+            if gather_frames:                                   # cos θ_j, sin θ_j (weighted later)
+                cos_sin.take(senders, axis=1, out=full.cs_flat)
+        else:                                                   # r_k (2, K, 1), r_j (2, 1, N)
+            self.xy_recv, self.xy_table = xy.take(receivers, axis=1)[:, :, None], xy[:, None, :]
+            self.table_cos, self.table_sin = cos_sin[:, None, :]   # cos θ_j, sin θ_j: (1, N)
+            self.self_pair = receivers + _row_starts(n_recv, n)  # flat index of (k, k) in a block
+        self.const = full.const if gather else float
+
+
 def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader, careful=False):
-    """Row sums ("moments") from which Σ_j weight_jk·u_jk follows for each receiver, over the
-    whole table, in blocks of receiver rows (no Python loop over pairs).
+    """Per-receiver moments (6, K) over the whole table, in blocks of receiver rows, from which
+    `_combine` forms Σ_j W_jk u_jk: eq. 4-5 with the weights of eq. 8, 13, 14 (or eq. 15).
 
     u_jk (eq. 5) is linear in pair moments whose coefficients depend only on the receiver's
-    frame (c, s) = (cos θ_k, sin θ_k).  With r_jk = (dx, dy): (r_jk·x_k)(r_jk·y_k) =
+    frame (c, s) = (cos θ_k, sin θ_k).  With r_jk = (dx, dy), (r_jk·x_k)(r_jk·y_k) =
     (c² − s²)·dx·dy + c·s·(dy² − dx²) and r_jk·y_k = c·dy − s·dx, so
 
         Σ_j W_jk u_jk = −η[(c² − s²)·A + c·s·B] + (c·Hy − s·Hx) + μ(c·S − s·C)
 
     A = Σ W dx dy/ρ², B = Σ W (dy² − dx²)/ρ², (Hx, Hy) = Σ W h·(dx, dy), h = −α(1 − r0²/ρ²)/ρ,
-    C = Σ W cos θ_j, S = Σ W sin θ_j.  The self pair adds exactly 0 to A, B, Hx, Hy (its ρ² is
-    set to ∞) and its alignment c·s_k − s·c_k cancels.  With unit weights (no cutoff weight or
-    leader gain differs from 1) C and S are the plain table sums and are not formed per row.
-    The target law (eq. 15) needs only (Hx, Hy) with h = −α(1 − r0²/ρ²) (·1/ρ if normalised)
-    within w.  The nearest leader l(k) (eq. 10) is read off the block's ρ² (the numbers
-    `nearest_leader` forms; ties to the lower row).
-
-    cos_sin (2, N): the table's cos θ and sin θ.  Returns (moments (6, K): rows A, B, Hx, Hy,
-    C, S; whether the C, S rows are there (weighted, or a small block, where taking the
-    senders' frames costs less than a separate table sum); redo).  Each moment is numpy's row
-    reduction of a contiguous row, whose result does not depend on how many rows a block
-    holds, so one receiver alone (an agent node) gets the batch value bit for bit.  A row with
-    a coincident pair (ρ = 0, j ≠ k) is not valid here: redo (None, or receiver positions)
-    lists them for the caller to redo with ``careful``, where coincident pairs get weight 0
-    (they contribute 0).
-
-    At n = 6 the cost is numpy's per-call overhead, not arithmetic: a small block (at most
-    GATHER_LIMIT pairs) gathers r_j and the senders' frames with take() instead of
-    broadcasting, uses constant arrays instead of Python numbers, and looks for ρ = 0 before
-    dividing; large blocks keep scalar operands and flag non-finite rows after the sums.
+    C = Σ W cos θ_j, S = Σ W sin θ_j: the result's rows.  The self pair adds 0 (its ρ² is set
+    to ∞) but to C, S, where its alignment c·s_k − s·c_k cancels.  Each moment is numpy's
+    reduction of one contiguous row, whatever a block holds, so one receiver alone (an agent
+    node) gets the batch value bit for bit.  cos_sin (2, N): the table's cos θ, sin θ.
+    Returns (moments, whether the C, S rows are formed, redo: None or the receiver positions
+    with a coincident pair (ρ = 0, j ≠ k), for the caller to redo with ``careful``).
     """
-    n = pos.shape[0]
-    n_recv = receivers.size
-    sums = np.empty((6, n_recv))
-    target_kind = law.kind == 'target'
-    weights = None if target_kind else _pair_weights(law, lam, q0, leaders, recv_leader, careful)
+    sums = np.empty((6, receivers.size))
+    target = law.kind == 'target'
+    weights = None if target else _pair_weights(law, lam, q0, leaders, recv_leader, careful)
+    if receivers.size == 0:
+        return sums, weights is not None, None
+    lay = _DenseLayout(pos, cos_sin, receivers, gather_frames=not target)
+    terms = _terms(target, weights is not None, weights is not None and weights[1] is not None,
+                   lay.gather, careful)
+    if terms.look:                  # each block looks for ρ = 0 before dividing
+        return sums, terms.frames, _sum_blocks(lay, terms, law, weights, sums)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        _sum_blocks(lay, terms, law, weights, sums)
+    moments = sums[2:4] if target else sums[:4]     # large blocks divide anyway: redo the rows
+    if math.isfinite(np.add.reduce(moments, axis=None)):          # that are not finite
+        return sums, terms.frames, None
+    return sums, terms.frames, np.flatnonzero(~np.isfinite(moments).all(axis=0))
+
+
+def _sum_blocks(lay, terms, law, weights, sums):
+    """`_block_moments` of every block; returns the positions of rows with a coincident pair
+    (None if there is none)."""
     redo = None
-    if n_recv == 0:
-        return sums, weights is not None, redo
-    xy = pos.T                                                  # (2, N): x and y rows
-    block = min(n_recv, max(1, DENSE_BLOCK // max(1, n)))
-    full = _scratch.get(block, n)
-    gather = block == n_recv and n_recv * n <= GATHER_LIMIT     # one small block
-    if gather:
-        senders = _senders(n_recv, n)
-        xy_recv = xy.take(receivers.repeat(n), axis=1)
-        xy_table = xy.take(senders, axis=1)
-        d_flat = full.d_flat
+    for a in range(0, lay.n_recv, lay.block):
+        bad = _block_moments(lay, terms, law, weights, a, sums)
+        if bad is not None:
+            redo = bad if redo is None else np.concatenate((redo, bad))
+    return redo
+
+
+def _block_moments(lay, terms, law, weights, a, sums):
+    """The moments of the receivers a … a + b − 1 (one block) into sums; returns the positions
+    of rows with a coincident pair (to redo), or None."""
+    b = min(lay.block, lay.n_recv - a)
+    z = lay.full if b == lay.block else lay.full.head(b)
+    rows = None if b == lay.n_recv else slice(a, a + b)     # None: every receiver, one block
+    rr, h, const, g = z.rr, z.h, lay.const, law.gains
+    _block_geometry(lay, z, a, rows)
+    leader_pairs = coincident = bad = None
+    if terms.leader:
+        leader_pairs = _nearest_leader_pairs(rr, weights[2], _row_starts(b, lay.n))
+    if terms.target or terms.weighted:
+        np.less(rr, const(law.cutoff_radius * law.cutoff_radius), out=z.wb)  # ρ < w
+    if terms.look and np.count_nonzero(rr) != rr.size:         # a coincident pair
+        coincident, bad = _coincident_pairs(rr, a, terms.careful)
+    np.reciprocal(rr, out=rr)                                   # 1/ρ²
+    np.multiply(rr, const(g.alpha * g.r0 * g.r0), out=h)
+    np.subtract(h, const(g.alpha), out=h)                       # −α(1 − r0²/ρ²), eq. 5-6
+    if terms.target:                                            # eq. 15: h·r_jk within w
+        if law.target_normalised:
+            np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)       # unit vectors: h/ρ
+        np.multiply(h, z.wb, out=h)
+        np.multiply(z.dx, h, out=z.Hx)
+        np.multiply(z.dy, h, out=z.Hy)
+        np.add.reduce(z.mom[2:4], axis=2, out=sums[2:4] if rows is None else sums[2:4, rows])
+        return bad
+    np.subtract(z.d2y, z.d2x, out=z.B)                          # dy² − dx²
+    np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)               # h = −α(1 − r0²/ρ²)/ρ
+    if terms.weighted:
+        _weigh(z, lay, terms, weights, rows, leader_pairs, coincident)
+    np.multiply(z.dx, z.dy, out=z.A)
+    np.multiply(z.A, rr, out=z.A)
+    np.multiply(z.B, rr, out=z.B)
+    np.multiply(z.dx, h, out=z.Hx)
+    np.multiply(z.dy, h, out=z.Hy)
+    mom, out = (z.mom, sums) if terms.frames else (z.mom[:4], sums[:4])
+    np.add.reduce(mom, axis=2, out=out if rows is None else out[:, rows])
+    return bad
+
+
+def _block_geometry(lay, z, a, rows):
+    """r_jk = r_k − r_j, dx², dy² and ρ² of a block's pairs; the self pair's ρ² is ∞."""
+    if lay.gather:
+        np.subtract(lay.xy_recv, lay.xy_table, out=z.d_flat)
     else:
-        xy_recv = xy.take(receivers, axis=1)[:, :, None]
-        xy_table = xy[:, None, :]
-    g = law.gains
-    const = full.const if gather else float                   # constants: arrays only when tiny
-    self_pair = receivers + _row_starts(n_recv, n)              # flat index of (k, k) in a block
-    starts = _row_starts(block, n)
-    gain = leader_rows = None
-    if gather and not target_kind:   # the senders' cos θ_j, sin θ_j in the C, S rows (weighted below)
-        cos_sin.take(senders, axis=1, out=full.cs_flat)
-    if weights is not None:
-        far, gain, leader_rows = weights
-        if gain is None:
-            far = const(far)
-        if not gather:
-            table_cos, table_sin = cos_sin[:, None, :]
-    top = 6 if weights is not None or gather else 4
-    # coincident pairs: a small block (or a careful pass) looks for ρ = 0 before dividing; a
-    # large one divides anyway (no check pass over every block) and flags non-finite rows after
-    look = gather or careful
-    with _NO_ERRSTATE if look else np.errstate(divide='ignore', invalid='ignore'):
-        for a in range(0, n_recv, block):
-            b = min(block, n_recv - a)
-            z = full if b == block else full.head(b)
-            rows = slice(a, a + b)
-            single = b == n_recv
-            rr = z.rr
-            if gather:
-                np.subtract(xy_recv, xy_table, out=d_flat)       # r_jk = r_k − r_j
-            else:
-                np.subtract(xy_recv if single else xy_recv[:, rows], xy_table, out=z.d)
-            np.multiply(z.d, z.d, out=z.d2)
-            np.add(z.d2x, z.d2y, out=rr)                         # ρ²
-            rr.put(self_pair if single else self_pair[rows] - a * n, np.inf)  # self: 1/ρ² = 0
-            if gain is not None:                                 # l(k), eq. 10: the nearest leader
-                l_flat = leader_rows.take(rr.take(leader_rows, axis=1).argmin(axis=1))
-                l_flat += starts if b == block else starts[:b]
-            if target_kind or weights is not None:
-                np.less(rr, const(law.cutoff_radius * law.cutoff_radius), out=z.wb)  # ρ < w
-            coincident = None
-            if look and np.count_nonzero(rr) != rr.size:         # a coincident pair (ρ = 0, j ≠ k)
-                coincident = rr == 0.0
-                rr[coincident] = np.inf
-                if not careful:                                  # its row is redone by the caller
-                    bad = a + np.flatnonzero(coincident.any(axis=1))
-                    redo = bad if redo is None else np.concatenate((redo, bad))
-            h = z.h
-            np.reciprocal(rr, out=rr)                            # 1/ρ²
-            np.multiply(rr, const(g.alpha * g.r0 * g.r0), out=h)
-            np.subtract(h, const(g.alpha), out=h)                # −α(1 − r0²/ρ²)
-            if target_kind:
-                if law.target_normalised:
-                    np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)
-                np.multiply(h, z.wb, out=h)
-                np.multiply(z.dx, h, out=z.Hx)
-                np.multiply(z.dy, h, out=z.Hy)
-                np.add.reduce(z.mom[2:4], axis=2, out=sums[2:4] if single else sums[2:4, rows])
-                continue
-            np.subtract(z.d2y, z.d2x, out=z.B)                   # dy² − dx²
-            np.multiply(h, np.sqrt(rr, out=z.d2x), out=h)        # h = −α(1 − r0²/ρ²)/ρ
-            if weights is not None:
-                wm = z.wm
-                np.copyto(wm, far if gain is None or single else far[rows])  # far: q, or (K, 1)
-                np.copyto(wm, const(1.0), where=z.wb)            # c(ρ, q, w), eq. 8
-                if gain is not None:                             # (ℓc − 1)λ + 1 with l(k), eq. 13
-                    wm.put(l_flat, wm.take(l_flat) * (gain if single else gain[rows]))
-                if coincident is not None and careful:
-                    wm[coincident] = 0.0
-                np.multiply(rr, wm, out=rr)
-                np.multiply(h, wm, out=h)
-                if gather:
-                    np.multiply(z.C, wm, out=z.C)
-                    np.multiply(z.S, wm, out=z.S)
-                else:
-                    np.multiply(wm, table_cos, out=z.C)
-                    np.multiply(wm, table_sin, out=z.S)
-            np.multiply(z.dx, z.dy, out=z.A)
-            np.multiply(z.A, rr, out=z.A)
-            np.multiply(z.B, rr, out=z.B)
-            np.multiply(z.dx, h, out=z.Hx)
-            np.multiply(z.dy, h, out=z.Hy)
-            np.add.reduce(z.mom if top == 6 else z.mom[:4], axis=2,
-                          out=(sums if top == 6 else sums[:4]) if single else sums[:top, rows])
-    if not look:
-        lo = 2 if target_kind else 0
-        if not math.isfinite(np.add.reduce(sums[lo:4], axis=None)):
-            redo = np.flatnonzero(~np.isfinite(sums[lo:4]).all(axis=0))
-    return sums, top == 6, redo
+        np.subtract(lay.xy_recv if rows is None else lay.xy_recv[:, rows], lay.xy_table, out=z.d)
+    np.multiply(z.d, z.d, out=z.d2)
+    np.add(z.d2x, z.d2y, out=z.rr)                              # ρ²
+    z.rr.put(lay.self_pair if rows is None else lay.self_pair[rows] - a * lay.n, np.inf)
+
+
+def _nearest_leader_pairs(rr, leader_rows, starts):
+    """Flat index in the block of each receiver's pair with its nearest leader l(k) (eq. 10),
+    read off ρ² (as `nearest_leader` finds it; ties to the lower row)."""
+    flat = leader_rows.take(rr.take(leader_rows, axis=1).argmin(axis=1))
+    flat += starts                                              # 0, n, 2n, …
+    return flat
+
+
+def _coincident_pairs(rr, a, careful):
+    """(mask, rows to redo) of a block's coincident pairs (ρ = 0, j ≠ k), looked for before
+    dividing, their ρ² set to ∞; no rows to redo in a careful pass (`_weigh` gives them W = 0)."""
+    coincident = rr == 0.0
+    rr[coincident] = np.inf
+    return coincident, None if careful else a + np.flatnonzero(coincident.any(axis=1))
+
+
+def _weigh(z, lay, terms, weights, rows, leader_pairs, coincident):
+    """1/ρ², h and the C, S terms of a block times W_jk: c(ρ, q, w) (eq. 8) with q beyond w,
+    the leader gain on the pair (k, l(k)) (eq. 13), 0 on coincident pairs of a careful pass."""
+    far, gain, _ = weights
+    wm = z.wm
+    if gain is None:                                            # one q for every receiver
+        np.copyto(wm, lay.const(far))
+    else:                                                       # q per receiver: a number, or (K, 1)
+        np.copyto(wm, far if rows is None else far[rows])
+    np.copyto(wm, lay.const(1.0), where=z.wb)                   # c(ρ, q, w), eq. 8
+    if terms.leader:                                            # (ℓc − 1)λ + 1 with l(k), eq. 13
+        wm.put(leader_pairs, wm.take(leader_pairs) * (gain if rows is None else gain[rows]))
+    if coincident is not None and terms.careful:
+        wm[coincident] = 0.0
+    np.multiply(z.rr, wm, out=z.rr)
+    np.multiply(z.h, wm, out=z.h)
+    if lay.gather:                                              # the senders' frames are in C, S
+        np.multiply(z.C, wm, out=z.C)
+        np.multiply(z.S, wm, out=z.S)
+    else:
+        np.multiply(wm, lay.table_cos, out=z.C)
+        np.multiply(wm, lay.table_sin, out=z.S)
 
 
 def _combine(m, weighted, F, cos_sin, law):
