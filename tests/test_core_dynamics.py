@@ -97,7 +97,7 @@ def test_kdtree_neighbour_search_equals_all_pairs():
     np.testing.assert_allclose(u_tree, u_all, rtol=0, atol=1e-14)   # other summation order
     assert len(pairs[0]) < n * (n - 1) / 5
     # one agent with its own neighbour list adds the same terms in the same order
-    from swarm_core.laws import sparse_coupling
+    from swarm_core.pair_sums import sparse_coupling
 
     from conftest import pairs_of_one
     assert sparse_coupling(n, scn.law, 0.0)

@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 
-from swarm_core import laws, frenet as model
+from swarm_core import frenet as model, laws, pair_sums
 from swarm_core.laws import LawConfig, swarm_control
 from swarm_core.frenet import PairGains, heading_frame
 
@@ -201,12 +201,12 @@ def test_one_agent_view_equals_batch_bit_for_bit():
 @pytest.mark.parametrize('kind,lam,q0', [('global', 0.0, 1.0), ('homotopy', 0.0, 1.0), ('homotopy', 0.4, 1.0),
                                         ('homotopy', 1.0, 0.0), ('local', 0.0, 0.0), ('target', 0.0, 0.0)])
 def test_one_agent_view_equals_batch_with_many_row_blocks(kind, lam, q0):
-    """The dense path works in blocks of rows (`laws.DENSE_BLOCK`): a swarm large enough for
+    """The dense path works in blocks of rows (`pair_sums.DENSE_BLOCK`): a swarm large enough for
     several blocks (and a partial last one) still gives every agent its batch u bit for bit,
     also for an agent whose row holds a coincident neighbour (redone with explicit masks)."""
     rng = np.random.default_rng(5)
     n = 300
-    assert laws.DENSE_BLOCK // n < n and n % (laws.DENSE_BLOCK // n) != 0
+    assert pair_sums.DENSE_BLOCK // n < n and n % (pair_sums.DENSE_BLOCK // n) != 0
     pos = rng.uniform(-20, 20, (n, 2))
     pos[17] = pos[40]                                   # two coincident agents
     c, s = heading_frame(rng.uniform(-3, 3, n))
@@ -228,7 +228,7 @@ def test_coincident_agents_equal_pair_loop(kind, n):
     """Agents at the same point contribute exactly nothing to each other (the loop skips them),
     and no floating-point warning escapes: in a small table (the dense path looks for ρ = 0
     before dividing) and in a larger one (it divides and redoes the non-finite rows)."""
-    assert 9 * 9 <= laws.GATHER_LIMIT < 80 * 80 <= laws.DENSE_BLOCK
+    assert 9 * 9 <= pair_sums.GATHER_LIMIT < 80 * 80 <= pair_sums.DENSE_BLOCK
     rng = np.random.default_rng(8)
     pos = rng.uniform(-4, 4, (n, 2)) * math.sqrt(n / 9)
     pos[2] = pos[6]
@@ -287,7 +287,7 @@ def test_follower_couples_to_its_nearest_leader():
     th = [0.0, 0.5, -0.5]
     by_hand = 40.0 * _u_pair_loop(pos[0], th[0], pos[2], th[2], g) + _u_pair_loop(pos[0], th[0], pos[1], th[1], g)
     assert u[0] == pytest.approx(by_hand, abs=1e-15)
-    assert laws.nearest_leader(pos, np.array([0]), np.array([1, 2]))[0] == 2
+    assert pair_sums.nearest_leader(pos, np.array([0]), np.array([1, 2]))[0] == 2
 
 
 def test_barrier_term_turns_away_only_while_ahead():

@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 
 from .faults import alive_control, event_names, reunion_law
 from .integrate import rk4_step, zoh_step
-from .laws import DENSE_LIMIT, sparse_coupling
+from .pair_sums import DENSE_LIMIT, sparse_coupling
 from .comms import Beliefs, belief_control, delay_stats
 from .frenet import heading_frame, quaternion_from_heading
 from .scenario import Scenario

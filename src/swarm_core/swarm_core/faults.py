@@ -18,7 +18,7 @@ Faults (`FaultTimeline`)
 Leader failover (`CommandPlan`, command_plan.py, uses `followers_of` and `elect_successor`)
     A leader not heard for ``timeout`` seconds (first step with t − t_missing ≥ timeout) is
     lost.  Its successor is, among the agents that are heard now and are not leaders, those
-    whose nearest leader l(k) (eq. 10, `laws.nearest_leader`) was the lost leader at the last
+    whose nearest leader l(k) (eq. 10, `pair_sums.nearest_leader`) was the lost leader at the last
     step it was heard, the one nearest to the lost leader's last heard position; ties go to
     the lower agent index; no successor if there is no such agent.  The successor takes over
     the lost leader's steering program and slot.  A lost leader that is heard again later
@@ -44,7 +44,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .laws import nearest_leader, swarm_control
+from .laws import swarm_control
+from .pair_sums import nearest_leader
 
 FAULT_KINDS = ('kill', 'freeze')
 
