@@ -45,7 +45,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_core.faults import event_names
-from swarm_core.frenet import frame_from_quaternion
+from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.command_plan import check_command
 from swarm_core.inputs import LAMBDA_BOUND
 from swarm_ros import protocol as P
@@ -187,8 +187,7 @@ class CommanderNode(Node):
     def _start_realtime(self):
         """A timer at 1/dt (sim time) decides from the newest /swarm/states."""
         self.pos = self.scn.pos0.copy()
-        c, s = np.cos(self.scn.theta0), np.sin(self.scn.theta0)
-        self.cos, self.sin = c, s
+        self.quat = np.stack(quaternion_from_heading(self.scn.theta0), axis=1)   # (n, 2) qz, qw heard
         self.last_seen = np.full(self.n, -np.inf)
         self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)), raw=True)
         self.timer = self.create_timer(self.dt, self._on_tick)
@@ -418,8 +417,7 @@ class CommanderNode(Node):
             return        # a second publisher of that name, or a stamp from the future (logged there too)
         self.senders.accept(name, tag)
         self.pos[i] = vals[:2]
-        c, s = frame_from_quaternion(vals[2], vals[3])
-        self.cos[i], self.sin[i] = c, s
+        self.quat[i] = vals[2:]
         self.last_seen[i] = t
 
     def _on_tick(self):
@@ -428,7 +426,8 @@ class CommanderNode(Node):
         if self.plan.failover is not None:       # only failover reads it (a lagging agent is not lost)
             heard = t - self.last_seen <= self.heard_timeout
             heard = heard if heard.any() else None
-        lam, flags, steering = self.decide(t, self.pos, self.cos, self.sin, heard=heard)
+        cos_t, sin_t = frame_from_quaternion(self.quat[:, 0], self.quat[:, 1])    # all at once, per tick
+        lam, flags, steering = self.decide(t, self.pos, cos_t, sin_t, heard=heard)
         self.publish_outputs(lam, flags, steering, force=True)
 
 

@@ -73,6 +73,7 @@ class AgentNode(Node):
                          parameter_overrides=parameter_overrides, enable_rosout=services,
                          start_parameter_services=services)
         self.contained = contained
+        self.sim_clock = self.get_clock()   # a realtime container's agents share its first agent's
         self.halted = None       # contained: 'kill' or 'freeze' (fault events for this agent)
         leader, pose, noise, seed, mode_parameters, comms = self._declare_parameters()
         try:
@@ -247,7 +248,7 @@ class AgentNode(Node):
         """Set by the container: stop this agent's lockstep for good."""
 
     def _now(self):
-        return self.get_clock().now().nanoseconds * 1e-9
+        return self.sim_clock.now().nanoseconds * 1e-9
 
 
 class LockstepDriver:

@@ -67,10 +67,16 @@ class AgentContainer(Node):
         for j, a in enumerate(self.agents):
             a.lock_kill = (lambda j=j: self.lock.kill(j))
         # one sim clock for all agents: their own /clock readers go, their clocks follow one source
+        # (realtime: the agents read the first one's clock, so a /clock message sets one clock, not K)
         self.clock_source = TimeSource()
         for a in self.agents:
             a._time_source.detach_node()
-            self.clock_source.attach_clock(a.get_clock())
+            if self.mode == 'realtime':
+                a.sim_clock = first.get_clock()
+            else:
+                self.clock_source.attach_clock(a.get_clock())
+        if self.mode == 'realtime':
+            self.clock_source.attach_clock(first.get_clock())
         if self.mode == 'realtime' or self.lockstep_clock == 'topic':
             self.clock_source.attach_node(self)
             self.clock_source.ros_time_is_active = True
