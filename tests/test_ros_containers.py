@@ -218,10 +218,12 @@ def test_realtime_container_faults_act_on_one_agent(tmp_path, ros_domain, proces
     k0, k1 = freeze['step'] + 3, resume['step']
     assert np.all(live.r[k0:k1, 1] == live.r[k0, 1])               # agent_1 held still while frozen
     assert not np.array_equal(live.r[-1, 1], live.r[k1, 1])        # ... and flew on
-    for i in (0, 2, 3, 5):      # the others: unit speed up to their last state (the rest is held)
+    # the others fly on at unit speed up to their last state (the rest is held); a process starved
+    # for more than catch_up_limit periods on a loaded machine loses the periods beyond it (0.2 s)
+    for i in (0, 2, 3, 5):
         step = np.linalg.norm(np.diff(live.r[:, i], axis=0), axis=1)
         last = np.flatnonzero(step > 0)[-1] + 1
-        assert 0.99 <= step.sum() / live.t[last] <= 1.01, (i, step.sum(), live.t[last])
+        assert 0.95 <= step.sum() / live.t[last] <= 1.01, (i, step.sum(), live.t[last])
 
 
 def test_realtime_run_that_falls_behind_says_so(tmp_path, ros_domain, processes, swarm_cmd):

@@ -53,8 +53,8 @@ from swarm_ros.runinfo import declare_run_id
 
 from .agent_core import AgentCore, known_table, roster_index
 from .container_core import ContainerCore
-from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_state, hear_state, realtime_tick, shared_inputs,
-                         step_message, step_time)
+from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_state, hear_state, own_echo, realtime_tick,
+                         shared_inputs, step_message, step_time)
 from .realtime_core import HeardStates
 
 
@@ -402,10 +402,7 @@ class RealtimeDriver:
         """A decoded state (`decode_state`) through this agent's radio model."""
         node = self.node
         name, t, pose, wz, tag = state
-        if name == node.agent_name:
-            if tag != node.sender_tag:
-                node.reject('dup-self', f'state claiming to be {name!r} (this agent) from another publisher: '
-                            'duplicate agent name')
+        if own_echo(name, tag, {node.agent_name: node.sender_tag}, node.reject):
             return
         if refused(node.reject, check_values(name, t, pose, wz, node.row, self.radio_heard, node._now(),
                                              self.future_tolerance) or self.senders.check(name, tag)):

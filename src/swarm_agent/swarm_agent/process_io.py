@@ -90,6 +90,16 @@ def decode_state(raw, reject):
     return name, sec + nsec * 1e-9, pose, wz, tag
 
 
+def own_echo(name, tag, own, reject) -> bool:
+    """Is this state one of the process's own agents (``own``: name -> sender tag)?  From
+    another publisher it is rejected as a duplicate agent name."""
+    if name not in own:
+        return False
+    if tag != own[name]:
+        reject('dup-self', f'state claiming to be {name!r} (this agent) from another publisher: duplicate agent name')
+    return True
+
+
 def hear_state(state, heard, senders, own, now, tolerance, reject):
     """A decoded state (`decode_state`) for the agents of a process that hear perfectly:
     checked once (`check_values`, one publisher per name) and kept in ``heard`` (a
@@ -97,10 +107,7 @@ def hear_state(state, heard, senders, own, now, tolerance, reject):
     heard in-process when they publish, so their echo is dropped (from another publisher: a
     duplicate name)."""
     name, t, pose, wz, tag = state
-    if name in own:
-        if tag != own[name]:
-            reject('dup-self', f'state claiming to be {name!r} (this agent) from another publisher: '
-                   'duplicate agent name')
+    if own_echo(name, tag, own, reject):
         return
     if refused(reject, check_values(name, t, pose, wz, heard.row, heard.newest, now, tolerance)
                or senders.check(name, tag)):
