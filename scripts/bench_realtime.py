@@ -63,9 +63,11 @@ def case(exe, env, tmp, n, rtf, duration, *, record=False, timeout=900.0) -> dic
         periods_per_s = rtf / dt
         r['cpu_ms_per_period'] = round(1000 * r['cores_busy'] / periods_per_s, 3)
     if record and bag.exists():
+        # lost by the bag: states the world received (and the n first ones, sent before the clock
+        # started) that the bag does not hold; the states a late agent never sent are in `timing`
         got = B.bag_states(bag)
-        owed = n * (steps + 1)
-        r.update(bag_states=got, bag_states_owed=owed, bag_lost=max(0, owed - got))
+        sent = n + ((r['timing'] or {}).get('arrived') or 0)
+        r.update(bag_states=got, bag_states_owed=n * (steps + 1), bag_lost=max(0, sent - got))
     print(f'    -> {line(r)}', flush=True)
     return r
 
@@ -78,7 +80,8 @@ def scenario_dt() -> float:
 
 
 def speeds(path) -> dict | None:
-    """Each agent's path length over its recorded time: min / median / max."""
+    """Each agent's path length over the time to its last move (the world holds an agent's
+    last state to the end of the run): min / median / max."""
     try:
         with np.load(path) as z:
             t, r = z['t'], z['r']
@@ -86,11 +89,11 @@ def speeds(path) -> dict | None:
         return None
     v = []
     for i in range(r.shape[1]):
-        ok = np.isfinite(r[:, i, 0])
-        if ok.sum() < 3:
+        step = np.linalg.norm(np.diff(r[:, i], axis=0), axis=1)
+        moved = np.flatnonzero(step > 0)
+        if moved.size < 2 or not np.isfinite(step).all():
             continue
-        p, ti = r[ok, i], t[ok]
-        v.append(np.linalg.norm(np.diff(p, axis=0), axis=1).sum() / (ti[-1] - ti[0]))
+        v.append(step.sum() / (t[moved[-1] + 1] - t[0]))
     if not v:
         return None
     return dict(min=round(float(np.min(v)), 4), median=round(float(np.median(v)), 4), max=round(float(np.max(v)), 4))

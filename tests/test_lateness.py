@@ -23,6 +23,7 @@ def test_skipped_periods_and_late_states_count():
         late.arrive(1, k, k * 0.05, k * 0.05 + 0.01)
     s = late.summary(99)
     assert s['states'] == 50 + 49 + 100                 # 49 states agent 0 skipped never came
+    assert s['arrived'] == 150
     assert s['on_time_share'] == 100 / 199
     assert s['lateness_p50_ms'] == 10.5 and s['lateness_p99_ms'] is None     # p99 among the missed
     assert abs(s['achieved_rtf'] - 150 / 199) < 1e-12

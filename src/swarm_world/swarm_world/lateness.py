@@ -57,15 +57,17 @@ class Lateness:
         return int(np.maximum(0, step_now - self.last[seen] - 1).sum())
 
     def summary(self, step_now=None) -> dict:
-        """on_time_share, lateness_p50_ms, lateness_p99_ms, achieved_rtf, states, late."""
+        """on_time_share, lateness_p50_ms, lateness_p99_ms, achieved_rtf, states (owed), late,
+        arrived."""
         missed = self.skipped + (self.owed(step_now) if step_now is not None else 0)
         total = self.arrived + missed
         if total == 0:
             return dict(on_time_share=None, lateness_p50_ms=None, lateness_p99_ms=None, achieved_rtf=None,
-                        states=0, late=0)
+                        states=0, late=0, arrived=0)
         return dict(on_time_share=self.on_time / total, lateness_p50_ms=self._quantile(0.5, missed),
                     lateness_p99_ms=self._quantile(0.99, missed),
-                    achieved_rtf=self.rtf * self.arrived / total, states=total, late=total - self.on_time)
+                    achieved_rtf=self.rtf * self.arrived / total, states=total, late=total - self.on_time,
+                    arrived=self.arrived)
 
     def _quantile(self, q, missed):
         """Wall ms at quantile q of the arrived states' lateness (the upper edge of its bin);
