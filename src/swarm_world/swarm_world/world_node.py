@@ -432,12 +432,12 @@ class WorldNode(RealtimeWorld, Node):
         self.log(f'[world] finished t={self.scn.duration:g} ({self.steps} steps) in {wall:.1f} s '
                  f'({self.steps / wall if wall > 0 else 0:.0f} steps/s); collisions={self.obs.collisions} '
                  f'intrusions={self.obs.intrusions}', flush=True)
-        if self.mode == 'realtime':
-            self.rt_timing()
         if self.output_dir:
             out = Path(self.output_dir)
             out.mkdir(parents=True, exist_ok=True)
             self.trajectory().save(out / 'trajectory.npz')
+        if self.mode == 'realtime':
+            self.rt_timing()           # after the trajectory: the launcher reads both once the world ends
 
     def save_partial(self):
         """Stopped (Ctrl-C / SIGTERM) before the end: write the steps completed so far to
@@ -456,6 +456,8 @@ class WorldNode(RealtimeWorld, Node):
         out.mkdir(parents=True, exist_ok=True)
         path = part.save(out / 'trajectory.npz')
         self.log(f'[world] stopped at t={part.t[-1]:g}: saved t = 0..{part.t[-1]:g} ({rows} samples) to {path}', flush=True)
+        if self.mode == 'realtime':
+            self.rt_timing()
         return path
 
 def main(argv=None):
