@@ -151,7 +151,7 @@ class Run:
     def _read(self):
         for line in self.proc.stdout:
             self.lines.append(line)
-            if '[world] lockstep:' in line and self.t_discovered is None:
+            if 'discovered in' in line and self.t_discovered is None:      # lockstep and realtime
                 self.t_discovered = time.monotonic()
             if '[world] finished' in line and self.t_finished is None:
                 self.t_finished = time.monotonic()

@@ -188,3 +188,52 @@ def test_container_live_faults_and_a_killed_container(tmp_path, ros_domain, proc
     k0, k1 = freeze['step'], resume['step']
     assert np.array_equal(live.r[k1, 1], live.r[k0, 1])       # agent_1 held still while paused
     assert not np.array_equal(live.r[-1, 1], live.r[k1, 1])    # ... and flew on
+
+
+def run_realtime(swarm_cmd, processes, path, out, *extra, timeout=300):
+    p = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--out', out, '--no-figure', *extra],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait(p, timeout) == 0, ''.join(lines.lines[-40:])
+    return ''.join(lines.lines)
+
+
+def test_realtime_container_faults_act_on_one_agent(tmp_path, ros_domain, processes, swarm_cmd):
+    """Realtime, all six agents in one process driven by one timer: agent_4 killed, agent_1
+    frozen for 2 s; the others fly on at unit speed, and the run reports its timing."""
+    path = scenario(tmp_path, 6, duration=12.0)
+    path.write_text(path.read_text() + FAULTS)
+    out = tmp_path / 'run'
+    text = run_realtime(swarm_cmd, processes, path, out, '--rtf', '2', '--agents-per-process', '6')
+    assert 'fault: kill (in-process' in text and 'fault: freeze (in-process' in text, text[-3000:]
+    assert 'swarm run: timing: ' in text, text[-2000:]
+    timing = json.loads((out / 'metrics.json').read_text())['timing']
+    assert timing['states'] > 0 and 0 <= timing['on_time_share'] <= 1
+    events = [json.loads(ln) for ln in (out / 'events.jsonl').read_text().splitlines()]
+    by = {(e['kind'], e.get('agent')): e for e in events}
+    kill, freeze, resume = by[('kill', 'agent_4')], by[('freeze', 'agent_1')], by[('resume', 'agent_1')]
+    live = Trajectory.load(out / 'trajectory.npz')
+    k = kill['step'] + 3
+    assert np.all(live.r[k:, 4] == live.r[k, 4])                   # dead: it never moved again
+    k0, k1 = freeze['step'] + 3, resume['step']
+    assert np.all(live.r[k0:k1, 1] == live.r[k0, 1])               # agent_1 held still while frozen
+    assert not np.array_equal(live.r[-1, 1], live.r[k1, 1])        # ... and flew on
+    # the others fly on at unit speed up to their last state (the rest is held); a process starved
+    # for more than catch_up_limit periods on a loaded machine loses the periods beyond it (0.2 s)
+    for i in (0, 2, 3, 5):
+        step = np.linalg.norm(np.diff(live.r[:, i], axis=0), axis=1)
+        last = np.flatnonzero(step > 0)[-1] + 1
+        assert 0.95 <= step.sum() / live.t[last] <= 1.01, (i, step.sum(), live.t[last])
+
+
+def test_realtime_run_that_falls_behind_says_so(tmp_path, ros_domain, processes, swarm_cmd):
+    """24 agents in one process at a clock 100 times real time (a control period of 1 ms wall):
+    the run cannot keep up, and it says so with its late share instead of hiding it."""
+    path = scenario(tmp_path, 24, duration=40.0)
+    out = tmp_path / 'run'
+    text = run_realtime(swarm_cmd, processes, path, out, '--rtf', '100', '--agents-per-process', '24')
+    timing = json.loads((out / 'metrics.json').read_text())['timing']
+    assert timing['states'] > 24 * 100 and timing['on_time_share'] < 0.99, timing
+    assert timing['achieved_rtf'] < 100
+    assert 'swarm run: fell behind: ' in text and 'swarm run: timing: ' in text, text[-2000:]
+    assert '[world] fell behind: ' in text

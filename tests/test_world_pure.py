@@ -13,6 +13,7 @@ from swarm_core.faults import Fault, FaultTimeline
 from swarm_core.frenet import quaternion_from_heading
 from swarm_world.inputs import fault_request, format_points, leader_flags, parse_geometry, parse_point, parse_points
 from swarm_world.lockstep import decision_valid
+from swarm_world.markers import markers_every
 from swarm_world.observe import Observer
 from swarm_world.realtime import RealtimeSchedule, newest_view
 from swarm_world.wallclock import StallWatch, StartWatch
@@ -188,3 +189,7 @@ def test_decision_valid_needs_lambda_in_range_finite_steering_and_one_flag_each(
     assert decision_valid(**ok)
     for bad in [dict(lam=1.5), dict(lam=float('nan')), dict(flags=[0, 1]), dict(steering=[0.0, float('inf'), 0.0])]:
         assert not decision_valid(**{**ok, **bad})
+
+
+def test_markers_of_a_big_swarm_go_out_less_often():
+    assert [markers_every(n) for n in (1, 6, 100, 101, 1000, 1500)] == [1, 1, 1, 2, 10, 15]

@@ -45,7 +45,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_core.faults import event_names
-from swarm_core.frenet import frame_from_quaternion
+from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.command_plan import check_command
 from swarm_core.inputs import LAMBDA_BOUND
 from swarm_ros import protocol as P
@@ -187,10 +187,9 @@ class CommanderNode(Node):
     def _start_realtime(self):
         """A timer at 1/dt (sim time) decides from the newest /swarm/states."""
         self.pos = self.scn.pos0.copy()
-        c, s = np.cos(self.scn.theta0), np.sin(self.scn.theta0)
-        self.cos, self.sin = c, s
+        self.quat = np.stack(quaternion_from_heading(self.scn.theta0), axis=1)   # (n, 2) qz, qw heard
         self.last_seen = np.full(self.n, -np.inf)
-        self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)))
+        self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)), raw=True)
         self.timer = self.create_timer(self.dt, self._on_tick)
 
     def _recorder_matched(self):
@@ -402,22 +401,24 @@ class CommanderNode(Node):
         self.last_decision = (s.n, raw_out)
         self.publish_outputs(lam, flags, steering, force=(s.n % self.publish_every == 0))
 
-    def _on_state(self, msg):
-        i = self.row.get(msg.child_frame_id)
-        p = msg.pose.pose
-        vals = (p.position.x, p.position.y, p.orientation.z, p.orientation.w)
+    def _on_state(self, raw):
+        """Realtime: a serialized /swarm/states message (decoded without building an Odometry)."""
+        try:
+            name, sec, nsec, pose, _, tag = P.cdr_to_odometry_tagged(raw)
+        except Exception:          # noqa: BLE001 - agents and the world log these
+            return
+        i = self.row.get(name)
+        vals = (pose[0], pose[1], pose[4], pose[5])
         if i is None or not all(math.isfinite(v) for v in vals):
             return        # agents and the world log these
-        tag = msg.pose.covariance[P.SENDER_TAG_INDEX]
+        t = sec + nsec * 1e-9
         now = self.get_clock().now().nanoseconds * 1e-9
-        if self.senders.check(msg.child_frame_id, tag) is not None \
-                or P.stamp_to_time(msg.header.stamp) > now + FUTURE_TOLERANCE:
+        if self.senders.check(name, tag) is not None or t > now + FUTURE_TOLERANCE:
             return        # a second publisher of that name, or a stamp from the future (logged there too)
-        self.senders.accept(msg.child_frame_id, tag)
+        self.senders.accept(name, tag)
         self.pos[i] = vals[:2]
-        c, s = frame_from_quaternion(vals[2], vals[3])
-        self.cos[i], self.sin[i] = c, s
-        self.last_seen[i] = P.stamp_to_time(msg.header.stamp)
+        self.quat[i] = vals[2:]
+        self.last_seen[i] = t
 
     def _on_tick(self):
         t = self.get_clock().now().nanoseconds * 1e-9
@@ -425,7 +426,8 @@ class CommanderNode(Node):
         if self.plan.failover is not None:       # only failover reads it (a lagging agent is not lost)
             heard = t - self.last_seen <= self.heard_timeout
             heard = heard if heard.any() else None
-        lam, flags, steering = self.decide(t, self.pos, self.cos, self.sin, heard=heard)
+        cos_t, sin_t = frame_from_quaternion(self.quat[:, 0], self.quat[:, 1])    # all at once, per tick
+        lam, flags, steering = self.decide(t, self.pos, cos_t, sin_t, heard=heard)
         self.publish_outputs(lam, flags, steering, force=True)
 
 

@@ -46,14 +46,16 @@ from swarm_core.inputs import LAMBDA_BOUND
 from swarm_core.laws import LAW_PARAMETERS, LawConfig
 from swarm_core.scenario import noise_rng
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import (FUTURE_TOLERANCE, RejectLog, Senders, check_barrier, check_state, new_sender_tag,
+from swarm_ros.msg_checks import (FUTURE_TOLERANCE, RejectLog, Senders, check_barrier, check_values, new_sender_tag,
                                   refused)
 from swarm_ros.rosutil import ParameterError, declare, run_node, when_matched
 from swarm_ros.runinfo import declare_run_id
 
-from .agent_core import AgentCore, catch_up, known_table, roster_index
+from .agent_core import AgentCore, known_table, roster_index
 from .container_core import ContainerCore
-from .process_io import CLOCKS, AgentStatesWriter, shared_inputs, step_message, step_time
+from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_state, hear_state, own_echo, realtime_tick,
+                         shared_inputs, step_message, step_time)
+from .realtime_core import HeardStates
 
 
 class AgentNode(Node):
@@ -71,6 +73,7 @@ class AgentNode(Node):
                          parameter_overrides=parameter_overrides, enable_rosout=services,
                          start_parameter_services=services)
         self.contained = contained
+        self.sim_clock = self.get_clock()   # a realtime container's agents share its first agent's
         self.halted = None       # contained: 'kill' or 'freeze' (fault events for this agent)
         leader, pose, noise, seed, mode_parameters, comms = self._declare_parameters()
         try:
@@ -245,7 +248,7 @@ class AgentNode(Node):
         """Set by the container: stop this agent's lockstep for good."""
 
     def _now(self):
-        return self.get_clock().now().nanoseconds * 1e-9
+        return self.sim_clock.now().nanoseconds * 1e-9
 
 
 class LockstepDriver:
@@ -337,7 +340,9 @@ class LockstepDriver:
 
 class RealtimeDriver:
     """Realtime: a timer at the control rate; neighbour states from ``/swarm/states``
-    (through the radio model if there is one), λ and the rest as they arrive."""
+    (through the radio model if there is one), λ and the rest as they arrive.  Alone the agent
+    is a container of one (`process_io.realtime_tick`); contained, the container's one timer
+    drives it and the states it heard perfectly are the container's (`HeardStates`)."""
 
     @staticmethod
     def declare(node):
@@ -359,14 +364,20 @@ class RealtimeDriver:
         self.catch_up_limit = catch_up_limit
         self.future_tolerance = future_tolerance
         self.senders = Senders()     # each neighbour name bound to its first publisher
-        self.neigh = {}              # name -> (t, x, y, qz, qw, u): newest state (perfect radio)
-        self.heard = {}              # radio model: name -> newest state heard (before the radio)
+        self.heard = HeardStates(node.roster)   # alone, perfect radio: newest states (contained: the container's)
+        self.radio_heard = {}        # radio model: name -> newest state heard (before the radio)
         self.stream = StreamRadio(node.radio, node.index)
         self.timer = None
+        self.lock = None
 
     def start(self):
-        self.timer = self.node.create_timer(self.node.dt, self.on_tick)
-        self.node.publish_state()
+        node = self.node
+        if not node.contained:
+            self.lock = ContainerCore([node.core])
+            leaders = LeaderMask(node.roster)
+            self.timer = node.create_timer(node.dt, lambda: realtime_tick([node], self.lock, self.heard, leaders))
+        node.publish_state()
+        self.heard.hear(node.agent_name, (node.t, *node.own[2:]))
 
     def radio_step(self):
         """The step from which a radio change applies: that of the sim time now."""
@@ -375,62 +386,50 @@ class RealtimeDriver:
     def radio_started(self):
         """Nothing to switch: `on_input` routes states through the radio from now on."""
 
-    def on_input(self, msg):
-        """A state on ``/swarm/states``."""
-        node = self.node
-        name = msg.child_frame_id
-        tag = msg.pose.covariance[P.SENDER_TAG_INDEX]
-        if name == node.agent_name:
-            if tag != node.sender_tag:
-                node.reject('dup-self', f'state claiming to be {name!r} (this agent) from another publisher: '
-                            'duplicate agent name')
+    def on_input(self, raw):
+        """A state on ``/swarm/states`` (serialized)."""
+        state = decode_state(raw, self.node.reject)
+        if state is None:
             return
-        if refused(node.reject, check_state(msg, node.row, self.heard if node.radio_on else self.neigh,
-                                            node._now(), self.future_tolerance) or self.senders.check(name, tag)):
+        node = self.node
+        if node.radio_on:
+            self.hear_radio(state)
+        else:
+            hear_state(state, self.heard, self.senders, {node.agent_name: node.sender_tag}, node._now(),
+                       self.future_tolerance, node.reject)
+
+    def hear_radio(self, state):
+        """A decoded state (`decode_state`) through this agent's radio model."""
+        node = self.node
+        name, t, pose, wz, tag = state
+        if own_echo(name, tag, {node.agent_name: node.sender_tag}, node.reject):
+            return
+        if refused(node.reject, check_values(name, t, pose, wz, node.row, self.radio_heard, node._now(),
+                                             self.future_tolerance) or self.senders.check(name, tag)):
             return
         self.senders.accept(name, tag)
-        p = msg.pose.pose
-        vals = (P.stamp_to_time(msg.header.stamp), p.position.x, p.position.y,
-                p.orientation.z, p.orientation.w, msg.twist.twist.angular.z)
-        if node.radio_on:
-            self.heard[name] = vals
-            self.stream.hear(node.row[name], vals, node.core.pos[0])
-        else:
-            self.neigh[name] = vals
+        vals = (t, pose[0], pose[1], pose[4], pose[5], wz)
+        self.radio_heard[name] = vals
+        self.stream.hear(node.row[name], vals, node.core.pos[0])
 
-    def table(self, now):
-        """(own row, states (m, 4) of x, y, qz, qw, leader flags) of the agents known at ``now``."""
+    def table(self, now, heard=None):
+        """(own row, states (m, 4) of x, y, qz, qw, leader flags) of the agents known at ``now``
+        (perfect radio: from ``heard``, a `HeardStates`, default this driver's)."""
         node, core = self.node, self.node.core
+        heard = self.heard if heard is None else heard
         own = (core.pos[0, 0], core.pos[0, 1], *core.quaternion)
         if not node.radio_on:
-            return known_table(node.roster, node.agent_name, own, self.neigh, node.leaders, now, self.stale_after)
+            return known_table(node.roster, node.agent_name, own, heard.newest, node.leaders, now, self.stale_after)
         rows, states = self.stream.table(now, own)     # what the radio delivered (`comms.StreamRadio`)
         flags = np.array([node.roster[j] in node.leaders for j in rows])
         return int(np.searchsorted(rows, node.index)), states, flags
 
-    def on_tick(self):
-        """One control period.  The agent moves by the sim time that passed since its last
-        state, in whole periods dt with u held (ZOH; `core.catch_up`), not by one dt per call:
-        a /clock jump may cover two periods and fire the timer once (it catches up), or fire it
-        again at the same time (nothing moves, so no two states share a stamp)."""
+    def control(self, now, heard):
+        """u of this agent alone at ``now`` (a radio model, or not in a shared table)."""
         node = self.node
-        if node.halted is not None:
-            return
-        now = node._now()
-        periods, t_new = catch_up(now, node.t, node.dt, self.catch_up_limit)
-        if periods == 0:
-            return
-        own, rows, flags = self.table(now)
-        u = node.core.control(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], node.lam, flags, node.steering,
-                              node.target, node.barrier, row=own)
-        if not math.isfinite(u):
-            node.reject('u-nan', f'non-finite control u={u}; holding u=0')
-            u = 0.0
-        for _ in range(periods):
-            node.applied(node.core.advance(u))
-        node.step += periods
-        node.t = t_new
-        node.publish_state()
+        own, rows, flags = self.table(now, heard)
+        return node.core.control(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], node.lam, flags, node.steering,
+                                 node.target, node.barrier, row=own)
 
 
 #: the modes of an agent node (parameter ``mode``) and the class that drives each

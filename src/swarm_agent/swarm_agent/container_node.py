@@ -8,8 +8,11 @@ publisher), as an agent process would be. What the agents share is done once per
 a host node ``/agent_container_<first index>``: one subscription each to the step relay
 (lockstep: decoded once, the controls of all agents from one law call, see
 `swarm_agent.container_core`; the agents' new states go to the world in ONE
-``/lockstep/agent_states`` message), ``/swarm/states`` (realtime: every agent's neighbour table),
-λ, leaders, target, barrier and ``/swarm/events``, and one sim clock.
+``/lockstep/agent_states`` message), ``/swarm/states`` (realtime: one table of the states
+heard, checked once), λ, leaders, target, barrier and ``/swarm/events``, and one sim clock.
+Realtime: ONE timer at the control rate drives all the agents (`process_io.realtime_tick`: one
+law call for the agents that hear perfectly, one batched move, each agent publishing its state);
+an agent with a radio model hears through its own radio and computes its own u.
 
 Sim time: in lockstep the agents' clocks are set from each step message (parameter
 ``lockstep_clock`` = step, default; no ``/clock`` reader) or follow ``/clock`` (topic); in
@@ -27,11 +30,14 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time_source import TimeSource
 
+from swarm_ros.msg_checks import Senders
 from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node
 
 from .agent_node import AgentNode
-from .process_io import CLOCKS, AgentStatesWriter, shared_inputs, step_message, step_time
 from .container_core import ContainerCore
+from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_state, hear_state, realtime_tick, shared_inputs,
+                         step_message, step_time)
+from .realtime_core import HeardStates
 
 
 class AgentContainer(Node):
@@ -61,10 +67,16 @@ class AgentContainer(Node):
         for j, a in enumerate(self.agents):
             a.lock_kill = (lambda j=j: self.lock.kill(j))
         # one sim clock for all agents: their own /clock readers go, their clocks follow one source
+        # (realtime: the agents read the first one's clock, so a /clock message sets one clock, not K)
         self.clock_source = TimeSource()
         for a in self.agents:
             a._time_source.detach_node()
-            self.clock_source.attach_clock(a.get_clock())
+            if self.mode == 'realtime':
+                a.sim_clock = first.get_clock()
+            else:
+                self.clock_source.attach_clock(a.get_clock())
+        if self.mode == 'realtime':
+            self.clock_source.attach_clock(first.get_clock())
         if self.mode == 'realtime' or self.lockstep_clock == 'topic':
             self.clock_source.attach_node(self)
             self.clock_source.ros_time_is_active = True
@@ -73,7 +85,9 @@ class AgentContainer(Node):
         on_input = self._on_step if self.mode == 'lockstep' else self._on_state
         for typ, topic, cb, qos, raw in shared_inputs(self, on_input):
             self.create_subscription(typ, topic, cb, qos, raw=raw)
-        if self.mode == 'lockstep':
+        if self.mode == 'realtime':
+            self._start_realtime()
+        else:
             self.batch = AgentStatesWriter(self)     # the agents' states for the world, in one message
             for a in self.agents:
                 a.driver.start_lockstep(self._first_state)
@@ -104,9 +118,33 @@ class AgentContainer(Node):
     _on_event = _fan('_on_event')
     del _fan
 
-    def _on_state(self, msg):
+    def _start_realtime(self):
+        """One table of the states heard and one timer for all the agents."""
+        first = self.agents[0]
+        self.heard = HeardStates(first.roster)
+        self.senders = Senders()
+        self.own_tags = {a.agent_name: a.sender_tag for a in self.agents}
+        for a in self.agents:          # each published its first state when it was built
+            a.driver.heard = self.heard
+            self.heard.hear(a.agent_name, (a.t, *a.own[2:]))
+        leaders = LeaderMask(first.roster)
+        self.rt_timer = first.create_timer(first.dt, lambda: realtime_tick(self.agents, self.lock, self.heard, leaders))
+
+    def _on_state(self, raw):
+        """A state on /swarm/states (serialized): decoded and checked once into the shared
+        table, and heard by each agent with a radio model through its own radio."""
+        state = decode_state(raw, self.reject)
+        if state is None:
+            return
+        perfect = False
         for a in self.agents:
-            a.driver.on_input(msg)
+            if a.radio_on:
+                a.driver.hear_radio(state)
+            else:
+                perfect = True
+        if perfect:
+            hear_state(state, self.heard, self.senders, self.own_tags, self.agents[0]._now(),
+                       self.agents[0].driver.future_tolerance, self.reject)
 
     def destroy_node(self):
         for a in self.agents:

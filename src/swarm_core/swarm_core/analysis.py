@@ -138,15 +138,16 @@ def check_output_dir(path) -> str | None:
     return None
 
 
-def write_outputs(out_dir, scn, traj, series, checks, figure=True):
+def write_outputs(out_dir, scn, traj, series, checks, figure=True, extra=None):
     """trajectory.npz, metrics.json (each written atomically) and the figure in ``out_dir``;
-    the figure is named after the scenario's `label` (never a path taken from its name)."""
+    the figure is named after the scenario's `label` (never a path taken from its name).
+    ``extra``: further top-level entries of metrics.json (a realtime run's ``timing``)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     traj.save(out / 'trajectory.npz')
     summary = summary_of(scn, traj, series, checks)
     doc = dict(summary=summary, series={k: v for k, v in series.items()},
-               parameters=scn.spec.model_dump(mode='json', by_alias=True))
+               parameters=scn.spec.model_dump(mode='json', by_alias=True), **(extra or {}))
     write_atomic(out / 'metrics.json', dumps(doc))
     if figure and len(traj.t) > 1:
         from .plots import plot_run

@@ -429,14 +429,30 @@ def write_run_outputs(run: RunPlan, code: int, wall: float) -> None:
                          mode=run.mode, wall_seconds=wall, events=read_events(run.events_file),
                          interrupted=code == 130)
         series, checks = analyse(traj, scenario=scn)
-        summary = write_outputs(out, scn, traj, series, checks, figure=run.figure)
+        timing = read_timing(out) if run.mode == 'realtime' else None
+        summary = write_outputs(out, scn, traj, series, checks, figure=run.figure,
+                                extra=dict(timing=timing) if timing else None)
         what = (f'stopped (code {code}) at t = {summary["t_end"]:g} after {wall:.1f} s; partial run'
                 if code else f'done in {wall:.1f} s')
         print(f'swarm run: {what}; final clusters {summary.get("final_clusters", "?")}; '
               f'wrote {out}/trajectory.npz, metrics.json' + (f', {scn.label}.png' if run.figure else ''),
               flush=True)
+        if timing:
+            from swarm_world.lateness import behind_line, timing_line
+            for line in (timing_line(timing), behind_line(timing, timing['rtf'])):
+                if line:
+                    print(f'swarm run: {line}', flush=True)
     except Exception as err:  # the trajectory is there; the extras are a bonus
         print(f'swarm run: wrote {run.traj_file} (metrics/figure failed: {err})', flush=True)
+
+
+def read_timing(out: Path) -> dict | None:
+    """The realtime world's timing (`swarm_world.lateness`, its ``timing.json``), if it wrote one."""
+    from swarm_world.lateness import TIMING_FILE
+    try:
+        return json.loads((out / TIMING_FILE).read_text())
+    except (OSError, ValueError):
+        return None
 
 
 def validate(a) -> RunPlan | None:

@@ -21,6 +21,14 @@ from swarm_ros import protocol as P
 PALETTE = [(0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16),
            (0.58, 0.4, 0.74), (0.55, 0.34, 0.29)]
 LEADER_COLOUR = (1.0, 0.84, 0.0)
+#: markers are two messages per agent (built in Python); with more agents than this they go out
+#: only every `markers_every` views, so that a view costs about as much at 1,000 agents as at 100
+MARKER_AGENTS = 100
+
+
+def markers_every(n: int) -> int:
+    """Publish the markers of one view in this many (1 up to MARKER_AGENTS agents)."""
+    return max(1, -(-int(n) // MARKER_AGENTS))
 
 
 def stamp(t: float) -> Time:

@@ -5,16 +5,20 @@ Realtime agents publish on their own clocks; the world records each state as it 
 applies faults on its tick.  The schedule itself is pure (`swarm_world.realtime`)."""
 from __future__ import annotations
 
+import json
 import time
+from pathlib import Path
 
 from rosgraph_msgs.msg import Clock
 
 from swarm_core import metrics as M
+from swarm_core.atomic import write_atomic
 from swarm_core.inputs import LAMBDA_BOUND
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import check_values, refused
 
 from .inputs import leader_flags
+from .lateness import TIMING_FILE, behind_line, timing_line
 from .markers import stamp
 from .realtime import newest_view
 
@@ -37,7 +41,10 @@ class RealtimeWorld:
         vals = (pose[0], pose[1], pose[4], pose[5])
         self.senders.accept(name, tag)
         self.newest[name] = (t, *vals)
-        self.rec.record_realtime(i, P.step_of(t, self.dt), vals, wz, self.lam_now, self.leaders_now)
+        k = P.step_of(t, self.dt)
+        if self.started:
+            self.lateness.arrive(i, k, t, (time.monotonic() - self.run_wall) * self.rtf)
+        self.rec.record_realtime(i, k, vals, wz, self.lam_now, self.leaders_now)
 
     def _on_lambda(self, msg):
         if LAMBDA_BOUND.ok(msg.data):
@@ -70,7 +77,23 @@ class RealtimeWorld:
             line = self.obs.progress(t, pos, md, self.lam_now)
             if line:
                 self.log(line, flush=True)
-            self.publish_view(t, pos, theta, md)
-        self.act(self.rt.faults_due(min(k, self.steps)))
+            self.publish_view(t, pos, theta, md, timing=self.lateness.summary(k))
+        acts = self.rt.faults_due(min(k, self.steps))
+        for a in acts:
+            if a[0] == 'signal' and a[1] is not None and a[2] != 'cont':
+                self.lateness.excuse(a[1])          # its silence is the fault's, not lateness
+        self.act(acts)
         if self.sim_t >= self.scn.duration:
             self.finish()
+
+    def rt_timing(self):
+        """The realtime timing at the end (`lateness`): logged in one line (and one more if the
+        run fell behind), written to ``output_dir/timing.json`` for ``swarm run``."""
+        s = self.lateness.summary(min(P.step_of(self.sim_t, self.dt), self.steps))
+        self.log(f'[world] {timing_line(s)}', flush=True)
+        behind = behind_line(s, self.rtf)
+        if behind:
+            self.log(f'[world] {behind}', flush=True)
+        if self.output_dir:
+            write_atomic(Path(self.output_dir) / TIMING_FILE, json.dumps(dict(s, rtf=self.rtf)))
+        return s

@@ -41,7 +41,8 @@ from swarm_ros.scenario_params import declare_scenario
 
 from .inputs import fault_request, format_points, parse_geometry, parse_point, parse_points
 from .lockstep import LockstepBarrier, comms_schedule, decision_valid
-from .markers import Trails, geometry_messages, markers_message, metrics_message, view_values
+from .lateness import TIMING_FILE, Lateness
+from .markers import Trails, geometry_messages, markers_every, markers_message, metrics_message, view_values
 from .observe import Observer
 from .parameters import WORLD
 from .realtime import RealtimeSchedule
@@ -76,6 +77,7 @@ class WorldNode(RealtimeWorld, Node):
         self.wall_start = time.monotonic()
         self.run_wall = None
         self.trails = Trails(self.n, self.trail_length)
+        self.views = -1          # views published (markers: every `markers_every`)
         self.sim_t = 0.0
         self.lam_now = 0.0
         self.leaders_now = np.zeros(self.n, bool)
@@ -116,6 +118,8 @@ class WorldNode(RealtimeWorld, Node):
         if self.events_file:
             Path(self.events_file).parent.mkdir(parents=True, exist_ok=True)
             open_regular(self.events_file, 'w').close()      # never through a planted link
+        if self.output_dir:
+            (Path(self.output_dir) / TIMING_FILE).unlink(missing_ok=True)     # an older run's
 
     def _create_endpoints(self):
         """Publishers and subscriptions (protocol: names and QoS); announces the run on /swarm/run."""
@@ -162,6 +166,7 @@ class WorldNode(RealtimeWorld, Node):
         self.rt = RealtimeSchedule(self.names, self.faults, self.scn.command_plan().slots, comms_events,
                                    self.view_every)
         self.obs = Observer(self.collision_distance, self.w, self.progress_every)
+        self.lateness = Lateness(self.n, self.dt, self.rtf)     # realtime: states on time (`lateness`)
         self.newest = {}         # name -> (t, x, y, qz, qw) newest accepted
         self.start_watch = StartWatch(time.monotonic(), self.n, start_timeout=self.start_timeout,
                                       relay_want=self.step_readers, clock_want=self.clock_readers,
@@ -346,16 +351,18 @@ class WorldNode(RealtimeWorld, Node):
         if self.view_every and k % self.view_every == 0:
             self.publish_view(t, pos, self.rec.theta[k, idx], md, idx)
 
-    def publish_view(self, t, pos, theta, md, idx=None):
-        """Metrics and markers of agents ``idx`` (default all) at rows pos, theta."""
+    def publish_view(self, t, pos, theta, md, idx=None, timing=None):
+        """Metrics and markers of agents ``idx`` (default all) at rows pos, theta; realtime:
+        with the ``timing`` so far (`Lateness.summary`)."""
         idx = np.arange(len(pos)) if idx is None else idx
         c, labels = M.cluster_labels(pos, self.w)
         leaders = [self.names[i] for i in np.flatnonzero(self.leaders_now)]
         vals = view_values(t, pos, theta, c, md, self.lam_now, leaders, self.target,
                            intrusions=self.obs.intrusions, collisions=self.obs.collisions,
-                           cutoff_radius=self.w)       # what `swarm report` needs to count clusters
+                           cutoff_radius=self.w, **(timing or {}))   # cutoff: what `swarm report` counts clusters by
         self.pub_metrics.publish(metrics_message(t, vals))
-        if self.pub_markers.get_subscription_count() == 0:
+        self.views += 1
+        if self.views % markers_every(self.n) or self.pub_markers.get_subscription_count() == 0:
             return
         self.pub_markers.publish(markers_message(t, pos, theta, labels, idx, self.leaders_now, self.trails,
                                                  self.target, self.barrier))
@@ -429,6 +436,8 @@ class WorldNode(RealtimeWorld, Node):
             out = Path(self.output_dir)
             out.mkdir(parents=True, exist_ok=True)
             self.trajectory().save(out / 'trajectory.npz')
+        if self.mode == 'realtime':
+            self.rt_timing()           # after the trajectory: the launcher reads both once the world ends
 
     def save_partial(self):
         """Stopped (Ctrl-C / SIGTERM) before the end: write the steps completed so far to
@@ -447,6 +456,8 @@ class WorldNode(RealtimeWorld, Node):
         out.mkdir(parents=True, exist_ok=True)
         path = part.save(out / 'trajectory.npz')
         self.log(f'[world] stopped at t={part.t[-1]:g}: saved t = 0..{part.t[-1]:g} ({rows} samples) to {path}', flush=True)
+        if self.mode == 'realtime':
+            self.rt_timing()
         return path
 
 def main(argv=None):

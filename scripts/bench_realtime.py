@@ -1,0 +1,188 @@
+#!/usr/bin/env python3
+"""Benchmark of realtime runs: are the agents' states on time?
+
+Three parts, each through the product's own launcher (``swarm run --mode realtime
+--agents-per-process auto``) on a scenario generated from `homotopy_global` with n agents on
+a grid (`bench_ros.scenario_file`):
+
+- ``--record-case N,RTF`` (default 96,5): N agents at --rtf RTF with ``--record``: the share of
+  states on time (the world's ``timing`` in metrics.json) and the states the bag lost
+  (owed n·(steps+1) less those recorded);
+- ``--big-case N,RTF`` (default 1000,1): N agents: on-time share, speed (each agent's path
+  length over the run's time, min / median / max; the law flies at unit speed) and start time
+  (launching ``swarm run`` to the world's discovery line);
+- ``--sweep N,N,...`` at --rtf 1: on-time share and CPU per control period (all processes of
+  the run, from /proc) against n; the largest n with ≥ 99 % on time; ``--plot`` draws both
+  against n on log-log axes.
+
+The machine's load changes every number here but the CPU per period; the script prints the
+load average next to each run.  Processes, the domain id and Ctrl-C are handled as in
+`bench_ros` (it reuses its `Run`).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_ros as B  # noqa: E402
+
+#: the on-time share a run must reach (swarm_world.lateness.ON_TIME_TARGET)
+TARGET = 0.99
+
+
+def case(exe, env, tmp, n, rtf, duration, *, record=False, timeout=900.0) -> dict:
+    """One realtime run of n agents for ``duration`` sim s at ``rtf``; its numbers."""
+    dt = scenario_dt()
+    steps = int(round(duration / dt))
+    scn = B.scenario_file(n, steps, tmp)
+    out = tmp / f'run-{n}-{rtf:g}-{int(record)}'
+    args = [exe, 'run', str(scn), '--mode', 'realtime', '--rtf', f'{rtf:g}', '--agents-per-process', 'auto',
+            '--no-figure', '--out', str(out), '--progress-every', str(duration / 2)]
+    bag = tmp / f'run-{n}-{rtf:g}.mcap'
+    if record:
+        args += ['--record', str(bag)]
+    load0 = B.loadavg()
+    print(f'  n={n} rtf={rtf:g}{" --record" if record else ""}, {duration:g} sim s; load {load0}', flush=True)
+    r = B.Run(args, env, timeout).go()
+    r.update(agents=n, rtf=rtf, duration=duration, record=record, load_before=load0, load_after=B.loadavg())
+    try:
+        r['timing'] = json.loads((out / 'metrics.json').read_text()).get('timing')
+    except (OSError, ValueError):
+        r['timing'] = None
+    r['speed'] = speeds(out / 'trajectory.npz')
+    if r.get('cores_busy') and r.get('run_wall_s'):
+        periods_per_s = rtf / dt
+        r['cpu_ms_per_period'] = round(1000 * r['cores_busy'] / periods_per_s, 3)
+    if record and bag.exists():
+        # lost by the bag: states the world received (and the n first ones, sent before the clock
+        # started) that the bag does not hold; the states a late agent never sent are in `timing`
+        got = B.bag_states(bag)
+        sent = n + ((r['timing'] or {}).get('arrived') or 0)
+        r.update(bag_states=got, bag_states_owed=n * (steps + 1), bag_lost=max(0, sent - got))
+    print(f'    -> {line(r)}', flush=True)
+    return r
+
+
+def scenario_dt() -> float:
+    """dt of the scenario the runs are made from (`bench_ros.scenario_file`: homotopy_global)."""
+    import yaml
+    from swarm_core.scenario import resolve
+    return float(yaml.safe_load(resolve('homotopy_global')[0])['dt'])
+
+
+def speeds(path) -> dict | None:
+    """Each agent's path length over the time to its last move (the world holds an agent's
+    last state to the end of the run): min / median / max."""
+    try:
+        with np.load(path) as z:
+            t, r = z['t'], z['r']
+    except (OSError, ValueError, KeyError):
+        return None
+    v = []
+    for i in range(r.shape[1]):
+        step = np.linalg.norm(np.diff(r[:, i], axis=0), axis=1)
+        moved = np.flatnonzero(step > 0)
+        if moved.size < 2 or not np.isfinite(step).all():
+            continue
+        v.append(step.sum() / (t[moved[-1] + 1] - t[0]))
+    if not v:
+        return None
+    return dict(min=round(float(np.min(v)), 4), median=round(float(np.median(v)), 4), max=round(float(np.max(v)), 4))
+
+
+def line(r) -> str:
+    tm = r.get('timing') or {}
+    share = tm.get('on_time_share')
+    return (f"exit {r['exit_code']}, on time {'—' if share is None else f'{share:.2%}'}, "
+            f"p99 {tm.get('lateness_p99_ms', '—')} ms, achieved rtf {tm.get('achieved_rtf', '—')}, "
+            f"start {r.get('start_s', '—')} s, speed {r.get('speed')}, "
+            f"CPU ms/period {r.get('cpu_ms_per_period', '—')}"
+            + (f", bag {r['bag_states']}/{r['bag_states_owed']} states (lost {r['bag_lost']})"
+               if 'bag_lost' in r else ''))
+
+
+def on_time(r) -> float:
+    return ((r.get('timing') or {}).get('on_time_share') or 0.0) if r['exit_code'] == 0 else 0.0
+
+
+def plot(sweep, path):
+    """On-time share and CPU per control period against n, log-log."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    pts = sorted((r['agents'], on_time(r), r.get('cpu_ms_per_period')) for r in sweep)
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    ax1.loglog([p[0] for p in pts], [max(p[1], 1e-3) for p in pts], 'o-')
+    ax1.axhline(TARGET, color='grey', ls='--', lw=0.8)
+    ax1.set(xlabel='agents n', ylabel='share of states on time', title='realtime, rtf 1')
+    c = [p for p in pts if p[2]]
+    ax2.loglog([p[0] for p in c], [p[2] for p in c], 'o-')
+    ax2.set(xlabel='agents n', ylabel='CPU ms per control period (all processes)', title='cost per period')
+    for ax in (ax1, ax2):
+        ax.grid(True, which='both', alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def pair(text):
+    n, _, rtf = text.partition(',')
+    return int(n), float(rtf or 1)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('--record-case', type=pair, default=(96, 5.0), metavar='N,RTF', help='default 96,5')
+    ap.add_argument('--big-case', type=pair, default=(1000, 1.0), metavar='N,RTF', help='default 1000,1')
+    ap.add_argument('--sweep', default='96,192,384,768,1000,1500', help="agent counts at rtf 1 ('' = none)")
+    ap.add_argument('--duration', type=float, default=30.0, help='sim seconds per run (default 30)')
+    ap.add_argument('--skip', default='', help='parts to leave out: record,big (comma-separated)')
+    ap.add_argument('--swarm', default=B.DEFAULT_SWARM, help='the swarm executable (default: this venv\'s)')
+    ap.add_argument('--timeout', type=float, default=900.0, help='give up on one run after this many s')
+    ap.add_argument('--plot', metavar='PNG', help='log-log plot of the sweep')
+    ap.add_argument('--out', default='bench/realtime.json', help='results JSON (default bench/realtime.json)')
+    a = ap.parse_args(argv)
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, B.on_signal)
+    dom, lock = B.claim_domain()
+    env = dict(os.environ, ROS_DOMAIN_ID=str(dom), PYTHONUNBUFFERED='1')
+    skip = set(a.skip.split(','))
+    res = dict(command=' '.join([Path(sys.argv[0]).name] + (sys.argv[1:] if argv is None else argv)),
+               date=time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()), cpus=os.cpu_count(), load_start=B.loadavg())
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        with tempfile.TemporaryDirectory(prefix='bench_rt_') as tmp:
+            tmp = Path(tmp)
+            if 'record' not in skip:
+                res['record'] = case(a.swarm, env, tmp, *a.record_case, a.duration, record=True, timeout=a.timeout)
+            if 'big' not in skip:
+                res['big'] = case(a.swarm, env, tmp, *a.big_case, a.duration, timeout=a.timeout)
+            res['sweep'] = []
+            for n in B.parse_ints(a.sweep):
+                res['sweep'].append(case(a.swarm, env, tmp, n, 1.0, a.duration, timeout=a.timeout))
+                out.write_text(json.dumps(res, indent=1))
+            ok = [r['agents'] for r in res['sweep'] if on_time(r) >= TARGET]
+            res['largest_n_on_time'] = max(ok) if ok else None
+    finally:
+        res['load_end'] = B.loadavg()
+        out.write_text(json.dumps(res, indent=1))
+        lock.close()
+    print(f"bench_realtime: largest n at rtf 1 with ≥ {TARGET:.0%} on time: {res.get('largest_n_on_time')}")
+    if a.plot and res.get('sweep'):
+        plot(res['sweep'], a.plot)
+        print(f'bench_realtime: wrote {a.plot}')
+    print(f'bench_realtime: wrote {out}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,89 @@
+"""The realtime tick of the agents of one process (an agent container, or a lone agent as a
+container of one), without ROS.
+
+Per tick at sim time ``now`` each agent that is not halted moves by the control periods that
+passed since its state (`agent_core.catch_up`).  The agents that move and hear perfectly (no
+radio model) read ONE table, `HeardStates`: the newest state of every agent heard within
+``stale_after`` of now, the agents of the process among them with their own states (they are
+heard in-process, the moment they publish).  Their controls come from ONE call of the core law
+for those receivers (`shared_controls`; `faults.alive_control` sums each receiver's row on its
+own, so every u is bit for bit the one that agent computes alone from the same heard states,
+`agent_core.known_table`).  An agent with a radio model has a table of its own (what its radio
+delivered) and a law call of its own.  The agents then move together, one batched ZOH step per
+period (`ContainerCore.advance`)."""
+from __future__ import annotations
+
+import numpy as np
+
+from swarm_core.faults import alive_control
+
+from .agent_core import catch_up, received_table
+
+
+class HeardStates:
+    """The newest state heard of every agent of the roster: ``newest`` name -> (t, x, y, qz,
+    qw, u) (what `msg_checks.check_values` compares a new state with) and the same as arrays
+    in roster order, so that a tick's table is one mask, not a loop over the roster."""
+
+    def __init__(self, roster):
+        self.roster = list(roster)
+        self.row = {nm: i for i, nm in enumerate(self.roster)}
+        self.newest = {}
+        self.t = np.full(len(self.roster), -np.inf)
+        self.state = np.zeros((len(self.roster), 4))        # x, y, qz, qw
+
+    def hear(self, name, state):
+        """State (t, x, y, qz, qw, u) of agent ``name``, newer than the one held."""
+        self.newest[name] = state
+        i = self.row[name]
+        self.t[i] = state[0]
+        self.state[i] = state[1:5]
+
+    def table(self, now, stale_after, receivers):
+        """(rows, states (m, 4)): the agents heard within ``stale_after`` of ``now`` and the
+        ``receivers`` (rows that are always in), in roster order."""
+        keep = now - self.t <= stale_after
+        keep[np.asarray(receivers, dtype=np.intp)] = True
+        rows = np.flatnonzero(keep)
+        return rows, self.state[rows]
+
+
+def shared_controls(cores, heard: HeardStates, now, stale_after, lam, leader_mask, steering, target, barrier):
+    """u (K,) of the agents ``cores`` (one law, all in ``heard`` with their own current states,
+    each fresh) from one table of what they heard (eq. 4, 9-16): each agent's own row its own
+    state, the others' the newest heard within ``stale_after``.  ``leader_mask`` (n,) bool
+    over the roster; ``steering`` the agents' s_k."""
+    own = np.array([c.index for c in cores], dtype=np.intp)
+    order = np.argsort(own, kind='stable')
+    rows, states = heard.table(now, stale_after, own)
+    at = np.searchsorted(rows, own[order])
+    pos, cos_t, sin_t = received_table(states[:, 0], states[:, 1], states[:, 2], states[:, 3], at,
+                                       [cores[j] for j in order])
+    u_sorted = alive_control(pos, cos_t, sin_t, at, cores[0].law, lam, leader_mask[rows],
+                             np.asarray(steering, float)[order], target, barrier)
+    u = np.empty(len(cores))
+    u[order] = u_sorted
+    return u
+
+
+def due_periods(now, times, dt, limits, halted):
+    """[(j, periods, t_new)] of the agents (positions j) that move at ``now``: not halted and at
+    least one period since their state of time ``times[j]`` (`catch_up` with ``limits[j]``)."""
+    out = []
+    for j, t in enumerate(times):
+        if halted[j]:
+            continue
+        periods, t_new = catch_up(now, t, dt, limits[j])
+        if periods:
+            out.append((j, periods, t_new))
+    return out
+
+
+def advance_periods(lock, go, periods, us):
+    """Move the agents ``go`` (positions in ``lock``, a `ContainerCore`) by ``periods`` ZOH
+    steps each with u held: one batched step per period for those still moving."""
+    periods = np.asarray(periods)
+    us = np.asarray(us, float)
+    for p in range(int(periods.max()) if len(periods) else 0):
+        still = periods > p
+        lock.advance([go[i] for i in np.flatnonzero(still)], list(us[still]))
