@@ -44,11 +44,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from swarm_core.analysis import check_output_dir, write_atomic, write_failed
+from swarm_robots.run_setup import SUMMARY_FILE
 
 from . import dds
 from .node_params import load_scenario, node_parameters, write_params_file
 from .bag import bag_complete
 from .processes import read_events, run_processes
+from .robots_option import ROBOTS_NODE, add_robots, read_summary
 
 #: most agents of one ``swarm run`` (each is an OS process, or a node of one executor);
 #: larger swarms are for ``swarm simulate``
@@ -72,6 +74,17 @@ def build_nodes(params: dict, context, log=print):
     return world, commander, agents
 
 
+def robots_nodes(params: dict, context) -> list:
+    """The run's MuJoCo robot world (`swarm_robots.mujoco_world_node`), if it has one."""
+    if ROBOTS_NODE not in params:
+        return []
+    from rclpy.parameter import Parameter
+
+    from swarm_robots.mujoco_world_node import RobotsNode
+    return [RobotsNode(context=context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in params[ROBOTS_NODE].items()])]
+
+
 def run_in_process(params: dict, domain_id=None) -> int:
     """Every node in one executor until the world is done.  SIGINT / SIGTERM (main thread
     only) set a flag the spin loop checks, so no callback is cut off; the world then saves
@@ -87,18 +100,21 @@ def run_in_process(params: dict, domain_id=None) -> int:
     try:
         try:
             world, commander, agents = build_nodes(params, ctx)
+            robots = robots_nodes(params, ctx)
         except ParameterError as err:
             print(f'swarm run: {err}', file=sys.stderr)
             return 2
         ex = make_executor(ctx)
-        for nd in [world, commander, *agents]:
+        for nd in [world, commander, *agents, *robots]:
             ex.add_node(nd)
         settle_garbage()
         spin_until(ex, ctx, lambda: world.done or bool(stop), wake=wake)
         code = 0 if world.done and world.failed is None else (1 if world.failed else 130)
         if code == 130:
             world.save_partial()            # Ctrl-C: keep the steps done
-        for nd in [world, commander, *agents]:
+        for nd in robots:
+            nd.finish()
+        for nd in [world, commander, *agents, *robots]:
             nd.destroy_node()
         return code
     finally:
@@ -158,6 +174,10 @@ def _parser():
     p.add_argument('--start-timeout', type=float, default=180.0, metavar='S', help=(
         'the world gives up if not every agent is there after this many wall s (default 180; '
         'raise it for hundreds of processes or agents joining from other hosts)'))
+    p.add_argument('--robots', metavar='KIND[:AGENTS]', help=(
+        'agents on robots: mujoco (every agent on a robot of a MuJoCo physics world) or '
+        'mujoco:agent_0-agent_2 (those; names or ranges, comma-separated); the others stay kinematic. '
+        "Needs the scenario's robots section (docs/robots.md)"))
     add_network_options(p)
     p.add_argument('--discovery', choices=dds.DISCOVERY, default='auto', help=(
         f'simple (every process finds the others), server (a Fast DDS discovery server the run '
@@ -245,12 +265,14 @@ class RunPlan:
     dds: str = 'auto'
     figure: bool = True
     join: tuple = ('', '')      # the swarm join command for the remote agents: before and after --server
+    robots: tuple = ('', [])    # --robots: (kind, the agents on robots)
     ignored: list = field(default_factory=list)     # options the run ignores, one line each
 
     @property
     def processes(self) -> int:
         """OS processes of a --processes run: agent processes, world, commander, recorder, view."""
-        return len(self.groups) + 2 + (self.record is not None) + (self.foxglove is not None)
+        return (len(self.groups) + 2 + (self.record is not None) + (self.foxglove is not None)
+                + (ROBOTS_NODE in self.params))
 
     @property
     def traj_file(self) -> Path:
@@ -265,7 +287,9 @@ class RunPlan:
         scn = self.scn
         per = '' if self.in_process or self.per == 1 else f' ({self.per} agents per process' + (
             '' if self.services else ', agent nodes without services') + ')'
-        return (f'swarm run: run {self.run_id}: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {self.mode}, '
+        kind, on = self.robots
+        robots = f' ({len(on)} on {kind} robots)' if on else ''
+        return (f'swarm run: run {self.run_id}: {scn.name} seed {scn.seed}: {len(scn.names)} agents{robots}, {self.mode}, '
                 f'{"one process" if self.in_process else f"{self.processes} processes"}{per}, '
                 f't = {scn.duration:g}, dt = {scn.dt:g}')
 
@@ -325,6 +349,10 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
                   params=run_parameters(a, scn, ref, out, run_id), local=local, remote=remote,
                   groups=split_agents(local, per), per=per, services=agent_services(n, per, a.agent_services),
                   interface=interface, server_port=a.server_port, dds=a.dds, figure=not a.no_figure)
+    if a.robots:
+        world = run.params['/world']
+        run.robots = add_robots(run.params, a.robots, scn, {k: world[k] for k in (
+            'scenario', 'seed', 'duration', 'dt', 'mode', 'run_id', 'output_dir')})
     if a.in_process:
         given = (('record', 'recorder', a.record), ('foxglove', 'view', a.foxglove is not None))
         run.ignored = [f'--{opt} needs --processes (the {what} is a process); ignored' for opt, what, on in given if on]
@@ -359,7 +387,7 @@ def prepare_outputs(run: RunPlan) -> None:
                              f'{err.strerror or err} ({err.filename})') from None
         if not os.access(bag.resolve().parent, os.W_OK) or (bag.exists() and not os.access(bag, os.W_OK)):
             raise ValueError(f'--record {run.record}: not writable')
-    for old in (run.traj_file, run.events_file):      # a file or a link (never followed)
+    for old in (run.traj_file, run.events_file, run.out / SUMMARY_FILE):      # a file or a link (never followed)
         if old.is_symlink() or old.is_file():
             old.unlink()
 
@@ -393,7 +421,8 @@ def _run_processes(run: RunPlan) -> int:
                   f'{run.join[0]} --server {server.locator}{run.join[1]}', flush=True)
         return run_processes(params, pfile, run.local, env, record=run.record, out_dir=run.out,
                              pid_file=pid_file, events_file=run.events_file, foxglove=run.foxglove,
-                             server=server, groups=run.groups, services=run.services)
+                             server=server, groups=run.groups, services=run.services,
+                             robots=ROBOTS_NODE in params)
 
 
 def finish(run: RunPlan, code: int, wall: float) -> int:
@@ -427,7 +456,7 @@ def write_run_outputs(run: RunPlan, code: int, wall: float) -> None:
         traj = Trajectory.load(run.traj_file)
         traj.meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration, source='ros',
                          mode=run.mode, wall_seconds=wall, events=read_events(run.events_file),
-                         interrupted=code == 130)
+                         interrupted=code == 130, robots=read_summary(out))
         series, checks = analyse(traj, scenario=scn)
         summary = write_outputs(out, scn, traj, series, checks, figure=run.figure)
         what = (f'stopped (code {code}) at t = {summary["t_end"]:g} after {wall:.1f} s; partial run'

@@ -1,0 +1,129 @@
+"""When the MuJoCo world advances its robots (pure: no ROS import).
+
+Model time τ (the swarm's sim time, /clock) maps to robot time s = τ·L/v0 (L the length scale
+in m per model unit, v0 the cruise speed in m/s; docs/robots.md).
+
+Lockstep (`RobotsLockstep`): after the world's step n (sim time t_n) each robot agent sends one
+command stamped t_n; the world holds until it has that command from every robot whose agent is
+alive in step n (the alive mask of ``/lockstep/step``), then advances the physics to robot time
+t_(n+1)·L/v0 and publishes odometry stamped t_(n+1).  So a robot run is deterministic: the
+physics sees the same commands at the same robot times whatever the order of arrival.
+
+Realtime (`RealtimePacer`): the physics follows the sim clock; odometry at the controller's
+publish rate.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: diff_drive_controller's default publish_rate (Hz): odometry in realtime
+ODOM_RATE = 50.0
+#: lockstep: commands for at most this many steps ahead of the held one are kept
+AHEAD = 100
+
+
+class RobotsLockstep:
+    """The lockstep hold of one robot world over the robots at roster rows ``rows`` (robot k
+    drives the agent of row ``rows[k]``); ``world`` a `swarm_robots.physics.RobotWorld`-like
+    object (``command(k, v, omega)``, ``advance(seconds)``, ``time``)."""
+
+    def __init__(self, world, rows, dt: float, robot_per_model: float):
+        self.world = world
+        self.rows = np.asarray(rows, dtype=int)
+        self.dt = float(dt)
+        self.scale = float(robot_per_model)     # robot s per model s: L / v0
+        self.n = 0                              # the step whose commands are awaited
+        self.commands = {}                      # step -> {robot k: (v, omega)}
+        self.alive = {}                         # step -> (K,) bool: whose agent is alive
+        self.ignored = 0                        # commands of a past step or too far ahead
+
+    def step_of(self, t: float) -> int | None:
+        """The step whose sim time is ``t``, or None if ``t`` is no step's time."""
+        k = round(t / self.dt)
+        return k if abs(k * self.dt - t) <= 1e-6 * max(1.0, abs(t)) else None
+
+    def on_command(self, k: int, t: float, v: float, omega: float) -> bool:
+        """A command of robot ``k`` stamped ``t``: kept for its step; a stamp of a step already
+        advanced (a stale or repeated command), of no step, or too far ahead is ignored (False).
+        The first command of a robot for a step counts (an agent repeats the same one)."""
+        n = self.step_of(t)
+        if n is None or n < self.n or n > self.n + AHEAD:
+            self.ignored += 1
+            return False
+        self.commands.setdefault(n, {}).setdefault(int(k), (float(v), float(omega)))
+        return True
+
+    def on_step(self, n: int, alive_rows) -> None:
+        """The world's step ``n`` with its alive mask over the whole roster."""
+        if self.n <= n <= self.n + AHEAD:
+            self.alive[n] = np.asarray(alive_rows, dtype=bool)[self.rows]
+
+    def waiting_for(self) -> list:
+        """Robots whose command for the held step is still missing: every robot until the step's
+        alive mask is known, then the robots of alive agents only."""
+        have = self.commands.get(self.n, {})
+        mask = self.alive.get(self.n)
+        return [k for k in range(len(self.rows)) if k not in have and (mask is None or mask[k])]
+
+    def ready(self) -> bool:
+        return not self.waiting_for()
+
+    def advance(self) -> float:
+        """Apply the held step's commands (in robot order), advance the physics to robot time
+        t_(n+1)·L/v0 and move on; returns t_(n+1), the stamp of the odometry to publish."""
+        for k, (v, omega) in sorted(self.commands.pop(self.n, {}).items()):
+            self.world.command(k, v, omega)
+        self.alive.pop(self.n, None)
+        self.n += 1
+        t = self.n * self.dt
+        self.world.advance(max(0.0, t * self.scale - self.world.time))
+        return t
+
+    def run(self) -> list:
+        """Advance while ready; the sim times of the odometry to publish, in order."""
+        out = []
+        while self.ready():
+            out.append(self.advance())
+        return out
+
+
+class RealtimePacer:
+    """Realtime: where the physics should be at sim time ``t`` and when odometry is due (each
+    ``1 / ODOM_RATE`` robot s, and at least each ``1 / ODOM_RATE`` wall s while sim time stands
+    still, e.g. before the clock starts, so that the agents have a fresh pose)."""
+
+    def __init__(self, robot_per_model: float, rate: float = ODOM_RATE):
+        self.scale = float(robot_per_model)
+        self.period = 1.0 / rate
+        self.next_robot = 0.0
+        self.last_wall = -math.inf
+
+    def target(self, t: float) -> float:
+        """Robot time of sim time ``t``."""
+        return t * self.scale
+
+    def odom_due(self, robot_time: float, wall: float) -> bool:
+        """Is odometry due at ``robot_time`` (robot s) and ``wall`` (wall s)? If so it is taken."""
+        due = robot_time >= self.next_robot or wall >= self.last_wall + self.period
+        if due:
+            self.next_robot = (math.floor(robot_time / self.period) + 1) * self.period
+            self.last_wall = wall
+        return due
+
+
+def sim_time(robot_time: float, robot_per_model: float) -> float:
+    """The sim (model) time of robot time ``robot_time``: its odometry's stamp."""
+    return robot_time / robot_per_model
+
+
+def robot_summary(names, contacts: int, saturated_time, robot_per_model: float) -> dict:
+    """What the robots did, for metrics.json: robot-robot contacts (a pair coming into contact)
+    and the time each robot spent at a velocity or acceleration limit (robot s, and the same in
+    model s)."""
+    sat = np.asarray(saturated_time, dtype=float)
+    return dict(robots=list(names), contacts=int(contacts),
+                limit_seconds={nm: float(s) for nm, s in zip(names, sat)},
+                limit_seconds_total=float(sat.sum()),
+                limit_model_seconds_total=float(sat.sum() / robot_per_model))

@@ -1,0 +1,132 @@
+"""The robot world's timing, pure: the lockstep hold (it waits for the command of every robot
+whose agent is alive in the step, ignores stale stamps, advances by dt·L/v0) and the realtime
+pacer; a small fake of the physics API stands in for MuJoCo."""
+import numpy as np
+import pytest
+
+from swarm_robots.run_setup import chosen_rows, robot_per_model, robots_section, start_poses
+from swarm_robots.timing import RealtimePacer, RobotsLockstep, robot_summary, sim_time
+
+
+class FakeWorld:
+    """What `RobotsLockstep` uses of `swarm_robots.physics.RobotWorld`, recording its calls."""
+
+    def __init__(self):
+        self.time = 0.0
+        self.calls = []
+
+    def command(self, k, v, omega):
+        self.calls.append(('command', k, v, omega))
+
+    def advance(self, seconds):
+        self.calls.append(('advance', round(seconds, 12)))
+        self.time += seconds
+
+
+DT, SCALE = 0.05, 2.0          # L / v0 = 0.3 m / 0.15 m/s
+
+
+def hold(rows=(0, 2, 4)):
+    return RobotsLockstep(FakeWorld(), list(rows), DT, SCALE)
+
+
+def test_hold_waits_for_every_robot_then_advances_dt_times_l_over_v0():
+    h = hold()
+    assert h.run() == []
+    h.on_command(2, 0.0, 0.15, 0.1)
+    h.on_command(0, 0.0, 0.15, -0.1)
+    assert h.run() == [] and h.waiting_for() == [1] and h.world.calls == []
+    h.on_command(1, 0.0, 0.15, 0.0)
+    assert h.run() == [pytest.approx(DT)]
+    # commands in robot order whatever the arrival order, then one advance of dt·L/v0
+    assert h.world.calls == [('command', 0, 0.15, -0.1), ('command', 1, 0.15, 0.0), ('command', 2, 0.15, 0.1),
+                             ('advance', DT * SCALE)]
+    assert h.n == 1 and h.waiting_for() == [0, 1, 2]
+
+
+def test_a_killed_agents_robot_is_not_waited_for():
+    h = hold(rows=(0, 2, 4))
+    alive = np.ones(6, bool)
+    alive[2] = False                        # the agent of robot 1 is dead in step 0
+    h.on_command(0, 0.0, 0.1, 0.0)
+    h.on_command(2, 0.0, 0.1, 0.0)
+    assert h.run() == []                    # the mask of step 0 is not known yet: wait for all
+    h.on_step(0, alive)
+    assert h.run() == [pytest.approx(DT)]
+    assert [c[1] for c in h.world.calls if c[0] == 'command'] == [0, 2]
+    h.on_step(1, np.ones(6, bool))          # alive again in step 1: waited for again
+    h.on_command(0, DT, 0.1, 0.0)
+    h.on_command(2, DT, 0.1, 0.0)
+    assert h.run() == [] and h.waiting_for() == [1]
+
+
+def test_stale_and_off_step_stamps_are_ignored_and_the_first_command_counts():
+    h = hold(rows=(0,))
+    assert h.on_command(0, 0.0, 0.1, 0.5)
+    assert h.on_command(0, 0.0, 0.1, 9.9)   # a second command for the same step: the first counts
+    assert h.run() == [pytest.approx(DT)]
+    assert not h.on_command(0, 0.0, 0.1, 0.5)           # step 0 is done: stale
+    assert not h.on_command(0, 0.0123, 0.1, 0.5)        # no step's time
+    assert not h.on_command(0, 1000 * DT, 0.1, 0.5)     # far beyond the held step
+    assert h.ignored == 3 and h.run() == []
+    assert h.world.calls[0] == ('command', 0, 0.1, 0.5)
+    h.on_step(0, np.ones(1, bool))                      # a repeated old step changes nothing
+    assert 0 not in h.alive and h.run() == []
+
+
+def test_commands_ahead_are_kept_for_their_step_and_time_does_not_drift():
+    h = hold(rows=(0,))
+    h.on_command(0, DT, 0.1, 0.2)               # step 1's command before step 0's
+    assert h.run() == []
+    h.on_command(0, 0.0, 0.1, 0.1)
+    assert h.run() == [pytest.approx(DT), pytest.approx(2 * DT)]
+    for n in range(2, 1000):
+        h.on_command(0, n * DT, 0.1, 0.0)
+        h.run()
+    assert h.world.time == pytest.approx(1000 * DT * SCALE, abs=1e-9)
+
+
+def test_realtime_pacer_odometry_at_50_hz_robot_time_and_while_time_stands_still():
+    p = RealtimePacer(SCALE)
+    assert p.target(1.5) == 3.0 and sim_time(3.0, SCALE) == 1.5
+    assert p.odom_due(0.0, 100.0)
+    assert not p.odom_due(0.01, 100.001)        # neither 1/50 robot s nor 1/50 wall s
+    assert p.odom_due(0.021, 100.002)           # a robot period crossed
+    assert not p.odom_due(0.021, 100.01)
+    assert p.odom_due(0.021, 100.03)            # time stands still: every 1/50 wall s
+
+
+class _Spec:
+    def __init__(self, robots):
+        self.robots = robots
+
+
+class _Scn:
+    name = 'six'
+    names = [f'agent_{i}' for i in range(6)]
+    pos0 = np.arange(12.0).reshape(6, 2)
+    theta0 = np.linspace(0, 1, 6)
+
+    def __init__(self, robots=None):
+        self.spec = _Spec(robots)
+
+
+def test_run_setup_rows_poses_scale_and_a_scenario_without_robots():
+    assert chosen_rows(_Scn.names, []) == list(range(6))
+    assert chosen_rows(_Scn.names, ['agent_4', 'agent_1']) == [1, 4]
+    with pytest.raises(ValueError, match='no agent agent_9'):
+        chosen_rows(_Scn.names, ['agent_9'])
+    poses = start_poses(_Scn(), [1, 4], 0.3)
+    assert poses.shape == (2, 3) and poses[1].tolist() == pytest.approx([2.4, 2.7, 0.8])
+    with pytest.raises(ValueError, match='no robots section'):
+        robots_section(_Scn())
+
+    class Sec:
+        length_scale, cruise_speed = 0.3, 0.15
+    assert robots_section(_Scn(Sec)) is Sec and robot_per_model(Sec) == pytest.approx(2.0)
+
+
+def test_robot_summary_for_metrics():
+    s = robot_summary(['agent_0', 'agent_1'], 3, [0.5, 1.5], SCALE)
+    assert s['contacts'] == 3 and s['limit_seconds'] == {'agent_0': 0.5, 'agent_1': 1.5}
+    assert s['limit_seconds_total'] == 2.0 and s['limit_model_seconds_total'] == 1.0
