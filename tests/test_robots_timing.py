@@ -86,6 +86,27 @@ def test_commands_ahead_are_kept_for_their_step_and_time_does_not_drift():
     assert h.world.time == pytest.approx(1000 * DT * SCALE, abs=1e-9)
 
 
+class RoundingWorld(FakeWorld):
+    """A physics that runs whole controller periods of 0.01 s and keeps the remainder of what
+    it is asked (as `swarm_robots.physics.RobotWorld.advance` does)."""
+
+    def __init__(self):
+        super().__init__()
+        self.target = 0.0
+
+    def advance(self, seconds):
+        self.target += seconds
+        self.time = round(self.target / 0.01) * 0.01
+
+
+def test_a_physics_that_rounds_to_its_periods_does_not_drift():
+    h = RobotsLockstep(RoundingWorld(), [0], 0.05, 2.468)     # 0.1234 robot s a step
+    for n in range(1000):
+        h.on_command(0, n * 0.05, 0.1, 0.0)
+        h.run()
+    assert h.world.target == pytest.approx(1000 * 0.1234) and abs(h.world.time - 123.4) <= 0.005
+
+
 def test_realtime_pacer_odometry_at_50_hz_robot_time_and_while_time_stands_still():
     p = RealtimePacer(SCALE)
     assert p.target(1.5) == 3.0 and sim_time(3.0, SCALE) == 1.5

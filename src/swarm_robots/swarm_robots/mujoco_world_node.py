@@ -32,7 +32,7 @@ from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
 
 from .run_setup import SUMMARY_FILE, chosen_rows, robot_per_model, robots_section, start_poses
-from .timing import RealtimePacer, RobotsLockstep, robot_summary, sim_time
+from .timing import RealtimePacer, RobotsLockstep, advance_to, robot_summary, sim_time
 
 METRICS_TOPIC = '/robots/metrics'
 #: lockstep: wall s without progress after which the newest odometry is published again (an
@@ -91,7 +91,7 @@ class RobotsNode(Node):
             self.create_timer(REPEAT_AFTER / 2, self._repeat, clock=steady_clock())
             self.publish_odometry(0.0)
         else:
-            self.pacer = RealtimePacer(self.scale)
+            self.pacer, self.asked = RealtimePacer(self.scale), 0.0
             self.create_timer(TICK, self._tick, clock=steady_clock())
         self.get_logger().info(
             f'{len(self.agents)} robots ({self.mode}): L = {self.sec.length_scale:g} m, v0 = '
@@ -163,9 +163,7 @@ class RobotsNode(Node):
 
     def _tick(self):
         """Realtime: the physics up to the sim clock's robot time, odometry when due."""
-        target = self.pacer.target(self.get_clock().now().nanoseconds * 1e-9)
-        if target > self.world.time:
-            self.world.advance(target - self.world.time)
+        self.asked = advance_to(self.world, self.asked, self.pacer.target(self.get_clock().now().nanoseconds * 1e-9))
         if self.pacer.odom_due(self.world.time, time.monotonic()):
             self.publish_odometry(sim_time(self.world.time, self.scale))
 

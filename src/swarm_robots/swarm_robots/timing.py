@@ -38,6 +38,7 @@ class RobotsLockstep:
         self.commands = {}                      # step -> {robot k: (v, omega)}
         self.alive = {}                         # step -> (K,) bool: whose agent is alive
         self.ignored = 0                        # commands of a past step or too far ahead
+        self.asked = 0.0                        # robot s asked of the physics so far
 
     def step_of(self, t: float) -> int | None:
         """The step whose sim time is ``t``, or None if ``t`` is no step's time."""
@@ -78,7 +79,7 @@ class RobotsLockstep:
         self.alive.pop(self.n, None)
         self.n += 1
         t = self.n * self.dt
-        self.world.advance(max(0.0, t * self.scale - self.world.time))
+        self.asked = advance_to(self.world, self.asked, t * self.scale)
         return t
 
     def run(self) -> list:
@@ -111,6 +112,17 @@ class RealtimePacer:
             self.next_robot = (math.floor(robot_time / self.period) + 1) * self.period
             self.last_wall = wall
         return due
+
+
+def advance_to(world, asked: float, target: float) -> float:
+    """Advance ``world`` from robot time ``asked`` (the sum of what it was asked so far) to
+    ``target``; returns the new sum.  The physics may round each advance to whole controller
+    periods and keeps the remainder, so it is asked the exact differences, never ``target``
+    minus its rounded clock (which would add each rounding again)."""
+    if target > asked:
+        world.advance(target - asked)
+        return target
+    return asked
 
 
 def sim_time(robot_time: float, robot_per_model: float) -> float:
