@@ -47,6 +47,7 @@ from swarm_core.analysis import check_output_dir, write_atomic, write_failed
 
 from . import dds
 from .node_params import load_scenario, node_parameters, write_params_file
+from .robot_plan import agent_groups, apply_robots, parse_robots
 from .bag import bag_complete
 from .processes import read_events, run_processes
 
@@ -168,6 +169,12 @@ def _parser():
     p.add_argument('--remote-agents', metavar='LIST', default='', help=(
         'agents (indices, e.g. 48-95 or 0,2,5-7) this host does not start: other hosts start '
         'them with `swarm join`; the world waits for them'))
+    p.add_argument('--robots', action='append', metavar='KIND[:AGENTS]', help=(
+        'agents that drive robots through /AGENT/cmd_vel and /AGENT/odom (docs/robots.md): '
+        'external (a robot, Gazebo or a simulator of your own; nothing else starts) for every agent, '
+        'or external:agent_0-agent_2 (a range or a comma list) for some; the scenario needs a '
+        'robots: section. Robot agents run as processes of their own. Realtime: the sim clock runs '
+        'at v0/L model s per wall s (robots live in wall time; --rtf does not apply)'))
     return p
 
 
@@ -246,6 +253,8 @@ class RunPlan:
     figure: bool = True
     join: tuple = ('', '')      # the swarm join command for the remote agents: before and after --server
     ignored: list = field(default_factory=list)     # options the run ignores, one line each
+    robots: dict = field(default_factory=dict)      # {agent: robot kind} (`robot_plan`)
+    robots_line: str | None = None                  # the scale to the robots, said at start
 
     @property
     def processes(self) -> int:
@@ -306,8 +315,9 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     """The run that ``a`` (the parsed options) asks for with scenario ``scn`` (loaded from
     ``ref``), on a host of ``cores`` cores: ValueError naming the first bad option.  Pure: it
     starts, writes and checks on disk nothing."""
-    from swarm_agent.container_core import agent_services, split_agents
+    from swarm_agent.container_core import agent_services
     n = len(scn.names)
+    robots = parse_robots(a.robots, scn.names)
     remote = parse_agents(a.remote_agents, n) if a.remote_agents else []
     if not 0 <= a.server_port < 65536:
         raise ValueError(f'--server-port {a.server_port}: must be 0 (a free port) or in 1..65535')
@@ -323,8 +333,10 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     local = [nm for i, nm in enumerate(scn.names) if i not in set(remote)]
     run = RunPlan(scn=scn, mode=a.mode, in_process=a.in_process, out=out, run_id=run_id,
                   params=run_parameters(a, scn, ref, out, run_id), local=local, remote=remote,
-                  groups=split_agents(local, per), per=per, services=agent_services(n, per, a.agent_services),
-                  interface=interface, server_port=a.server_port, dds=a.dds, figure=not a.no_figure)
+                  groups=agent_groups(local, per, robots), per=per,
+                  services=agent_services(n, per, a.agent_services), interface=interface,
+                  server_port=a.server_port, dds=a.dds, figure=not a.no_figure, robots=robots)
+    run.robots_line = apply_robots(run.params, scn, robots, a.mode)
     if a.in_process:
         given = (('record', 'recorder', a.record), ('foxglove', 'view', a.foxglove is not None))
         run.ignored = [f'--{opt} needs --processes (the {what} is a process); ignored' for opt, what, on in given if on]
@@ -367,6 +379,8 @@ def prepare_outputs(run: RunPlan) -> None:
 def execute(run: RunPlan) -> tuple[int, float]:
     """Run it: (exit code, wall seconds).  `NotStarted` if the DDS set-up fails."""
     print(run.summary(), flush=True)
+    if run.robots_line:
+        print(f'swarm run: {run.robots_line}', flush=True)
     t0 = time.monotonic()
     if run.in_process:
         for line in run.ignored:
