@@ -4,8 +4,8 @@ pacer; a small fake of the physics API stands in for MuJoCo."""
 import numpy as np
 import pytest
 
-from swarm_robots.run_setup import chosen_rows, robot_per_model, robots_section, start_poses
-from swarm_robots.timing import RealtimePacer, RobotsLockstep, robot_summary, sim_time
+from swarm_robots.run_setup import chosen_rows, robots_section, start_poses
+from swarm_robots.timing import RealtimePacer, RobotsLockstep, robot_summary
 
 
 class FakeWorld:
@@ -109,7 +109,7 @@ def test_a_physics_that_rounds_to_its_periods_does_not_drift():
 
 def test_realtime_pacer_odometry_at_50_hz_robot_time_and_while_time_stands_still():
     p = RealtimePacer(SCALE)
-    assert p.target(1.5) == 3.0 and sim_time(3.0, SCALE) == 1.5
+    assert p.target(1.5) == 3.0
     assert p.odom_due(0.0, 100.0)
     assert not p.odom_due(0.01, 100.001)        # neither 1/50 robot s nor 1/50 wall s
     assert p.odom_due(0.021, 100.002)           # a robot period crossed
@@ -117,34 +117,20 @@ def test_realtime_pacer_odometry_at_50_hz_robot_time_and_while_time_stands_still
     assert p.odom_due(0.021, 100.03)            # time stands still: every 1/50 wall s
 
 
-class _Spec:
-    def __init__(self, robots):
-        self.robots = robots
-
-
-class _Scn:
-    name = 'six'
+def test_run_setup_rows_poses_and_a_scenario_without_robots(tmp_path):
+    from swarm_core.robot_units import RobotUnits
+    from swarm_core.scenario import load
     names = [f'agent_{i}' for i in range(6)]
-    pos0 = np.arange(12.0).reshape(6, 2)
-    theta0 = np.linspace(0, 1, 6)
-
-    def __init__(self, robots=None):
-        self.spec = _Spec(robots)
-
-
-def test_run_setup_rows_poses_scale_and_a_scenario_without_robots():
-    assert chosen_rows(_Scn.names, []) == list(range(6))
-    assert chosen_rows(_Scn.names, ['agent_4', 'agent_1']) == [1, 4]
+    assert chosen_rows(names, []) == list(range(6))
+    assert chosen_rows(names, ['agent_4', 'agent_1']) == [1, 4]
     with pytest.raises(ValueError, match='no agent agent_9'):
-        chosen_rows(_Scn.names, ['agent_9'])
-    poses = start_poses(_Scn(), [1, 4], 0.3)
-    assert poses.shape == (2, 3) and poses[1].tolist() == pytest.approx([2.4, 2.7, 0.8])
-    with pytest.raises(ValueError, match='no robots section'):
-        robots_section(_Scn())
-
-    class Sec:
-        length_scale, cruise_speed = 0.3, 0.15
-    assert robots_section(_Scn(Sec)) is Sec and robot_per_model(Sec) == pytest.approx(2.0)
+        chosen_rows(names, ['agent_9'])
+    path = tmp_path / 's.yaml'
+    path.write_text('name: s\nagents: {positions: [[0, 0], [2, 1]], headings: [0.5, -1]}\nduration: 1\n')
+    scn = load(str(path))
+    assert start_poses(scn, [1], RobotUnits(0.3, 0.15)).tolist() == [pytest.approx([0.6, 0.3, -1.0])]
+    with pytest.raises(ValueError, match='no robots: section'):
+        robots_section(scn)
 
 
 def test_robot_summary_for_metrics():

@@ -38,7 +38,7 @@ def clusters(traj, t, w=4.0):
 def test_lockstep_six_robots_repeatable_and_split_by_lambda(tmp_path, ros_domain, processes, swarm_cmd):
     path = short_homotopy(tmp_path / 'robots.yaml', robots=ROBOTS, **SPLIT)
     a, metrics, lines = run(processes, swarm_cmd, path, tmp_path / 'a', '--robots', 'mujoco')
-    assert any('6 on mujoco robots' in ln for ln in lines.lines)
+    assert any('6 of 6 agents on robots (mujoco)' in ln for ln in lines.lines)
     b, _, _ = run(processes, swarm_cmd, path, tmp_path / 'b', '--robots', 'mujoco')
     # the same commands at the same robot times: the same physics, bit for bit
     np.testing.assert_array_equal(a.r, b.r)
@@ -56,7 +56,7 @@ def test_lockstep_six_robots_repeatable_and_split_by_lambda(tmp_path, ros_domain
 def test_mixed_run_three_robots_three_kinematic_one_swarm(tmp_path, ros_domain, processes, swarm_cmd):
     path = short_homotopy(tmp_path / 'mixed.yaml', robots=ROBOTS, duration=40, lam='{kind: constant, value: 0}', at=5)
     traj, metrics, lines = run(processes, swarm_cmd, path, tmp_path / 'm', '--robots', 'mujoco:agent_0-agent_2')
-    assert any('3 on mujoco robots' in ln for ln in lines.lines)
+    assert any('3 of 6 agents on robots (mujoco)' in ln for ln in lines.lines)
     assert sorted(metrics['summary']['robots']['limit_seconds']) == ['agent_0', 'agent_1', 'agent_2']
     dt = traj.t[1] - traj.t[0]
     speed = np.linalg.norm(np.diff(traj.r, axis=0), axis=2) / dt

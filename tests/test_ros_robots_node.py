@@ -49,16 +49,14 @@ class FakeWorld:
         return np.column_stack([self.poses - self.start, self.v, np.zeros(self.n)])
 
 
-class Section:
-    length_scale, cruise_speed, frame, cmd_type, description = 0.3, 0.15, 'odom', 'TwistStamped', None
+ROBOTS = {'length_scale': 0.3, 'cruise_speed': 0.15}
 
 
 @pytest.fixture
 def robots_node(tmp_path, rclpy_context, monkeypatch):
-    monkeypatch.setattr(M, 'robots_section', lambda scn: Section)
     monkeypatch.setattr(M.RobotsNode, '_make_world', lambda self: FakeWorld(
-        M.start_poses(self.scn, self.rows, Section.length_scale)))
-    path = short_homotopy(tmp_path / 'six.yaml', duration=10, lam='{kind: constant, value: 0}', at=1)
+        M.start_poses(self.scn, self.rows, self.units)))
+    path = short_homotopy(tmp_path / 'six.yaml', duration=10, lam='{kind: constant, value: 0}', at=1, robots=ROBOTS)
     node = M.RobotsNode(context=rclpy_context, parameter_overrides=overrides(dict(
         scenario=str(path), mode='lockstep', robots='agent_1,agent_3', output_dir=str(tmp_path))))
     yield node, load(str(path))
@@ -137,10 +135,9 @@ def _raw(cdr):
 
 def test_realtime_follows_the_sim_clock(tmp_path, rclpy_context, monkeypatch):
     from rosgraph_msgs.msg import Clock
-    monkeypatch.setattr(M, 'robots_section', lambda scn: Section)
     monkeypatch.setattr(M.RobotsNode, '_make_world', lambda self: FakeWorld(
-        M.start_poses(self.scn, self.rows, Section.length_scale)))
-    path = short_homotopy(tmp_path / 'six.yaml', duration=10, lam='{kind: constant, value: 0}', at=1)
+        M.start_poses(self.scn, self.rows, self.units)))
+    path = short_homotopy(tmp_path / 'six.yaml', duration=10, lam='{kind: constant, value: 0}', at=1, robots=ROBOTS)
     ctx = rclpy_context
     node = M.RobotsNode(context=ctx, parameter_overrides=overrides(dict(
         scenario=str(path), mode='realtime', robots='agent_0', use_sim_time=True)))

@@ -31,8 +31,8 @@ from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
 
-from .run_setup import SUMMARY_FILE, chosen_rows, robot_per_model, robots_section, start_poses
-from .timing import RealtimePacer, RobotsLockstep, advance_to, robot_summary, sim_time
+from .run_setup import SUMMARY_FILE, chosen_rows, robots_section, start_poses
+from .timing import RealtimePacer, RobotsLockstep, advance_to, robot_summary
 
 METRICS_TOPIC = '/robots/metrics'
 #: lockstep: wall s without progress after which the newest odometry is published again (an
@@ -113,7 +113,8 @@ class RobotsNode(Node):
             raise ParameterError('lockstep robots need stamped commands (cmd_type TwistStamped): '
                                  'a Twist says not which step it is for')
         self.agents = [self.scn.names[i] for i in self.rows]
-        self.scale = robot_per_model(self.sec)
+        self.units = self.sec.units()
+        self.scale = self.units.seconds_per_model_unit
 
     def _make_world(self):
         from .description import TURTLEBOT3_BURGER, RobotDescription
@@ -122,7 +123,7 @@ class RobotsNode(Node):
             desc = RobotDescription.from_yaml(self.sec.description) if self.sec.description else TURTLEBOT3_BURGER
         except (OSError, ValueError) as err:
             raise ParameterError(f'robot description {self.sec.description}: {err}') from None
-        return RobotWorld(desc, start_poses(self.scn, self.rows, self.sec.length_scale))
+        return RobotWorld(desc, start_poses(self.scn, self.rows, self.units))
 
     # ------------------------------------------------------------ inputs
     def _command_callback(self, k, stamped):
@@ -165,7 +166,7 @@ class RobotsNode(Node):
         """Realtime: the physics up to the sim clock's robot time, odometry when due."""
         self.asked = advance_to(self.world, self.asked, self.pacer.target(self.get_clock().now().nanoseconds * 1e-9))
         if self.pacer.odom_due(self.world.time, time.monotonic()):
-            self.publish_odometry(sim_time(self.world.time, self.scale))
+            self.publish_odometry(self.units.model_time(self.world.time))
 
     def publish_odometry(self, t: float):
         """Each robot's odometry (its own ``odom`` frame, or the common ``world`` frame) and

@@ -1,5 +1,5 @@
 """What a run's robot world is made of (pure: no ROS import): which agents have robots, where
-the robots start, and the scale between model and robot time."""
+the robots start, and the scale between model and robot (`swarm_core.robot_units`)."""
 from __future__ import annotations
 
 import numpy as np
@@ -10,18 +10,12 @@ SUMMARY_FILE = 'robots.json'
 
 
 def robots_section(scn):
-    """The scenario's ``robots`` section (length scale, cruise speed, ...); ValueError if it has
-    none: without the scale a model cannot drive a robot."""
-    sec = getattr(scn.spec, 'robots', None)
-    if sec is None:
-        raise ValueError(f'scenario {scn.name!r} has no robots section (length_scale, cruise_speed): '
+    """The scenario's ``robots:`` section (`swarm_core.robot_units.RobotsSpec`); ValueError if
+    it has none: without the scale a model cannot drive a robot."""
+    if scn.spec.robots is None:
+        raise ValueError(f'scenario {scn.name!r} has no robots: section (length_scale, cruise_speed): '
                          'robots need the scale between the model and metres')
-    return sec
-
-
-def robot_per_model(sec) -> float:
-    """Robot seconds per model second: L / v0 (one model unit at v0 m/s takes L / v0 s)."""
-    return float(sec.length_scale) / float(sec.cruise_speed)
+    return scn.spec.robots
 
 
 def chosen_rows(names, chosen) -> list:
@@ -34,8 +28,8 @@ def chosen_rows(names, chosen) -> list:
     return sorted({row[nm] for nm in chosen}) if chosen else list(range(len(names)))
 
 
-def start_poses(scn, rows, length_scale: float) -> np.ndarray:
+def start_poses(scn, rows, units) -> np.ndarray:
     """(K, 3) x, y (m), yaw (rad) in the world frame of the robots at ``rows``: the scenario's
-    initial conditions scaled by L."""
-    rows = np.asarray(rows, dtype=int)
-    return np.column_stack([scn.pos0[rows] * float(length_scale), scn.theta0[rows]])
+    initial conditions in metres (``units``: `swarm_core.robot_units.RobotUnits`)."""
+    return np.array([units.start_pose(float(scn.pos0[i, 0]), float(scn.pos0[i, 1]), float(scn.theta0[i]))
+                     for i in rows], dtype=float).reshape(-1, 3)

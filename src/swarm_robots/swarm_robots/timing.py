@@ -1,7 +1,7 @@
 """When the MuJoCo world advances its robots (pure: no ROS import).
 
 Model time τ (the swarm's sim time, /clock) maps to robot time s = τ·L/v0 (L the length scale
-in m per model unit, v0 the cruise speed in m/s; docs/robots.md).
+in m per model unit, v0 the cruise speed in m/s; `swarm_core.robot_units`, docs/robots.md).
 
 Lockstep (`RobotsLockstep`): after the world's step n (sim time t_n) each robot agent sends one
 command stamped t_n; the world holds until it has that command from every robot whose agent is
@@ -123,11 +123,6 @@ def advance_to(world, asked: float, target: float) -> float:
         world.advance(target - asked)
         return target
     return asked
-
-
-def sim_time(robot_time: float, robot_per_model: float) -> float:
-    """The sim (model) time of robot time ``robot_time``: its odometry's stamp."""
-    return robot_time / robot_per_model
 
 
 def robot_summary(names, contacts: int, saturated_time, robot_per_model: float) -> dict:

@@ -48,9 +48,10 @@ from swarm_robots.run_setup import SUMMARY_FILE
 
 from . import dds
 from .node_params import load_scenario, node_parameters, write_params_file
+from .robot_plan import agent_groups, apply_robots, parse_robots
 from .bag import bag_complete
 from .processes import read_events, run_processes
-from .robots_option import ROBOTS_NODE, add_robots, read_summary
+from .robot_world import ROBOTS_NODE, add_robot_world, read_summary
 
 #: most agents of one ``swarm run`` (each is an OS process, or a node of one executor);
 #: larger swarms are for ``swarm simulate``
@@ -174,10 +175,6 @@ def _parser():
     p.add_argument('--start-timeout', type=float, default=180.0, metavar='S', help=(
         'the world gives up if not every agent is there after this many wall s (default 180; '
         'raise it for hundreds of processes or agents joining from other hosts)'))
-    p.add_argument('--robots', metavar='KIND[:AGENTS]', help=(
-        'agents on robots: mujoco (every agent on a robot of a MuJoCo physics world) or '
-        'mujoco:agent_0-agent_2 (those; names or ranges, comma-separated); the others stay kinematic. '
-        "Needs the scenario's robots section (docs/robots.md)"))
     add_network_options(p)
     p.add_argument('--discovery', choices=dds.DISCOVERY, default='auto', help=(
         f'simple (every process finds the others), server (a Fast DDS discovery server the run '
@@ -188,6 +185,13 @@ def _parser():
     p.add_argument('--remote-agents', metavar='LIST', default='', help=(
         'agents (indices, e.g. 48-95 or 0,2,5-7) this host does not start: other hosts start '
         'them with `swarm join`; the world waits for them'))
+    p.add_argument('--robots', action='append', metavar='KIND[:AGENTS]', help=(
+        'agents that drive robots through /AGENT/cmd_vel and /AGENT/odom (docs/robots.md): '
+        'external (a robot, Gazebo or a simulator of your own; nothing else starts) for every agent, '
+        'or external:agent_0-agent_2 (a range or a comma list) for some; mujoco: robots of a MuJoCo '
+        'world the run starts (node robots; mujoco:agent_0-agent_2 likewise); the scenario needs a '
+        'robots: section. Robot agents run as processes of their own. Realtime: the sim clock runs '
+        'at v0/L model s per wall s (robots live in wall time; --rtf does not apply)'))
     return p
 
 
@@ -265,8 +269,9 @@ class RunPlan:
     dds: str = 'auto'
     figure: bool = True
     join: tuple = ('', '')      # the swarm join command for the remote agents: before and after --server
-    robots: tuple = ('', [])    # --robots: (kind, the agents on robots)
     ignored: list = field(default_factory=list)     # options the run ignores, one line each
+    robots: dict = field(default_factory=dict)      # {agent: robot kind} (`robot_plan`)
+    robots_line: str | None = None                  # the scale to the robots, said at start
 
     @property
     def processes(self) -> int:
@@ -287,9 +292,7 @@ class RunPlan:
         scn = self.scn
         per = '' if self.in_process or self.per == 1 else f' ({self.per} agents per process' + (
             '' if self.services else ', agent nodes without services') + ')'
-        kind, on = self.robots
-        robots = f' ({len(on)} on {kind} robots)' if on else ''
-        return (f'swarm run: run {self.run_id}: {scn.name} seed {scn.seed}: {len(scn.names)} agents{robots}, {self.mode}, '
+        return (f'swarm run: run {self.run_id}: {scn.name} seed {scn.seed}: {len(scn.names)} agents, {self.mode}, '
                 f'{"one process" if self.in_process else f"{self.processes} processes"}{per}, '
                 f't = {scn.duration:g}, dt = {scn.dt:g}')
 
@@ -330,8 +333,9 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     """The run that ``a`` (the parsed options) asks for with scenario ``scn`` (loaded from
     ``ref``), on a host of ``cores`` cores: ValueError naming the first bad option.  Pure: it
     starts, writes and checks on disk nothing."""
-    from swarm_agent.container_core import agent_services, split_agents
+    from swarm_agent.container_core import agent_services
     n = len(scn.names)
+    robots = parse_robots(a.robots, scn.names)
     remote = parse_agents(a.remote_agents, n) if a.remote_agents else []
     if not 0 <= a.server_port < 65536:
         raise ValueError(f'--server-port {a.server_port}: must be 0 (a free port) or in 1..65535')
@@ -347,12 +351,11 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     local = [nm for i, nm in enumerate(scn.names) if i not in set(remote)]
     run = RunPlan(scn=scn, mode=a.mode, in_process=a.in_process, out=out, run_id=run_id,
                   params=run_parameters(a, scn, ref, out, run_id), local=local, remote=remote,
-                  groups=split_agents(local, per), per=per, services=agent_services(n, per, a.agent_services),
-                  interface=interface, server_port=a.server_port, dds=a.dds, figure=not a.no_figure)
-    if a.robots:
-        world = run.params['/world']
-        run.robots = add_robots(run.params, a.robots, scn, {k: world[k] for k in (
-            'scenario', 'seed', 'duration', 'dt', 'mode', 'run_id', 'output_dir')})
+                  groups=agent_groups(local, per, robots), per=per,
+                  services=agent_services(n, per, a.agent_services), interface=interface,
+                  server_port=a.server_port, dds=a.dds, figure=not a.no_figure, robots=robots)
+    run.robots_line = apply_robots(run.params, scn, robots, a.mode)
+    add_robot_world(run.params, robots)
     if a.in_process:
         given = (('record', 'recorder', a.record), ('foxglove', 'view', a.foxglove is not None))
         run.ignored = [f'--{opt} needs --processes (the {what} is a process); ignored' for opt, what, on in given if on]
@@ -395,6 +398,8 @@ def prepare_outputs(run: RunPlan) -> None:
 def execute(run: RunPlan) -> tuple[int, float]:
     """Run it: (exit code, wall seconds).  `NotStarted` if the DDS set-up fails."""
     print(run.summary(), flush=True)
+    if run.robots_line:
+        print(f'swarm run: {run.robots_line}', flush=True)
     t0 = time.monotonic()
     if run.in_process:
         for line in run.ignored:
