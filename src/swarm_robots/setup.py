@@ -17,7 +17,7 @@ setup(
     zip_safe=True,
     maintainer='homotopy-swarm developers',
     maintainer_email='dev@homotopy-swarm.invalid',
-    description='Differential-drive robots on a MuJoCo physics world, driven through cmd_vel and odometry.',
+    description='Robots for the swarm: a robot description, a pure emulation of diff_drive_controller and a MuJoCo world of differential-drive robots.',
     license='Apache-2.0',
     entry_points={'console_scripts': ['swarm_robots = swarm_robots.mujoco_world_node:main']},
 )
