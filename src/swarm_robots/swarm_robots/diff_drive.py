@@ -1,0 +1,131 @@
+"""The command path and wheel odometry of ros2_controllers' ``diff_drive_controller`` (Jazzy),
+for N robots at once (numpy arrays over robots; no ROS).
+
+Emulated from the Jazzy sources of ros-controls/ros2_controllers:
+
+* ``diff_drive_controller/src/diff_drive_controller.cpp``:
+  ``update_reference_from_subscribers`` (a command older than ``cmd_vel_timeout`` makes the
+  reference zero, "Velocity command timed out. Braking."; a command with NaN leaves the
+  reference as it was) and ``update_and_write_commands`` (each axis through its SpeedLimiter
+  against the previous limited command, then
+  ``velocity_left = (linear - angular·wheel_separation/2) / wheel_radius``, right with ``+``);
+  the command subscriber drops a message already older than ``cmd_vel_timeout``.
+* ``diff_drive_controller/include/diff_drive_controller/speed_limiter.hpp`` over
+  control_toolbox's ``rate_limiter.hpp`` (Jazzy): ``limit`` = jerk (off: NaN by default), then
+  ``limit_first_derivative`` (clamp v - v0 to ±max_acceleration·dt when only
+  ``max_acceleration`` is set, as here), then ``limit_value`` (clamp to ±max_velocity).
+* ``diff_drive_controller/src/odometry.cpp``: ``update`` (wheel positions, the default
+  ``position_feedback: true``) → ``updateFromVelocity`` → ``integrateExact`` (exact arc,
+  second-order Runge-Kutta below |Δθ| = 1e-6), linear and angular velocity as rolling means
+  over ``velocity_rolling_window_size`` (10) updates.  Wheel odometry knows only the wheels'
+  turning, so wheel slip shows up as drift.
+* ``diff_drive_controller_parameter.yaml``: ``cmd_vel_timeout`` 0.5 s,
+  ``velocity_rolling_window_size`` 10, ``position_feedback`` true.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .description import RobotDescription
+
+#: odometry.cpp: intervals shorter than this are not integrated
+MIN_ODOM_INTERVAL = 0.0001
+#: diff_drive_controller_parameter.yaml: velocity_rolling_window_size
+VELOCITY_ROLLING_WINDOW = 10
+
+
+class DiffDriveControllers:
+    """N diff_drive_controllers' command path: cmd_vel timeout, speed limits, wheel speeds."""
+
+    def __init__(self, description: RobotDescription, n: int):
+        self.description = description
+        self.n = n
+        self._msg = np.zeros((2, n))                  # the last cmd_vel (linear.x, angular.z)
+        self._stamp = np.full(n, -np.inf)             # its header.stamp (none yet: timed out)
+        self._reference = np.zeros((2, n))            # the reference interfaces
+        self._previous = np.zeros((2, n))             # the last limited command (reset_buffers: 0)
+        self._max_velocity = np.array([[description.max_linear], [description.max_angular]])
+        self._max_acceleration = np.array([[description.max_linear_accel],
+                                           [description.max_angular_accel]])
+
+    def command(self, i, v, omega, now: float):
+        """A cmd_vel (TwistStamped stamped `now`) for robot(s) `i` (an index or an index array)."""
+        self._msg[0, i] = v
+        self._msg[1, i] = omega
+        self._stamp[i] = now
+
+    def update(self, now: float, dt: float):
+        """One controller update at `now` over `dt`: returns (left, right) wheel velocities
+        (rad/s, arrays over robots) and whether a limit changed each robot's command."""
+        timeout = self.description.cmd_vel_timeout
+        timed_out = (now - self._stamp > timeout) if timeout > 0 else np.zeros(self.n, bool)
+        finite = np.isfinite(self._msg).all(axis=0)
+        self._reference = np.where(timed_out, 0.0,
+                                   np.where(finite, self._msg, self._reference))
+        step = self._max_acceleration * dt
+        limited = self._previous + np.clip(self._reference - self._previous, -step, step)
+        limited = np.clip(limited, -self._max_velocity, self._max_velocity)
+        saturated = (limited != self._reference).any(axis=0)
+        self._previous = limited
+        return wheel_velocities(self.description, limited[0], limited[1]), saturated
+
+    def fresh(self, now: float, stamp: float) -> bool:
+        """Whether the subscriber accepts a command stamped `stamp` at `now` (it drops one
+        older than cmd_vel_timeout)."""
+        timeout = self.description.cmd_vel_timeout
+        return timeout == 0 or now - stamp < timeout
+
+
+def wheel_velocities(description: RobotDescription, v, omega):
+    """(v, ω) → (left, right) wheel angular velocities, rad/s (diff_drive_controller.cpp)."""
+    half = omega * (description.wheel_separation / 2.0)
+    return (v - half) / description.wheel_radius, (v + half) / description.wheel_radius
+
+
+class WheelOdometry:
+    """N robots' wheel odometry as odometry.cpp integrates it: pose from (0, 0, 0) in each
+    robot's own odom frame, velocities as rolling means."""
+
+    def __init__(self, description: RobotDescription, n: int, now: float = 0.0):
+        self.wheel_radius = description.wheel_radius
+        self.wheel_separation = description.wheel_separation
+        self.pose = np.zeros((3, n))                  # x, y, heading
+        self._old = np.zeros((2, n))                  # left, right wheel distance (m)
+        self._timestamp = now
+        self._window = np.zeros((VELOCITY_ROLLING_WINDOW, 2, n))
+        self._count = 0
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """(2, N) linear (m/s) and angular (rad/s): the rolling means."""
+        k = min(self._count, VELOCITY_ROLLING_WINDOW)
+        return self._window[:k].mean(axis=0) if k else np.zeros(self._window.shape[1:])
+
+    def update(self, left_position, right_position, now: float) -> bool:
+        """Odometry::update: wheel joint positions (rad) at `now`."""
+        dt = now - self._timestamp
+        if dt < MIN_ODOM_INTERVAL:
+            return False
+        current = np.stack([left_position, right_position]) * self.wheel_radius
+        moved = current - self._old
+        self._old = current
+        linear = (moved[0] + moved[1]) * 0.5
+        angular = (moved[1] - moved[0]) / self.wheel_separation
+        self._integrate_exact(linear, angular)
+        self._timestamp = now
+        self._window[self._count % VELOCITY_ROLLING_WINDOW] = (linear / dt, angular / dt)
+        self._count += 1
+        return True
+
+    def _integrate_exact(self, linear, angular):
+        """Odometry::integrateExact (RK2 where |angular| < 1e-6)."""
+        x, y, heading = self.pose
+        small = np.abs(angular) < 1e-6
+        safe = np.where(small, 1.0, angular)
+        new_heading = heading + angular
+        r = linear / safe
+        direction = heading + angular * 0.5
+        self.pose = np.stack([
+            np.where(small, x + linear * np.cos(direction), x + r * (np.sin(new_heading) - np.sin(heading))),
+            np.where(small, y + linear * np.sin(direction), y - r * (np.cos(new_heading) - np.cos(heading))),
+            new_heading])

@@ -1,0 +1,187 @@
+"""A MuJoCo world of N differential-drive robots, each behind its own emulated
+``diff_drive_controller`` (no ROS; CPU only, nothing renders).
+
+One MJCF model holds every robot.  A robot is a chassis on four joints (slide x, slide y, slide
+z, hinge yaw: it drives, turns and rests its weight on its wheels and caster, but cannot roll or
+pitch, which a Burger on a flat floor does not do) and two wheels on hinge joints driven by
+velocity servos with a torque limit.  A wheel touches the floor as a sphere of the wheel radius
+(one contact point, as a thin tyre) with the description's friction; the ball caster is a
+frictionless sphere.  Robots touch each other through a sphere of the footprint radius at one
+height, so two robots collide as two discs in the plane; a robot's own parts never collide.
+
+The controllers update every ``control_dt`` (100 Hz) and the physics steps ``physics_dt``
+(2 ms) in between; `advance` runs whole controller periods.  Single-threaded MuJoCo with the
+same model and the same commands gives bit-identical results.
+"""
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .description import RobotDescription
+from .diff_drive import DiffDriveControllers, WheelOdometry
+
+#: the controller's update period (controller_manager's update_rate, 100 Hz)
+CONTROL_DT = 0.01
+#: each wheel's velocity servo: N·m per rad/s of velocity error (the torque limit caps it)
+WHEEL_GAIN = 0.5
+#: reflected motor inertia on a wheel joint, kg·m² (order of magnitude of a geared servo).  The
+#: servo is integrated explicitly (Euler), stable while WHEEL_GAIN·physics_dt/WHEEL_ARMATURE < 2
+WHEEL_ARMATURE = 1e-3
+#: the largest physics_dt: the servo's stability bound with a margin of 2
+MAX_PHYSICS_DT = WHEEL_ARMATURE / WHEEL_GAIN
+CASTER_RADIUS = 0.01
+#: height of the contact sphere's centre above the wheel axle, m
+BUMPER_HEIGHT = 0.05
+#: chassis height for its inertia (a Burger is 0.192 m tall)
+CHASSIS_HEIGHT = 0.19
+#: joints per robot in qpos/qvel order: x, y, z, yaw, left wheel, right wheel
+JOINTS = 6
+X, Y, Z, YAW, LEFT, RIGHT = range(JOINTS)
+# collision bits: wheels and casters touch only the floor, bumpers only other bumpers
+_FLOOR = 'contype="0" conaffinity="1"'
+_ON_FLOOR = 'contype="1" conaffinity="0"'
+_BUMPER = 'contype="2" conaffinity="2"'
+
+
+def robot_mjcf(d: RobotDescription, i: int) -> str:
+    """One robot's <body> (its base_link at the wheel axle's midpoint, at axle height)."""
+    chassis_mass = d.mass - 2 * d.wheel_mass
+    r2, h2 = d.radius ** 2, CHASSIS_HEIGHT ** 2
+    ixx = chassis_mass * (3 * r2 + h2) / 12
+    izz = chassis_mass * r2 / 2
+    iw = d.wheel_mass * d.wheel_radius ** 2
+    wheels = ''.join(
+        f'<body name="r{i}_{side}" pos="0 {y} 0">'
+        f'<joint name="r{i}_{side}" type="hinge" axis="0 1 0" armature="{WHEEL_ARMATURE}"/>'
+        f'<inertial pos="0 0 0" mass="{d.wheel_mass}" diaginertia="{iw / 4} {iw / 2} {iw / 4}"/>'
+        f'<geom type="sphere" size="{d.wheel_radius}" condim="3" friction="{d.friction} 0 0" '
+        f'{_ON_FLOOR}/></body>'
+        for side, y in (('left', d.wheel_separation / 2), ('right', -d.wheel_separation / 2)))
+    return (
+        f'<body name="r{i}" pos="0 0 {d.wheel_radius}">'
+        f'<joint name="r{i}_x" type="slide" axis="1 0 0"/>'
+        f'<joint name="r{i}_y" type="slide" axis="0 1 0"/>'
+        f'<joint name="r{i}_z" type="slide" axis="0 0 1"/>'
+        f'<joint name="r{i}_yaw" type="hinge" axis="0 0 1"/>'
+        f'<inertial pos="{d.com_x} 0 {BUMPER_HEIGHT}" mass="{chassis_mass}" '
+        f'diaginertia="{ixx} {ixx} {izz}"/>'
+        f'<geom name="r{i}_bumper" type="sphere" size="{d.radius}" pos="0 0 {BUMPER_HEIGHT}" '
+        f'condim="1" {_BUMPER}/>'
+        f'<geom type="sphere" size="{CASTER_RADIUS}" '
+        f'pos="{d.caster_x} 0 {CASTER_RADIUS - d.wheel_radius}" condim="1" {_ON_FLOOR}/>'
+        f'{wheels}</body>')
+
+
+def world_mjcf(d: RobotDescription, n: int, physics_dt: float) -> str:
+    """The whole world: a floor, n robots, one velocity actuator per wheel (left, right, ...)."""
+    actuators = ''.join(
+        f'<velocity joint="r{i}_{side}" kv="{WHEEL_GAIN}" forcelimited="true" '
+        f'forcerange="{-d.wheel_torque} {d.wheel_torque}"/>'
+        for i in range(n) for side in ('left', 'right'))
+    return (
+        '<mujoco model="swarm_robots"><compiler angle="radian"/>'
+        f'<option timestep="{physics_dt}" integrator="Euler" cone="pyramidal" '
+        'solver="Newton" iterations="20" ls_iterations="10"/>'
+        '<worldbody><geom name="floor" type="plane" size="0 0 1" condim="1" friction="0 0 0" '
+        f'{_FLOOR}/>{"".join(robot_mjcf(d, i) for i in range(n))}</worldbody>'
+        f'<actuator>{actuators}</actuator></mujoco>')
+
+
+class RobotWorld:
+    """N differential-drive robots in one MuJoCo model, each behind a diff_drive_controller.
+
+    ``poses`` (N, 3): start x, y (m) and yaw (rad) in the world frame.  Times are robot
+    seconds."""
+
+    def __init__(self, description: RobotDescription, poses, physics_dt: float = 0.002,
+                 control_dt: float = CONTROL_DT):
+        poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        if not np.isfinite(poses).all():
+            raise ValueError('poses: must be finite')
+        if not 0 < physics_dt <= MAX_PHYSICS_DT:
+            raise ValueError(f'physics_dt: must be in (0, {MAX_PHYSICS_DT}] s (got {physics_dt!r})')
+        self.substeps = int(round(control_dt / physics_dt))
+        if self.substeps < 1 or abs(self.substeps * physics_dt - control_dt) > 1e-12:
+            raise ValueError(f'control_dt ({control_dt}) must be a whole number of physics_dt '
+                             f'({physics_dt})')
+        self.description = description
+        self.n = len(poses)
+        self.physics_dt = physics_dt
+        self.control_dt = control_dt
+        self.model = mujoco.MjModel.from_xml_string(world_mjcf(description, self.n, physics_dt))
+        self.data = mujoco.MjData(self.model)
+        self._qpos = self.data.qpos.reshape(self.n, JOINTS)       # views into MuJoCo's arrays
+        self._qvel = self.data.qvel.reshape(self.n, JOINTS)
+        self._qpos[:, [X, Y, YAW]] = poses
+        mujoco.mj_forward(self.model, self.data)
+        self.controllers = DiffDriveControllers(description, self.n)
+        self.wheel_odometry = WheelOdometry(description, self.n)
+        bumpers = [self.model.geom(f'r{i}_bumper').id for i in range(self.n)]
+        self._robot_of_geom = np.full(self.model.ngeom, -1)
+        self._robot_of_geom[bumpers] = np.arange(self.n)
+        self._touching = np.zeros(0, dtype=np.int64)               # pairs i*n + j, i < j
+        self._steps = 0
+        self._target = 0.0
+        self.contacts = 0
+        self.saturated_time = np.zeros(self.n)
+
+    @property
+    def time(self) -> float:
+        """Robot seconds simulated (whole controller periods)."""
+        return self._steps * self.control_dt
+
+    def command(self, i, v, omega, stamp: float | None = None):
+        """A cmd_vel for robot(s) `i` (an index or an index array), stamped `stamp` (default:
+        now).  The controller limits it and stops the wheels cmd_vel_timeout after it; one
+        already older than the timeout is dropped, as the controller's subscriber does."""
+        stamp = self.time if stamp is None else stamp
+        if self.controllers.fresh(self.time, stamp):
+            self.controllers.command(i, v, omega, stamp)
+
+    def advance(self, seconds: float):
+        """Run the physics for `seconds` more (rounded to whole controller periods, so the
+        time never drifts from the sum of what was asked by more than half a period)."""
+        if not seconds >= 0:
+            raise ValueError(f'seconds: must be >= 0 (got {seconds!r})')
+        self._target += seconds
+        steps = int(round(self._target / self.control_dt)) - self._steps
+        for _ in range(steps):
+            self._control_step()
+
+    def _control_step(self):
+        """One controller period: the controllers' update, physics_dt substeps, then the
+        wheel odometry and the contacts at the period's end."""
+        (left, right), saturated = self.controllers.update(self.time, self.control_dt)
+        self.data.ctrl[0::2] = left
+        self.data.ctrl[1::2] = right
+        mujoco.mj_step(self.model, self.data, nstep=self.substeps)
+        self._steps += 1
+        self.saturated_time += np.where(saturated, self.control_dt, 0.0)
+        self.wheel_odometry.update(self._qpos[:, LEFT], self._qpos[:, RIGHT], self.time)
+        self._count_contacts()
+
+    def _count_contacts(self):
+        """Robot-robot contact events: a pair of robots touching now that did not before."""
+        ncon = self.data.ncon
+        if ncon:
+            a = self._robot_of_geom[self.data.contact.geom1[:ncon]]
+            b = self._robot_of_geom[self.data.contact.geom2[:ncon]]
+            both = (a >= 0) & (b >= 0)
+            pairs = np.unique(np.minimum(a, b)[both] * self.n + np.maximum(a, b)[both])
+        else:
+            pairs = np.zeros(0, dtype=np.int64)
+        self.contacts += int(np.setdiff1d(pairs, self._touching, assume_unique=True).size)
+        self._touching = pairs
+
+    def odometry(self) -> np.ndarray:
+        """(N, 5) x, y, yaw, v, ω: wheel odometry, each robot in its own odom frame from
+        (0, 0, 0), as diff_drive_controller publishes it."""
+        return np.column_stack([self.wheel_odometry.pose.T, self.wheel_odometry.velocity.T])
+
+    def ground_truth(self) -> np.ndarray:
+        """(N, 5) x, y, yaw, v, ω in the world frame; v and ω in the body frame."""
+        q, dq = self._qpos, self._qvel
+        yaw = q[:, YAW]
+        v = np.cos(yaw) * dq[:, X] + np.sin(yaw) * dq[:, Y]
+        return np.column_stack([q[:, X], q[:, Y], yaw, v, dq[:, YAW]])
