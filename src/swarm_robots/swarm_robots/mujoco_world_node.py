@@ -106,6 +106,9 @@ class RobotsNode(Node):
         self.scn = declare_scenario(self)
         try:
             self.sec = robots_section(self.scn)
+        except ValueError as err:
+            raise ParameterError(f'parameter scenario: {err}') from None
+        try:
             self.rows = chosen_rows(self.scn.names, [c.strip() for c in chosen.split(',') if c.strip()])
         except ValueError as err:
             raise ParameterError(f'parameter robots: {err}') from None
