@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from swarm_robots.run_setup import chosen_rows, robots_section, start_poses
-from swarm_robots.timing import RealtimePacer, RobotsLockstep, robot_summary
+from swarm_robots.timing import RealtimePacer, RobotsLockstep, TurnLimitClock, robot_summary
 
 
 class FakeWorld:
@@ -133,7 +133,24 @@ def test_run_setup_rows_poses_and_a_scenario_without_robots(tmp_path):
         robots_section(scn)
 
 
+def test_turn_limit_clock_counts_commands_at_the_limit_until_the_controller_times_out():
+    world = FakeWorld()
+    world.n = 2
+    w = TurnLimitClock(world, 2.84, 0.5)
+    w.command(0, 0.15, -2.84)          # clipped by the agent: at the limit
+    w.command(1, 0.15, 2.0)
+    w.advance(0.3)
+    w.command(1, 0.15, 2.84)
+    w.advance(0.1)
+    assert w.seconds.tolist() == pytest.approx([0.4, 0.1])
+    w.advance(0.2)                     # robot 0's command is 0.4 s old: still counts
+    w.advance(0.2)                     # 0.6 s old: the controller has stopped robot 0
+    assert w.seconds.tolist() == pytest.approx([0.6, 0.5])
+    assert w.time == pytest.approx(0.8) and world.calls[0] == ('command', 0, 0.15, -2.84)
+
+
 def test_robot_summary_for_metrics():
-    s = robot_summary(['agent_0', 'agent_1'], 3, [0.5, 1.5], SCALE)
+    s = robot_summary(['agent_0', 'agent_1'], 3, [0.0, 1.0], [0.5, 1.5], SCALE)
     assert s['contacts'] == 3 and s['limit_seconds'] == {'agent_0': 0.5, 'agent_1': 1.5}
     assert s['limit_seconds_total'] == 2.0 and s['limit_model_seconds_total'] == 1.0
+    assert s['turn_limit_seconds'] == {'agent_0': 0.0, 'agent_1': 1.0} and s['turn_limit_model_seconds_total'] == 0.5

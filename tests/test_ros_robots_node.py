@@ -54,7 +54,7 @@ ROBOTS = {'length_scale': 0.3, 'cruise_speed': 0.15}
 
 @pytest.fixture
 def robots_node(tmp_path, rclpy_context, monkeypatch):
-    monkeypatch.setattr(M.RobotsNode, '_make_world', lambda self: FakeWorld(
+    monkeypatch.setattr(M.RobotsNode, '_make_world', lambda self, desc: FakeWorld(
         M.start_poses(self.scn, self.rows, self.units)))
     path = short_homotopy(tmp_path / 'six.yaml', duration=10, lam='{kind: constant, value: 0}', at=1, robots=ROBOTS)
     node = M.RobotsNode(context=rclpy_context, parameter_overrides=overrides(dict(
@@ -124,6 +124,7 @@ def test_lockstep_hold_on_messages(robots_node, rclpy_context, tmp_path):
     node.finish()
     summary = json.loads((tmp_path / SUMMARY_FILE).read_text())
     assert summary['contacts'] == 1 and summary['limit_seconds'] == {'agent_1': 0.25, 'agent_3': 0.25}
+    assert summary['turn_limit_seconds'] == {'agent_1': 0.0, 'agent_3': 0.0}
     peer.destroy_node()
 
 
@@ -135,7 +136,7 @@ def _raw(cdr):
 
 def test_realtime_follows_the_sim_clock(tmp_path, rclpy_context, monkeypatch):
     from rosgraph_msgs.msg import Clock
-    monkeypatch.setattr(M.RobotsNode, '_make_world', lambda self: FakeWorld(
+    monkeypatch.setattr(M.RobotsNode, '_make_world', lambda self, desc: FakeWorld(
         M.start_poses(self.scn, self.rows, self.units)))
     path = short_homotopy(tmp_path / 'six.yaml', duration=10, lam='{kind: constant, value: 0}', at=1, robots=ROBOTS)
     ctx = rclpy_context
@@ -190,7 +191,7 @@ def drive(ctx, path, steps, tag):
         for n in range(steps):
             for k in (1, 0):
                 m = command(n * dt, 0.15)
-                m.twist.angular.z = 0.5 * np.sin(0.1 * n + k)
+                m.twist.angular.z = 2.84 if k == 1 else 0.5 * np.sin(0.1 * n)     # robot 1 at ω_max
                 cmd[k].publish(m)
             t = round((n + 1) * dt, 9)
             assert spin_for(ex, lambda: len(got.get(t, {})) == 2, 10), n
@@ -209,4 +210,5 @@ def test_mujoco_robots_in_lockstep_repeat_bit_for_bit(tmp_path, rclpy_context):
     # wheel odometry from (0, 0): about v0 · 4 robot s along the way (the start accelerates)
     x, y = a[-1][0][:2]
     assert 0.5 < np.hypot(x, y) <= 0.15 * 4.0 + 1e-9
-    assert summary['contacts'] == 0 and set(summary['limit_seconds']) == {'agent_0', 'agent_1'}
+    assert set(summary['limit_seconds']) == {'agent_0', 'agent_1'}
+    assert summary['turn_limit_seconds'] == {'agent_0': 0.0, 'agent_1': pytest.approx(4.0)}

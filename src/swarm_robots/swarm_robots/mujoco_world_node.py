@@ -32,7 +32,7 @@ from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
 
 from .run_setup import SUMMARY_FILE, chosen_rows, robots_section, start_poses
-from .timing import RealtimePacer, RobotsLockstep, advance_to, robot_summary
+from .timing import RealtimePacer, RobotsLockstep, TurnLimitClock, advance_to, robot_summary
 
 METRICS_TOPIC = '/robots/metrics'
 #: lockstep: wall s without progress after which the newest odometry is published again (an
@@ -73,7 +73,9 @@ class RobotsNode(Node):
                          parameter_overrides=parameter_overrides)
         self._declare_parameters()
         self.reject = RejectLog(self.get_logger())
-        self.world = self._make_world()
+        desc = self._description()
+        self.world = TurnLimitClock(self._make_world(desc), min(self.sec.max_angular, desc.max_angular),
+                                    desc.cmd_vel_timeout)
         self.t_odom = 0.0                       # sim time of the newest odometry published
         self.last_progress = time.monotonic()
         self.pub_odom, self.pub_truth = [], []
@@ -119,13 +121,16 @@ class RobotsNode(Node):
         self.units = self.sec.units()
         self.scale = self.units.seconds_per_model_unit
 
-    def _make_world(self):
+    def _description(self):
+        """The robot description the scenario names (default: TurtleBot3 Burger)."""
         from .description import TURTLEBOT3_BURGER, RobotDescription
-        from .physics import RobotWorld
         try:
-            desc = RobotDescription.from_yaml(self.sec.description) if self.sec.description else TURTLEBOT3_BURGER
+            return RobotDescription.from_yaml(self.sec.description) if self.sec.description else TURTLEBOT3_BURGER
         except (OSError, ValueError) as err:
-            raise ParameterError(f'robot description {self.sec.description}: {err}') from None
+            raise ParameterError(f'scenario robots.description {self.sec.description}: {err}') from None
+
+    def _make_world(self, desc):
+        from .physics import RobotWorld
         return RobotWorld(desc, start_poses(self.scn, self.rows, self.units))
 
     # ------------------------------------------------------------ inputs
@@ -184,12 +189,13 @@ class RobotsNode(Node):
             self.pub_truth[k].publish(odometry(t, 'world', base, truth[k]))
 
     def summary(self) -> dict:
-        return robot_summary(self.agents, self.world.contacts, self.world.saturated_time, self.scale)
+        w = self.world
+        return robot_summary(self.agents, w.contacts, w.seconds, w.saturated_time, self.scale)
 
     def publish_metrics(self):
         s = self.summary()
-        values = [('contacts', s['contacts']), ('limit_seconds_total', s['limit_seconds_total']),
-                  ('robot_time', self.world.time)]
+        values = [('contacts', s['contacts']), ('turn_limit_seconds_total', s['turn_limit_seconds_total']),
+                  ('limit_seconds_total', s['limit_seconds_total']), ('robot_time', self.world.time)]
         arr = DiagnosticArray()
         arr.header.stamp = self.get_clock().now().to_msg()
         arr.status = [DiagnosticStatus(name='robots', message=f'{len(self.agents)} robots',

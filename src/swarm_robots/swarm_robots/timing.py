@@ -114,6 +114,35 @@ class RealtimePacer:
         return due
 
 
+class TurnLimitClock:
+    """A robot world (`swarm_robots.physics.RobotWorld`'s API) that also adds up the robot
+    seconds each robot is commanded at the turn-rate limit ``max_angular`` (the agents clip
+    ω there: `swarm_core.robot_units.RobotUnits.command`), while its command is younger than
+    the controller's ``cmd_vel_timeout`` (after that the robot stops).  Everything else is the
+    wrapped world's."""
+
+    def __init__(self, world, max_angular: float, cmd_vel_timeout: float):
+        self.world = world
+        self.limit = float(max_angular) * (1 - 1e-9)
+        self.timeout = float(cmd_vel_timeout)
+        self.at_limit = np.zeros(world.n, dtype=bool)
+        self.since = np.full(world.n, -np.inf)          # robot time of each robot's newest command
+        self.seconds = np.zeros(world.n)
+
+    def command(self, i, v, omega):
+        self.at_limit[i] = abs(omega) >= self.limit
+        self.since[i] = self.world.time
+        self.world.command(i, v, omega)
+
+    def advance(self, seconds):
+        live = self.at_limit & ((self.world.time - self.since < self.timeout) if self.timeout > 0 else True)
+        self.seconds[live] += seconds
+        self.world.advance(seconds)
+
+    def __getattr__(self, name):
+        return getattr(self.world, name)
+
+
 def advance_to(world, asked: float, target: float) -> float:
     """Advance ``world`` from robot time ``asked`` (the sum of what it was asked so far) to
     ``target``; returns the new sum.  The physics may round each advance to whole controller
@@ -125,12 +154,16 @@ def advance_to(world, asked: float, target: float) -> float:
     return asked
 
 
-def robot_summary(names, contacts: int, saturated_time, robot_per_model: float) -> dict:
-    """What the robots did, for metrics.json: robot-robot contacts (a pair coming into contact)
-    and the time each robot spent at a velocity or acceleration limit (robot s, and the same in
-    model s)."""
+def robot_summary(names, contacts: int, turn_limit_time, saturated_time, robot_per_model: float) -> dict:
+    """What the robots did, for metrics.json: robot-robot contacts (a pair coming into contact),
+    the time each robot was commanded at the turn-rate limit (`TurnLimitClock`) and the time its
+    controller held it at any velocity or acceleration limit (robot s; totals also in model s)."""
+    turn = np.asarray(turn_limit_time, dtype=float)
     sat = np.asarray(saturated_time, dtype=float)
     return dict(robots=list(names), contacts=int(contacts),
+                turn_limit_seconds={nm: float(s) for nm, s in zip(names, turn)},
+                turn_limit_seconds_total=float(turn.sum()),
+                turn_limit_model_seconds_total=float(turn.sum() / robot_per_model),
                 limit_seconds={nm: float(s) for nm, s in zip(names, sat)},
                 limit_seconds_total=float(sat.sum()),
                 limit_model_seconds_total=float(sat.sum() / robot_per_model))
