@@ -49,8 +49,18 @@ def test_lockstep_six_robots_repeatable_and_split_by_lambda(tmp_path, ros_domain
     assert np.abs(speed[len(speed) // 2:] - 1.0).max() > 1e-6
     assert clusters(a, 10) == 1 and clusters(a, 60) >= 2
     robots = metrics['summary']['robots']
-    assert sorted(robots['limit_seconds']) == [f'agent_{i}' for i in range(6)]
-    assert robots['contacts'] >= 0 and robots['limit_seconds_total'] >= 0
+    assert sorted(robots['limit_seconds']) == sorted(robots['turn_limit_seconds']) == [f'agent_{i}' for i in range(6)]
+
+
+def test_swarm_run_starts_the_robot_world_and_keeps_its_summary(tmp_path, ros_domain, processes, swarm_cmd):
+    path = short_homotopy(tmp_path / 'short.yaml', robots=ROBOTS, duration=2, lam='{kind: constant, value: 0}', at=1)
+    traj, metrics, lines = run(processes, swarm_cmd, path, tmp_path / 'r', '--robots', 'mujoco:agent_4', timeout=200)
+    assert any('9 processes' in ln for ln in lines.lines), ''.join(lines.lines)     # + the robot world
+    assert any('[robots]: 1 robots (lockstep)' in ln for ln in lines.lines)
+    robots = metrics['summary']['robots']
+    assert robots['robots'] == ['agent_4'] and robots['contacts'] == 0
+    assert json.loads((tmp_path / 'r' / 'robots.json').read_text()) == robots
+    assert len(traj.t) == 41
 
 
 def test_mixed_run_three_robots_three_kinematic_one_swarm(tmp_path, ros_domain, processes, swarm_cmd):
