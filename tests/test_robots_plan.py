@@ -31,6 +31,7 @@ def test_plan_starts_the_robot_world_for_the_mujoco_agents(six):
     node = run.params['/robots']
     assert node['robots'] == 'agent_1,agent_2,agent_3' and node['mode'] == 'realtime' and node['run_id'] == 'r1'
     assert node['output_dir'] == str(run.out) and node['use_sim_time'] is True
+    assert node['hold_timeout'] == run.params['/world']['missing_timeout'] / 2
     assert node['scenario'] == six[1] and node['dt'] == six[0].dt
     # 3 kinematic agents, 3 robot agents (each a process of its own), world, commander, robots
     assert run.processes == 6 + 3

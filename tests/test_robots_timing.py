@@ -60,6 +60,16 @@ def test_a_killed_agents_robot_is_not_waited_for():
     assert h.run() == [] and h.waiting_for() == [1]
 
 
+def test_release_leaves_out_the_robots_of_a_known_step_that_did_not_answer():
+    h = hold(rows=(0, 2, 4))
+    h.on_command(0, 0.0, 0.1, 0.0)
+    assert h.release() == [] and not h.ready()      # step 0 not sent yet: nothing to give up on
+    h.on_step(0, np.ones(6, bool))
+    assert h.release() == [1, 2] and h.run() == [pytest.approx(DT)]
+    assert [c[1] for c in h.world.calls if c[0] == 'command'] == [0]
+    assert h.waiting_for() == [0, 1, 2]              # the next step waits for every robot again
+
+
 def test_stale_and_off_step_stamps_are_ignored_and_the_first_command_counts():
     h = hold(rows=(0,))
     assert h.on_command(0, 0.0, 0.1, 0.5)

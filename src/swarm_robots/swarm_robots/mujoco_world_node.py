@@ -104,6 +104,9 @@ class RobotsNode(Node):
         self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=('lockstep', 'realtime'))
         chosen = d('robots', '', "the agents with a robot, comma-separated ('': every agent)")
         self.output_dir = d('output_dir', '', f'where to write {SUMMARY_FILE} at the end ("": nowhere)')
+        self.hold_timeout = d('hold_timeout', 5.0, 'lockstep: wall s to wait for the commands of a step the world '
+                              'has sent before the robots of agents that did not answer are left out of it '
+                              '(swarm run: half the world\'s missing_timeout)', lo=0.1, hi=1e6)
         self.run_id = declare_run_id(self, 'lockstep step messages of another run are refused')
         self.scn = declare_scenario(self)
         try:
@@ -166,8 +169,18 @@ class RobotsNode(Node):
             self.publish_odometry(t)
 
     def _repeat(self):
-        """Lockstep: no progress for `REPEAT_AFTER` wall s: the newest odometry again."""
-        if time.monotonic() - self.last_progress >= REPEAT_AFTER:
+        """Lockstep: no progress for `REPEAT_AFTER` wall s: the newest odometry again; for
+        ``hold_timeout``: the step goes on without the robots whose commands did not come."""
+        quiet = time.monotonic() - self.last_progress
+        if quiet >= self.hold_timeout:
+            missing = self.hold.release()
+            if missing:
+                self.get_logger().warning(
+                    f'step {self.hold.n}: no command from {", ".join(self.agents[k] for k in missing)} after '
+                    f'{quiet:.1f} s; their robots get none this step')
+                self._advance()
+                return
+        if quiet >= REPEAT_AFTER:
             self.publish_odometry(self.t_odom)
 
     def _tick(self):

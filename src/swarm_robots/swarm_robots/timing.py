@@ -71,6 +71,16 @@ class RobotsLockstep:
     def ready(self) -> bool:
         return not self.waiting_for()
 
+    def release(self) -> list:
+        """Stop waiting for the held step's missing robots, once the step itself is known (its
+        agents died after the world sent it: without this the robots of the others would never
+        move and the world would lose them too).  They get no command this step; returns them."""
+        if self.n not in self.alive:
+            return []
+        missing = self.waiting_for()
+        self.alive[self.n][missing] = False
+        return missing
+
     def advance(self) -> float:
         """Apply the held step's commands (in robot order), advance the physics to robot time
         t_(n+1)·L/v0 and move on; returns t_(n+1), the stamp of the odometry to publish."""

@@ -26,7 +26,8 @@ def add_robot_world(params: dict, robots: dict) -> None:
     chosen = [nm for nm, kind in robots.items() if kind == MUJOCO]
     if chosen:
         world = params['/world']
-        params[ROBOTS_NODE] = dict({k: world[k] for k in SHARED}, robots=','.join(chosen), use_sim_time=True)
+        params[ROBOTS_NODE] = dict({k: world[k] for k in SHARED}, robots=','.join(chosen), use_sim_time=True,
+                                   hold_timeout=world['missing_timeout'] / 2)
 
 
 def read_summary(out_dir) -> dict | None:
