@@ -56,7 +56,7 @@ def test_guard_stops_on_stale_odometry_and_resumes():
 def test_guard_stops_without_a_neighbour_in_range():
     g = SafetyGuard(max_speed=0.2, neighbour_timeout=2.0, start=0.0)
     g.odometry(1.8, 0.0, 0.0, 0.0)
-    assert g.decide(1.9) is None                        # the start is a grace period
+    assert g.decide(1.9) == ('resume', '')              # the first call says it; the start is a grace period
     g.odometry(2.0, 0.0, 0.0, 0.0)
     kind, why = g.decide(2.1)
     assert kind == 'stop' and 'no neighbour in radio range for 2.1 s' in why

@@ -183,6 +183,7 @@ class SafetyGuard:
         self.last: Odom | None = None
         self.heard = float(start)          # when a neighbour in range was last heard (start: grace)
         self.stopped: str | None = None    # the reason the robot is stopped, None while it drives
+        self.started = False               # `decide` was called
         self.rejected = 0
 
     def odometry(self, t: float, x: float, y: float, yaw: float) -> str | None:
@@ -220,8 +221,13 @@ class SafetyGuard:
         return None
 
     def decide(self, t: float, paused: bool = False) -> tuple[str, str] | None:
-        """('stop', reason) / ('resume', '') when the robot's state changes at robot time t."""
+        """('stop', reason) / ('resume', '') when the robot's state changes at robot time t;
+        the first call always says one (the robot stands until then)."""
         why = self.reason(t, paused)
+        if not self.started:
+            self.started = True
+            self.stopped = why
+            return ('stop', why) if why is not None else ('resume', '')
         if why is not None and self.stopped is None:
             self.stopped = why
             return 'stop', why
