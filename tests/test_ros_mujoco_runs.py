@@ -44,9 +44,9 @@ def test_lockstep_six_robots_repeatable_and_split_by_lambda(tmp_path, ros_domain
     np.testing.assert_array_equal(a.r, b.r)
     np.testing.assert_array_equal(a.theta, b.theta)
     np.testing.assert_array_equal(a.u, b.u)
-    # robots, not kinematic points: the speed is not exactly the model's unit speed
+    # robots, not kinematic points: they start from rest and accelerate to v0
     speed = np.linalg.norm(np.diff(a.r, axis=0), axis=2) / (a.t[1] - a.t[0])
-    assert np.abs(speed[len(speed) // 2:] - 1.0).max() > 1e-6
+    assert speed[0].max() < 0.5 and np.abs(speed[20:] - 1.0).max() < 0.05
     assert clusters(a, 10) == 1 and clusters(a, 60) >= 2
     robots = metrics['summary']['robots']
     assert sorted(robots['limit_seconds']) == sorted(robots['turn_limit_seconds']) == [f'agent_{i}' for i in range(6)]
@@ -70,8 +70,10 @@ def test_mixed_run_three_robots_three_kinematic_one_swarm(tmp_path, ros_domain, 
     assert sorted(metrics['summary']['robots']['limit_seconds']) == ['agent_0', 'agent_1', 'agent_2']
     dt = traj.t[1] - traj.t[0]
     speed = np.linalg.norm(np.diff(traj.r, axis=0), axis=2) / dt
-    assert np.abs(speed[:, 3:] - 1.0).max() < 1e-9         # the kinematic agents fly at unit speed
-    assert np.abs(speed[:, :3] - 1.0).max() > 1e-6         # the robots do not, exactly
+    # the kinematic agents fly at unit speed (a chord of the arc: within 1e-5 at |u| < 0.2); the
+    # robots start from rest and accelerate to v0
+    assert np.abs(speed[:, 3:] - 1.0).max() < 1e-5
+    assert speed[0, :3].max() < 0.5 and np.abs(speed[20:, :3] - 1.0).max() < 0.05
     assert all(clusters(traj, t) == 1 for t in (10, 20, 30, 40))
     heading = np.exp(1j * traj.theta[-1])
     assert abs(heading.mean()) > 0.9                       # one swarm, aligned
