@@ -110,7 +110,9 @@ def test_lockstep_hold_on_messages(robots_node, rclpy_context, tmp_path):
     assert node.world.time == pytest.approx(scn.dt * 2.0)
     assert node.world.commands == [(0.0, 0, 0.15, 0.0)]
     # wheel odometry from (0, 0) in the robot's own odom frame; ground truth in the world frame
-    assert stamped(odom1, scn.dt)[0].pose.pose.position.x == pytest.approx(0.15 * scn.dt * 2.0)
+    moved = stamped(odom1, scn.dt)[0]
+    assert moved.pose.pose.position.x == pytest.approx(0.15 * scn.dt * 2.0) and moved.twist.twist.linear.x == 0.15
+    assert (moved.pose.pose.orientation.z, moved.pose.pose.orientation.w) == (0.0, 1.0)
     truth = stamped(M.ground_truth_topic('agent_1'), scn.dt)[0].pose.pose.position.x
     assert truth == pytest.approx(scn.pos0[1, 0] * 0.3 + 0.15 * scn.dt * 2.0)
     # a stale command (step 0 again) changes nothing; step 1 waits for both robots
