@@ -78,12 +78,28 @@ def test_a_step_in_the_command_reaches_the_wheels_no_faster_than_max_acceleratio
     assert world.saturated_time[0] == pytest.approx(world.control_dt * np.count_nonzero(ramp < target))
 
 
-def test_speed_beyond_the_limit_is_clipped_and_counted():
+def test_speed_beyond_the_limits_is_clipped_and_counted():
+    """The controller clips (1 m/s, 9 rad/s) to (0.22, 2.84); then the motors clip the outer
+    wheel to its top speed, so the robot drives and turns slower than even that."""
     world = RobotWorld(BURGER, [[0.0, 0.0, 0.0]])
     drive(world, 1.0, 9.0, 2.0)
-    v, omega = wheel_command(world)
-    # both axes at their limits: the wheels get (0.22, 2.84)
-    assert (v, omega) == pytest.approx((BURGER.max_linear, BURGER.max_angular), rel=1e-12)
+    limited = world.controllers.limited_command[:, 0]
+    assert limited.tolist() == [BURGER.max_linear, BURGER.max_angular]
+    top = BURGER.max_wheel_speed
+    inner = (BURGER.max_linear - BURGER.max_angular * BURGER.wheel_separation / 2) / BURGER.wheel_radius
+    np.testing.assert_allclose(world.data.ctrl, [inner, top], rtol=1e-12)
+    v, omega = world.ground_truth()[0, 3:]
+    rim = BURGER.wheel_radius * np.array([inner, top])
+    assert v == pytest.approx(rim.mean(), rel=0.02)
+    assert omega == pytest.approx((rim[1] - rim[0]) / BURGER.wheel_separation, rel=0.02)
+    assert world.saturated_time[0] == pytest.approx(2.0)
+
+
+def test_a_wheel_at_its_top_speed_counts_as_saturated():
+    world = RobotWorld(BURGER, [[0.0, 0.0, 0.0]])
+    drive(world, 0.2, 1.0, 2.0)                    # inside the controller's limits
+    assert world.controllers.limited_command[:, 0].tolist() == [0.2, 1.0]
+    assert world.data.ctrl[1] == BURGER.max_wheel_speed       # (0.2 + 0.08) / 0.033 > 7
     assert world.saturated_time[0] == pytest.approx(2.0)
 
 
@@ -110,9 +126,10 @@ def test_two_robots_driven_into_each_other_touch_and_do_not_pass():
     gap = gt[1, 0] - gt[0, 0]
     assert gap > 2 * BURGER.radius - 0.01           # they push, they do not pass
     assert gt[2, 0] > 0.7                           # the third one drove on untouched
+    assert world.touching.tolist() == [[0, 1]]
     contacts = world.contacts
     drive(world, -0.1, 0.0, 1.0)                    # back off: no new contact event
-    assert world.contacts == contacts
+    assert world.contacts == contacts and world.touching.size == 0
 
 
 def odom_in_world(odom, start):
@@ -190,6 +207,9 @@ def test_wheel_odometry_integrates_an_arc_exactly():
                        np.array([right]) / BURGER.wheel_radius, 1.0)
     np.testing.assert_allclose(odom.pose[:, 0], [radius, radius, angle], atol=1e-12)
     np.testing.assert_allclose(odom.velocity[:, 0], [radius * angle, angle], atol=1e-12)
+    both = np.array([left + 0.3, right + 0.3]) / BURGER.wheel_radius    # then 0.3 m straight on
+    assert odom.update(both[:1], both[1:], 2.0)
+    np.testing.assert_allclose(odom.pose[:, 0], [radius, radius + 0.3, angle], atol=1e-12)
 
 
 def test_a_yaml_description_sets_fields_and_keeps_the_burgers_defaults(tmp_path):
@@ -206,6 +226,8 @@ def test_a_yaml_description_sets_fields_and_keeps_the_burgers_defaults(tmp_path)
     ('max_angular: .nan', 'max_angular'),
     ('wheel_separation: 0.3', 'wheel_separation'),    # wider than the footprint
     ('wheel_mass: 0.6', 'wheel_mass'),
+    ('friction: 0', 'friction'),
+    ('cmd_vel_timeout: true', 'cmd_vel_timeout'),
     ('[1, 2]', 'mapping'),
 ])
 def test_a_bad_yaml_description_names_the_bad_field(tmp_path, text, field):
@@ -214,3 +236,27 @@ def test_a_bad_yaml_description_names_the_bad_field(tmp_path, text, field):
     with pytest.raises(DescriptionError, match=field) as e:
         RobotDescription.from_yaml(path)
     assert str(path) in str(e.value)
+
+
+def test_advance_runs_whole_controller_periods_without_drift():
+    world = RobotWorld(BURGER, [[0.0, 0.0, 0.0]])
+    step = 0.1 * 0.5 / 0.22                            # 0.227... s: dt 0.1 at L = 0.5, v0 = 0.22
+    for k in range(1, 11):
+        world.advance(step)
+        assert abs(world.time - k * step) <= world.control_dt / 2
+    assert world.data.time == pytest.approx(world.time)
+
+
+@pytest.mark.parametrize('kw, field', [(dict(physics_dt=0.005), 'physics_dt'),
+                                       (dict(physics_dt=0.0015), 'control_dt')])
+def test_a_physics_step_the_wheel_servo_cannot_take_is_refused(kw, field):
+    with pytest.raises(ValueError, match=field):
+        RobotWorld(BURGER, [[0.0, 0.0, 0.0]], **kw)
+
+
+def test_diverged_physics_is_an_error_not_a_silent_reset(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)                    # MuJoCo writes its warning to MUJOCO_LOG.TXT here
+    world = RobotWorld(BURGER, [[1.0, 0.0, 0.0]])
+    world.data.qvel[0] = np.inf                    # as a blown-up simulation would have it
+    with pytest.raises(RuntimeError, match='diverged'):
+        world.advance(0.1)

@@ -7,12 +7,17 @@ caster and centre-of-mass offsets and the wheel mass are those of ``turtlebot3_b
 (``caster_back_joint`` at x = -0.081 m, ``base_link`` inertial origin x = -0.032 m, wheel links
 0.0285 kg).
 
-The acceleration limits are ours (the Burger's own firmware does not publish any): one budget
+The acceleration limits are ours (the Burger's published specification gives none): one budget
 of 1.0 m/s² at the wheel rim for both axes, so ``max_angular_accel`` = 1.0 / (0.160 / 2) =
 12.5 rad/s².  The robot reaches full speed in 0.22 s and full turn rate in 0.23 s, and the rim
 acceleration stays far below what the tyres grip (μ·g ≈ 7.8 m/s² at μ = 0.8), so a robot on a
 normal floor does not slip unless a description asks for it.  ``wheel_torque`` (1.4 N·m) is of
-the order of the stall torque of the Burger's Dynamixel wheel motors.
+the order of the stall torque of the Burger's Dynamixel wheel motors.  ``max_wheel_speed``
+(7.0 rad/s, a rim speed of 0.231 m/s) is the motors' top speed: enough for the published
+0.22 m/s straight on or 2.84 rad/s on the spot (6.9 rad/s at each wheel), not for both at
+once, as on the real robot, whose top speeds are its wheels'.  ``diff_drive_controller`` does
+not know this limit; the motors clip each wheel's target, and the robot turns less or drives
+slower than it was told.
 """
 from __future__ import annotations
 
@@ -40,6 +45,7 @@ class RobotDescription:
     max_linear_accel: float = 1.0       # m/s², linear.x.max_acceleration
     max_angular_accel: float = 12.5     # rad/s², angular.z.max_acceleration
     wheel_torque: float = 1.4           # N·m, each wheel motor's torque limit
+    max_wheel_speed: float = 7.0        # rad/s, each wheel motor's speed limit
     friction: float = 0.8               # wheel-ground sliding friction coefficient
     cmd_vel_timeout: float = 0.5        # s, the controller's cmd_vel_timeout (0 disables it)
     wheel_mass: float = 0.0285          # kg, each wheel (part of `mass`)
@@ -101,6 +107,6 @@ class RobotDescription:
 
 #: fields that are positions (any sign) and fields where 0 means "none"
 _SIGNED = frozenset({'caster_x', 'com_x'})
-_MAY_BE_ZERO = frozenset({'cmd_vel_timeout', 'friction'})
+_MAY_BE_ZERO = frozenset({'cmd_vel_timeout'})
 
 TURTLEBOT3_BURGER = RobotDescription()

@@ -69,6 +69,11 @@ class DiffDriveControllers:
         self._previous = limited
         return wheel_velocities(self.description, limited[0], limited[1]), saturated
 
+    @property
+    def limited_command(self) -> np.ndarray:
+        """(2, N) the last limited (v, ω), as the controller's ``cmd_vel_out`` would publish."""
+        return self._previous.copy()
+
     def fresh(self, now: float, stamp: float) -> bool:
         """Whether the subscriber accepts a command stamped `stamp` at `now` (it drops one
         older than cmd_vel_timeout)."""
@@ -78,7 +83,7 @@ class DiffDriveControllers:
 
 def wheel_velocities(description: RobotDescription, v, omega):
     """(v, ω) → (left, right) wheel angular velocities, rad/s (diff_drive_controller.cpp)."""
-    half = omega * (description.wheel_separation / 2.0)
+    half = omega * description.wheel_separation / 2.0        # in the C++ order of operations
     return (v - half) / description.wheel_radius, (v + half) / description.wheel_radius
 
 
@@ -106,26 +111,31 @@ class WheelOdometry:
         dt = now - self._timestamp
         if dt < MIN_ODOM_INTERVAL:
             return False
-        current = np.stack([left_position, right_position]) * self.wheel_radius
-        moved = current - self._old
-        self._old = current
-        linear = (moved[0] + moved[1]) * 0.5
-        angular = (moved[1] - moved[0]) / self.wheel_separation
+        left = left_position * self.wheel_radius
+        right = right_position * self.wheel_radius
+        moved_left, moved_right = left - self._old[0], right - self._old[1]
+        self._old[0], self._old[1] = left, right
+        linear = (moved_left + moved_right) * 0.5
+        angular = (moved_right - moved_left) / self.wheel_separation
         self._integrate_exact(linear, angular)
         self._timestamp = now
-        self._window[self._count % VELOCITY_ROLLING_WINDOW] = (linear / dt, angular / dt)
+        slot = self._window[self._count % VELOCITY_ROLLING_WINDOW]
+        slot[0], slot[1] = linear / dt, angular / dt
         self._count += 1
         return True
 
     def _integrate_exact(self, linear, angular):
-        """Odometry::integrateExact (RK2 where |angular| < 1e-6)."""
-        x, y, heading = self.pose
-        small = np.abs(angular) < 1e-6
-        safe = np.where(small, 1.0, angular)
+        """Odometry::integrateExact: the exact arc, or RK2 where |angular| < 1e-6."""
+        heading = self.pose[2]
         new_heading = heading + angular
-        r = linear / safe
-        direction = heading + angular * 0.5
-        self.pose = np.stack([
-            np.where(small, x + linear * np.cos(direction), x + r * (np.sin(new_heading) - np.sin(heading))),
-            np.where(small, y + linear * np.sin(direction), y - r * (np.cos(new_heading) - np.cos(heading))),
-            new_heading])
+        small = np.abs(angular) < 1e-6
+        r = linear / (np.where(small, 1.0, angular) if small.any() else angular)
+        dx = r * (np.sin(new_heading) - np.sin(heading))
+        dy = -r * (np.cos(new_heading) - np.cos(heading))
+        if small.any():
+            direction = heading + angular * 0.5
+            dx = np.where(small, linear * np.cos(direction), dx)
+            dy = np.where(small, linear * np.sin(direction), dy)
+        self.pose[0] += dx
+        self.pose[1] += dy
+        self.pose[2] = new_heading

@@ -4,9 +4,9 @@
 One MJCF model holds every robot.  A robot is a chassis on four joints (slide x, slide y, slide
 z, hinge yaw: it drives, turns and rests its weight on its wheels and caster, but cannot roll or
 pitch, which a Burger on a flat floor does not do) and two wheels on hinge joints driven by
-velocity servos with a torque limit.  A wheel touches the floor as a sphere of the wheel radius
-(one contact point, as a thin tyre) with the description's friction; the ball caster is a
-frictionless sphere.  Robots touch each other through a sphere of the footprint radius at one
+velocity servos with a speed and a torque limit.  A wheel touches the floor as a sphere of the
+wheel radius (one contact point, as a thin tyre) with the description's friction; the ball
+caster is a frictionless sphere.  Robots touch each other through a sphere of the footprint radius at one
 height, so two robots collide as two discs in the plane; a robot's own parts never collide.
 
 The controllers update every ``control_dt`` (100 Hz) and the physics steps ``physics_dt``
@@ -38,6 +38,9 @@ CHASSIS_HEIGHT = 0.19
 #: joints per robot in qpos/qvel order: x, y, z, yaw, left wheel, right wheel
 JOINTS = 6
 X, Y, Z, YAW, LEFT, RIGHT = range(JOINTS)
+#: MuJoCo's warnings of a diverged state (after which it resets the state to the model's)
+_DIVERGED = [int(w) for w in (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                              mujoco.mjtWarning.mjWARN_BADQACC)]
 # collision bits: wheels and casters touch only the floor, bumpers only other bumpers
 _FLOOR = 'contype="0" conaffinity="1"'
 _ON_FLOOR = 'contype="1" conaffinity="0"'
@@ -153,9 +156,13 @@ class RobotWorld:
         """One controller period: the controllers' update, physics_dt substeps, then the
         wheel odometry and the contacts at the period's end."""
         (left, right), saturated = self.controllers.update(self.time, self.control_dt)
-        self.data.ctrl[0::2] = left
-        self.data.ctrl[1::2] = right
+        top = self.description.max_wheel_speed          # the motors' limit, not the controller's
+        saturated |= (np.abs(left) > top) | (np.abs(right) > top)
+        self.data.ctrl[0::2] = np.clip(left, -top, top)
+        self.data.ctrl[1::2] = np.clip(right, -top, top)
         mujoco.mj_step(self.model, self.data, nstep=self.substeps)
+        if any(self.data.warning[w].number for w in _DIVERGED):     # not a silent reset
+            raise RuntimeError(f'the physics diverged at t = {self.time:.3f} s')
         self._steps += 1
         self.saturated_time += np.where(saturated, self.control_dt, 0.0)
         self.wheel_odometry.update(self._qpos[:, LEFT], self._qpos[:, RIGHT], self.time)
@@ -174,13 +181,20 @@ class RobotWorld:
         self.contacts += int(np.setdiff1d(pairs, self._touching, assume_unique=True).size)
         self._touching = pairs
 
+    @property
+    def touching(self) -> np.ndarray:
+        """(K, 2) the pairs of robots (i < j) in contact at the end of the last period."""
+        return np.column_stack([self._touching // self.n, self._touching % self.n])
+
     def odometry(self) -> np.ndarray:
         """(N, 5) x, y, yaw, v, ω: wheel odometry, each robot in its own odom frame from
-        (0, 0, 0), as diff_drive_controller publishes it."""
+        (0, 0, 0), as diff_drive_controller publishes it.  Yaw is not wrapped (odometry.cpp
+        keeps adding to its heading)."""
         return np.column_stack([self.wheel_odometry.pose.T, self.wheel_odometry.velocity.T])
 
     def ground_truth(self) -> np.ndarray:
-        """(N, 5) x, y, yaw, v, ω in the world frame; v and ω in the body frame."""
+        """(N, 5) x, y, yaw, v, ω in the world frame (yaw not wrapped); v and ω in the body
+        frame."""
         q, dq = self._qpos, self._qvel
         yaw = q[:, YAW]
         v = np.cos(yaw) * dq[:, X] + np.sin(yaw) * dq[:, Y]
