@@ -138,3 +138,10 @@ def test_robot_agents_run_alone_and_get_their_parameters():
     with pytest.raises(ValueError, match='no robots: section'):
         plain = parse({'name': 'p', 'agents': {'positions': [[0, 0]]}, 'duration': 1.0})
         apply_robots(node_parameters(plain, 'p', 'lockstep'), plain, {'agent_0': 'external'}, 'lockstep')
+
+
+def test_guard_in_lockstep_watches_only_the_pause():
+    g = SafetyGuard(max_speed=0.2)
+    assert g.decide(100.0, watch=False) == ('resume', '')      # no odometry, no neighbour: lockstep waits
+    assert g.decide(101.0, paused=True, watch=False) == ('stop', 'paused')
+    assert g.decide(102.0, watch=False) == ('resume', '')

@@ -86,12 +86,12 @@ def test_three_agents_drive_standin_robots_and_stop_without_odometry(tmp_path, p
         [(e['agent'], e['kind']) for e in seen['events']], len(seen['odom']), _logs(tmp_path))
     t_go = time.monotonic()
     spin_for(ex, lambda: False, 12.0)
-    # the robots moved at v0 (0.2 m/s = 1 unit/s) and kept together: one swarm
+    # the robots drove at v0 (0.2 m/s = 1 unit/s: about 12 units of path in 12 s) and kept together
     last = {nm: seen['states'][nm][-1] for nm in NAMES}
-    first = {nm: next(s for s in seen['states'][nm] if s[0] >= t_go) for nm in NAMES}
     for nm in NAMES:
-        moved = math.hypot(last[nm][1] - first[nm][1], last[nm][2] - first[nm][2])
-        assert 4.0 < moved < 13.0, (nm, moved)           # 12 s at ≤ 1 unit/s, on curves
+        path = np.array([s[1:] for s in seen['states'][nm] if s[0] >= t_go])
+        length = float(np.sum(np.hypot(*np.diff(path, axis=0).T)))
+        assert 8.0 < length < 13.0, (nm, length, [(e['agent'], e['kind'], e.get('reason')) for e in seen['events']])
     pos = np.array([last[nm][1:] for nm in NAMES])
     gaps = np.hypot(*(pos[:, None, :] - pos[None, :, :]).transpose(2, 0, 1))
     assert gaps.max() < 4.0, gaps                        # within w = 4 of each other
@@ -127,3 +127,97 @@ def test_three_agents_drive_standin_robots_and_stop_without_odometry(tmp_path, p
 
 def _logs(tmp_path):
     return '\n'.join(f'--- {p.name}\n{p.read_text()[-2000:]}' for p in sorted(tmp_path.glob('*.err')))
+
+
+class LockstepRobot:
+    """A perfect unicycle that follows the lockstep contract: on a cmd_vel stamped t_n it
+    drives (v, ω) for dt·L/v0 robot seconds and publishes its odometry (own odom frame from
+    (0, 0, 0)) stamped t_(n+1)."""
+
+    def __init__(self, node, name, dt, seconds):
+        from geometry_msgs.msg import TwistStamped
+        from nav_msgs.msg import Odometry
+        from rclpy.qos import qos_profile_system_default
+        self.dt, self.seconds = dt, seconds
+        self.x = self.y = self.yaw = 0.0
+        self.pub = node.create_publisher(Odometry, f'/{name}/odom', qos_profile_system_default)
+        node.create_subscription(TwistStamped, f'/{name}/cmd_vel', self.on_cmd, qos_profile_system_default)
+        self.commands = []
+
+    def on_cmd(self, m):
+        from nav_msgs.msg import Odometry
+
+        from swarm_ros import protocol as P
+        v, w, d = m.twist.linear.x, m.twist.angular.z, self.seconds
+        self.commands.append((P.stamp_to_time(m.header.stamp), v, w))
+        if abs(w) > 0:
+            self.x += v / w * (math.sin(self.yaw + w * d) - math.sin(self.yaw))
+            self.y -= v / w * (math.cos(self.yaw + w * d) - math.cos(self.yaw))
+        else:
+            self.x += v * d * math.cos(self.yaw)
+            self.y += v * d * math.sin(self.yaw)
+        self.yaw += w * d
+        o = Odometry()
+        n = P.step_of(P.stamp_to_time(m.header.stamp), self.dt)
+        o.header.stamp.sec, o.header.stamp.nanosec = P.time_to_stamp((n + 1) * self.dt)
+        o.pose.pose.position.x, o.pose.pose.position.y = self.x, self.y
+        o.pose.pose.orientation.z, o.pose.pose.orientation.w = math.sin(self.yaw / 2), math.cos(self.yaw / 2)
+        self.pub.publish(o)
+
+
+def test_lockstep_mixed_swarm_with_perfect_robots_follows_the_kinematic_run(tmp_path, rclpy_context):
+    """Lockstep, two robot agents (the contract's steps 2-4 against perfect unicycles in their
+    own odom frames) beside a kinematic agent: the run is the batch engine's up to the
+    rounding of metres and back (x·L/L), and each robot got one command per step, stamped t_n."""
+    import rclpy
+
+    from conftest import spin_for
+    from swarm_core.engine import simulate
+    from swarm_core.scenario import load
+    from swarm_core.trajectory import Trajectory
+    from swarm_ros.rosutil import make_executor
+    from swarm_tools.launch import build_nodes
+    from swarm_tools.node_params import node_parameters
+    from swarm_tools.robot_plan import apply_robots
+    import yaml
+    path = tmp_path / 'mixed3.yaml'
+    path.write_text(yaml.safe_dump({
+        'name': 'mixed3', 'dt': 0.05, 'duration': 3.0,
+        'agents': {'positions': [[0, 0], [1.5, 0], [0.75, 1.3]], 'headings': {'rule': 'cone', 'half_width': 0.5}},
+        'law': {'kind': 'global', 'alpha': 0.5, 'eta': 0.5, 'r0': 1.5},
+        'robots': {'length_scale': 0.3, 'cruise_speed': 0.15}}))
+    scn = load(str(path))
+    out = tmp_path / 'run'
+    params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
+    apply_robots(params, scn, {'agent_0': 'external', 'agent_2': 'external'}, 'lockstep')
+    world, commander, agents = build_nodes(params, rclpy_context, log=lambda *a, **k: None)
+    host = rclpy.create_node('robots', context=rclpy_context)
+    robots = [LockstepRobot(host, nm, scn.dt, scn.dt * 0.3 / 0.15) for nm in ('agent_0', 'agent_2')]
+    ex = make_executor(rclpy_context)
+    for nd in (world, commander, *agents, host):
+        ex.add_node(nd)
+    assert spin_for(ex, lambda: world.done, 120.0) and world.failed is None
+    ref = simulate(scn)
+    got = Trajectory.load(out / 'trajectory.npz')
+    np.testing.assert_allclose(got.r, ref.r, rtol=0, atol=1e-9)
+    for rb in robots:
+        stamps = [c[0] for c in rb.commands]
+        assert stamps == pytest.approx([n * scn.dt for n in range(scn.steps + 1)])   # t_0 ... t_N
+        assert all(c[1] == 0.15 for c in rb.commands)
+    for nd in (world, commander, *agents, host):
+        nd.destroy_node()
+
+
+def test_a_robot_agent_refuses_a_container_and_needs_its_scale(rclpy_context):
+    from conftest import overrides
+    from swarm_agent.agent_node import AgentNode
+    from swarm_core.scenario import load
+    from swarm_ros.rosutil import ParameterError
+    from swarm_tools.node_params import agent_parameters
+    prm = dict(agent_parameters(load('homotopy_global'), 0, 'lockstep'), robot='external')
+    with pytest.raises(ParameterError, match='length_scale and cruise_speed'):
+        AgentNode('agent', namespace='agent_0', context=rclpy_context, parameter_overrides=overrides(prm))
+    prm.update(length_scale=0.3, cruise_speed=0.15)
+    with pytest.raises(ParameterError, match='agent containers drive kinematic agents only'):
+        AgentNode('agent', namespace='agent_0', context=rclpy_context, contained=True,
+                  parameter_overrides=overrides(prm))
