@@ -132,6 +132,7 @@ def test_robot_agents_run_alone_and_get_their_parameters():
     params = node_parameters(scn, 'r.yaml', 'realtime')
     line = apply_robots(params, scn, {'agent_1': 'external'}, 'realtime')
     assert params['/agent_1/agent']['robot'] == 'external' and params['/agent_1/agent']['cmd_type'] == 'Twist'
+    assert params['/agent_1/agent']['robot_clock'] == 'wall'      # a robot's controller: wall time
     assert 'robot' not in params['/agent_0/agent']
     assert params['/world']['rtf'] == pytest.approx(0.5)     # v0/L: robots live in wall time
     assert '1 of 6 agents on robots (external)' in line and 'w = 2 m' in line

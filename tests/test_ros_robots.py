@@ -37,7 +37,8 @@ def _start_agents(processes, scn, tmp_path):
     from swarm_tools.robot_plan import apply_robots
     params = node_parameters(scn, 'robots3', 'realtime')
     apply_robots(params, scn, {nm: 'external' for nm in NAMES}, 'realtime')
-    agents = {k: dict(v, use_sim_time=False, robot_clock='wall') for k, v in params.items() if k.endswith('/agent')}
+    agents = {k: dict(v, use_sim_time=False) for k, v in params.items() if k.endswith('/agent')}
+    assert all(p['robot_clock'] == 'wall' for p in agents.values())
     pfile = write_params_file(agents, tmp_path / 'params.yaml')
     exe = Path(sys.executable).parent / 'swarm_agent'
     return [processes.start([exe, '--ros-args', '--params-file', pfile, '-r', '__node:=agent', '-r', f'__ns:=/{nm}'],
@@ -221,3 +222,34 @@ def test_a_robot_agent_refuses_a_container_and_needs_its_scale(rclpy_context):
     with pytest.raises(ParameterError, match='agent containers drive kinematic agents only'):
         AgentNode('agent', namespace='agent_0', context=rclpy_context, contained=True,
                   parameter_overrides=overrides(prm))
+
+
+def test_swarm_run_robots_external_drives_standins(tmp_path, processes, ros_domain, swarm_cmd):
+    """``swarm run --mode realtime --robots external``: the launcher starts no physics; the
+    agents drive whatever serves their cmd_vel and odom (here the stand-ins), the sim clock
+    runs at v0/L, and the run ends as one swarm with the robots' events in metrics.json."""
+    import subprocess
+
+    import yaml
+
+    from swarm_core.trajectory import Trajectory
+    path = tmp_path / 'robots3.yaml'
+    path.write_text(yaml.safe_dump({
+        'name': 'robots3', 'dt': 0.1, 'duration': 8.0,
+        'agents': {'positions': [[0, 0], [1.5, 0], [0.75, 1.3]], 'headings': {'rule': 'cone', 'half_width': 0.5}},
+        'law': {'kind': 'global', 'alpha': 0.5, 'eta': 0.5, 'r0': 1.5},
+        'robots': {'length_scale': 0.3, 'cruise_speed': 0.15}}))
+    processes.start([sys.executable, HERE / 'diff_drive_standin.py', *NAMES], stdout=subprocess.DEVNULL)
+    out = tmp_path / 'run'
+    run = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--robots', 'external', '--out', out,
+                           '--no-figure'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    text = processes.communicate(run, 150)
+    assert run.returncode == 0, text[-3000:]
+    assert 'sim clock at 0.5 model s per wall s' in text and 'r0 = 0.45 m, w = 1.2 m' in text
+    metrics = json.loads((out / 'metrics.json').read_text())['summary']
+    assert metrics['final_clusters'] == 1
+    resumed = {e['agent'] for e in metrics['events'] if e['kind'] == 'robot_resumed'}
+    assert resumed == set(NAMES)
+    r = Trajectory.load(out / 'trajectory.npz').r
+    length = np.nansum(np.hypot(*np.diff(r, axis=0).transpose(2, 0, 1)), axis=0)
+    assert np.all(length > 0.6 * 8.0) and np.all(length < 1.1 * 8.0), length    # about unit speed
