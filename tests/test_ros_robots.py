@@ -22,13 +22,18 @@ NAMES = ['agent_0', 'agent_1', 'agent_2']
 L = V0 = 0.2          # L / v0 = 1: a model second is a robot second (and, here, a wall second)
 
 
-def _scenario(tmp_path):
-    from swarm_core.scenario import parse
-    return parse({'name': 'robots3', 'dt': 0.1, 'duration': 1000.0,
-                  'agents': {'positions': [[0, 0], [1.5, 0], [0.75, 1.3]],
-                             'headings': {'rule': 'cone', 'half_width': 0.5}},
-                  'law': {'kind': 'global', 'alpha': 0.5, 'eta': 0.5, 'r0': 1.5},
-                  'robots': {'length_scale': L, 'cruise_speed': V0, 'odom_timeout': 0.5}})
+def _scenario_file(path, dt, duration, length_scale, cruise_speed):
+    """Three agents in a triangle under the global law (they flock), with a robots: section;
+    returns (path, the scenario loaded from it)."""
+    import yaml
+
+    from swarm_core.scenario import load
+    path.write_text(yaml.safe_dump({
+        'name': path.stem, 'dt': dt, 'duration': duration,
+        'agents': {'positions': [[0, 0], [1.5, 0], [0.75, 1.3]], 'headings': {'rule': 'cone', 'half_width': 0.5}},
+        'law': {'kind': 'global', 'alpha': 0.5, 'eta': 0.5, 'r0': 1.5},
+        'robots': {'length_scale': length_scale, 'cruise_speed': cruise_speed}}))
+    return path, load(str(path))
 
 
 def _start_agents(processes, scn, tmp_path):
@@ -71,9 +76,10 @@ def _probe(ctx):
 def test_three_agents_drive_standin_robots_and_stop_without_odometry(tmp_path, processes, rclpy_context):
     from swarm_ros.rosutil import make_executor
     from conftest import spin_for
-    scn = _scenario(tmp_path)
+    _, scn = _scenario_file(tmp_path / 'robots3.yaml', 0.1, 1000.0, L, V0)
     robots = {nm: processes.start([sys.executable, HERE / 'diff_drive_standin.py', nm],
-                                  stdout=open(tmp_path / f'{nm}-robot.log', 'w'), stderr=open(tmp_path / f'{nm}-robot.err', 'w'))
+                                  stdout=open(tmp_path / f'{nm}-robot.log', 'w'),
+                                  stderr=open(tmp_path / f'{nm}-robot.err', 'w'))
               for nm in NAMES}
     _start_agents(processes, scn, tmp_path)
     probe, seen = _probe(rclpy_context)
@@ -174,20 +180,12 @@ def test_lockstep_mixed_swarm_with_perfect_robots_follows_the_kinematic_run(tmp_
 
     from conftest import spin_for
     from swarm_core.engine import simulate
-    from swarm_core.scenario import load
     from swarm_core.trajectory import Trajectory
     from swarm_ros.rosutil import make_executor
     from swarm_tools.launch import build_nodes
     from swarm_tools.node_params import node_parameters
     from swarm_tools.robot_plan import apply_robots
-    import yaml
-    path = tmp_path / 'mixed3.yaml'
-    path.write_text(yaml.safe_dump({
-        'name': 'mixed3', 'dt': 0.05, 'duration': 3.0,
-        'agents': {'positions': [[0, 0], [1.5, 0], [0.75, 1.3]], 'headings': {'rule': 'cone', 'half_width': 0.5}},
-        'law': {'kind': 'global', 'alpha': 0.5, 'eta': 0.5, 'r0': 1.5},
-        'robots': {'length_scale': 0.3, 'cruise_speed': 0.15}}))
-    scn = load(str(path))
+    path, scn = _scenario_file(tmp_path / 'mixed3.yaml', 0.05, 3.0, 0.3, 0.15)
     out = tmp_path / 'run'
     params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
     apply_robots(params, scn, {'agent_0': 'external', 'agent_2': 'external'}, 'lockstep')
@@ -230,15 +228,8 @@ def test_swarm_run_robots_external_drives_standins(tmp_path, processes, ros_doma
     runs at v0/L, and the run ends as one swarm with the robots' events in metrics.json."""
     import subprocess
 
-    import yaml
-
     from swarm_core.trajectory import Trajectory
-    path = tmp_path / 'robots3.yaml'
-    path.write_text(yaml.safe_dump({
-        'name': 'robots3', 'dt': 0.1, 'duration': 8.0,
-        'agents': {'positions': [[0, 0], [1.5, 0], [0.75, 1.3]], 'headings': {'rule': 'cone', 'half_width': 0.5}},
-        'law': {'kind': 'global', 'alpha': 0.5, 'eta': 0.5, 'r0': 1.5},
-        'robots': {'length_scale': 0.3, 'cruise_speed': 0.15}}))
+    path, _ = _scenario_file(tmp_path / 'robots3.yaml', 0.1, 8.0, 0.3, 0.15)
     processes.start([sys.executable, HERE / 'diff_drive_standin.py', *NAMES], stdout=subprocess.DEVNULL)
     out = tmp_path / 'run'
     run = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--robots', 'external', '--out', out,

@@ -61,7 +61,8 @@ def robot_parameters(spec, kind: str, mode: str) -> dict:
     section ``spec`` (`swarm_core.robot_units.RobotsSpec`) in ``mode``: an external robot in
     realtime lives in wall time (its controller stamps and times out on the system clock)."""
     clock = 'wall' if kind == 'external' and mode == 'realtime' else 'sim'
-    return dict(robot=kind, robot_clock=clock, length_scale=float(spec.length_scale), cruise_speed=float(spec.cruise_speed),
+    return dict(robot=kind, robot_clock=clock,
+                length_scale=float(spec.length_scale), cruise_speed=float(spec.cruise_speed),
                 max_angular=float(spec.max_angular), odom_timeout=float(spec.odom_timeout),
                 neighbour_timeout=float(spec.neighbour_timeout), max_jump=float(spec.max_jump),
                 robot_frame=spec.frame, cmd_type=spec.cmd_type)
