@@ -3,8 +3,8 @@ for tests of robot agents: one node per robot, no hardware, no controller_manage
 
 Usage: ``python tests/diff_drive_standin.py NAME [NAME ...]`` starts one node
 ``/NAME/diff_drive_controller`` per robot, with ``~/cmd_vel`` remapped to ``/NAME/cmd_vel`` and
-``~/odom`` to ``/NAME/odom`` as a user remaps the real controller (``--ros-args -p x:=... ``
-is not read; the initial pose is the odom frame's origin, as the controller's).
+``~/odom`` to ``/NAME/odom`` as a user remaps the real controller; its odometry starts at the
+origin of its own odom frame, as the controller's does.
 
 What it copies from the controller, cited from ros-controls/ros2_controllers, branch jazzy
 (commit ed360c97d6e9), diff_drive_controller/src/diff_drive_controller.cpp (``cpp``) and

@@ -132,9 +132,17 @@ def test_robot_agents_run_alone_and_get_their_parameters():
     params = node_parameters(scn, 'r.yaml', 'realtime')
     line = apply_robots(params, scn, {'agent_1': 'external'}, 'realtime')
     assert params['/agent_1/agent']['robot'] == 'external' and params['/agent_1/agent']['cmd_type'] == 'Twist'
+    assert params['/agent_1/agent']['robot_clock'] == 'wall'      # a robot's controller: wall time
     assert 'robot' not in params['/agent_0/agent']
     assert params['/world']['rtf'] == pytest.approx(0.5)     # v0/L: robots live in wall time
     assert '1 of 6 agents on robots (external)' in line and 'w = 2 m' in line
     with pytest.raises(ValueError, match='no robots: section'):
         plain = parse({'name': 'p', 'agents': {'positions': [[0, 0]]}, 'duration': 1.0})
         apply_robots(node_parameters(plain, 'p', 'lockstep'), plain, {'agent_0': 'external'}, 'lockstep')
+
+
+def test_guard_in_lockstep_watches_only_the_pause():
+    g = SafetyGuard(max_speed=0.2)
+    assert g.decide(100.0, watch=False) == ('resume', '')      # no odometry, no neighbour: lockstep waits
+    assert g.decide(101.0, paused=True, watch=False) == ('stop', 'paused')
+    assert g.decide(102.0, watch=False) == ('resume', '')

@@ -221,8 +221,8 @@ class AgentNode(Node):
         agent obeys them too (its robot stands from a pause or kill on)."""
         try:
             ev = json.loads(msg.data)
-            if (self.contained or self.robot != 'none') and isinstance(ev, dict) and ev.get('agent') == self.agent_name \
-                    and ev.get('kind') in ('kill', 'freeze', 'resume'):
+            mine = isinstance(ev, dict) and ev.get('agent') == self.agent_name
+            if (self.contained or self.robot != 'none') and mine and ev.get('kind') in ('kill', 'freeze', 'resume'):
                 self.fault(ev['kind'])
                 return
             change = change_from_event(ev)

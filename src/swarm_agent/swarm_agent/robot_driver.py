@@ -179,9 +179,10 @@ class RobotLink:
         return f'{u.saturated} of {u.commands} commands clipped at ω_max ({100 * u.saturated_fraction:.1f} %)'
 
     # -- the guard
-    def check(self, paused: bool) -> bool:
-        """The guard's decision now (an event if it changed); True while the robot must stand."""
-        change = self.guard.decide(self.robot_now(), paused)
+    def check(self, paused: bool, watch: bool = True) -> bool:
+        """The guard's decision now (an event if it changed); True while the robot must stand
+        (``watch`` False: only a pause stops it)."""
+        change = self.guard.decide(self.robot_now(), paused, watch)
         if change is not None:
             kind = 'robot_stopped' if change[0] == 'stop' else 'robot_resumed'
             ev = dict(t=self.node._now(), kind=kind, agent=self.node.agent_name, node='agent')
@@ -234,7 +235,7 @@ class LockstepRobotDriver(LockstepDriver):
             node.lam = s.lam
             node.step = s.n
             node.applied(detail)
-            if link.check(paused=node.halted is not None):
+            if link.check(paused=node.halted is not None, watch=False):
                 link.publish_cmd(0.0, 0.0, stamp)
             else:
                 link.drive(detail, stamp)

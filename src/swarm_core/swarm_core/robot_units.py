@@ -206,10 +206,13 @@ class SafetyGuard:
     def neighbour(self, t: float) -> None:
         self.heard = max(self.heard, t)
 
-    def reason(self, t: float, paused: bool = False) -> str | None:
-        """Why the robot must stand still at robot time t, None if it may drive."""
+    def reason(self, t: float, paused: bool = False, watch: bool = True) -> str | None:
+        """Why the robot must stand still at robot time t, None if it may drive (``watch``
+        False: only a pause counts; lockstep time waits for every robot's odometry)."""
         if paused:
             return 'paused'
+        if not watch:
+            return None
         if self.last is None:
             return 'no odometry yet'
         age = t - self.last.t
@@ -220,10 +223,10 @@ class SafetyGuard:
             return f'no neighbour in radio range for {quiet:.3g} s (timeout {self.neighbour_timeout:g} s)'
         return None
 
-    def decide(self, t: float, paused: bool = False) -> tuple[str, str] | None:
+    def decide(self, t: float, paused: bool = False, watch: bool = True) -> tuple[str, str] | None:
         """('stop', reason) / ('resume', '') when the robot's state changes at robot time t;
         the first call always says one (the robot stands until then)."""
-        why = self.reason(t, paused)
+        why = self.reason(t, paused, watch)
         if not self.started:
             self.started = True
             self.stopped = why

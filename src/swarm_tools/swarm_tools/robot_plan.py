@@ -53,10 +53,13 @@ def parse_robots(options, names) -> dict:
     return out
 
 
-def robot_parameters(spec, kind: str) -> dict:
+def robot_parameters(spec, kind: str, mode: str) -> dict:
     """An agent node's parameters for a robot of ``kind`` with the scenario's ``robots:``
-    section ``spec`` (`swarm_core.robot_units.RobotsSpec`)."""
-    return dict(robot=kind, length_scale=float(spec.length_scale), cruise_speed=float(spec.cruise_speed),
+    section ``spec`` (`swarm_core.robot_units.RobotsSpec`) in ``mode``: an external robot in
+    realtime lives in wall time (its controller stamps and times out on the system clock)."""
+    clock = 'wall' if kind == 'external' and mode == 'realtime' else 'sim'
+    return dict(robot=kind, robot_clock=clock,
+                length_scale=float(spec.length_scale), cruise_speed=float(spec.cruise_speed),
                 max_angular=float(spec.max_angular), odom_timeout=float(spec.odom_timeout),
                 neighbour_timeout=float(spec.neighbour_timeout), max_jump=float(spec.max_jump),
                 robot_frame=spec.frame, cmd_type=spec.cmd_type)
@@ -82,7 +85,7 @@ def apply_robots(params: dict, scn, robots: dict, mode: str) -> str | None:
         raise ValueError(f'--robots: the scenario {scn.name!r} has no robots: section '
                          '(length_scale, cruise_speed; see docs/robots.md)')
     for nm, kind in robots.items():
-        params[f'/{nm}/agent'].update(robot_parameters(spec, kind))
+        params[f'/{nm}/agent'].update(robot_parameters(spec, kind, mode))
     units = spec.units()
     head = f'{len(robots)} of {len(scn.names)} agents on robots ({", ".join(sorted(set(robots.values())))})'
     if mode == 'realtime' and 'external' in robots.values():
