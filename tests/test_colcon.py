@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 PACKAGES = ['homotopy_commander', 'swarm_agent', 'swarm_core', 'swarm_robots', 'swarm_ros', 'swarm_tools',
             'swarm_world']
-LIBRARIES = ('swarm_core', 'swarm_robots', 'swarm_ros')   # no executables: the `swarm` command is swarm_tools'
+LIBRARIES = ('swarm_core', 'swarm_ros')     # no executables: the `swarm` command is swarm_tools'
 
 # the lookup of `ros2 run PKG EXE` (see the module docstring), run in the sourced workspace
 LOOKUP = r'''
@@ -119,7 +119,7 @@ def test_colcon_build_and_ros2_run_finds_every_executable(tmp_path, ros_domain):
             assert found[pkg]['found'][exe] == str(install / pkg / 'lib' / pkg / exe), (pkg, exe)
     # `swarm run` (the launcher) finds the node executables the same way when neither this
     # interpreter's directory nor PATH has them (a colcon install under a system Python)
-    exes = ['swarm', 'swarm_world', 'swarm_agent', 'homotopy_commander']
+    exes = ['swarm', 'swarm_world', 'swarm_agent', 'homotopy_commander', 'swarm_robots']
     probe = ("import json, sys; sys.executable = '/nonexistent/python3'; "
              "from swarm_tools.processes import _exe; print(json.dumps({e: _exe(e) for e in %r}))" % exes)
     launch = subprocess.run(['bash', '-c', f'source {setup} && PATH=/usr/bin:/bin exec {sys.executable} -c "$PROBE"'],
@@ -134,7 +134,7 @@ def test_colcon_build_and_ros2_run_finds_every_executable(tmp_path, ros_domain):
     # start each one as `ros2 run` does ([path] + argv): the nodes exit with a one-line error on
     # a bad parameter (they got as far as reading their parameters), the tools print --help
     nodes = {'swarm_agent': 'cutoff_radius:=-1.0', 'swarm_world': 'scenario:=no_such_scenario',
-             'homotopy_commander': 'mode:=sideways'}
+             'homotopy_commander': 'mode:=sideways', 'swarm_robots': 'mode:=sideways'}
     for pkg, exes in wanted.items():
         for exe in exes:
             path = found[pkg]['found'][exe]

@@ -19,4 +19,5 @@ setup(
     maintainer_email='dev@homotopy-swarm.invalid',
     description='Robots for the swarm: a robot description, a pure emulation of diff_drive_controller and a MuJoCo world of differential-drive robots.',
     license='Apache-2.0',
+    entry_points={'console_scripts': ['swarm_robots = swarm_robots.mujoco_world_node:main']},
 )

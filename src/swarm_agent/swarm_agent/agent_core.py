@@ -170,6 +170,14 @@ class AgentCore:
         pos, theta = zoh_step(self.pos, self.theta, np.array([u]), self.dt)
         return self.moved_to(pos, theta, u)
 
+    def place(self, x: float, y: float, theta: float, u: float):
+        """Take a measured pose (a robot's odometry, model units; θ unwrapped): no integration,
+        no noise draw (the robot's own motion and errors are real)."""
+        self.pos = np.array([[float(x), float(y)]])
+        self.theta = np.array([float(theta)])
+        self._frame = self._quat = None
+        self.u_last = float(u)
+
     def moved_to(self, pos, theta, u: float):
         """Take the state (pos (1, 2), θ (1,)) that one ZOH step with u gave (`advance`, or
         the batched step of a container), then the agent's own noise draw."""

@@ -9,6 +9,9 @@ Realtime: a timer at the control rate (1/dt in sim time) uses the newest states 
 ``/world/barrier``.
 Bad inputs are rejected with one log line naming them; no NaN ever enters the state.
 
+An agent with a robot (parameter ``robot``: external, mujoco) reads its pose from the robot's
+odometry and commands it on ``cmd_vel`` instead of integrating (`swarm_agent.robot_driver`).
+
 `AgentNode` is what every agent node has whatever its mode (name, parameters, its pure
 `AgentCore`, the ``/swarm/states`` publisher, the inputs every mode reads, the radio and the
 faults); the mode's own work is done by its driver, `LockstepDriver` or `RealtimeDriver`
@@ -44,6 +47,7 @@ from std_msgs.msg import Float64
 from swarm_core.comms import CommModel, StreamRadio, change_from_event
 from swarm_core.inputs import LAMBDA_BOUND
 from swarm_core.laws import LAW_PARAMETERS, LawConfig
+from swarm_core.robot_units import ROBOT_KINDS
 from swarm_core.scenario import noise_rng
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import (FUTURE_TOLERANCE, RejectLog, Senders, check_barrier, check_values, new_sender_tag,
@@ -101,7 +105,7 @@ class AgentNode(Node):
         # transient-local: the commander's λ and steering in force, never a user's one-shot
         # command (that one is for the commander only; docs/commands.md)
         self.create_subscription(Float64, 'steering', self._on_steering, P.qos_latched(10))
-        self.driver = DRIVERS[self.mode](self, **mode_parameters[self.mode])
+        self.driver = driver_class(self.mode, self.robot)(self, **mode_parameters[self.mode], **self.robot_parameters)
         if self.radio_on:
             self.driver.radio_started()
         if not contained:
@@ -129,6 +133,12 @@ class AgentNode(Node):
                  d('noise_heading', 0.0, 'uniform noise half-width on θ per step', lo=0.0, hi=1e6))
         seed = d('seed', 0, 'scenario seed (noise stream)', lo=0, hi=2**31 - 1)
         mode_parameters = {mode: driver.declare(self) for mode, driver in DRIVERS.items()}
+        self.robot = d('robot', 'none', 'none: a kinematic point; external or mujoco: drive a robot through '
+                       '/<agent>/cmd_vel from /<agent>/odom (swarm_agent.robot_driver)', choices=ROBOT_KINDS)
+        self.robot_parameters = {}
+        if self.robot != 'none':
+            from .robot_driver import declare_robot
+            self.robot_parameters = declare_robot(self)
         comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect)")
         self.run_id = declare_run_id(self, 'lockstep steps of another run are rejected')
         return leader, pose, noise, seed, mode_parameters, comms
@@ -210,11 +220,12 @@ class AgentNode(Node):
     # ------------------------------------------------------------ radio (communication model), faults
     def _on_event(self, msg):
         """Runtime radio changes from /swarm/events (see swarm_ros.protocol); in a container
-        also the faults of this agent (the world cannot signal a process it shares)."""
+        also the faults of this agent (the world cannot signal a process it shares); a robot
+        agent obeys them too (its robot stands from a pause or kill on)."""
         try:
             ev = json.loads(msg.data)
-            if self.contained and isinstance(ev, dict) and ev.get('agent') == self.agent_name \
-                    and ev.get('kind') in ('kill', 'freeze', 'resume'):
+            mine = isinstance(ev, dict) and ev.get('agent') == self.agent_name
+            if (self.contained or self.robot != 'none') and mine and ev.get('kind') in ('kill', 'freeze', 'resume'):
                 self.fault(ev['kind'])
                 return
             change = change_from_event(ev)
@@ -435,6 +446,15 @@ class RealtimeDriver:
 #: the modes of an agent node (parameter ``mode``) and the class that drives each
 DRIVERS = {'lockstep': LockstepDriver, 'realtime': RealtimeDriver}
 MODES = tuple(DRIVERS)
+
+
+def driver_class(mode: str, robot: str):
+    """The driver of an agent node in ``mode`` with ``robot`` (none: its own kinematic point;
+    else `robot_driver.ROBOT_DRIVERS`, which builds on the classes above)."""
+    if robot == 'none':
+        return DRIVERS[mode]
+    from .robot_driver import ROBOT_DRIVERS
+    return ROBOT_DRIVERS[mode]
 
 
 def main(argv=None):

@@ -22,6 +22,7 @@ from .inputs import InputError
 from .law_parameters import LAW_PARAMETER, LAW_TABLE
 from .laws import LawConfig
 from .placement import AGENT_NAME, AgentsSpec, initial_conditions  # noqa: F401  (AGENT_NAME: report.py)
+from .robot_units import RobotsSpec
 from .scenario_schema import Finite, NonNeg, Point, Positive, Strict, bounded
 
 #: largest scenario file read (bytes), checked before parsing
@@ -249,6 +250,7 @@ class ScenarioSpec(Strict):
     failover: Optional[FailoverSpec] = None
     reunion: list[ReunionSpec] = Field(default_factory=list)
     comms: Optional[CommsSpec] = None
+    robots: Optional[RobotsSpec] = None          # the scale to robots (swarm_core.robot_units)
     expect: dict = Field(default_factory=dict)   # what `swarm sweep` checks (see outcomes.py)
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
 

@@ -234,9 +234,10 @@ def _cdr_string(s: str, off: int) -> tuple[bytes, int]:
 
 
 class OdometryWriter:
-    """Serialized ``nav_msgs/Odometry`` of one agent (what ``publish()`` accepts as bytes):
-    frame_id ``world``, fixed child_frame_id, twist.linear.x = 1, zero covariances but the
-    sender ``tag`` in pose.covariance[`SENDER_TAG_INDEX`]."""
+    """Serialized ``nav_msgs/Odometry`` of one agent or robot (what ``publish()`` accepts as
+    bytes): a fixed frame_id (default ``world``) and child_frame_id, twist.linear.x = ``vx``
+    (default 1: unit speed), zero covariances but the sender ``tag`` in
+    pose.covariance[`SENDER_TAG_INDEX`]."""
 
     def __init__(self, child_frame_id: str, frame_id: str = 'world', tag: float = 0.0):
         off = 8                                          # after the stamp
@@ -245,12 +246,12 @@ class OdometryWriter:
         pad = (-off) % 8
         self._names = frame + child + b'\0' * pad
         self._body = np.zeros(_ODOM_DOUBLES, dtype='<f8')
-        self._body[_I_VX] = 1.0
         self._body[_I_TAG] = tag
 
-    def __call__(self, sec: int, nanosec: int, x: float, y: float, qz: float, qw: float, wz: float) -> bytes:
+    def __call__(self, sec: int, nanosec: int, x: float, y: float, qz: float, qw: float, wz: float,
+                 vx: float = 1.0) -> bytes:
         b = self._body
-        b[_I_X], b[_I_Y], b[_I_QZ], b[_I_QW], b[_I_WZ] = x, y, qz, qw, wz
+        b[_I_X], b[_I_Y], b[_I_QZ], b[_I_QW], b[_I_WZ], b[_I_VX] = x, y, qz, qw, wz, vx
         return _HEADER + struct.pack('<iI', sec, nanosec) + self._names + b.tobytes()
 
 

@@ -44,11 +44,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from swarm_core.analysis import check_output_dir, write_atomic, write_failed
+from swarm_robots.run_setup import SUMMARY_FILE
 
 from . import dds
 from .node_params import load_scenario, node_parameters, write_params_file
+from .robot_plan import agent_groups, apply_robots, parse_robots
 from .bag import bag_complete
 from .processes import read_events, run_processes
+from .robot_world import ROBOTS_NODE, add_robot_world, read_summary
 
 #: most agents of one ``swarm run`` (each is an OS process, or a node of one executor);
 #: larger swarms are for ``swarm simulate``
@@ -72,6 +75,17 @@ def build_nodes(params: dict, context, log=print):
     return world, commander, agents
 
 
+def robots_nodes(params: dict, context) -> list:
+    """The run's MuJoCo robot world (`swarm_robots.mujoco_world_node`), if it has one."""
+    if ROBOTS_NODE not in params:
+        return []
+    from rclpy.parameter import Parameter
+
+    from swarm_robots.mujoco_world_node import RobotsNode
+    return [RobotsNode(context=context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in params[ROBOTS_NODE].items()])]
+
+
 def run_in_process(params: dict, domain_id=None) -> int:
     """Every node in one executor until the world is done.  SIGINT / SIGTERM (main thread
     only) set a flag the spin loop checks, so no callback is cut off; the world then saves
@@ -87,18 +101,21 @@ def run_in_process(params: dict, domain_id=None) -> int:
     try:
         try:
             world, commander, agents = build_nodes(params, ctx)
+            robots = robots_nodes(params, ctx)
         except ParameterError as err:
             print(f'swarm run: {err}', file=sys.stderr)
             return 2
         ex = make_executor(ctx)
-        for nd in [world, commander, *agents]:
+        for nd in [world, commander, *agents, *robots]:
             ex.add_node(nd)
         settle_garbage()
         spin_until(ex, ctx, lambda: world.done or bool(stop), wake=wake)
         code = 0 if world.done and world.failed is None else (1 if world.failed else 130)
         if code == 130:
             world.save_partial()            # Ctrl-C: keep the steps done
-        for nd in [world, commander, *agents]:
+        for nd in robots:
+            nd.finish()
+        for nd in [world, commander, *agents, *robots]:
             nd.destroy_node()
         return code
     finally:
@@ -168,6 +185,13 @@ def _parser():
     p.add_argument('--remote-agents', metavar='LIST', default='', help=(
         'agents (indices, e.g. 48-95 or 0,2,5-7) this host does not start: other hosts start '
         'them with `swarm join`; the world waits for them'))
+    p.add_argument('--robots', action='append', metavar='KIND[:AGENTS]', help=(
+        'agents that drive robots through /AGENT/cmd_vel and /AGENT/odom (docs/robots.md): '
+        'external (a robot, Gazebo or a simulator of your own; nothing else starts) for every agent, '
+        'or external:agent_0-agent_2 (a range or a comma list) for some; mujoco: robots of a MuJoCo '
+        'world the run starts (node robots; mujoco:agent_0-agent_2 likewise); the scenario needs a '
+        'robots: section. Robot agents run as processes of their own. Realtime: the sim clock runs '
+        'at v0/L model s per wall s (robots live in wall time; --rtf does not apply)'))
     return p
 
 
@@ -246,11 +270,14 @@ class RunPlan:
     figure: bool = True
     join: tuple = ('', '')      # the swarm join command for the remote agents: before and after --server
     ignored: list = field(default_factory=list)     # options the run ignores, one line each
+    robots: dict = field(default_factory=dict)      # {agent: robot kind} (`robot_plan`)
+    robots_line: str | None = None                  # the scale to the robots, said at start
 
     @property
     def processes(self) -> int:
         """OS processes of a --processes run: agent processes, world, commander, recorder, view."""
-        return len(self.groups) + 2 + (self.record is not None) + (self.foxglove is not None)
+        return (len(self.groups) + 2 + (self.record is not None) + (self.foxglove is not None)
+                + (ROBOTS_NODE in self.params))
 
     @property
     def traj_file(self) -> Path:
@@ -306,8 +333,9 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     """The run that ``a`` (the parsed options) asks for with scenario ``scn`` (loaded from
     ``ref``), on a host of ``cores`` cores: ValueError naming the first bad option.  Pure: it
     starts, writes and checks on disk nothing."""
-    from swarm_agent.container_core import agent_services, split_agents
+    from swarm_agent.container_core import agent_services
     n = len(scn.names)
+    robots = parse_robots(a.robots, scn.names)
     remote = parse_agents(a.remote_agents, n) if a.remote_agents else []
     if not 0 <= a.server_port < 65536:
         raise ValueError(f'--server-port {a.server_port}: must be 0 (a free port) or in 1..65535')
@@ -323,8 +351,11 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     local = [nm for i, nm in enumerate(scn.names) if i not in set(remote)]
     run = RunPlan(scn=scn, mode=a.mode, in_process=a.in_process, out=out, run_id=run_id,
                   params=run_parameters(a, scn, ref, out, run_id), local=local, remote=remote,
-                  groups=split_agents(local, per), per=per, services=agent_services(n, per, a.agent_services),
-                  interface=interface, server_port=a.server_port, dds=a.dds, figure=not a.no_figure)
+                  groups=agent_groups(local, per, robots), per=per,
+                  services=agent_services(n, per, a.agent_services), interface=interface,
+                  server_port=a.server_port, dds=a.dds, figure=not a.no_figure, robots=robots)
+    run.robots_line = apply_robots(run.params, scn, robots, a.mode)
+    add_robot_world(run.params, robots)
     if a.in_process:
         given = (('record', 'recorder', a.record), ('foxglove', 'view', a.foxglove is not None))
         run.ignored = [f'--{opt} needs --processes (the {what} is a process); ignored' for opt, what, on in given if on]
@@ -359,7 +390,7 @@ def prepare_outputs(run: RunPlan) -> None:
                              f'{err.strerror or err} ({err.filename})') from None
         if not os.access(bag.resolve().parent, os.W_OK) or (bag.exists() and not os.access(bag, os.W_OK)):
             raise ValueError(f'--record {run.record}: not writable')
-    for old in (run.traj_file, run.events_file):      # a file or a link (never followed)
+    for old in (run.traj_file, run.events_file, run.out / SUMMARY_FILE):      # a file or a link (never followed)
         if old.is_symlink() or old.is_file():
             old.unlink()
 
@@ -367,6 +398,8 @@ def prepare_outputs(run: RunPlan) -> None:
 def execute(run: RunPlan) -> tuple[int, float]:
     """Run it: (exit code, wall seconds).  `NotStarted` if the DDS set-up fails."""
     print(run.summary(), flush=True)
+    if run.robots_line:
+        print(f'swarm run: {run.robots_line}', flush=True)
     t0 = time.monotonic()
     if run.in_process:
         for line in run.ignored:
@@ -393,7 +426,8 @@ def _run_processes(run: RunPlan) -> int:
                   f'{run.join[0]} --server {server.locator}{run.join[1]}', flush=True)
         return run_processes(params, pfile, run.local, env, record=run.record, out_dir=run.out,
                              pid_file=pid_file, events_file=run.events_file, foxglove=run.foxglove,
-                             server=server, groups=run.groups, services=run.services)
+                             server=server, groups=run.groups, services=run.services,
+                             robots=ROBOTS_NODE in params)
 
 
 def finish(run: RunPlan, code: int, wall: float) -> int:
@@ -427,7 +461,7 @@ def write_run_outputs(run: RunPlan, code: int, wall: float) -> None:
         traj = Trajectory.load(run.traj_file)
         traj.meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration, source='ros',
                          mode=run.mode, wall_seconds=wall, events=read_events(run.events_file),
-                         interrupted=code == 130)
+                         interrupted=code == 130, robots=read_summary(out))
         series, checks = analyse(traj, scenario=scn)
         timing = read_timing(out) if run.mode == 'realtime' else None
         summary = write_outputs(out, scn, traj, series, checks, figure=run.figure,

@@ -147,7 +147,7 @@ def wait_until_ready(proc, marker: str, timeout: float) -> bool:
 
 #: the package of each executable the launcher starts (``ros2 run PKG EXE``)
 EXE_PACKAGE = {'swarm': 'swarm_tools', 'swarm_world': 'swarm_world', 'swarm_agent': 'swarm_agent',
-               'homotopy_commander': 'homotopy_commander'}
+               'homotopy_commander': 'homotopy_commander', 'swarm_robots': 'swarm_robots'}
 
 
 def _exe(name):
@@ -235,10 +235,11 @@ def start_recorder(sup, record, env, params: dict, params_file) -> bool:
 
 def run_processes(params: dict, params_file: Path, names, env, record=None, out_dir=None,
                   pid_file=None, events_file=None, foxglove=None, server=None, groups=None,
-                  services=True) -> int:
+                  services=True, robots=False) -> int:
     """``names``: the agents started here (a run spread over hosts starts the others with
     ``swarm join``); ``server``: a `dds.DiscoveryServer` started first, stopped with the rest;
-    ``groups``: the agents of each agent process (default: one process per agent)."""
+    ``groups``: the agents of each agent process (default: one process per agent); ``robots``:
+    also the MuJoCo robot world (node ``robots``; the run stops if it dies)."""
     ros = ['--ros-args', '--params-file', str(params_file)]
     code = 1
     gone = set()
@@ -258,6 +259,8 @@ def run_processes(params: dict, params_file: Path, names, env, record=None, out_
         # pub, swarm lambda), and a plain CLIENT of a discovery server hears only of topics it reads
         sup.start('commander', [_exe('homotopy_commander')] + ros + ['-r', '__node:=commander'],
                   dds.super_client(env))
+        if robots:
+            sup.start('robots', [_exe('swarm_robots')] + ros + ['-r', '__node:=robots'], env)
         members = {}                    # agent process label -> its agents
         for label, group, cmd in agent_commands(groups or [[nm] for nm in names], ros, services):
             sup.start(label, cmd, env)

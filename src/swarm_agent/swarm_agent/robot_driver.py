@@ -1,0 +1,298 @@
+"""Robot agents: the agent's law drives a robot through ``cmd_vel`` and reads its pose from
+odometry, instead of integrating its own frame (parameter ``robot``: external or mujoco).
+
+The agent node (`agent_node.AgentNode`) is the same: same law code (`AgentCore`), same radio
+model, same ``/swarm/states`` in model units.  What differs is the robot's link (`RobotLink`):
+``/<agent>/odom`` (nav_msgs/Odometry, metres) in, ``/<agent>/cmd_vel`` (geometry_msgs/
+TwistStamped as Jazzy's diff_drive_controller takes it, or Twist) out, the units of
+`swarm_core.robot_units` between them, and its safety guard.
+
+- `LockstepRobotDriver`: at step n it sends u_n as one cmd_vel stamped t_n, and answers the
+  world (``/swarm/states``, ``/lockstep/agent_states``) only once odometry stamped t_(n+1)
+  came: then its state of t_(n+1) is the robot's pose.  Lockstep time moves only when every
+  robot answered, so odometry cannot go stale there (the world's stall watch sees a silent
+  robot); rejected odometry is never fed to the law.
+- `RealtimeRobotDriver`: at every control period it takes the newest accepted odometry as its
+  pose, and sends u (or zero velocity while its guard holds the robot: odometry older than
+  ``odom_timeout``, no neighbour in radio range for ``neighbour_timeout``, paused), with one
+  ``robot_stopped`` / ``robot_resumed`` event on ``/swarm/events`` per change.
+
+Faults: a kill or pause event for this agent on ``/swarm/events`` (a run in one process) makes
+the driver send zero velocity from then on (until resume); a signalled agent process (SIGSTOP,
+SIGKILL) sends nothing, and the robot's controller stops it after its ``cmd_vel_timeout``.
+Agent containers drive kinematic agents only: a robot agent is a process (or node) of its own.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+
+import numpy as np
+from builtin_interfaces.msg import Time as TimeMsg
+from geometry_msgs.msg import Twist, TwistStamped
+from nav_msgs.msg import Odometry
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+from swarm_core.robot_units import CMD_TYPES, ROBOT_FRAMES, RateLimit, RobotsSpec, RobotUnits, SafetyGuard, wrap_near
+from swarm_ros import protocol as P
+from swarm_ros.rosutil import ParameterError, declare
+
+from .agent_node import LockstepDriver, RealtimeDriver
+from .process_io import step_message, step_time
+
+#: the robot's clock: the swarm's sim clock (a simulator on /clock, lockstep) or the system
+#: clock (real robots; their controllers stamp and time out in wall time)
+ROBOT_CLOCKS = ('sim', 'wall')
+#: reliability of the odometry subscription (diff_drive_controller's publisher is reliable)
+ODOM_RELIABILITY = ('reliable', 'best_effort')
+
+
+def _default(name):
+    return RobotsSpec.model_fields[name].default          # one place: the scenario schema
+
+
+def declare_robot(node) -> dict:
+    """A robot agent's parameters (declared only when ``robot`` is not none)."""
+    d = lambda *a, **k: declare(node, *a, **k)  # noqa: E731
+    p = dict(
+        length_scale=d('length_scale', 0.0, 'robot: L, metres per model unit (the scenario\'s robots: section)',
+                       lo=0.0, hi=1e6),
+        cruise_speed=d('cruise_speed', 0.0, 'robot: v0, the forward speed (m/s)', lo=0.0, hi=100.0),
+        max_angular=d('max_angular', _default('max_angular'), 'robot: ω_max (rad/s); a larger turn is clipped '
+                      'and counted', lo=1e-6, hi=1e3),
+        odom_timeout=d('odom_timeout', _default('odom_timeout'), 'robot: odometry older than this (robot s) '
+                       'stops the robot', lo=1e-3, hi=1e6),
+        neighbour_timeout=d('neighbour_timeout', _default('neighbour_timeout'), 'robot: no neighbour in radio '
+                            'range for this long (robot s) stops the robot', lo=1e-3, hi=1e6),
+        max_jump=d('max_jump', _default('max_jump'), 'robot: odometry moving farther than v0·Δt + this (m) '
+                   'is rejected', lo=0.0, hi=1e6),
+        robot_frame=d('robot_frame', _default('frame'), 'robot: odometry in its own odom frame from (0, 0, 0) '
+                      'at the start pose (odom) or in a common frame (world)', choices=ROBOT_FRAMES),
+        cmd_type=d('cmd_type', _default('cmd_type'), 'robot: cmd_vel message type', choices=CMD_TYPES),
+        robot_clock=d('robot_clock', 'sim', 'robot: cmd_vel stamps and the guard in sim time (sim) or in '
+                      'wall time (wall: real robots)', choices=ROBOT_CLOCKS),
+        odom_reliability=d('odom_reliability', 'reliable', 'robot: QoS reliability of the odom subscription',
+                           choices=ODOM_RELIABILITY))
+    if not (p['length_scale'] > 0 and p['cruise_speed'] > 0):
+        raise ParameterError('robot: parameters length_scale and cruise_speed must be > 0 '
+                             "(the scenario's robots: section)")
+    return p
+
+
+def yaw_of(q) -> float:
+    """Yaw of a quaternion (x, y, z, w) (NaN in, NaN out)."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+class RobotLink:
+    """The robot of one agent node: odometry in (checked by the guard, in model units),
+    cmd_vel out (in the robot's units), the guard's events on ``/swarm/events``."""
+
+    def __init__(self, node, length_scale, cruise_speed, max_angular, odom_timeout, neighbour_timeout, max_jump,
+                 robot_frame, cmd_type, robot_clock, odom_reliability):
+        if node.contained:
+            raise ParameterError('robot: agent containers drive kinematic agents only; '
+                                 'start a robot agent as a process of its own')
+        self.node = node
+        self.units = RobotUnits(length_scale, cruise_speed, max_angular)
+        x0, y0 = node.core.pos[0]
+        self.start = self.units.start_pose(x0, y0, node.core.theta[0]) if robot_frame == 'odom' else None
+        self.wall = robot_clock == 'wall'
+        self.guard = SafetyGuard(cruise_speed, odom_timeout, neighbour_timeout, max_jump,
+                                 needs_neighbours=node.n > 1, start=self.robot_now())
+        self.say = RateLimit()
+        self.stamped = cmd_type == 'TwistStamped'
+        self.frame_id = f'{node.agent_name}/base_link'
+        self.pose = None           # newest accepted odometry: (stamp s, x, y, θ unwrapped), model units
+        self.on_pose = None        # the driver's hook for a new pose
+        reliable = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                              durability=DurabilityPolicy.VOLATILE)
+        self.cmd_pub = node.create_publisher(TwistStamped if self.stamped else Twist, 'cmd_vel', reliable)
+        self.events = node.create_publisher(String, P.EVENTS, P.qos_latched(100))
+        odom_qos = reliable if odom_reliability == 'reliable' else QoSProfile(
+            history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+        node.create_subscription(Odometry, 'odom', self._on_odom, odom_qos)
+        node.get_logger().info(f'robot on {node.get_namespace().rstrip("/")}/cmd_vel ({cmd_type}) and '
+                               f'/odom ({robot_frame} frame, {robot_clock} clock); '
+                               + self.units.describe(node.law.cutoff_radius, node.law.gains.r0))
+
+    # -- time
+    def robot_now(self) -> float:
+        """Robot seconds now: the system's steady clock (wall), else the sim clock × L/v0."""
+        return time.monotonic() if self.wall else self.units.robot_time(self.node._now())
+
+    def stamp_now(self):
+        """A cmd_vel stamp of now on the robot's clock."""
+        if self.wall:
+            ns = time.time_ns()
+            return TimeMsg(sec=ns // 10**9, nanosec=ns % 10**9)
+        return self.node.get_clock().now().to_msg()
+
+    # -- odometry in
+    def _on_odom(self, msg):
+        p = msg.pose.pose
+        x, y, yaw = p.position.x, p.position.y, yaw_of(p.orientation)
+        why = self.guard.odometry(self.robot_now(), x, y, yaw)
+        if why is not None:
+            self.log('odom', f'{self.node.agent_name}/odom rejected (not fed to the law): {why}')
+            return
+        x, y, yaw = self.units.to_model(x, y, yaw, self.start)
+        near = self.pose[3] if self.pose is not None else float(self.node.core.theta[0])
+        self.pose = (P.stamp_to_time(msg.header.stamp), x, y, wrap_near(yaw, near))
+        if self.on_pose is not None:
+            self.on_pose(self.pose)
+
+    def neighbours_in_range(self, rows, own: int) -> bool:
+        """Is an agent of the table (rows (m, ≥2) of x, y; own row ``own``) within radio range:
+        the radio model's range, else w unless the law couples globally (then any agent)?"""
+        node = self.node
+        r = node.radio.radio_range
+        if r is None:
+            r = math.inf if node.law.couples_globally(node.lam) else node.law.cutoff_radius
+        d2 = np.sum((rows[:, :2] - rows[own, :2]) ** 2, axis=1)
+        d2[own] = math.inf
+        return bool(np.any(d2 <= r * r))
+
+    # -- commands out
+    def publish_cmd(self, v: float, w: float, stamp):
+        if self.stamped:
+            m = TwistStamped()
+            m.header.stamp, m.header.frame_id = stamp, self.frame_id
+            m.twist.linear.x, m.twist.angular.z = float(v), float(w)
+        else:
+            m = Twist()
+            m.linear.x, m.angular.z = float(v), float(w)
+        self.cmd_pub.publish(m)
+
+    def drive(self, u: float, stamp):
+        """Command curvature u (model units) as v0 and a clipped ω (counted)."""
+        v, w, clipped = self.units.command(u)
+        if clipped:
+            self.log('clip', f'{self.node.agent_name}: u = {u:.3g} needs ω = {float(self.units.omega(u)):.3g} '
+                     f'rad/s, clipped at {self.units.max_angular:g}: {self.saturation()}', warn=False)
+        self.publish_cmd(v, w, stamp)
+
+    def saturation(self) -> str:
+        u = self.units
+        return f'{u.saturated} of {u.commands} commands clipped at ω_max ({100 * u.saturated_fraction:.1f} %)'
+
+    # -- the guard
+    def check(self, paused: bool, watch: bool = True) -> bool:
+        """The guard's decision now (an event if it changed); True while the robot must stand
+        (``watch`` False: only a pause stops it)."""
+        change = self.guard.decide(self.robot_now(), paused, watch)
+        if change is not None:
+            kind = 'robot_stopped' if change[0] == 'stop' else 'robot_resumed'
+            ev = dict(t=self.node._now(), kind=kind, agent=self.node.agent_name, node='agent')
+            if change[1]:
+                ev['reason'] = change[1]
+            self.events.publish(String(data=json.dumps(ev)))
+            self.node.get_logger().warning(f'{kind}' + (f': {change[1]}' if change[1] else ''))
+        return self.guard.stopped is not None
+
+    def log(self, key: str, text: str, warn: bool = True):
+        """One line per key every few seconds (how many were left out is said)."""
+        held = self.say(key, time.monotonic())
+        if held is None:
+            return
+        text += f' ({held} more like it not shown)' if held else ''
+        (self.node.get_logger().warning if warn else self.node.get_logger().info)(text)
+
+
+class _HoldUntilOdometry:
+    """The lone process's ``/lockstep/agent_states`` writer while a robot agent waits for the
+    odometry of its next state: it says nothing then (`LockstepRobotDriver.on_pose` does)."""
+
+    def __init__(self, driver):
+        self.driver = driver
+
+    def publish(self, agents):
+        if self.driver.pending is None:
+            self.driver.batch.publish(agents)
+
+
+class LockstepRobotDriver(LockstepDriver):
+    """Lockstep with a robot (module docstring; the contract's steps 2-4)."""
+
+    def __init__(self, node, state_subscribers, lockstep_clock, **robot):
+        super().__init__(node, state_subscribers, lockstep_clock)
+        self.link = RobotLink(node, **robot)
+        self.link.on_pose = self.on_pose
+        self.pending = None          # the step whose odometry the agent waits for
+        self.hold = _HoldUntilOdometry(self)
+
+    def on_input(self, raw):
+        s = step_message(raw, self.lock, [self.node], self.node.reject, self.hold)
+        if s is not None and self.lockstep_clock == 'step':
+            step_time([self.node], s)
+
+    def lockstep_outcome(self, kind, detail, s):
+        node, link = self.node, self.link
+        stamp = TimeMsg(**dict(zip(('sec', 'nanosec'), P.time_to_stamp(s.t))))
+        if kind == 'moved':          # u_n as one cmd_vel stamped t_n; the state when the robot moved
+            node.lam = s.lam
+            node.step = s.n
+            node.applied(detail)
+            if link.check(paused=node.halted is not None, watch=False):
+                link.publish_cmd(0.0, 0.0, stamp)
+            else:
+                link.drive(detail, stamp)
+            self.pending = s.n + 1
+        elif kind == 'repeat':
+            if self.pending is None:  # else the command is out (reliable): still waiting for the robot
+                node.publish_state()
+        else:
+            if kind == 'silent':
+                link.publish_cmd(0.0, 0.0, stamp)
+            super().lockstep_outcome(kind, detail, s)
+
+    def on_pose(self, pose):
+        """Odometry stamped t_(n+1) for the step awaited: the state of t_(n+1), to the world."""
+        node = self.node
+        if self.pending is None or P.step_of(pose[0], node.dt) != self.pending:
+            return
+        node.core.place(pose[1], pose[2], pose[3], node.core.u_last)
+        node.step, self.pending = self.pending, None
+        node.t = node.step * node.dt
+        node.publish_state()
+        self.batch.publish([node])
+
+
+class RealtimeRobotDriver(RealtimeDriver):
+    """Realtime with a robot (module docstring)."""
+
+    def __init__(self, node, stale_after, catch_up_limit, future_tolerance, **robot):
+        super().__init__(node, stale_after, catch_up_limit, future_tolerance)
+        self.link = RobotLink(node, **robot)
+
+    def on_tick(self):
+        """One control period: the robot's pose, the guard, u (or zero velocity), the state."""
+        node, link = self.node, self.link
+        now = node._now()
+        if link.pose is not None:
+            node.core.place(*link.pose[1:], node.core.u_last)
+        own, rows, flags = self.table(now)
+        if link.neighbours_in_range(rows, own):
+            link.guard.neighbour(link.robot_now())
+        stamp = link.stamp_now()
+        u = 0.0
+        if link.check(paused=node.halted is not None):
+            link.publish_cmd(0.0, 0.0, stamp)
+        else:
+            u = node.core.control(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], node.lam, flags, node.steering,
+                                  node.target, node.barrier, row=own)
+            if not math.isfinite(u):
+                node.reject('u-nan', f'non-finite control u={u}; holding u=0')
+                u = 0.0
+            link.drive(u, stamp)
+        node.core.u_last = u
+        node.applied(u)
+        node.step = P.step_of(now, node.dt)
+        node.t = now
+        node.publish_state()
+
+
+#: the drivers of a robot agent, by mode (`agent_node.driver_class`)
+ROBOT_DRIVERS = {'lockstep': LockstepRobotDriver, 'realtime': RealtimeRobotDriver}

@@ -1,0 +1,231 @@
+"""The robots of a run on one MuJoCo physics world (node ``robots``, one per run).
+
+It owns a differential-drive robot for each agent in ``robots`` (`swarm_robots.physics`), reads
+each robot's ``/<agent>/cmd_vel`` (geometry_msgs/TwistStamped, or Twist with the scenario's
+``cmd_type: Twist``, realtime only) and publishes ``/<agent>/odom`` and ``/<agent>/ground_truth``
+(nav_msgs/Odometry).  Lockstep: the physics advances one step once every robot of an alive agent
+has sent its command for the step (`timing.RobotsLockstep`, the alive mask from
+``/lockstep/step``).  Realtime: the physics follows the sim clock (/clock), odometry at 50 Hz.
+Robot-robot contacts and the time at the velocity limits go to ``/robots/metrics`` and, at the
+end, to ``robots.json`` in ``output_dir`` (metrics.json's ``summary.robots``).  docs/robots.md.
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Twist, TwistStamped
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from std_msgs.msg import Float64MultiArray
+
+from swarm_core.atomic import write_atomic
+from swarm_ros import protocol as P
+from swarm_ros.layouts import Step
+from swarm_ros.msg_checks import RejectLog, decoded
+from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
+from swarm_ros.runinfo import declare_run_id
+from swarm_ros.scenario_params import declare_scenario
+
+from .run_setup import SUMMARY_FILE, chosen_rows, robots_section, start_poses
+from .timing import RealtimePacer, RobotsLockstep, TurnLimitClock, advance_to, robot_summary
+
+METRICS_TOPIC = '/robots/metrics'
+#: lockstep: wall s without progress after which the newest odometry is published again (an
+#: agent that subscribed late, a lost sample)
+REPEAT_AFTER = 0.5
+#: realtime: wall s between physics ticks
+TICK = 0.01
+
+
+def odom_topic(agent: str) -> str:
+    return f'/{agent}/odom'
+
+
+def ground_truth_topic(agent: str) -> str:
+    return f'/{agent}/ground_truth'
+
+
+def cmd_vel_topic(agent: str) -> str:
+    return f'/{agent}/cmd_vel'
+
+
+def serialized_odometry(writer, sec: int, nanosec: int, row) -> bytes:
+    """nav_msgs/Odometry bytes (`swarm_ros.protocol.OdometryWriter`: its frames) of a row x, y,
+    yaw, v, omega (m, rad, body twist): rclpy's conversion of an Odometry message object costs
+    ten times more, and the robot world publishes two per robot and step."""
+    x, y, yaw, v, omega = (float(c) for c in row)
+    return writer(sec, nanosec, x, y, math.sin(yaw / 2), math.cos(yaw / 2), omega, v)
+
+
+class RobotsNode(Node):
+    def __init__(self, node_name='robots', *, namespace=None, context=None, parameter_overrides=None,
+                 cli_args=None):
+        super().__init__(node_name, namespace=namespace, context=context, cli_args=cli_args,
+                         parameter_overrides=parameter_overrides)
+        self._declare_parameters()
+        self.reject = RejectLog(self.get_logger())
+        desc = self._description()
+        self.world = TurnLimitClock(self._make_world(desc), min(self.sec.max_angular, desc.max_angular),
+                                    desc.cmd_vel_timeout)
+        self.t_odom = 0.0                       # sim time of the newest odometry published
+        self.last_progress = time.monotonic()
+        self.pub_odom, self.pub_truth = [], []
+        own = self.sec.frame == 'odom'
+        self.odom_writers = [P.OdometryWriter(f'{nm}/base_link', f'{nm}/odom' if own else 'world')
+                             for nm in self.agents]
+        self.truth_writers = [P.OdometryWriter(f'{nm}/base_link', 'world') for nm in self.agents]
+        for k, nm in enumerate(self.agents):
+            self.pub_odom.append(self.create_publisher(Odometry, odom_topic(nm), P.qos_reliable(10)))
+            self.pub_truth.append(self.create_publisher(Odometry, ground_truth_topic(nm), P.qos_reliable(10)))
+            stamped = self.sec.cmd_type == 'TwistStamped'
+            self.create_subscription(TwistStamped if stamped else Twist, cmd_vel_topic(nm),
+                                     self._command_callback(k, stamped), P.qos_reliable(10))
+        self.pub_metrics = self.create_publisher(DiagnosticArray, METRICS_TOPIC, 10)
+        self.create_timer(1.0, self.publish_metrics, clock=steady_clock())
+        if self.mode == 'lockstep':
+            self.hold = RobotsLockstep(self.world, self.rows, self.scn.dt, self.scale)
+            self.create_subscription(Float64MultiArray, P.LOCK_STEP, self._on_step, P.qos_latched(), raw=True)
+            self.create_timer(REPEAT_AFTER / 2, self._repeat, clock=steady_clock())
+            self.publish_odometry(0.0)
+        else:
+            self.pacer, self.asked = RealtimePacer(self.scale), 0.0
+            self.create_timer(TICK, self._tick, clock=steady_clock())
+        self.get_logger().info(
+            f'{len(self.agents)} robots ({self.mode}): L = {self.sec.length_scale:g} m, v0 = '
+            f'{self.sec.cruise_speed:g} m/s, {self.scale:g} robot s per model s')
+
+    def _declare_parameters(self):
+        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
+        self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=('lockstep', 'realtime'))
+        chosen = d('robots', '', "the agents with a robot, comma-separated ('': every agent)")
+        self.output_dir = d('output_dir', '', f'where to write {SUMMARY_FILE} at the end ("": nowhere)')
+        self.hold_timeout = d('hold_timeout', 5.0, 'lockstep: wall s to wait for the commands of a step the world '
+                              'has sent before the robots of agents that did not answer are left out of it '
+                              '(swarm run: half the world\'s missing_timeout)', lo=0.1, hi=1e6)
+        self.run_id = declare_run_id(self, 'lockstep step messages of another run are refused')
+        self.scn = declare_scenario(self)
+        try:
+            self.sec = robots_section(self.scn)
+        except ValueError as err:
+            raise ParameterError(f'parameter scenario: {err}') from None
+        try:
+            self.rows = chosen_rows(self.scn.names, [c.strip() for c in chosen.split(',') if c.strip()])
+        except ValueError as err:
+            raise ParameterError(f'parameter robots: {err}') from None
+        if self.mode == 'lockstep' and self.sec.cmd_type != 'TwistStamped':
+            raise ParameterError('lockstep robots need stamped commands (cmd_type TwistStamped): '
+                                 'a Twist says not which step it is for')
+        self.agents = [self.scn.names[i] for i in self.rows]
+        self.units = self.sec.units()
+        self.scale = self.units.seconds_per_model_unit
+
+    def _description(self):
+        """The robot description the scenario names (default: TurtleBot3 Burger)."""
+        from .description import TURTLEBOT3_BURGER, RobotDescription
+        try:
+            return RobotDescription.from_yaml(self.sec.description) if self.sec.description else TURTLEBOT3_BURGER
+        except (OSError, ValueError) as err:
+            raise ParameterError(f'scenario robots.description {self.sec.description}: {err}') from None
+
+    def _make_world(self, desc):
+        from .physics import RobotWorld
+        return RobotWorld(desc, start_poses(self.scn, self.rows, self.units))
+
+    # ------------------------------------------------------------ inputs
+    def _command_callback(self, k, stamped):
+        def on_command(msg):
+            tw = msg.twist if stamped else msg
+            v, omega = tw.linear.x, tw.angular.z
+            if not (math.isfinite(v) and math.isfinite(omega)):
+                self.reject('cmd-non-finite', f'{cmd_vel_topic(self.agents[k])}: non-finite command')
+                return
+            if self.mode == 'realtime':
+                self.world.command(k, v, omega)
+            elif not self.hold.on_command(k, P.stamp_to_time(msg.header.stamp), v, omega):
+                self.reject('cmd-stale', f'{cmd_vel_topic(self.agents[k])}: command stamped for no step '
+                            f'awaited (held step {self.hold.n})')
+            else:
+                self._advance()
+        return on_command
+
+    def _on_step(self, raw):
+        m = decoded(Step, raw, self.run_id, self.reject, 'step-decode')
+        if m is None:
+            return
+        if len(m.alive) != len(self.scn.names):
+            self.reject('step-roster', f'{P.LOCK_STEP}: {len(m.alive)} agents, the roster has {len(self.scn.names)}')
+            return
+        self.hold.on_step(m.n, m.alive)
+        self._advance()
+
+    # ------------------------------------------------------------ physics and outputs
+    def _advance(self):
+        for t in self.hold.run():
+            self.publish_odometry(t)
+
+    def _repeat(self):
+        """Lockstep: no progress for `REPEAT_AFTER` wall s: the newest odometry again; for
+        ``hold_timeout``: the step goes on without the robots whose commands did not come."""
+        quiet = time.monotonic() - self.last_progress
+        if quiet >= self.hold_timeout:
+            missing = self.hold.release()
+            if missing:
+                self.get_logger().warning(
+                    f'step {self.hold.n}: no command from {", ".join(self.agents[k] for k in missing)} after '
+                    f'{quiet:.1f} s; their robots get none this step')
+                self._advance()
+                return
+        if quiet >= REPEAT_AFTER:
+            self.publish_odometry(self.t_odom)
+
+    def _tick(self):
+        """Realtime: the physics up to the sim clock's robot time, odometry when due."""
+        self.asked = advance_to(self.world, self.asked, self.pacer.target(self.get_clock().now().nanoseconds * 1e-9))
+        if self.pacer.odom_due(self.world.time, time.monotonic()):
+            self.publish_odometry(self.units.model_time(self.world.time))
+
+    def publish_odometry(self, t: float):
+        """Each robot's odometry (its own ``odom`` frame, or the common ``world`` frame) and
+        ground truth, stamped sim time ``t``."""
+        self.t_odom, self.last_progress = t, time.monotonic()
+        sec, nsec = P.time_to_stamp(t)
+        truth = self.world.ground_truth()
+        odom = self.world.odometry() if self.sec.frame == 'odom' else truth
+        for k in range(len(self.agents)):
+            self.pub_odom[k].publish(serialized_odometry(self.odom_writers[k], sec, nsec, odom[k]))
+            self.pub_truth[k].publish(serialized_odometry(self.truth_writers[k], sec, nsec, truth[k]))
+
+    def summary(self) -> dict:
+        w = self.world
+        return robot_summary(self.agents, w.contacts, w.seconds, w.saturated_time, self.scale)
+
+    def publish_metrics(self):
+        s = self.summary()
+        values = [('contacts', s['contacts']), ('turn_limit_seconds_total', s['turn_limit_seconds_total']),
+                  ('limit_seconds_total', s['limit_seconds_total']), ('robot_time', self.world.time)]
+        arr = DiagnosticArray()
+        arr.header.stamp = self.get_clock().now().to_msg()
+        arr.status = [DiagnosticStatus(name='robots', message=f'{len(self.agents)} robots',
+                                       values=[KeyValue(key=k, value=f'{v:g}') for k, v in values])]
+        self.pub_metrics.publish(arr)
+
+    def finish(self):
+        """The run's robot summary into ``output_dir`` (`SUMMARY_FILE`)."""
+        if self.output_dir:
+            try:
+                write_atomic(Path(self.output_dir) / SUMMARY_FILE, json.dumps(self.summary()))
+            except OSError as err:
+                self.get_logger().error(f'cannot write {SUMMARY_FILE} to {self.output_dir}: {err}')
+
+
+def main(argv=None):
+    return run_node(RobotsNode, 'swarm_robots', argv, on_stop=lambda node: node.finish())
+
+
+if __name__ == '__main__':
+    sys.exit(main())

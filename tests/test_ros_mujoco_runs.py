@@ -1,0 +1,80 @@
+"""End-to-end: `swarm run --robots mujoco`: the agents drive differential-drive robots of the
+run's MuJoCo world through cmd_vel and odometry, in lockstep (deterministic: the same run twice
+gives the same trajectories), with λ raised mid-run (the swarm splits), and mixed with kinematic
+agents (one swarm).  Every process a test starts is gone after it (`processes`)."""
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+from swarm_core.metrics import cluster_labels
+from swarm_core.trajectory import Trajectory
+
+from conftest import Lines, short_homotopy
+
+pytestmark = pytest.mark.ros
+
+#: L = 0.3 m per model unit at v0 = 0.15 m/s (a TurtleBot3 Burger's top speed is 0.22 m/s):
+#: r0 = 0.45 m, w = 1.2 m; one model second is 2 robot seconds
+ROBOTS = {'length_scale': 0.3, 'cruise_speed': 0.15, 'frame': 'odom'}
+#: leaders at t = 5 steering ±0.05, λ up from t = 15: measured with the batch engine, the six
+#: agents are one swarm until t ≈ 20 and two from t ≈ 30 on
+SPLIT = dict(duration=60, lam='{kind: tanh_window, rise_at: 15, fall_at: 1000, tau: 3}', at=5, curvature=0.05)
+
+
+def run(processes, swarm_cmd, path, out, *args, timeout=400):
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--progress-every', '20', *args],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait(p, timeout) == 0, ''.join(lines.lines[-40:])
+    return Trajectory.load(out / 'trajectory.npz'), json.loads((out / 'metrics.json').read_text()), lines
+
+
+def clusters(traj, t, w=4.0):
+    return cluster_labels(traj.r[int(round(t / (traj.t[1] - traj.t[0])))], w)[0]
+
+
+def test_lockstep_six_robots_repeatable_and_split_by_lambda(tmp_path, ros_domain, processes, swarm_cmd):
+    path = short_homotopy(tmp_path / 'robots.yaml', robots=ROBOTS, **SPLIT)
+    a, metrics, lines = run(processes, swarm_cmd, path, tmp_path / 'a', '--robots', 'mujoco')
+    assert any('6 of 6 agents on robots (mujoco)' in ln for ln in lines.lines)
+    b, _, _ = run(processes, swarm_cmd, path, tmp_path / 'b', '--robots', 'mujoco')
+    # the same commands at the same robot times: the same physics, bit for bit
+    np.testing.assert_array_equal(a.r, b.r)
+    np.testing.assert_array_equal(a.theta, b.theta)
+    np.testing.assert_array_equal(a.u, b.u)
+    # robots, not kinematic points: they start from rest and accelerate to v0
+    speed = np.linalg.norm(np.diff(a.r, axis=0), axis=2) / (a.t[1] - a.t[0])
+    assert speed[0].max() < 0.5 and np.abs(speed[20:] - 1.0).max() < 0.05
+    assert clusters(a, 10) == 1 and clusters(a, 60) >= 2
+    robots = metrics['summary']['robots']
+    assert sorted(robots['limit_seconds']) == sorted(robots['turn_limit_seconds']) == [f'agent_{i}' for i in range(6)]
+
+
+def test_swarm_run_starts_the_robot_world_and_keeps_its_summary(tmp_path, ros_domain, processes, swarm_cmd):
+    path = short_homotopy(tmp_path / 'short.yaml', robots=ROBOTS, duration=2, lam='{kind: constant, value: 0}', at=1)
+    traj, metrics, lines = run(processes, swarm_cmd, path, tmp_path / 'r', '--robots', 'mujoco:agent_4', timeout=200)
+    assert any('9 processes' in ln for ln in lines.lines), ''.join(lines.lines)     # + the robot world
+    assert any('[robots]: 1 robots (lockstep)' in ln for ln in lines.lines)
+    robots = metrics['summary']['robots']
+    assert robots['robots'] == ['agent_4'] and robots['contacts'] == 0
+    assert json.loads((tmp_path / 'r' / 'robots.json').read_text()) == robots
+    assert len(traj.t) == 41
+
+
+def test_mixed_run_three_robots_three_kinematic_one_swarm(tmp_path, ros_domain, processes, swarm_cmd):
+    path = short_homotopy(tmp_path / 'mixed.yaml', robots=ROBOTS, duration=40, lam='{kind: constant, value: 0}', at=5)
+    traj, metrics, lines = run(processes, swarm_cmd, path, tmp_path / 'm', '--robots', 'mujoco:agent_0-agent_2')
+    assert any('3 of 6 agents on robots (mujoco)' in ln for ln in lines.lines)
+    assert sorted(metrics['summary']['robots']['limit_seconds']) == ['agent_0', 'agent_1', 'agent_2']
+    dt = traj.t[1] - traj.t[0]
+    speed = np.linalg.norm(np.diff(traj.r, axis=0), axis=2) / dt
+    # the kinematic agents fly at unit speed (a chord of the arc: within 1e-5 at |u| < 0.2); the
+    # robots start from rest and accelerate to v0
+    assert np.abs(speed[:, 3:] - 1.0).max() < 1e-5
+    assert speed[0, :3].max() < 0.5 and np.abs(speed[20:, :3] - 1.0).max() < 0.05
+    assert all(clusters(traj, t) == 1 for t in (10, 20, 30, 40))
+    heading = np.exp(1j * traj.theta[-1])
+    assert abs(heading.mean()) > 0.9                       # one swarm, aligned
+    assert metrics['summary']['robots']['contacts'] == 0
