@@ -304,3 +304,11 @@ def test_pause_event_stops_the_robot_and_bad_odometry_never_moves_the_agent(tmp_
     assert kinds()[-1] == 'robot_resumed' and cmds[-1].twist.linear.x == pytest.approx(V0)
     for nd in (agent, probe):
         nd.destroy_node()
+
+
+def test_standin_rate_limiter_bounds_acceleration_then_velocity():
+    sys.path.insert(0, str(HERE))
+    from diff_drive_standin import limited
+    assert limited(1.0, 0.0, 0.1, 0.22, 0.5) == pytest.approx(0.05)      # 0.5 m/s² over 0.1 s
+    assert limited(1.0, 0.2, 0.1, 0.22, 0.5) == pytest.approx(0.22)      # then the velocity bound
+    assert limited(-3.0, 0.0, 0.1, math.nan, math.nan) == -3.0            # NaN: no limit
