@@ -283,8 +283,11 @@ def test_pause_event_stops_the_robot_and_bad_odometry_never_moves_the_agent(tmp_
             odom.publish(m)
             ex.spin_once(timeout_sec=0.02)
 
+    def said():
+        return [e for e in evs if e.get('node') == 'agent']       # the agent's events, not ours
+
     def kinds():
-        return [e['kind'] for e in evs if e.get('node') == 'agent']
+        return [e['kind'] for e in said()]
 
     assert spin_for(ex, lambda: odom.get_subscription_count() > 0)
     feed(0.02, seconds=1.0)
@@ -297,7 +300,7 @@ def test_pause_event_stops_the_robot_and_bad_odometry_never_moves_the_agent(tmp_
     assert agent.driver.link.guard.rejected > 0 and agent.core.pos[0] == pytest.approx(good)
     events.publish(String(data=json.dumps({'t': 0.0, 'kind': 'freeze', 'agent': 'agent_0', 'for': 5.0})))
     feed(0.03, seconds=1.0)
-    assert kinds()[-1] == 'robot_stopped' and evs[-1]['reason'] == 'paused'
+    assert kinds()[-1] == 'robot_stopped' and said()[-1]['reason'] == 'paused'
     assert cmds[-1].twist.linear.x == 0.0 and cmds[-1].twist.angular.z == 0.0
     events.publish(String(data=json.dumps({'t': 0.0, 'kind': 'resume', 'agent': 'agent_0'})))
     feed(0.04, seconds=1.0)
