@@ -295,9 +295,14 @@ def test_pause_event_stops_the_robot_and_bad_odometry_never_moves_the_agent(tmp_
     th0 = scn.theta0[0]                 # the odom frame sits at the start pose: 0.02 m ahead, / L
     good = [0.1 * math.cos(th0), 0.1 * math.sin(th0)]
     assert agent.core.pos[0] == pytest.approx(good)
-    feed(5.0, seconds=0.3)                                              # 5 m at once: a jump
-    feed(float('nan'), seconds=0.3)
+    feed(5.0, seconds=0.5)                                              # 5 m at once: a jump
+    feed(float('nan'), seconds=0.5)
     assert agent.driver.link.guard.rejected > 0 and agent.core.pos[0] == pytest.approx(good)
+    # only rejected odometry for 1 s: as good as none, the robot stands
+    assert kinds()[-1] == 'robot_stopped' and 'odometry' in said()[-1]['reason']
+    assert cmds[-1].twist.linear.x == 0.0
+    feed(0.025, seconds=1.0)
+    assert kinds()[-1] == 'robot_resumed'
     events.publish(String(data=json.dumps({'t': 0.0, 'kind': 'freeze', 'agent': 'agent_0', 'for': 5.0})))
     feed(0.03, seconds=1.0)
     assert kinds()[-1] == 'robot_stopped' and said()[-1]['reason'] == 'paused'
