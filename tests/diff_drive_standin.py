@@ -20,7 +20,8 @@ diff_drive_controller/src/diff_drive_controller_parameter.yaml (``yaml``):
 - velocity and acceleration limits per axis (``linear.x.max_velocity``, ``.max_acceleration``,
   the same for ``angular.z``; NaN = no limit), applied to each update's command (cpp 174-175;
   control_toolbox's rate limiter: the acceleration bound, then the velocity bound).  Simplified:
-  one symmetric acceleration bound, no jerk limit (the controller's defaults are NaN: off);
+  one symmetric acceleration bound, no jerk limit.  The controller's limits default to NaN (off);
+  here the velocity limits default to a TurtleBot3 Burger's (0.22 m/s, 2.84 rad/s);
 - odometry published at ``publish_rate`` (default 50 Hz, yaml 109; cpp 236-252, 535-536)
   stamped with the update's time, pose integrated from (0, 0, 0), twist in the body frame
   (cpp 255-266); frames ``<ns>/odom`` → ``<ns>/base_link`` (``tf_frame_prefix_enable`` true
@@ -59,8 +60,9 @@ class DiffDriveStandin(Node):
         p = lambda name, default: self.declare_parameter(name, default).value  # noqa: E731
         self.cmd_vel_timeout = p('cmd_vel_timeout', 0.5)
         self.publish_period = 1.0 / p('publish_rate', 50.0)
-        self.limits = {'linear': (p('linear.x.max_velocity', 0.22), p('linear.x.max_acceleration', 2.5)),
-                       'angular': (p('angular.z.max_velocity', 2.84), p('angular.z.max_acceleration', 3.2))}
+        # velocity limits of a TurtleBot3 Burger; acceleration: the controller's default (NaN, off)
+        self.limits = {'linear': (p('linear.x.max_velocity', 0.22), p('linear.x.max_acceleration', math.nan)),
+                       'angular': (p('angular.z.max_velocity', 2.84), p('angular.z.max_acceleration', math.nan))}
         prefix = self.get_namespace().strip('/') + '/'
         self.odom_frame, self.base_frame = prefix + p('odom_frame_id', 'odom'), prefix + p('base_frame_id', 'base_link')
         self.command = None            # the newest command taken: (stamp ns, v, ω)

@@ -146,3 +146,4 @@ def test_guard_in_lockstep_watches_only_the_pause():
     assert g.decide(100.0, watch=False) == ('resume', '')      # no odometry, no neighbour: lockstep waits
     assert g.decide(101.0, paused=True, watch=False) == ('stop', 'paused')
     assert g.decide(102.0, watch=False) == ('resume', '')
+

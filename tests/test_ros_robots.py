@@ -62,7 +62,7 @@ def _probe(ctx):
     from swarm_ros import protocol as P
     node = rclpy.create_node('probe', context=ctx)
     seen = {'states': {nm: [] for nm in NAMES}, 'events': [], 'cmd': [], 'odom': []}
-    node.create_subscription(Odometry, P.STATES, lambda m: seen['states'][m.child_frame_id].append(
+    node.create_subscription(Odometry, P.STATES, lambda m: seen['states'].setdefault(m.child_frame_id, []).append(
         (time.monotonic(), m.pose.pose.position.x, m.pose.pose.position.y)), P.qos_latched(100))
     node.create_subscription(String, P.EVENTS, lambda m: seen['events'].append(json.loads(m.data)),
                              P.qos_latched(100))
@@ -244,3 +244,79 @@ def test_swarm_run_robots_external_drives_standins(tmp_path, processes, ros_doma
     r = Trajectory.load(out / 'trajectory.npz').r
     length = np.nansum(np.hypot(*np.diff(r, axis=0).transpose(2, 0, 1)), axis=0)
     assert np.all(length > 0.6 * 8.0) and np.all(length < 1.1 * 8.0), length    # about unit speed
+
+
+def test_pause_event_stops_the_robot_and_bad_odometry_never_moves_the_agent(tmp_path, rclpy_context):
+    """In one process: a lone realtime robot agent (no neighbour needed) fed odometry by hand.
+    A jump and a NaN are rejected (its state stays at the last good pose); a pause event for it
+    on /swarm/events stops its robot (zero cmd_vel, robot_stopped 'paused'), resume lets it go."""
+    import rclpy
+    from geometry_msgs.msg import TwistStamped
+    from nav_msgs.msg import Odometry
+    from std_msgs.msg import String
+
+    from conftest import overrides, spin_for
+    from swarm_agent.agent_node import AgentNode
+    from swarm_ros import protocol as P
+    from swarm_ros.rosutil import make_executor
+    from swarm_tools.node_params import agent_parameters
+    from swarm_tools.robot_plan import robot_parameters
+    _, scn = _scenario_file(tmp_path / 'one.yaml', 0.1, 100.0, L, V0)
+    prm = dict(agent_parameters(scn, 0, 'realtime'), agent_names=['agent_0'], use_sim_time=False,
+               **robot_parameters(scn.spec.robots, 'external', 'realtime'))
+    agent = AgentNode('agent', namespace='agent_0', context=rclpy_context, parameter_overrides=overrides(prm))
+    probe = rclpy.create_node('probe', context=rclpy_context)
+    odom = probe.create_publisher(Odometry, '/agent_0/odom', 10)
+    events = probe.create_publisher(String, P.EVENTS, P.qos_latched(100))
+    cmds, evs = [], []
+    probe.create_subscription(TwistStamped, '/agent_0/cmd_vel', cmds.append, 10)
+    probe.create_subscription(String, P.EVENTS, lambda m: evs.append(json.loads(m.data)), P.qos_latched(100))
+    ex = make_executor(rclpy_context)
+    for nd in (agent, probe):
+        ex.add_node(nd)
+
+    def feed(x, y=0.0, seconds=0.5):
+        m = Odometry()
+        m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.orientation.w = x, y, 1.0
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            odom.publish(m)
+            ex.spin_once(timeout_sec=0.02)
+
+    def said():
+        return [e for e in evs if e.get('node') == 'agent']       # the agent's events, not ours
+
+    def kinds():
+        return [e['kind'] for e in said()]
+
+    assert spin_for(ex, lambda: odom.get_subscription_count() > 0)
+    feed(0.02, seconds=1.0)
+    assert 'robot_resumed' in kinds() and cmds[-1].twist.linear.x == pytest.approx(V0)
+    th0 = scn.theta0[0]                 # the odom frame sits at the start pose: 0.02 m ahead, / L
+    good = [0.1 * math.cos(th0), 0.1 * math.sin(th0)]
+    assert agent.core.pos[0] == pytest.approx(good)
+    feed(5.0, seconds=0.5)                                              # 5 m at once: a jump
+    feed(float('nan'), seconds=0.5)
+    assert agent.driver.link.guard.rejected > 0 and agent.core.pos[0] == pytest.approx(good)
+    # only rejected odometry for 1 s: as good as none, the robot stands
+    assert kinds()[-1] == 'robot_stopped' and 'odometry' in said()[-1]['reason']
+    assert cmds[-1].twist.linear.x == 0.0
+    feed(0.025, seconds=1.0)
+    assert kinds()[-1] == 'robot_resumed'
+    events.publish(String(data=json.dumps({'t': 0.0, 'kind': 'freeze', 'agent': 'agent_0', 'for': 5.0})))
+    feed(0.03, seconds=1.0)
+    assert kinds()[-1] == 'robot_stopped' and said()[-1]['reason'] == 'paused'
+    assert cmds[-1].twist.linear.x == 0.0 and cmds[-1].twist.angular.z == 0.0
+    events.publish(String(data=json.dumps({'t': 0.0, 'kind': 'resume', 'agent': 'agent_0'})))
+    feed(0.04, seconds=1.0)
+    assert kinds()[-1] == 'robot_resumed' and cmds[-1].twist.linear.x == pytest.approx(V0)
+    for nd in (agent, probe):
+        nd.destroy_node()
+
+
+def test_standin_rate_limiter_bounds_acceleration_then_velocity():
+    sys.path.insert(0, str(HERE))
+    from diff_drive_standin import limited
+    assert limited(1.0, 0.0, 0.1, 0.22, 0.5) == pytest.approx(0.05)      # 0.5 m/s² over 0.1 s
+    assert limited(1.0, 0.2, 0.1, 0.22, 0.5) == pytest.approx(0.22)      # then the velocity bound
+    assert limited(-3.0, 0.0, 0.1, math.nan, math.nan) == -3.0            # NaN: no limit

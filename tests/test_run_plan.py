@@ -152,3 +152,25 @@ def test_plan_module_has_no_ros_import():
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py')))")
     r = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and r.stdout.strip() == '[]', r.stderr
+
+
+def test_robots_external_sets_the_robot_agents_and_runs_each_alone(tmp_path):
+    path = tmp_path / 'robots.yaml'
+    path.write_text('name: robots\nagents: {count: 6}\nduration: 5\n'
+                    'robots: {length_scale: 0.3, cruise_speed: 0.15}\n')
+    scn_ref = load(str(path)), str(path)
+    run = run_plan(scn_ref, '--agents-per-process', '3', '--robots', 'external:agent_1-agent_2')
+    assert run.robots == {'agent_1': 'external', 'agent_2': 'external'}
+    assert run.groups == [['agent_0', 'agent_3', 'agent_4'], ['agent_5'], ['agent_1'], ['agent_2']]
+    params = agents(run)
+    assert params['/agent_1/agent']['robot'] == 'external' and params['/agent_1/agent']['robot_clock'] == 'sim'
+    assert 'robot' not in params['/agent_0/agent']
+    assert run.params['/world']['step_readers'] == 4
+    assert 'r0 = 0.45 m, w = 1.2 m' in run.robots_line
+    rt = run_plan(scn_ref, '--mode', 'realtime', '--robots', 'external')
+    assert rt.params['/world']['rtf'] == pytest.approx(0.5) and agents(rt)['/agent_0/agent']['robot_clock'] == 'wall'
+    for bad, why in ((['--robots', 'mujoco'], 'not available in this launcher'),
+                     (['--robots', 'external:agent_7'], "'agent_7' is not an agent")):
+        with pytest.raises(ValueError, match=why):
+            run_plan(scn_ref, *bad)
+    assert run_plan(scn_ref).robots == {} and run_plan(scn_ref).robots_line is None

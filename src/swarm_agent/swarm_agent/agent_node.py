@@ -247,13 +247,15 @@ class AgentNode(Node):
 
     def fault(self, kind):
         """Contained: kill (stop for good), freeze (stop until resume) or resume this agent
-        alone, as SIGKILL / SIGSTOP / SIGCONT do to an agent process."""
+        alone, as SIGKILL / SIGSTOP / SIGCONT do to an agent process.  A robot agent: its robot
+        stands while halted (`robot_driver`)."""
         if self.halted == 'kill':
             return
         self.halted = None if kind == 'resume' else kind
         if kind == 'kill':
             self.lock_kill()
-        self.get_logger().info(f'fault: {kind} (in-process: the other agents of the container go on)')
+        self.get_logger().info(f'fault: {kind}' + (' (in-process: the other agents of the container go on)'
+                                                   if self.contained else ''))
 
     def lock_kill(self):
         """Set by the container: stop this agent's lockstep for good."""
