@@ -4,8 +4,10 @@ Every live check reads the effect from the run's own record (trajectory.npz, eve
 through metrics.json), not only from what the API says."""
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -116,6 +118,24 @@ def test_wait_until_that_times_out_says_so_and_leaves_no_process(ros_domain, tmp
     assert 'newest metrics' in str(err.value)
     assert run.t - t0 >= 3 and run.proc.returncode == 130 and not run.leftover()
     assert (tmp_path / 'run' / 'trajectory.npz').is_file()          # kept, as after Ctrl-C
+
+
+@pytest.mark.ros
+def test_a_script_that_dies_leaves_no_run_behind(ros_domain, tmp_path):
+    """A script SIGKILLed with its run going (no `with`, no atexit): the launcher gets SIGINT,
+    stops as on Ctrl-C (the outputs written) and nothing of the run is left."""
+    from swarm_tools.api import session_pids
+    script = (f'import os\nfrom swarm_tools.api import Swarm\n'
+              f's = Swarm.start({str(SCENARIO)!r}, duration=4000, out={str(tmp_path / "run")!r}, in_process=True, '
+              f'no_figure=True)\nprint(s.proc.pid, flush=True)\nos.kill(os.getpid(), 9)\n')
+    r = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=180)
+    assert r.returncode == -9 and r.stdout.strip().isdigit(), r.stdout + r.stderr
+    pid, end = int(r.stdout), time.monotonic() + 30
+    while session_pids(pid) and time.monotonic() < end:
+        time.sleep(0.1)
+    assert not session_pids(pid)
+    assert json.loads((tmp_path / 'run' / 'run.json').read_text())['exit_code'] == 130
+    assert (tmp_path / 'run' / 'trajectory.npz').is_file()
 
 
 @pytest.mark.ros

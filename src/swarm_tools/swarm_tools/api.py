@@ -16,6 +16,7 @@ script, and a Jupyter kernel's loop is never blocked.  docs/python-api.md lists 
 """
 from __future__ import annotations
 
+import atexit
 import json
 import os
 import signal
@@ -32,8 +33,13 @@ import numpy as np
 from swarm_ros import protocol as P
 
 from .client import Client, NoSwarm, SwarmError, TwoRuns, UnknownAgent
+from .processes import die_with_parent
 
 __all__ = ['Swarm', 'States', 'SwarmError', 'NoSwarm', 'TwoRuns', 'UnknownAgent', 'WaitTimeout', 'run_argv']
+
+
+#: the launcher's output in a started run's output directory
+LOG_NAME = 'swarm_run.log'
 
 
 class WaitTimeout(SwarmError, TimeoutError):
@@ -114,7 +120,7 @@ class Swarm:
     def __init__(self, client: Client, run: dict, proc=None, out=None, log=None):
         self.client, self.run, self.proc = client, run, proc
         self.out = None if out is None else Path(out)
-        self.log = [] if log is None else log       # what `swarm run` printed (started runs)
+        self.log = [] if log is None else log       # what `swarm run` printed (started runs; `LOG_NAME`)
         self._obs = _Observer(client)
         client.follow_clock()
 
@@ -133,12 +139,27 @@ class Swarm:
         env = dict(os.environ, PYTHONUNBUFFERED='1')
         if domain is not None:
             env['ROS_DOMAIN_ID'] = str(domain)
-        client = Client(domain, name='swarm_api')
-        proc = subprocess.Popen([sys.executable, '-m', 'swarm_tools.cli', 'run', *argv], env=env,
-                                start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        # its lines go to a file (a pipe would break, and the launcher with it, if this process
+        # died); a session of its own (the script's Ctrl-C reaches it through `stop`), and SIGINT
+        # (a stop that keeps the outputs) if this process dies; started before any thread of ours
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            log_file = open(out / LOG_NAME, 'w')
+        except OSError as err:
+            raise SwarmError(f'Swarm.start: cannot write {out / LOG_NAME}: {err.strerror or err}') from None
+        with log_file:
+            proc = subprocess.Popen([sys.executable, '-m', 'swarm_tools.cli', 'run', *argv], env=env,
+                                    start_new_session=True, preexec_fn=die_with_parent(os.getpid(), signal.SIGINT),
+                                    stdout=log_file, stderr=subprocess.STDOUT)
+        try:
+            client = Client(domain, name='swarm_api')
+        except BaseException:
+            _signal_group(proc.pid, signal.SIGKILL)
+            raise
         log = []
-        threading.Thread(target=_read_lines, args=(proc, log, echo), daemon=True).start()
+        threading.Thread(target=_read_lines, args=(proc, out / LOG_NAME, log, echo), daemon=True).start()
         swarm = cls(client, {}, proc=proc, out=out, log=log)
+        atexit.register(swarm.close)             # a script that never left `with` stops it too
         try:
             swarm._wait_started(start_timeout)
         except BaseException:
@@ -351,7 +372,8 @@ class Swarm:
         return [] if self.proc is None else session_pids(self.proc.pid)
 
     def close(self):
-        """Stop a started run (`stop`) and shut the client down."""
+        """Stop a started run (`stop`) and shut the client down (again: nothing)."""
+        atexit.unregister(self.close)
         try:
             self.stop()
         finally:
@@ -383,11 +405,24 @@ class Swarm:
         return json.loads(self._output('metrics.json').read_text())
 
 
-def _read_lines(proc, log: list, echo: bool):
-    for line in proc.stdout:
-        log.append(line)
-        if echo:
-            print(line, end='', flush=True)
+def _read_lines(proc, path: Path, log: list, echo: bool):
+    """Follow the launcher's log file into ``log`` until it has exited and all is read."""
+    with open(path, errors='replace') as f:
+        part = ''
+        while True:
+            ended = proc.poll() is not None
+            chunk = f.readline()
+            if not chunk:
+                if ended:
+                    return
+                time.sleep(0.05)
+                continue
+            part += chunk
+            if part.endswith('\n') or ended:
+                log.append(part)
+                if echo:
+                    print(part, end='', flush=True)
+                part = ''
 
 
 def _signal_group(pid: int, sig):
