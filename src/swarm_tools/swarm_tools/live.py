@@ -30,6 +30,8 @@
 
 Every verb first reads the run's ``/swarm/run`` announcement, says which run it reached, and
 refuses (exit 1) when two runs share the domain, or (exit 2) for an agent the run does not have.
+The verbs are thin wrappers over `swarm_tools.client.Client`, the client of the Python API
+(`swarm_tools.api.Swarm`): one client path; exit 2 for a bad value, 1 when nothing takes it.
 """
 from __future__ import annotations
 
