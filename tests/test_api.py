@@ -97,9 +97,10 @@ def test_each_command_takes_effect_in_the_runs_record(swarm, mode):
     def step_of(kind, agent):
         return int(np.searchsorted(traj.t, next(e['t'] for e in events if e['kind'] == kind and e['agent'] == agent)))
     k_kill, k_freeze, k_resume = step_of('kill', 'agent_5'), step_of('freeze', 'agent_1'), step_of('resume', 'agent_1')
-    assert _still(traj.r[k_kill + 1:, 5]) and not _still(traj.r[k_kill + 1:, 4])
+    m = 3             # realtime: the last state an agent sent may be stamped a step or two late
+    assert _still(traj.r[k_kill + m:, 5]) and not _still(traj.r[k_kill + m:, 4])
     assert k_resume - k_freeze >= 2.0 / (traj.t[1] - traj.t[0]) - 1          # 2 sim s frozen
-    assert _still(traj.r[k_freeze + 1:k_resume, 1]) and not _still(traj.r[k_resume:, 1])
+    assert _still(traj.r[k_freeze + m:k_resume, 1]) and not _still(traj.r[k_resume:, 1])
     # the partition went out stamped with the run's sim time, and the world wrote it down
     part = [e for e in events if e['kind'] == 'partition']
     assert part and part[0]['groups'] == [['agent_0', 'agent_1'], ['agent_2', 'agent_3', 'agent_4']]
