@@ -122,6 +122,15 @@ def test_wait_until_that_times_out_says_so_and_leaves_no_process(ros_domain, tmp
 
 
 @pytest.mark.ros
+def test_start_that_fails_says_why_and_leaves_nothing(ros_domain, tmp_path):
+    from swarm_tools.api import Swarm, SwarmError
+    with pytest.raises(SwarmError, match=r'exit code 2\) before the run started:\n.*--rtf 0') as err:
+        Swarm.start(SCENARIO, rtf=0, out=tmp_path / 'run')
+    assert 'Traceback' not in str(err.value)
+    assert (tmp_path / 'run' / 'swarm_run.log').read_text().startswith('swarm run: --rtf 0')
+
+
+@pytest.mark.ros
 def test_a_script_that_dies_leaves_no_run_behind(ros_domain, tmp_path):
     """A script SIGKILLed with its run going (no `with`, no atexit): the launcher gets SIGINT,
     stops as on Ctrl-C (the outputs written) and nothing of the run is left."""

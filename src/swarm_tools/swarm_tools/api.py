@@ -157,8 +157,10 @@ class Swarm:
             _signal_group(proc.pid, signal.SIGKILL)
             raise
         log = []
-        threading.Thread(target=_read_lines, args=(proc, out / LOG_NAME, log, echo), daemon=True).start()
+        reader = threading.Thread(target=_read_lines, args=(proc, out / LOG_NAME, log, echo), daemon=True)
+        reader.start()
         swarm = cls(client, {}, proc=proc, out=out, log=log)
+        swarm._reader = reader
         atexit.register(swarm.close)             # a script that never left `with` stops it too
         try:
             swarm._wait_started(start_timeout)
@@ -179,7 +181,7 @@ class Swarm:
                 self.run = run
                 return
             if self.proc.poll() is not None:
-                time.sleep(0.2)                         # the reader thread's last lines
+                self._reader.join(timeout=5.0)          # its last lines
                 raise SwarmError(f'swarm run ended (exit code {self.proc.returncode}) before the run started:\n'
                                  + ''.join(self.log[-30:]))
             time.sleep(0.05)
