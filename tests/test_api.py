@@ -97,10 +97,12 @@ def test_each_command_takes_effect_in_the_runs_record(swarm, mode):
     def step_of(kind, agent):
         return int(np.searchsorted(traj.t, next(e['t'] for e in events if e['kind'] == kind and e['agent'] == agent)))
     k_kill, k_freeze, k_resume = step_of('kill', 'agent_5'), step_of('freeze', 'agent_1'), step_of('resume', 'agent_1')
-    m = 3             # realtime: the last state an agent sent may be stamped a step or two late
-    assert _still(traj.r[k_kill + m:, 5]) and not _still(traj.r[k_kill + m:, 4])
-    assert k_resume - k_freeze >= 2.0 / (traj.t[1] - traj.t[0]) - 1          # 2 sim s frozen
-    assert _still(traj.r[k_freeze + m:k_resume, 1]) and not _still(traj.r[k_resume:, 1])
+    # realtime: an agent's last states before the fault may come a few steps after the
+    # event's stamp (signals, timers): judge the second half of the 2 s freeze
+    steps = round(2.0 / (traj.t[1] - traj.t[0]))
+    assert k_resume - k_freeze >= steps - 1                                   # 2 sim s frozen
+    assert _still(traj.r[k_kill + steps // 2:, 5]) and not _still(traj.r[k_kill + steps // 2:, 4])
+    assert _still(traj.r[k_resume - steps // 2:k_resume, 1]) and not _still(traj.r[k_resume:, 1])
     # the partition went out stamped with the run's sim time, and the world wrote it down
     part = [e for e in events if e['kind'] == 'partition']
     assert part and part[0]['groups'] == [['agent_0', 'agent_1'], ['agent_2', 'agent_3', 'agent_4']]
@@ -137,7 +139,8 @@ def test_a_script_that_dies_leaves_no_run_behind(ros_domain, tmp_path):
     from swarm_tools.api import session_pids
     script = (f'import os\nfrom swarm_tools.api import Swarm\n'
               f's = Swarm.start({str(SCENARIO)!r}, duration=4000, out={str(tmp_path / "run")!r}, in_process=True, '
-              f'no_figure=True)\nprint(s.proc.pid, flush=True)\nos.kill(os.getpid(), 9)\n')
+              f'no_figure=True)\ns.wait_until(lambda m: m["t"] >= 2, timeout=10)\n'
+              f'print(s.proc.pid, flush=True)\nos.kill(os.getpid(), 9)\n')
     r = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=180)
     assert r.returncode == -9 and r.stdout.strip().isdigit(), r.stdout + r.stderr
     pid, end = int(r.stdout), time.monotonic() + 60

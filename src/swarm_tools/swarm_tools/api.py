@@ -222,14 +222,26 @@ class Swarm:
         return list(self.run.get('agents', []))
 
     # ------------------------------------------------------------ commands
-    def _taken(self, match, before: int, what: str, timeout: float):
-        """Wait (``timeout`` wall s) for an event after the first ``before`` that ``match``es."""
+    def _taken(self, match, before: tuple, what: str, timeout: float):
+        """Wait (``timeout`` wall s) for an event that ``match``es, heard after the first
+        ``before[0]`` and stamped at most a sim second before ``before[1]`` (`_mark`): not an
+        old one a late transient-local delivery brings."""
+        count, t0 = before
+
+        def recent(ev):
+            return t0 is None or not isinstance(ev.get('t'), (int, float)) or ev['t'] >= t0 - 1.0
+
         def seen():
             with self._obs.lock:
-                return any(match(ev) for ev in self._obs.events[before:])
+                return any(match(ev) and recent(ev) for ev in self._obs.events[count:])
         if not Client.until(seen, timeout):
             raise SwarmError(f'{what}: sent, but the swarm did not take it within {timeout:g} s'
                              + self._ended_note())
+
+    def _mark(self) -> tuple:
+        """(events heard, sim time) before a command is sent (for `_taken`)."""
+        with self._obs.lock:
+            return len(self._obs.events), self.client.clock
 
     def _call(self, command, *args, **kw):
         """``command`` of the client; its `NoSwarm` says so if the run has ended."""
@@ -246,7 +258,7 @@ class Swarm:
     def set_lambda(self, value: float, ramp: float = 20.0, *, wait: float = 10.0, timeout: float = 30.0) -> None:
         """Ramp λ to ``value`` over ``ramp`` sim s; returns once the commander has applied the
         set-point (its ``command`` event); without a commander, once λ is on ``/swarm/lambda``."""
-        before = len(self._obs.events)
+        before = self._mark()
         if self._call(self.client.set_lambda, value, ramp, wait, prog='Swarm.set_lambda') != 'commander':
             return                      # no commander: λ went out on /swarm/lambda as it is
         self._taken(lambda ev: ev.get('kind') == 'command' and ev.get('command') == 'lambda'
@@ -255,7 +267,7 @@ class Swarm:
     def steer(self, agent: str, curvature: float, *, wait: float = 10.0, timeout: float = 30.0) -> None:
         """Make ``agent`` a leader steering the constant ``curvature``; returns once the
         commander has applied it."""
-        before = len(self._obs.events)
+        before = self._mark()
         name = self._call(self.client.steer, agent, curvature, wait, prog='Swarm.steer')
         self._taken(lambda ev: ev.get('kind') == 'command' and ev.get('command') == 'steer'
                     and ev.get('agent') == name and ev.get('value') == float(curvature), before,
@@ -263,14 +275,14 @@ class Swarm:
 
     def kill(self, agent: str, *, wait: float = 10.0, timeout: float = 30.0) -> None:
         """Kill ``agent``; returns once the world has taken it out (its ``kill`` event)."""
-        before = len(self._obs.events)
+        before = self._mark()
         name = self._call(self.client.fault, 'kill', agent, wait=wait, prog='Swarm.kill')
         self._taken(lambda ev: ev.get('kind') == 'kill' and ev.get('agent') == name, before,
                     f'Swarm.kill({name!r})', timeout)
 
     def pause(self, agent: str, seconds: float, *, wait: float = 10.0, timeout: float = 30.0) -> None:
         """Freeze ``agent`` for ``seconds`` sim s; returns once the world has frozen it."""
-        before = len(self._obs.events)
+        before = self._mark()
         name = self._call(self.client.fault, 'freeze', agent, seconds, wait=wait, prog='Swarm.pause')
         self._taken(lambda ev: ev.get('kind') == 'freeze' and ev.get('agent') == name, before,
                     f'Swarm.pause({name!r}, {seconds:g})', timeout)
