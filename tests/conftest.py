@@ -6,7 +6,6 @@ discovery stays on localhost, and every process a test starts is ended by the te
 """
 from __future__ import annotations
 
-import itertools
 import os
 import signal
 import subprocess
@@ -25,44 +24,8 @@ if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
 ROOT = Path(__file__).resolve().parents[1]
 VENV_BIN = Path(sys.executable).parent
 
-# Domain ids 1..100 are safe on Linux (ports below the ephemeral range).  A test holds an
-# exclusive flock on /tmp/homotopy-swarm-domains/<id>.lock for as long as it uses the id, so
-# parallel pytest runs on one machine (several clones, CI beside a developer) never share one.
-_LOCK_DIR = Path(os.environ.get('SWARM_DOMAIN_LOCK_DIR', '/tmp/homotopy-swarm-domains'))
-_start = itertools.count((os.getpid() * 7) % 100)
-
-
-def _claim_domain():
-    """(domain id, open lock file) of a free id; the id is ours until the file is closed."""
-    import fcntl
-    _LOCK_DIR.mkdir(parents=True, exist_ok=True)
-    first = next(_start)
-    for attempt in range(3 * 100):
-        dom = 1 + (first + attempt) % 100
-        f = open(_LOCK_DIR / f'{dom}.lock', 'a')
-        try:
-            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            f.close()
-            if attempt % 100 == 99:
-                time.sleep(1.0)
-            continue
-        return dom, f
-    raise RuntimeError(f'no free ROS_DOMAIN_ID in 1..100 (locks in {_LOCK_DIR})')
-
-
-@pytest.fixture
-def ros_domain(monkeypatch, request):
-    """A fresh ROS_DOMAIN_ID for this test, localhost-only discovery; returns the id.
-
-    Set in os.environ (restored afterwards) so child processes inherit it too."""
-    dom, lock = _claim_domain()
-    request.addfinalizer(lock.close)
-    monkeypatch.setenv('ROS_DOMAIN_ID', str(dom))
-    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    monkeypatch.delenv('ROS_STATIC_PEERS', raising=False)
-    monkeypatch.setenv('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
-    return dom
+# ``ros_domain`` (a ROS_DOMAIN_ID of the test's own) and ``swarm`` come from the project's pytest
+# plugin, swarm_tools.pytest_plugin (entry point pytest11), which users' tests get too.
 
 
 @pytest.fixture

@@ -9,7 +9,7 @@ from swarm_tools import join, launch
 
 
 @pytest.fixture
-def swarm(tmp_path):
+def scenario_of(tmp_path):
     """A scenario of n agents (loaded, and the reference the nodes get)."""
     def make(n):
         path = tmp_path / f'swarm{n}.yaml'
@@ -29,48 +29,48 @@ def agents(run):
     return {fqn: p for fqn, p in run.params.items() if fqn.endswith('/agent')}
 
 
-def test_containers_for_agents_per_process(swarm):
-    run = run_plan(swarm(10), '--agents-per-process', '4')
+def test_containers_for_agents_per_process(scenario_of):
+    run = run_plan(scenario_of(10), '--agents-per-process', '4')
     assert run.groups == [[f'agent_{i}' for i in range(4)], [f'agent_{i}' for i in range(4, 8)],
                           ['agent_8', 'agent_9']]
     assert run.per == 4 and run.processes == 3 + 2 and run.services
     assert run.params['/world']['step_readers'] == 3     # one step relay reader per agent process
     assert '(4 agents per process)' in run.summary() and '5 processes' in run.summary()
-    one = run_plan(swarm(10))
+    one = run_plan(scenario_of(10))
     assert one.groups == [[f'agent_{i}'] for i in range(10)] and one.processes == 12
     assert 'step_readers' not in one.params['/world'] and 'per process' not in one.summary()
     # auto: one process per agent for a small swarm, one container per core for a large one
-    assert run_plan(swarm(10), '--agents-per-process', 'auto', cores=4).per == 1
-    big = run_plan(swarm(200), '--agents-per-process', 'auto', cores=4)
+    assert run_plan(scenario_of(10), '--agents-per-process', 'auto', cores=4).per == 1
+    big = run_plan(scenario_of(200), '--agents-per-process', 'auto', cores=4)
     assert big.per == 50 and len(big.groups) == 4 and not big.services
     assert 'agent nodes without services' in big.summary()
 
 
-def test_in_process_plans_one_process_and_ignores_process_options(swarm):
-    run = run_plan(swarm(6), '--in-process', '--record', 'x.mcap', '--foxglove', '--agents-per-process', '3')
+def test_in_process_plans_one_process_and_ignores_process_options(scenario_of):
+    run = run_plan(scenario_of(6), '--in-process', '--record', 'x.mcap', '--foxglove', '--agents-per-process', '3')
     assert run.in_process and run.record is None and run.foxglove is None and not run.use_server
     assert 'one process' in run.summary() and 'per process' not in run.summary()
     assert [ln.split()[0] for ln in run.ignored] == ['--record', '--foxglove']
     assert 'events_file' not in run.params['/world'] and 'step_readers' not in run.params['/world']
-    assert run_plan(swarm(6), '--in-process').ignored == []
+    assert run_plan(scenario_of(6), '--in-process').ignored == []
 
 
-def test_record_makes_every_node_wait_for_the_recorder(swarm):
-    run = run_plan(swarm(6), '--record', 'x.mcap', '--state-readers', '2')
+def test_record_makes_every_node_wait_for_the_recorder(scenario_of):
+    run = run_plan(scenario_of(6), '--record', 'x.mcap', '--state-readers', '2')
     assert run.record == 'x.mcap' and run.processes == 6 + 2 + 1
     assert {p['state_subscribers'] for p in agents(run).values()} == {3}      # 2 outside + our recorder
     assert run.params['/world']['wait_for_recorder'] and run.params['/commander']['wait_for_recorder']
-    plain = run_plan(swarm(6))
+    plain = run_plan(scenario_of(6))
     assert plain.record is None and plain.processes == 8
     assert all('state_subscribers' not in p for p in agents(plain).values())
     assert 'wait_for_recorder' not in plain.params['/world'] | plain.params['/commander']
-    realtime = run_plan(swarm(6), '--record', 'x.mcap', '--mode', 'realtime')   # lockstep only
+    realtime = run_plan(scenario_of(6), '--record', 'x.mcap', '--mode', 'realtime')   # lockstep only
     assert all('state_subscribers' not in p for p in agents(realtime).values())
     assert 'wait_for_recorder' not in realtime.params['/world']
 
 
-def test_every_node_gets_the_run_id_and_outputs(swarm, tmp_path):
-    run = run_plan(swarm(3), '--out', str(tmp_path / 'o'), '--foxglove', '0', run_id='abc123')
+def test_every_node_gets_the_run_id_and_outputs(scenario_of, tmp_path):
+    run = run_plan(scenario_of(3), '--out', str(tmp_path / 'o'), '--foxglove', '0', run_id='abc123')
     assert {p['run_id'] for p in run.params.values()} == {'abc123'} and len(run.params) == 5
     assert run.out == (tmp_path / 'o').resolve() and run.traj_file == run.out / 'trajectory.npz'
     assert run.params['/world']['events_file'] == str(run.out / 'events.jsonl')
@@ -79,16 +79,16 @@ def test_every_node_gets_the_run_id_and_outputs(swarm, tmp_path):
     assert run.summary().startswith('swarm run: run abc123: swarm3 seed ')
 
 
-def test_remote_agents_and_the_discovery_server(swarm):
-    run = run_plan(swarm(8), '--remote-agents', '2,5-7', '--agents-per-process', '2', '--seed', '3',
+def test_remote_agents_and_the_discovery_server(scenario_of):
+    run = run_plan(scenario_of(8), '--remote-agents', '2,5-7', '--agents-per-process', '2', '--seed', '3',
                    '--record', 'b.mcap')
     assert run.remote == [2, 5, 6, 7] and run.local == ['agent_0', 'agent_1', 'agent_3', 'agent_4']
     assert run.groups == [['agent_0', 'agent_1'], ['agent_3', 'agent_4']] and run.use_server
     assert run.params['/world']['step_readers'] == 2 + 4     # the remote agents each read the relay
     head, tail = run.join
     assert head.endswith('--agents 2,5-7') and tail == ' --interface ADDR --seed 3 --recorded'
-    assert not run_plan(swarm(8)).use_server
-    assert run_plan(swarm(8), '--discovery', 'server').use_server
+    assert not run_plan(scenario_of(8)).use_server
+    assert run_plan(scenario_of(8), '--discovery', 'server').use_server
 
 
 @pytest.mark.parametrize('args, word', [
@@ -99,9 +99,9 @@ def test_remote_agents_and_the_discovery_server(swarm):
     (('--remote-agents', '9'), "'9' is outside 0..5"),
     (('--server-port', '70000'), '--server-port 70000'),
 ])
-def test_plan_names_the_bad_option(swarm, args, word):
+def test_plan_names_the_bad_option(scenario_of, args, word):
     with pytest.raises(ValueError, match=word):
-        run_plan(swarm(6), *args)
+        run_plan(scenario_of(6), *args)
 
 
 @pytest.mark.parametrize('args, word', [
@@ -109,28 +109,28 @@ def test_plan_names_the_bad_option(swarm, args, word):
     (('--clock-every', '0'), '--clock-every 0'), (('--foxglove', '70000'), '--foxglove 70000'),
     (('--state-readers', '-1'), '--state-readers -1'), (('--rtf', '0'), '--rtf 0.0'),
 ])
-def test_options_out_of_range_are_named(swarm, args, word):
+def test_options_out_of_range_are_named(scenario_of, args, word):
     with pytest.raises(ValueError, match=word):
-        run_plan(swarm(3), *args)
+        run_plan(scenario_of(3), *args)
 
 
-def test_too_many_agents_for_one_run(swarm):
+def test_too_many_agents_for_one_run(scenario_of):
     with pytest.raises(ValueError, match=f'{launch.MAX_RUN_AGENTS + 1} agents: at most {launch.MAX_RUN_AGENTS}'):
-        run_plan(swarm(launch.MAX_RUN_AGENTS + 1))
+        run_plan(scenario_of(launch.MAX_RUN_AGENTS + 1))
 
 
-def test_prepare_outputs_refuses_a_bad_bag_and_clears_old_outputs(swarm, tmp_path):
-    run = run_plan(swarm(3), '--out', str(tmp_path / 'o'), '--record', str(tmp_path / 'x.bag'))
+def test_prepare_outputs_refuses_a_bad_bag_and_clears_old_outputs(scenario_of, tmp_path):
+    run = run_plan(scenario_of(3), '--out', str(tmp_path / 'o'), '--record', str(tmp_path / 'x.bag'))
     with pytest.raises(ValueError, match='must name a .mcap file'):
         launch.prepare_outputs(run)
-    run = run_plan(swarm(3), '--out', str(tmp_path / 'o'), '--record', str(tmp_path / 'bags' / 'x.mcap'))
+    run = run_plan(scenario_of(3), '--out', str(tmp_path / 'o'), '--record', str(tmp_path / 'bags' / 'x.mcap'))
     run.traj_file.write_text('old')
     launch.prepare_outputs(run)
     assert (tmp_path / 'bags').is_dir() and not run.traj_file.exists()
 
 
-def test_join_plans_the_agents_it_starts(swarm):
-    scn, ref = swarm(6)
+def test_join_plans_the_agents_it_starts(scenario_of):
+    scn, ref = scenario_of(6)
     a = join._parser().parse_args([ref, '--agents', '1,4-5', '--server', '127.0.0.1:11811', '--recorded'])
     plan = join.plan(a, scn, ref)
     assert plan.names == ['agent_1', 'agent_4', 'agent_5'] and plan.server == '127.0.0.1:11811'

@@ -26,5 +26,7 @@ setup(
         'swarm_report = swarm_tools.report:main',
         'swarm_play = swarm_tools.play:main',
         'swarm_view = swarm_tools.view:main',
-    ]},
+    ],
+        # the fixtures ros_domain and swarm for users' own tests (swarm_tools.pytest_plugin)
+        'pytest11': ['swarm_tools = swarm_tools.pytest_plugin']},
 )

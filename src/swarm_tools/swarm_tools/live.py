@@ -30,74 +30,45 @@
 
 Every verb first reads the run's ``/swarm/run`` announcement, says which run it reached, and
 refuses (exit 1) when two runs share the domain, or (exit 2) for an agent the run does not have.
+The verbs are thin wrappers over `swarm_tools.client.Client`, the client of the Python API
+(`swarm_tools.api.Swarm`): one client path; exit 2 for a bad value, 1 when nothing takes it.
 """
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import sys
-import time
 
-from swarm_core.inputs import LAMBDA_BOUND
 from swarm_ros import protocol as P
-from swarm_ros.cliutil import add_wait, cli_node
+from swarm_ros.cliutil import add_wait
 
-SETPOINT = P.LAMBDA_SETPOINT
+from .client import SwarmError, UnknownAgent
+
+
+def _say(line):
+    print(line, flush=True)
+
+
+def _client_call(prog: str, call) -> int:
+    """Run ``call(client)`` on a `Client` of the domain: 0, or the exit code of its error
+    (said): 2 for a bad value or an agent the run does not have, 1 when no swarm takes it or
+    two runs share the domain."""
+    from .client import Client
+    try:
+        with Client(name='swarm_cli') as client:
+            call(client)
+        return 0
+    except ValueError as err:
+        print(f'{prog}: {err}', file=sys.stderr)
+        return 2
+    except UnknownAgent as err:
+        print(err, file=sys.stderr)
+        return 2
+    except SwarmError as err:         # NoSwarm, TwoRuns
+        print(err, file=sys.stderr)
+        return 1
 
 
 # ---------------------------------------------------------------- λ and steering
-class RunRefused(Exception):
-    """The live verb must not act (two runs on the domain, an agent the run does not have)."""
-
-
-def _publish_once(msg_type, topic, msg, wait, qos_depth=10, for_node=None, prog=None, agent=None):
-    """Publish one message once a subscriber has matched (up to ``wait`` s); True if matched.
-
-    ``for_node``: the node the message is for (e.g. 'commander'): wait until a subscription of
-    that node is in the graph too, not just any (a recorder may match first), then publish and
-    wait for the acknowledgements.  ``prog``: also read the run's ``/swarm/run`` announcement
-    (swarm_ros.runinfo) and say which run was reached; raise `RunRefused` (nothing is sent)
-    if two runs share the domain or ``agent`` is not one of the run's agents."""
-    from rclpy.duration import Duration
-
-    from swarm_ros import runinfo
-    with cli_node('swarm_cli') as (node, ex):
-        pub = node.create_publisher(msg_type, topic, qos_depth)
-        watch = runinfo.RunWatch(node) if prog else None
-
-        def ready():
-            if pub.get_subscription_count() == 0:
-                return False
-            return for_node is None or any(
-                i.node_name == for_node for i in node.get_subscriptions_info_by_topic(topic))
-
-        end = time.monotonic() + wait
-        while not ready() and time.monotonic() < end:
-            ex.spin_once(timeout_sec=0.05)
-        if pub.get_subscription_count() == 0:
-            return False
-        settle = time.monotonic() + 0.2          # let the subscribers' side of the match settle
-        if watch is not None:                    # ... and hear the run (every run on the domain)
-            limit = time.monotonic() + (2.0 if runinfo.has_world(node) else 0.0)
-            while not watch.runs and time.monotonic() < limit:
-                ex.spin_once(timeout_sec=0.05)
-            if watch.runs:                       # a second run's announcement may come just after
-                settle = time.monotonic() + 0.5
-        while time.monotonic() < settle:
-            ex.spin_once(timeout_sec=0.05)
-        if watch is not None:
-            run, err = runinfo.one_run(watch.runs, prog)
-            err = err or (runinfo.unknown_agent(run, agent, prog) if agent else None)
-            if err:
-                raise RunRefused(err)
-            print(f'{prog}: reached {runinfo.describe(run)}' if run else
-                  f'{prog}: reached a swarm that does not announce a run on /swarm/run', flush=True)
-        pub.publish(msg)
-        pub.wait_for_all_acked(Duration(seconds=2.0))
-        return True
-
-
 def lambda_main(argv) -> int:
     p = argparse.ArgumentParser(prog='swarm lambda', description=(
         'Set the homotopy parameter λ of a running swarm: the commander ramps smoothly to it.'))
@@ -105,27 +76,12 @@ def lambda_main(argv) -> int:
     p.add_argument('--ramp', type=float, default=20.0, help='ramp duration in sim seconds (default 20; 0 = jump)')
     add_wait(p, 'the swarm')
     a = p.parse_args(argv)
-    if not LAMBDA_BOUND.ok(a.value):
-        print(f'swarm lambda: {LAMBDA_BOUND.error(a.value)}', file=sys.stderr)
-        return 2
-    if not (math.isfinite(a.ramp) and a.ramp >= 0.0):
-        print(f'swarm lambda: --ramp {a.ramp!r} rejected: must be finite and ≥ 0', file=sys.stderr)
-        return 2
-    from std_msgs.msg import Float64, Float64MultiArray
-    try:
-        if _publish_once(Float64MultiArray, SETPOINT, Float64MultiArray(data=[a.value, a.ramp]), a.wait,
-                         for_node='commander', prog='swarm lambda'):
-            print(f'swarm lambda: set-point λ={a.value:g}, ramp {a.ramp:g} s (sent to the commander)')
-            return 0
-    except RunRefused as err:
-        print(err, file=sys.stderr)
-        return 1
-    if _publish_once(Float64, '/swarm/lambda', Float64(data=a.value), 1.0):
-        print(f'swarm lambda: no commander found; published λ={a.value:g} on /swarm/lambda')
-        return 0
-    print('swarm lambda: no running swarm found (nothing subscribes /swarm/lambda); '
-          'is ROS_DOMAIN_ID the same as the run\'s?', file=sys.stderr)
-    return 1
+
+    def call(client):
+        how = client.set_lambda(a.value, a.ramp, a.wait, say=_say)
+        print(f'swarm lambda: set-point λ={a.value:g}, ramp {a.ramp:g} s (sent to the commander)'
+              if how == 'commander' else f'swarm lambda: no commander found; published λ={a.value:g} on /swarm/lambda')
+    return _client_call('swarm lambda', call)
 
 
 def steer_main(argv) -> int:
@@ -135,162 +91,52 @@ def steer_main(argv) -> int:
     p.add_argument('value', type=float, help='curvature s_k (finite; + turns anticlockwise)')
     add_wait(p, 'the agent')
     a = p.parse_args(argv)
-    if not math.isfinite(a.value):
-        print(f'swarm steer: steering {a.value!r} rejected: not finite', file=sys.stderr)
-        return 2
-    name = a.agent.strip('/')
-    if not name or '/' in name or not name.replace('_', 'a').isalnum():
-        print(f'swarm steer: {a.agent!r} is not an agent name', file=sys.stderr)
-        return 2
-    from std_msgs.msg import Float64
-    try:
-        if _publish_once(Float64, f'/{name}/steering', Float64(data=a.value), a.wait, for_node='commander',
-                         prog='swarm steer', agent=name):
-            print(f'swarm steer: {name} steering {a.value:g}')
-            return 0
-    except RunRefused as err:
-        print(err, file=sys.stderr)
-        return 2 if 'unknown agent' in str(err) else 1
-    print(f'swarm steer: unknown agent {name!r}: nothing subscribes /{name}/steering', file=sys.stderr)
-    return 1
+
+    def call(client):
+        name = client.steer(a.agent, a.value, a.wait, say=_say)
+        print(f'swarm steer: {name} steering {a.value:g}')
+    return _client_call('swarm steer', call)
 
 
 # ---------------------------------------------------------------- faults
-
-def _agent_name(text):
-    name = text.strip('/')
-    if not name or '/' in name or not name.replace('_', 'a').isalnum():
-        return None
-    return name
-
-
-def _send(verb, request, wait):
-    """Send ``request`` to the world of the one run on the domain; an exit code (0: sent)."""
-    from std_msgs.msg import String
-
-    # transient-local: a world whose side of the match comes late still gets the request
-    try:
-        if _publish_once(String, P.FAULT_REQUEST, String(data=json.dumps(request)), wait, P.qos_latched(10),
-                         for_node='world', prog=f'swarm {verb}', agent=request['agent']):
-            return 0
-    except RunRefused as err:            # two runs on the domain, or an agent the run lacks
-        print(err, file=sys.stderr)
-        return 2 if 'unknown agent' in str(err) else 1
-    print(f'swarm {verb}: no running swarm found (no world subscribes {P.FAULT_REQUEST}); '
-          "is ROS_DOMAIN_ID the same as the run's?", file=sys.stderr)
-    return 1
-
-
 def _fault_options(verb: str, description: str, argv, seconds: bool = False):
-    """(options, agent name) of ``swarm kill`` / ``swarm pause`` (``seconds``: its SECONDS
-    argument); the name None (said) if AGENT is not an agent name."""
     p = argparse.ArgumentParser(prog=f'swarm {verb}', description=description)
     p.add_argument('agent', help='agent name, e.g. agent_3')
     if seconds:
         p.add_argument('seconds', type=float, help='sim seconds (> 0)')
     add_wait(p, 'the world')
-    a = p.parse_args(argv)
-    name = _agent_name(a.agent)
-    if name is None:
-        print(f'swarm {verb}: {a.agent!r} is not an agent name', file=sys.stderr)
-    return a, name
+    return p.parse_args(argv)
 
 
 def kill_main(argv) -> int:
-    a, name = _fault_options('kill', (
+    a = _fault_options('kill', (
         'Kill an agent of a running swarm: the world drops it from the roster at its next step '
         'and SIGKILLs its process (swarm run --processes).'), argv)
-    if name is None:
-        return 2
-    code = _send('kill', dict(kind='kill', agent=name), a.wait)
-    if code == 0:
+
+    def call(client):
+        name = client.fault('kill', a.agent, wait=a.wait, prog='swarm kill', say=_say)
         print(f'swarm kill: asked the world to kill {name}')
-    return code
+    return _client_call('swarm kill', call)
 
 
 def pause_main(argv) -> int:
-    a, name = _fault_options('pause', (
+    a = _fault_options('pause', (
         'Freeze an agent of a running swarm for SECONDS of sim time: it neither moves nor is '
         'heard, its process is stopped (SIGSTOP) and resumed (SIGCONT) with the state it had.'), argv, seconds=True)
-    if name is None:
-        return 2
-    if not (math.isfinite(a.seconds) and a.seconds > 0):
-        print(f'swarm pause: {a.seconds!r} seconds rejected: must be finite and > 0', file=sys.stderr)
-        return 2
-    code = _send('pause', {'kind': 'freeze', 'agent': name, 'for': a.seconds}, a.wait)
-    if code:
-        return code
-    print(f'swarm pause: asked the world to freeze {name} for {a.seconds:g} s')
-    return 0
+
+    def call(client):
+        name = client.fault('freeze', a.agent, a.seconds, wait=a.wait, prog='swarm pause', say=_say)
+        print(f'swarm pause: asked the world to freeze {name} for {a.seconds:g} s')
+    return _client_call('swarm pause', call)
 
 
 # ---------------------------------------------------------------- the radio
-
-def _agents_in_graph(node):
-    """Agent names of the running swarm (nodes ``/<name>/agent``)."""
-    return sorted(ns.strip('/') for nm, ns in node.get_node_names_and_namespaces()
-                  if nm == 'agent' and ns.strip('/'))
-
-
-def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='swarm'):
-    """Publish one event once the swarm is found; returns an exit code (messages printed)."""
-    from rclpy.duration import Duration
-    from rosgraph_msgs.msg import Clock
-    from std_msgs.msg import String
-
-    from swarm_ros.runinfo import RunWatch, describe, one_run
-    with cli_node('swarm_cli_events') as (node, ex):
-        clock = {}
-        node.create_subscription(Clock, P.CLOCK, lambda m: clock.__setitem__('t', P.stamp_to_time(m.clock)), 10)
-        pub = node.create_publisher(String, P.EVENTS, P.qos_latched(100))
-        watch = RunWatch(node)
-        end = time.monotonic() + wait
-        agents = []
-        while time.monotonic() < end:
-            ex.spin_once(timeout_sec=0.05)
-            agents = _agents_in_graph(node)
-            if agents and pub.get_subscription_count() > 0:
-                break
-        if not agents or pub.get_subscription_count() == 0:
-            print(f'{prog}: no running swarm found (no agent subscribes {P.EVENTS}); '
-                  "is ROS_DOMAIN_ID the same as the run's?", file=sys.stderr)
-            return 1
-        # let the other agents match too: until the count has not grown for 0.5 s (≤ 3 s)
-        count, stable, limit = pub.get_subscription_count(), time.monotonic(), time.monotonic() + 3.0
-        while time.monotonic() - stable < 0.5 and time.monotonic() < limit:
-            ex.spin_once(timeout_sec=0.05)
-            if pub.get_subscription_count() != count:
-                count, stable = pub.get_subscription_count(), time.monotonic()
-        # the graph's node names lag the matched readers (and an agent resumed after `swarm
-        # pause` is rediscovered late): wait for every named agent, and for the sim time,
-        # until --wait is up (at least 3 s more), before calling a name unknown
-        limit = max(end, time.monotonic() + 3.0)
-        while time.monotonic() < limit:
-            unknown = [nm for nm in check_names if nm not in _agents_in_graph(node)]
-            if not unknown and 't' in clock:
-                break
-            ex.spin_once(timeout_sec=0.05)
-        from swarm_ros.runinfo import has_world      # the run's announcement(s), if a world is there
-        limit = time.monotonic() + (0.5 if watch.runs else 2.0 if has_world(node) else 0.0)
-        while time.monotonic() < limit:
-            ex.spin_once(timeout_sec=0.05)
-        run, err = one_run(watch.runs, prog)
-        if err:
-            print(err, file=sys.stderr)
-            return 1
-        print(f'{prog}: reached {describe(run)}' if run else
-              f'{prog}: reached a swarm that does not announce a run on {P.RUN}', flush=True)
-        unknown = [nm for nm in check_names if nm not in _agents_in_graph(node)]
-        if unknown:
-            print(f'{prog}: unknown agent {unknown[0]!r} (running: {", ".join(_agents_in_graph(node))})',
-                  file=sys.stderr)
-            return 2
-        t = clock.get('t')
-        pub.publish(String(data=P.event_json(kind, t, **fields)))
-        pub.wait_for_all_acked(Duration(seconds=2.0))
+def _event_said(prog, kind, fields):
+    def said(result):
+        t, readers = result
         print(f'{prog}: {kind} {fields} at t={"?" if t is None else f"{t:.2f}"} '
-              f'(sent to {pub.get_subscription_count()} readers of {P.EVENTS})')
-        return 0
+              f'(sent to {readers} readers of {P.EVENTS})')
+    return said
 
 
 def drop_main(argv) -> int:
@@ -301,14 +147,8 @@ def drop_main(argv) -> int:
     p.add_argument('--for', dest='duration', type=float, help='duration in sim seconds (default: until changed)')
     add_wait(p, 'the swarm')
     a = p.parse_args(argv)
-    if not (math.isfinite(a.loss) and 0.0 <= a.loss <= 1.0):
-        print(f'swarm drop: loss {a.loss!r} rejected: must be in [0, 1]', file=sys.stderr)
-        return 2
-    if a.duration is not None and not (math.isfinite(a.duration) and a.duration > 0.0):
-        print(f'swarm drop: --for {a.duration!r} rejected: must be a positive number of sim seconds',
-              file=sys.stderr)
-        return 2
-    return publish_event('drop', dict(loss=a.loss, duration=a.duration), a.wait, prog='swarm drop')
+    said = _event_said('swarm drop', 'drop', dict(loss=a.loss, duration=a.duration))
+    return _client_call('swarm drop', lambda client: said(client.drop(a.loss, a.duration, a.wait, say=_say)))
 
 
 def partition_main(argv) -> int:
@@ -323,12 +163,5 @@ def partition_main(argv) -> int:
         print('swarm partition: give groups (a,b,c d,e) or --heal, not both / neither', file=sys.stderr)
         return 2
     groups = [[s.strip() for s in g.split(',') if s.strip()] for g in a.groups]
-    names = [nm for g in groups for nm in g]
-    if any(not g for g in groups):
-        print('swarm partition: an empty group', file=sys.stderr)
-        return 2
-    if len(set(names)) != len(names):
-        dup = next(nm for nm in names if names.count(nm) > 1)
-        print(f'swarm partition: {dup!r} is in more than one group', file=sys.stderr)
-        return 2
-    return publish_event('partition', dict(groups=groups), a.wait, check_names=names, prog='swarm partition')
+    said = _event_said('swarm partition', 'partition', dict(groups=groups))
+    return _client_call('swarm partition', lambda client: said(client.partition(groups, a.wait, say=_say)))

@@ -31,12 +31,12 @@ except (OSError, AttributeError):                         # not Linux
     _prctl = None
 
 
-def die_with_parent(parent_pid: int):
-    """A ``preexec_fn``: the child gets SIGKILL when the process that started it dies (Linux
+def die_with_parent(parent_pid: int, sig=signal.SIGKILL):
+    """A ``preexec_fn``: the child gets ``sig`` when the process that started it dies (Linux
     parent-death signal), and exits at once if that happened before this call."""
     def preexec():
         if _prctl is not None:
-            _prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+            _prctl(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0)
         if os.getppid() != parent_pid:          # the launcher died between fork and prctl
             os._exit(1)
     return preexec

@@ -1,0 +1,470 @@
+"""Drive a live swarm from Python: a script, a notebook or a user's own integration test.
+
+    from swarm_tools.api import Swarm
+
+    with Swarm.start('homotopy_global', duration=60, out='runs/try') as swarm:
+        swarm.set_lambda(1.0, ramp=5)
+        swarm.wait_until(lambda m: m['clusters'] >= 2, timeout=40)
+    print(swarm.metrics_json()['final_clusters'])
+
+`Swarm.start` runs ``swarm run`` (the same launcher, as a child process) and returns once the
+run has announced itself and its sim time runs; leaving the ``with`` block stops it as Ctrl-C
+does (SIGINT; the outputs are kept).  `Swarm.attach` joins a run that is already going.  The
+commands and the observation go through one rclpy node (`swarm_tools.client.Client`) in a
+Context of its own, spun in a background thread: two Swarm objects on two domains work in one
+script, and a Jupyter kernel's loop is never blocked.  docs/python-api.md lists every call.
+"""
+from __future__ import annotations
+
+import atexit
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from swarm_ros import protocol as P
+
+from .client import Client, NoSwarm, SwarmError, TwoRuns, UnknownAgent
+from .processes import die_with_parent
+
+__all__ = ['Swarm', 'States', 'SwarmError', 'NoSwarm', 'TwoRuns', 'UnknownAgent', 'WaitTimeout', 'run_argv']
+
+
+#: the launcher's output in a started run's output directory
+LOG_NAME = 'swarm_run.log'
+
+
+class WaitTimeout(SwarmError, TimeoutError):
+    """`Swarm.wait_until`: the predicate was not true within the timeout."""
+
+
+def run_argv(scenario, *, mode='lockstep', rtf=1.0, duration=None, out=None, agents_per_process=1,
+             record=None, **overrides) -> list:
+    """The ``swarm run`` arguments of `Swarm.start`'s keywords: ``seed=3`` → ``--seed 3``,
+    ``no_figure=True`` → ``--no-figure``, False or None → left out."""
+    opts = dict(mode=mode, rtf=rtf, duration=duration, out=out, agents_per_process=agents_per_process,
+                record=record, **overrides)
+    argv = [str(scenario)]
+    for key, value in opts.items():
+        flag = '--' + key.replace('_', '-')
+        if value is None or value is False:
+            continue
+        argv += [flag] if value is True else [flag, str(value)]
+    return argv
+
+
+@dataclass
+class States:
+    """The newest state of each agent heard on ``/swarm/states`` (rows in the run's order)."""
+    names: list
+    t: np.ndarray           # sim time of each row's state
+    x: np.ndarray
+    y: np.ndarray
+    theta: np.ndarray       # heading
+    u: np.ndarray           # the curvature held over the step that ended at t
+
+
+class _Observer:
+    """``/world/metrics``, ``/swarm/states`` and ``/swarm/events`` heard on a client's node."""
+
+    def __init__(self, client: Client):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from nav_msgs.msg import Odometry
+        from std_msgs.msg import String
+        node, self.lock = client.node, client.lock
+        self.metrics, self.states, self.events = None, {}, []
+        node.create_subscription(DiagnosticArray, P.METRICS, self._on_metrics, 10)
+        node.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(P.STATES_DEPTH), raw=True)
+        node.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
+
+    def _on_metrics(self, msg):
+        from .view import metrics_numbers          # the one decoder of /world/metrics' numbers
+        for st in msg.status:
+            m = metrics_numbers({kv.key: kv.value for kv in st.values})
+            if 'clusters' in m:
+                m['clusters'] = int(m['clusters'])
+            with self.lock:
+                self.metrics = m
+
+    def _on_state(self, raw):
+        from swarm_core.frenet import yaw_from_quaternion
+        _, name, sec, nsec, (x, y, _, _, qz, qw), _, wz, _ = P.cdr_to_odometry_full(raw)
+        t = sec + nsec * 1e-9
+        with self.lock:
+            old = self.states.get(name)
+            if old is None or old[0] <= t:
+                self.states[name] = (t, x, y, float(yaw_from_quaternion(qz, qw)), wz)
+
+    def _on_event(self, msg):
+        try:
+            ev = json.loads(msg.data)
+        except ValueError:
+            return
+        if isinstance(ev, dict):
+            with self.lock:
+                self.events.append(ev)
+
+
+class Swarm:
+    """A live run: commands, observation, and (after it) its outputs.  Make one with
+    `Swarm.start` or `Swarm.attach`."""
+
+    def __init__(self, client: Client, run: dict, proc=None, out=None, log=None):
+        self.client, self.run, self.proc = client, run, proc
+        self.out = None if out is None else Path(out)
+        self.log = [] if log is None else log       # what `swarm run` printed (started runs; `LOG_NAME`)
+        self._obs = _Observer(client)
+        client.follow_clock()
+
+    # ------------------------------------------------------------ making one
+    @classmethod
+    def start(cls, scenario, mode='lockstep', rtf=1.0, duration=None, out=None, agents_per_process=1,
+              record=None, *, domain=None, start_timeout=180.0, echo=False, **overrides) -> 'Swarm':
+        """Start ``swarm run SCENARIO`` with these options (``overrides``: any other ``swarm
+        run`` option as a keyword, e.g. ``seed=3``, ``no_figure=True``) on ``domain`` (None:
+        ROS_DOMAIN_ID); ``out`` None: a new temporary directory.  Returns once the run has
+        announced itself and its sim time runs; `SwarmError` (with what ``swarm run`` said) if
+        it ends or does not start within ``start_timeout`` wall s.  ``echo``: print its lines."""
+        out = Path(out if out is not None else tempfile.mkdtemp(prefix='swarm_api_')).resolve()
+        argv = run_argv(scenario, mode=mode, rtf=rtf, duration=duration, out=out,
+                        agents_per_process=agents_per_process, record=record, **overrides)
+        env = dict(os.environ, PYTHONUNBUFFERED='1')
+        if domain is not None:
+            env['ROS_DOMAIN_ID'] = str(domain)
+        # its lines go to a file (a pipe would break, and the launcher with it, if this process
+        # died); a session of its own (the script's Ctrl-C reaches it through `stop`), and SIGINT
+        # (a stop that keeps the outputs) if this process dies; started before any thread of ours
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            log_file = open(out / LOG_NAME, 'w')
+        except OSError as err:
+            raise SwarmError(f'Swarm.start: cannot write {out / LOG_NAME}: {err.strerror or err}') from None
+        with log_file:
+            proc = subprocess.Popen([sys.executable, '-m', 'swarm_tools.cli', 'run', *argv], env=env,
+                                    start_new_session=True, preexec_fn=die_with_parent(os.getpid(), signal.SIGINT),
+                                    stdout=log_file, stderr=subprocess.STDOUT)
+        try:
+            client = Client(domain, name='swarm_api')
+        except BaseException:
+            _signal_group(proc.pid, signal.SIGKILL)
+            raise
+        log = []
+        reader = threading.Thread(target=_read_lines, args=(proc, out / LOG_NAME, log, echo), daemon=True)
+        reader.start()
+        swarm = cls(client, {}, proc=proc, out=out, log=log)
+        swarm._reader = reader
+        atexit.register(swarm.close)             # a script that never left `with` stops it too
+        try:
+            swarm._wait_started(start_timeout)
+        except BaseException:
+            swarm.close()
+            raise
+        return swarm
+
+    def _wait_started(self, timeout: float):
+        def started():
+            rid = next((ln.split()[3].rstrip(':') for ln in self.log if ln.startswith('swarm run: run ')), None)
+            run = self.client.runs.get(rid) if rid else None
+            return run is not None and self.client.clock is not None, run
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            ok, run = started()
+            if ok:
+                self.run = run
+                return
+            if self.proc.poll() is not None:
+                self._reader.join(timeout=5.0)          # its last lines
+                raise SwarmError(f'swarm run ended (exit code {self.proc.returncode}) before the run started:\n'
+                                 + ''.join(self.log[-30:]))
+            time.sleep(0.05)
+        raise SwarmError(f'the run did not start within {timeout:g} s; swarm run printed:\n' + ''.join(self.log[-30:]))
+
+    @classmethod
+    def attach(cls, domain=None, run_id=None, *, out=None, wait=10.0) -> 'Swarm':
+        """Join the run going on ``domain`` (None: ROS_DOMAIN_ID): the one there, or the one of
+        ``run_id``; ``out``: its output directory (for `trajectory`).  Waits up to ``wait``
+        wall s for its announcement; `NoSwarm`, or `TwoRuns` when two share the domain and no
+        ``run_id`` is given."""
+        from swarm_ros import runinfo
+        client = Client(domain, name='swarm_api')
+        try:
+            Client.until(lambda: (run_id in client.runs) if run_id else client.runs, wait)
+            time.sleep(0.5)                             # a second run's announcement may come just after
+            runs = client.runs
+            if run_id:
+                run = runs.get(run_id)
+                err = None if run else f'Swarm.attach: no run {run_id!r} heard (runs: {sorted(runs) or "none"})'
+            else:
+                run, err = runinfo.one_run(runs, 'Swarm.attach')
+                err = err or (None if run else 'Swarm.attach: no run announces itself on /swarm/run; '
+                              "is ROS_DOMAIN_ID the same as the run's?")
+            if err:
+                raise (TwoRuns if len(runs) > 1 and not run_id else NoSwarm)(err)
+            return cls(client, run, out=out)
+        except BaseException:
+            client.close()
+            raise
+
+    @property
+    def run_id(self) -> str:
+        return self.run.get('run_id', '')
+
+    @property
+    def agents(self) -> list:
+        return list(self.run.get('agents', []))
+
+    # ------------------------------------------------------------ commands
+    def _taken(self, match, before: tuple, what: str, timeout: float):
+        """Wait (``timeout`` wall s) for an event that ``match``es, heard after the first
+        ``before[0]`` and stamped at most a sim second before ``before[1]`` (`_mark`): not an
+        old one a late transient-local delivery brings."""
+        count, t0 = before
+
+        def recent(ev):
+            return t0 is None or not isinstance(ev.get('t'), (int, float)) or ev['t'] >= t0 - 1.0
+
+        def seen():
+            with self._obs.lock:
+                return any(match(ev) and recent(ev) for ev in self._obs.events[count:])
+        if not Client.until(seen, timeout):
+            raise SwarmError(f'{what}: sent, but the swarm did not take it within {timeout:g} s'
+                             + self._ended_note())
+
+    def _mark(self) -> tuple:
+        """(events heard, sim time) before a command is sent (for `_taken`)."""
+        with self._obs.lock:
+            return len(self._obs.events), self.client.clock
+
+    def _call(self, command, *args, **kw):
+        """``command`` of the client; its `NoSwarm` says so if the run has ended."""
+        try:
+            return command(*args, **kw)
+        except NoSwarm as err:
+            if self.running:
+                raise
+            raise NoSwarm(f'{err}{self._ended_note()}') from None
+
+    def _ended_note(self) -> str:
+        return '' if self.running else f' (the run has ended: exit code {self.proc.returncode})'
+
+    def set_lambda(self, value: float, ramp: float = 20.0, *, wait: float = 10.0, timeout: float = 30.0) -> None:
+        """Ramp λ to ``value`` over ``ramp`` sim s; returns once the commander has applied the
+        set-point (its ``command`` event); without a commander, once λ is on ``/swarm/lambda``."""
+        before = self._mark()
+        if self._call(self.client.set_lambda, value, ramp, wait, prog='Swarm.set_lambda') != 'commander':
+            return                      # no commander: λ went out on /swarm/lambda as it is
+        self._taken(lambda ev: ev.get('kind') == 'command' and ev.get('command') == 'lambda'
+                    and ev.get('value') == float(value), before, f'Swarm.set_lambda({value:g})', timeout)
+
+    def steer(self, agent: str, curvature: float, *, wait: float = 10.0, timeout: float = 30.0) -> None:
+        """Make ``agent`` a leader steering the constant ``curvature``; returns once the
+        commander has applied it."""
+        before = self._mark()
+        name = self._call(self.client.steer, agent, curvature, wait, prog='Swarm.steer')
+        self._taken(lambda ev: ev.get('kind') == 'command' and ev.get('command') == 'steer'
+                    and ev.get('agent') == name and ev.get('value') == float(curvature), before,
+                    f'Swarm.steer({name!r}, {curvature:g})', timeout)
+
+    def kill(self, agent: str, *, wait: float = 10.0, timeout: float = 30.0) -> None:
+        """Kill ``agent``; returns once the world has taken it out (its ``kill`` event)."""
+        before = self._mark()
+        name = self._call(self.client.fault, 'kill', agent, wait=wait, prog='Swarm.kill')
+        self._taken(lambda ev: ev.get('kind') == 'kill' and ev.get('agent') == name, before,
+                    f'Swarm.kill({name!r})', timeout)
+
+    def pause(self, agent: str, seconds: float, *, wait: float = 10.0, timeout: float = 30.0) -> None:
+        """Freeze ``agent`` for ``seconds`` sim s; returns once the world has frozen it."""
+        before = self._mark()
+        name = self._call(self.client.fault, 'freeze', agent, seconds, wait=wait, prog='Swarm.pause')
+        self._taken(lambda ev: ev.get('kind') == 'freeze' and ev.get('agent') == name, before,
+                    f'Swarm.pause({name!r}, {seconds:g})', timeout)
+
+    def partition(self, *groups, wait: float = 10.0) -> float:
+        """Groups of agent names that cannot hear each other (no groups: heal); returns the sim
+        time it was stamped with, once every agent's reader has acknowledged it."""
+        return self._call(self.client.partition, list(groups), wait, prog='Swarm.partition')[0]
+
+    def drop(self, loss: float, duration=None, *, wait: float = 10.0) -> float:
+        """Burst loss ``loss`` on every link for ``duration`` sim s (None: until changed)."""
+        return self._call(self.client.drop, loss, duration, wait, prog='Swarm.drop')[0]
+
+    # ------------------------------------------------------------ observation
+    def metrics(self):
+        """The newest ``/world/metrics``: dict of t, lambda, clusters, polarisation,
+        min_distance (None before the first)."""
+        with self._obs.lock:
+            return None if self._obs.metrics is None else dict(self._obs.metrics)
+
+    def states(self):
+        """The newest `States` (None before the first state)."""
+        with self._obs.lock:
+            got = dict(self._obs.states)
+        if not got:
+            return None
+        order = [nm for nm in self.agents if nm in got] + sorted(set(got) - set(self.agents))
+        cols = np.array([got[nm] for nm in order], dtype=float).T
+        return States(order, *cols)
+
+    def events(self) -> list:
+        """Every ``/swarm/events`` event heard so far (dicts, in arrival order)."""
+        with self._obs.lock:
+            return [dict(ev) for ev in self._obs.events]
+
+    @property
+    def t(self):
+        """Sim time of the newest ``/clock`` (None before the first)."""
+        return self.client.clock
+
+    def wait_until(self, predicate, timeout: float, *, on='metrics', wall_timeout=None):
+        """Wait until ``predicate(sample)`` is true for the newest ``metrics()`` (or, with
+        ``on='states'``, ``states()``) and return that sample.  ``timeout``: sim seconds from
+        now (read on ``/clock``); `WaitTimeout` when they pass, or after ``wall_timeout`` wall s
+        (default 60 + 10 × timeout) if sim time stalls; `SwarmError` if the run ends first."""
+        sample_of = {'metrics': self.metrics, 'states': self.states}[on]
+        wall = 60.0 + 10.0 * timeout if wall_timeout is None else wall_timeout
+        wall_end = time.monotonic() + wall
+        t0 = self.t
+        while True:
+            sample = sample_of()
+            if sample is not None and predicate(sample):
+                return sample
+            now = self.t
+            if t0 is None:
+                t0 = now
+            if now is not None and t0 is not None and now - t0 >= timeout:
+                raise WaitTimeout(f'wait_until: {_name(predicate)} not true after {timeout:g} sim s '
+                                  f'(t {t0:.2f} → {now:.2f}); newest {on}: {sample}')
+            if not self.running and self.proc is not None:
+                raise SwarmError(f'wait_until: the run ended (exit code {self.proc.returncode}) before '
+                                 f'{_name(predicate)} was true; newest {on}: {sample}')
+            if time.monotonic() > wall_end:
+                raise WaitTimeout(f'wait_until: {_name(predicate)} not true after {wall:g} wall s '
+                                  f'(sim time stalled at {now}); newest {on}: {sample}')
+            time.sleep(0.05)
+
+    # ------------------------------------------------------------ the end
+    @property
+    def running(self) -> bool:
+        """A started run whose ``swarm run`` has not exited (attached runs: always True)."""
+        return self.proc is None or self.proc.poll() is None
+
+    def wait(self, timeout=None) -> int:
+        """Wait for the run to end by itself (``timeout`` wall s); its exit code."""
+        if self.proc is None:
+            raise SwarmError('Swarm.wait: an attached run is not ours to wait for')
+        return self.proc.wait(timeout=timeout)
+
+    def stop(self, grace: float = 60.0):
+        """Stop a started run as Ctrl-C does (SIGINT; the outputs are written), SIGKILL after
+        ``grace`` wall s; its exit code (None for an attached run, which goes on)."""
+        if self.proc is None:
+            return None
+        if self.proc.poll() is None:
+            _signal_group(self.proc.pid, signal.SIGINT)
+            try:
+                self.proc.wait(timeout=grace)
+            except subprocess.TimeoutExpired:
+                _signal_group(self.proc.pid, signal.SIGKILL)
+                self.proc.wait(timeout=10)
+        # the launcher's session holds every process of the run: none may outlive it
+        if not Client.until(lambda: not self.leftover(), 5.0):
+            for pid in self.leftover():
+                _kill(pid)
+            Client.until(lambda: not self.leftover(), 5.0)
+        return self.proc.returncode
+
+    def leftover(self) -> list:
+        """Pids of the processes of a started run still there (its launcher's session)."""
+        return [] if self.proc is None else session_pids(self.proc.pid)
+
+    def close(self):
+        """Stop a started run (`stop`) and shut the client down (again: nothing)."""
+        atexit.unregister(self.close)
+        try:
+            self.stop()
+        finally:
+            self.client.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def _output(self, name: str) -> Path:
+        if self.out is None:
+            raise SwarmError(f'{name}: the output directory is not known (Swarm.attach(..., out=DIR))')
+        if self.running and self.proc is not None:
+            raise SwarmError(f'{name}: the run is still going; stop() or wait() first')
+        path = self.out / name
+        if not path.is_file():
+            raise SwarmError(f'{name}: not in {self.out} (the run wrote none)')
+        return path
+
+    def trajectory(self):
+        """The run's `swarm_core.trajectory.Trajectory` (trajectory.npz), after the run."""
+        from swarm_core.trajectory import Trajectory
+        return Trajectory.load(self._output('trajectory.npz'))
+
+    def metrics_json(self) -> dict:
+        """The run's metrics.json (its summary and series), after the run."""
+        return json.loads(self._output('metrics.json').read_text())
+
+
+def _read_lines(proc, path: Path, log: list, echo: bool):
+    """Follow the launcher's log file into ``log`` until it has exited and all is read."""
+    with open(path, errors='replace') as f:
+        part = ''
+        while True:
+            ended = proc.poll() is not None
+            chunk = f.readline()
+            if not chunk:
+                if ended:
+                    return
+                time.sleep(0.05)
+                continue
+            part += chunk
+            if part.endswith('\n') or ended:
+                log.append(part)
+                if echo:
+                    print(part, end='', flush=True)
+                part = ''
+
+
+def _signal_group(pid: int, sig):
+    try:
+        os.killpg(pid, sig)
+    except ProcessLookupError:
+        pass
+
+
+def _kill(pid: int):
+    try:
+        os.kill(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
+def session_pids(sid: int) -> list:
+    """Pids of the live (not zombie) processes of session ``sid`` (from /proc)."""
+    pids = []
+    for stat in Path('/proc').glob('[0-9]*/stat'):
+        try:
+            fields = stat.read_text().rsplit(')', 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        if fields[0] != 'Z' and int(fields[3]) == sid:
+            pids.append(int(stat.parent.name))
+    return pids
+
+
+def _name(predicate) -> str:
+    return getattr(predicate, '__name__', None) or repr(predicate)
