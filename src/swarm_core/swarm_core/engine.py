@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 from .faults import alive_control, event_names, reunion_law
 from .integrate import rk4_step, zoh_step
 from .pair_sums import DENSE_LIMIT, sparse_coupling
-from .comms import Beliefs, belief_control, delay_stats
+from .comms import Beliefs, belief_controls, delay_stats
 from .frenet import heading_frame, quaternion_from_heading
 from .scenario import Scenario
 from .trajectory import Trajectory
@@ -162,8 +162,8 @@ class SwarmStepper:
 
     # ---------------------------------------------------------------- communication model
     # A separate path (swarm_core.comms), taken only when the scenario's radio is not perfect:
-    # every receiver computes its u with THE law on its own belief table (a loop over
-    # receivers; the fates of all links of a step are drawn at once, vectorised).
+    # every receiver computes its u with THE law on its own beliefs (one law call over the
+    # believed pairs of all receivers; the fates of all links of a step are drawn at once).
 
     def _init_comms(self):
         self.comms = self.scn.comm_model()
@@ -185,9 +185,8 @@ class SwarmStepper:
             self._comms_step = n
         s = np.zeros(self.n) if steering is None else np.asarray(steering, dtype=float)
         law, target = reunion_law(self.law, self.target, self.plan.rendezvous_now)
-        return np.array([belief_control(law, self.beliefs, k, n, self.comms, pos[k], theta[k], lam,
-                                        is_leader, s[k], target, self.barrier) if alive[k] else 0.0
-                         for k in range(self.n)])
+        return belief_controls(law, self.beliefs, n, self.comms, pos, theta, lam, is_leader, s, target,
+                               self.barrier, active=None if self.faults.all_alive else alive)
 
     def comms_stats(self) -> dict | None:
         """What the radio did so far: messages sent/delivered (links j ≠ k), delays."""
