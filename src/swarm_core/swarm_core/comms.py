@@ -204,9 +204,11 @@ class CommModel:
         return b if (b > 0.0 and step >= start and (end is None or step < end)) else 0.0
 
     def _param(self, key, recv, send):
+        """The value of ``key`` on the links (K, J): the base value (a number) where no link
+        overrides it, else an array."""
         base = getattr(self, key)
         if key not in self._ovr:
-            return np.full((len(recv), len(send)), base)
+            return base
         o = self._ovr[key][np.ix_(recv, send)]
         return np.where(np.isnan(o), base, o)
 
@@ -233,9 +235,12 @@ class CommModel:
             ok &= dx * dx + dy * dy <= self.radio_range * self.radio_range
         delay_t = self._param('latency', recv, send)
         jit = self._param('jitter', recv, send)
-        if np.any(jit > 0.0):
-            delay_t = delay_t + jit * self._uniforms(step, recv, send, STREAM_DELAY)
-        delay = np.maximum(np.ceil(delay_t / self.dt - 1e-9), 0.0).astype(np.int64)
+        if np.ndim(delay_t) == 0 and np.ndim(jit) == 0 and jit == 0.0:     # one delay for all links
+            delay = max(0, math.ceil(delay_t / self.dt - 1e-9))
+        else:
+            if np.any(jit > 0.0):
+                delay_t = delay_t + jit * self._uniforms(step, recv, send, STREAM_DELAY)
+            delay = np.maximum(np.ceil(np.divide(delay_t, self.dt) - 1e-9), 0.0).astype(np.int64)
         arrival = np.where(ok, step + delay, -1)
         arrival[rk == sj] = step
         return arrival
@@ -305,8 +310,8 @@ class Beliefs:
         for m, arr, st in self.pending:
             due = (arr >= 0) & (arr <= step) & (m > self.stamp)
             if due.any():
-                self.stamp = np.where(due, m, self.stamp)
-                self.state = np.where(due[None], st[:, None, :], self.state)
+                np.copyto(self.stamp, m, where=due)
+                np.copyto(self.state, st[:, None, :], where=due)
             if np.any(arr > step):
                 keep.append((m, arr, st))
         self.pending = keep
@@ -364,11 +369,12 @@ def belief_controls(law: LawConfig, beliefs: Beliefs, step: int, model: CommMode
     frozen) get u = 0.  (A dead agent stays in the others' beliefs until its last state is
     older than the timeout: a receiver cannot know it died.)"""
     K = beliefs.recv.size
-    act = np.arange(K) if active is None else np.flatnonzero(active)
+    act = slice(None) if active is None else np.flatnonzero(active)
     a, j, x, y, c, s = beliefs.known_pairs(step, model, None if active is None else act)
-    m = act.size
+    own_xy = np.asarray(own_xy, float).reshape(K, 2)[act]
+    m = own_xy.shape[0]
     pos = np.empty((m + a.size, 2))
-    pos[:m] = np.asarray(own_xy, float).reshape(K, 2)[act]
+    pos[:m] = own_xy
     pos[m:, 0], pos[m:, 1] = x, y
     oc, os_ = heading_frame(np.asarray(own_theta, float).reshape(K)[act])
     cos_t, sin_t = np.concatenate((oc, c)), np.concatenate((os_, s))
