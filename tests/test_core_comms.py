@@ -417,3 +417,22 @@ def test_one_law_call_for_all_receivers_equals_each_receiver_alone():
                             is_leader, steering[k:k + 1])
         assert u[0] == u_all[k], k
     assert len(set(u_all)) == n
+
+
+def test_radio_that_delivers_everything_gives_the_law_of_the_true_table():
+    """A radio that loses and delays nothing (a range no pair reaches): every receiver
+    believes the true states, so `belief_controls` (pair list, each receiver's own nearest
+    leader) equals the law on the true table to rounding, leaders and λ included."""
+    from swarm_core.faults import alive_control
+    from swarm_core.frenet import heading_frame
+    scn = load('homotopy_global', duration=5.0)
+    scn.spec.leaders.at = 1.0
+    scn = parse(dict(scn.spec.model_dump(by_alias=True, exclude_none=True), comms=dict(radio_range=1e6)), 'x')
+    st = run_stepper(scn, 40)
+    t, lam, is_leader, steering, _ = st.inputs()
+    assert is_leader.sum() == 2
+    for lam in (0.0, 0.5, 1.0):
+        got = st.control(t, st.pos, st.theta, lam, is_leader, steering)
+        c, s = heading_frame(st.theta)
+        want = alive_control(st.pos, c, s, np.arange(st.n), st.law, lam, is_leader, steering)
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-12), (lam, got - want)

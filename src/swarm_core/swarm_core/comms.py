@@ -400,8 +400,10 @@ def _nearest_believed_leader(pos, a, m, leader_pair):
         d = pos[a[p]] - pos[m + p]
         d *= d
         order = np.lexsort((p, d[:, 0] + d[:, 1], a[p]))       # by receiver, distance, sender
-        first = np.flatnonzero(np.r_[True, np.diff(a[p][order]) != 0])
-        out[a[p][order[first]]] = m + p[order[first]]
+        recv = a[p][order]
+        first = np.ones(recv.size, dtype=bool)                  # the first of each receiver
+        np.not_equal(recv[1:], recv[:-1], out=first[1:])
+        out[recv[first]] = m + p[order[first]]
     return out
 
 
