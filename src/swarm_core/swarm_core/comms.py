@@ -326,15 +326,27 @@ class Beliefs:
         if active is not None:
             stamp, other = stamp[active], other[active]
         age = step - stamp
-        a, j = np.nonzero((stamp >= 0) & (age <= model.max_age_steps()) & other)
-        src = self.state[:, a, j] if active is None else self.state[:, active][:, a, j]
-        x, y, qz, qw, u = src
+        max_age = model.max_age_steps()
+        a, j = np.nonzero((stamp >= 0) & (age <= max_age) & other)
         age = age[a, j]
-        if model.dead_reckoning and np.any(age > 0):
-            pos, qz, qw = dead_reckon(np.stack([x, y], axis=1), qz, qw, u, age * model.dt, moved=age > 0)
+        # every receiver of the message (j, stamp) holds the same state: predict and frame each
+        # message once (N × distinct ages, not N²), elementwise, so the same bits
+        msg = age * len(self.other[0]) + j
+        first = np.zeros((max_age + 1) * len(self.other[0]), dtype=np.intp)
+        first[msg] = np.arange(msg.size)
+        seen = np.zeros(first.size, dtype=bool)
+        seen[msg] = True
+        one = first[seen]                                       # a pair of each message
+        slot = np.cumsum(seen) - 1                              # message → its row in `one`
+        src = self.state[:, a[one], j[one]] if active is None else self.state[:, active[a[one]], j[one]]
+        x, y, qz, qw, u = src
+        age1 = age[one]
+        if model.dead_reckoning and np.any(age1 > 0):
+            pos, qz, qw = dead_reckon(np.stack([x, y], axis=1), qz, qw, u, age1 * model.dt, moved=age1 > 0)
             x, y = pos[:, 0], pos[:, 1]
         c, s = frame_from_quaternion(qz, qw)
-        return a, j, x, y, c, s
+        back = slot[msg]
+        return a, j, x[back], y[back], c[back], s[back]
 
     def table(self, i: int, step: int, model: CommModel):
         """Rows (agent indices, ascending) receiver ``recv[i]`` knows at ``step``, its own row
