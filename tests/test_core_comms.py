@@ -436,3 +436,19 @@ def test_radio_that_delivers_everything_gives_the_law_of_the_true_table():
         c, s = heading_frame(st.theta)
         want = alive_control(st.pos, c, s, np.arange(st.n), st.law, lam, is_leader, steering)
         assert np.allclose(got, want, rtol=1e-12, atol=1e-12), (lam, got - want)
+
+
+def test_each_message_predicted_once_gives_the_same_bits(monkeypatch):
+    """Above MESSAGES_ONCE believed pairs each message (sender, stamp) is dead-reckoned once
+    and shared by its receivers: the same bits as predicting every pair (an agent's path)."""
+    import swarm_core.comms as comms
+    scn = parse(dict(name='c30', seed=1, dt=0.05, duration=3.0, law=dict(kind='global'),
+                     agents=dict(count=30, positions={'rule': 'grid', 'spacing': 1.5}, headings={'rule': 'cone'}),
+                     comms=dict(loss=0.5, latency=0.05, jitter=0.1)), 'test')
+    st = run_stepper(scn, 40)
+    once = st.beliefs.known_pairs(st.step_index, st.comms)
+    assert once[0].size > comms.MESSAGES_ONCE
+    monkeypatch.setattr(comms, 'MESSAGES_ONCE', 10 ** 9)
+    every = st.beliefs.known_pairs(st.step_index, st.comms)
+    assert all(np.array_equal(p, q) for p, q in zip(once, every))
+    assert len(np.unique(st.step_index - st.beliefs.stamp)) > 2              # several ages held

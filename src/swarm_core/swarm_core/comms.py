@@ -55,6 +55,8 @@ _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
 #: the two draws of a link and step
 STREAM_LOSS, STREAM_DELAY = 0, 1
+#: above this many believed pairs, each message is dead-reckoned once (`Beliefs.known_pairs`)
+MESSAGES_ONCE = 256
 #: fates of links × steps drawn at once (`CommModel._uniforms`)
 FATE_BLOCK = 16384
 
@@ -329,6 +331,9 @@ class Beliefs:
         max_age = model.max_age_steps()
         a, j = np.nonzero((stamp >= 0) & (age <= max_age) & other)
         age = age[a, j]
+        rows = active[a] if active is not None else a
+        if a.size <= MESSAGES_ONCE:
+            return (a, j) + self._predicted(step, model, rows, j, age)
         # every receiver of the message (j, stamp) holds the same state: predict and frame each
         # message once (N × distinct ages, not N²), elementwise, so the same bits
         msg = age * len(self.other[0]) + j
@@ -337,16 +342,17 @@ class Beliefs:
         seen = np.zeros(first.size, dtype=bool)
         seen[msg] = True
         one = first[seen]                                       # a pair of each message
-        slot = np.cumsum(seen) - 1                              # message → its row in `one`
-        src = self.state[:, a[one], j[one]] if active is None else self.state[:, active[a[one]], j[one]]
-        x, y, qz, qw, u = src
-        age1 = age[one]
-        if model.dead_reckoning and np.any(age1 > 0):
-            pos, qz, qw = dead_reckon(np.stack([x, y], axis=1), qz, qw, u, age1 * model.dt, moved=age1 > 0)
+        back = (np.cumsum(seen) - 1)[msg]                       # pair → its message's row
+        return (a, j) + tuple(v[back] for v in self._predicted(step, model, rows[one], j[one], age[one]))
+
+    def _predicted(self, step, model, rows, j, age):
+        """(x, y, cos θ, sin θ) of the beliefs (rows, j) of the given ages, dead-reckoned to
+        t_step if the model says so."""
+        x, y, qz, qw, u = self.state[:, rows, j]
+        if model.dead_reckoning and np.any(age > 0):
+            pos, qz, qw = dead_reckon(np.stack([x, y], axis=1), qz, qw, u, age * model.dt, moved=age > 0)
             x, y = pos[:, 0], pos[:, 1]
-        c, s = frame_from_quaternion(qz, qw)
-        back = slot[msg]
-        return a, j, x[back], y[back], c[back], s[back]
+        return (x, y) + frame_from_quaternion(qz, qw)
 
     def table(self, i: int, step: int, model: CommModel):
         """Rows (agent indices, ascending) receiver ``recv[i]`` knows at ``step``, its own row
