@@ -42,10 +42,11 @@ def swarm(n, kind, spacing=1.5, seed=0):
     return scenario.parse(data)
 
 
-def steps_per_second(n, kind, min_seconds=1.0):
-    """(steps/s by wall time, steps/s by process CPU time, pair search) of a SwarmStepper."""
+def steps_per_second(n, kind, min_seconds=1.0, search='auto'):
+    """(steps/s by wall time, steps/s by process CPU time, pair search) of a SwarmStepper;
+    search 'kdtree' keeps the reference numpy path at any n (no compiled kernels)."""
     from swarm_core import engine
-    stepper = engine.SwarmStepper(swarm(n, kind))
+    stepper = engine.SwarmStepper(swarm(n, kind), neighbour_search=search)
     stepper.step()                                   # warm-up (caches, scratch arrays)
     steps, t0, c0 = 0, time.perf_counter(), time.process_time()
     while True:
@@ -54,14 +55,16 @@ def steps_per_second(n, kind, min_seconds=1.0):
         el = time.perf_counter() - t0
         if el >= min_seconds and steps >= 3:
             cpu = time.process_time() - c0
-            search = 'kdtree' if stepper._pairs(stepper.pos, stepper.plan.schedule.value(0.0)) is not None else 'all pairs'
+            pairs = stepper._pairs(stepper.pos, stepper.plan.schedule.value(0.0))
+            search = pairs if isinstance(pairs, str) else 'kdtree' if pairs is not None else 'all pairs'
             return steps / el, steps / max(cpu, 1e-9), search
 
 
-def full_run(name, dt):
-    """(wall s, CPU s) of one simulate() of a shipped scenario to its duration at dt."""
+def full_run(name, dt, comms=None, duration=None):
+    """(wall s, CPU s) of one simulate() of a shipped scenario to its duration at dt, with the
+    radio ``comms`` (a scenario ``comms`` mapping) or its own."""
     from swarm_core import engine, scenario
-    scn = scenario.load(name, dt=dt)
+    scn = scenario.load(name, dt=dt, comms=comms, duration=duration)
     t0, c0 = time.perf_counter(), time.process_time()
     engine.simulate(scn)
     return time.perf_counter() - t0, time.process_time() - c0
@@ -132,10 +135,11 @@ def worker(spec):
         wall, cpu = agent_call(spec['min_seconds'])
         out = dict(wall=wall, cpu=cpu, agent_module=swarm_agent.__file__)
     elif spec['what'] == 'sps':
-        wall, cpu, search = steps_per_second(spec['n'], spec['kind'], spec['min_seconds'])
+        wall, cpu, search = steps_per_second(spec['n'], spec['kind'], spec['min_seconds'],
+                                             spec.get('search', 'auto'))
         out = dict(wall=wall, cpu=cpu, search=search)
     else:
-        wall, cpu = full_run(spec['name'], spec['dt'])
+        wall, cpu = full_run(spec['name'], spec['dt'], spec.get('comms'), spec.get('duration'))
         out = dict(wall=wall, cpu=cpu)
     out['module'] = swarm_core.__file__
     print(json.dumps(out))
@@ -187,6 +191,10 @@ def main(argv=None):
     p.add_argument('--global-n', help='swarm sizes of the global law, comma list (default: a sweep 6 … 4000)')
     p.add_argument('--local-n', help='swarm sizes of the local law, comma list (default: a sweep 6 … 30000)')
     p.add_argument('--no-runs', action='store_true', help='skip the full homotopy_global runs')
+    p.add_argument('--reference', action='store_true',
+                   help='also measure the reference numpy path (KD-tree / all pairs) at the sizes '
+                        'where the engine takes compiled kernels')
+    p.add_argument('--duration', type=float, help='length of the full runs (default: the scenario\'s, t = 1000)')
     p.add_argument('--worker', help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.worker:
@@ -208,8 +216,13 @@ def main(argv=None):
              for r in ('one', 'all') for lam in (None, 0.0)]
     specs += [dict(what='agent', min_seconds=min_s)]
     specs += [dict(what='sps', kind=kind, n=n, min_seconds=min_s) for kind, ns in sizes.items() for n in ns]
+    if a.reference:
+        from swarm_core.large_swarms import COMPILED_LIMIT
+        specs += [dict(what='sps', kind=kind, n=n, min_seconds=min_s, search='kdtree')
+                  for kind, ns in sizes.items() for n in ns if n >= COMPILED_LIMIT]
     if not a.no_runs:
-        specs += [dict(what='run', name='homotopy_global', dt=dt) for dt in (0.05, 0.1)]
+        specs += [dict(what='run', name='homotopy_global', dt=dt, duration=a.duration) for dt in (0.05, 0.1)]
+        specs += [dict(what='run', name='homotopy_global', dt=0.1, duration=a.duration, comms=dict(loss=0.5))]
     res = dict(command='scripts/bench_core.py ' + ' '.join(sys.argv[1:] if argv is None else argv),
                load_before=loadavg(), cpus=os.cpu_count(), repeats=repeats, compare=a.compare,
                current={}, baseline={})
@@ -250,13 +263,14 @@ def main(argv=None):
 
 def spec_key(spec):
     if spec['what'] == 'sps':
-        return f'{spec["kind"]} n={spec["n"]}'
+        return f'{spec["kind"]} n={spec["n"]}' + (' reference' if spec.get('search') == 'kdtree' else '')
     if spec['what'] == 'law':
         lam = 'λ=0.97' if spec['lam'] is None else f'λ={spec["lam"]:g}'
         return f'law {spec["receivers"]} {lam}'
     if spec['what'] == 'agent':
         return 'AgentCore.control'
-    return f'{spec["name"]} dt={spec["dt"]}'
+    radio = ' ' + ', '.join(f'{k} {v:g}' for k, v in spec['comms'].items()) if spec.get('comms') else ''
+    return f'{spec["name"]} dt={spec["dt"]}{radio}'
 
 
 def table(res):
@@ -291,7 +305,8 @@ def table(res):
             lambda row, b: f'{row["wall"] / b["wall"]:.1f}×')
     section(('run',), '| run | steps | wall (s) | CPU (s) |',
             ' before: wall (s) | before: CPU (s) | speed-up (CPU) |',
-            lambda key, row: f'| {key} to t = 1000 | {int(round(1000 / row["dt"]))} |', 2,
+            lambda key, row: f'| {key} to t = {row.get("duration") or 1000:g} | '
+                             f'{int(round((row.get("duration") or 1000) / row["dt"]))} |', 2,
             lambda row, b: f'{b["cpu"] / row["cpu"]:.2f}×')
     section(('law', 'agent'), '| one call, n = 6 (homotopy_global states at t = 450) | µs/call | µs CPU/call |',
             ' before: µs/call | before: µs CPU/call | speed-up (CPU) |', call_label, 1,

@@ -349,3 +349,106 @@ def test_a_radio_without_per_link_overrides_needs_no_n_squared_memory():
     one = CommModel.from_config(dict(links=[dict(receiver='a1', sender='a0', loss=1.0)]), names[:10], 0.05)
     arrival = one.decide(0, np.arange(10), np.zeros((10, 2)), np.arange(10), np.zeros((10, 2)))
     assert arrival[1, 0] == -1 and (np.delete(arrival.ravel(), 10) >= 0).all()
+
+
+def test_fates_drawn_in_blocks_equal_the_fate_function():
+    """The engine draws the uniforms of many steps at once (`CommModel._uniforms`): every
+    arrival across block boundaries equals the one computed from `link_uniforms` alone."""
+    m = CommModel.from_config(dict(loss=0.4, latency=0.05, jitter=0.3), NAMES, 0.05, seed=9)
+    k, j = np.meshgrid(np.arange(6), np.arange(6), indexing='ij')
+    steps_per_block = 16384 // 36
+    for step in list(range(0, 5)) + [steps_per_block - 1, steps_per_block, 3 * steps_per_block + 7]:
+        arr = m.decide(step, np.arange(6), np.zeros((6, 2)), np.arange(6), np.zeros((6, 2)))
+        lost = link_uniforms(9, step, k, j, 0) < 0.4
+        delay = np.ceil((0.05 + 0.3 * link_uniforms(9, step, k, j, 1)) / 0.05 - 1e-9).astype(int)
+        want = np.where(lost, -1, step + delay)
+        want[k == j] = step
+        assert np.array_equal(arr, want), step
+
+
+def test_radio_range_statistics_over_random_geometry():
+    """Over 400 steps of random positions: no message beyond the range is delivered, and the
+    delivered fraction within range is 1 − loss (binomial, level ALPHA)."""
+    m = CommModel.from_config(dict(radio_range=1.5, loss=0.25), NAMES, 0.05, seed=2)
+    rng = np.random.default_rng(4)
+    within = got = 0
+    for step in range(400):
+        pos = rng.uniform(-1.5, 1.5, (6, 2))
+        arr = m.decide(step, np.arange(6), pos, np.arange(6), pos)
+        d = np.hypot(*(pos[:, None, :] - pos[None, :, :]).transpose(2, 0, 1))
+        off = ~np.eye(6, dtype=bool)
+        assert not (arr[off & (d > 1.5)] >= 0).any()
+        within += int((off & (d <= 1.5)).sum())
+        got += int((arr[off & (d <= 1.5)] >= 0).sum())
+    assert within > 3000 and binom_ok(got, within, 0.75, ALPHA)
+    assert not binom_ok(got, within, 0.7, ALPHA) and not binom_ok(got, within, 0.8, ALPHA)
+
+
+def test_partition_cuts_exactly_the_named_links_from_its_step():
+    """A scheduled partition with loss 0: from its step on, a link is cut if and only if its
+    ends are in different groups (the agents in no group form one more group); before, none."""
+    groups = [['agent_1', 'agent_4'], ['agent_0']]
+    m = CommModel.from_config(dict(events=[dict(at=1.0, partition=groups)]), NAMES, 0.05)
+    label = np.array([1, 0, 2, 2, 0, 2])
+    for step in (0, 19, 20, 21, 100):
+        arr = m.decide(step, np.arange(6), np.zeros((6, 2)), np.arange(6), np.zeros((6, 2)))
+        cut = arr < 0
+        assert np.array_equal(cut, (label[:, None] != label[None, :]) if step >= 20 else np.zeros((6, 6), bool))
+
+
+def test_one_law_call_for_all_receivers_equals_each_receiver_alone():
+    """`belief_controls` for the whole swarm equals, bit for bit, each receiver asking alone
+    with its own beliefs (what an agent process does), on a run with loss, latency, jitter,
+    leaders and a partition."""
+    from swarm_core.comms import belief_controls
+    scn = load('homotopy_global', duration=6.0)
+    scn.spec.leaders.at = 1.0
+    scn = parse(dict(scn.spec.model_dump(by_alias=True, exclude_none=True),
+                     comms=dict(loss=0.5, latency=0.1, jitter=0.2, partition=[['agent_0', 'agent_5']])), 'x')
+    st = run_stepper(scn, 80)
+    n = st.n
+    t, lam, is_leader, steering, _ = st.inputs()
+    assert is_leader.any()
+    u_all = st.control(t, st.pos, st.theta, 0.6, is_leader, steering)
+    for k in range(n):
+        one = Beliefs([k], n)
+        one.stamp, one.state, one.other = st.beliefs.stamp[k:k + 1], st.beliefs.state[:, k:k + 1], st.beliefs.other[k:k + 1]
+        u = belief_controls(st.law, one, st.step_index, st.comms, st.pos[k:k + 1], st.theta[k:k + 1], 0.6,
+                            is_leader, steering[k:k + 1])
+        assert u[0] == u_all[k], k
+    assert len(set(u_all)) == n
+
+
+def test_radio_that_delivers_everything_gives_the_law_of_the_true_table():
+    """A radio that loses and delays nothing (a range no pair reaches): every receiver
+    believes the true states, so `belief_controls` (pair list, each receiver's own nearest
+    leader) equals the law on the true table to rounding, leaders and λ included."""
+    from swarm_core.faults import alive_control
+    from swarm_core.frenet import heading_frame
+    scn = load('homotopy_global', duration=5.0)
+    scn.spec.leaders.at = 1.0
+    scn = parse(dict(scn.spec.model_dump(by_alias=True, exclude_none=True), comms=dict(radio_range=1e6)), 'x')
+    st = run_stepper(scn, 40)
+    t, lam, is_leader, steering, _ = st.inputs()
+    assert is_leader.sum() == 2
+    for lam in (0.0, 0.5, 1.0):
+        got = st.control(t, st.pos, st.theta, lam, is_leader, steering)
+        c, s = heading_frame(st.theta)
+        want = alive_control(st.pos, c, s, np.arange(st.n), st.law, lam, is_leader, steering)
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-12), (lam, got - want)
+
+
+def test_each_message_predicted_once_gives_the_same_bits(monkeypatch):
+    """Above MESSAGES_ONCE believed pairs each message (sender, stamp) is dead-reckoned once
+    and shared by its receivers: the same bits as predicting every pair (an agent's path)."""
+    import swarm_core.comms as comms
+    scn = parse(dict(name='c30', seed=1, dt=0.05, duration=3.0, law=dict(kind='global'),
+                     agents=dict(count=30, positions={'rule': 'grid', 'spacing': 1.5}, headings={'rule': 'cone'}),
+                     comms=dict(loss=0.5, latency=0.05, jitter=0.1)), 'test')
+    st = run_stepper(scn, 40)
+    once = st.beliefs.known_pairs(st.step_index, st.comms)
+    assert once[0].size > comms.MESSAGES_ONCE
+    monkeypatch.setattr(comms, 'MESSAGES_ONCE', 10 ** 9)
+    every = st.beliefs.known_pairs(st.step_index, st.comms)
+    assert all(np.array_equal(p, q) for p, q in zip(once, every))
+    assert len(np.unique(st.step_index - st.beliefs.stamp)) > 2              # several ages held

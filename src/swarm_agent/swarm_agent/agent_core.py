@@ -20,7 +20,7 @@ operation is elementwise, the agent's u equals the batch engine's bit for bit.
 With a communication model (`attach_comms`), `comms_control` first lets the agent's radio
 decide which states of the step's table it receives (`swarm_core.comms`, the same pure fate
 function the batch engine uses for every link), folds them into its beliefs and computes u on
-its belief table (`comms.belief_control`): again bit for bit the batch engine's u.
+its beliefs (`comms.belief_controls`, itself the only receiver): again bit for bit the batch engine's u.
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from swarm_core.faults import alive_control, reunion_law
-from swarm_core.comms import Beliefs, CommModel, belief_control
+from swarm_core.comms import Beliefs, CommModel, belief_controls
 from swarm_core.integrate import zoh_step
 from swarm_core.laws import LawConfig
 from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
@@ -131,8 +131,8 @@ class AgentCore:
         self.beliefs.receive(step, arrival, xy[:, 0], xy[:, 1], np.asarray(qz, float), np.asarray(qw, float),
                              np.asarray(u_sent, float), alive=alive)
         law, target = reunion_law(self.law, target, rendezvous)
-        return belief_control(law, self.beliefs, 0, step, self.comms, self.pos[0], self.theta[0], lam,
-                              is_leader, steering_own, target, barrier)
+        return float(belief_controls(law, self.beliefs, step, self.comms, self.pos, self.theta, lam,
+                                     is_leader, [float(steering_own)], target, barrier)[0])
 
     # -- what the agent publishes
     @property

@@ -23,8 +23,9 @@ very same fates.  All arithmetic is elementwise, so the results are bit-identica
 late older message never replaces a newer one).  Senders whose newest state is older than
 ``timeout`` are forgotten (left out of the table).  With ``dead_reckoning`` the state of t_m is
 predicted to t_n on the exact arc of unit speed with the sender's known heading and u
-(`integrate.zoh_step` with dt = t_n − t_m).  `belief_control` gives u_k from the receiver's
-own state and that table with THE law (`laws.swarm_control`).
+(`integrate.zoh_step` with dt = t_n − t_m).  `belief_controls` gives u_k of every receiver
+from its own state and its beliefs with THE law (`laws.swarm_control`), in one call over the
+believed (receiver, sender) pairs.
 
 Changes in time: ``events`` at sim times (``loss``/``latency``/``jitter`` set the base values,
 ``drop`` + ``duration`` a burst loss, ``partition`` new groups, ``[]`` heals), applied from the
@@ -54,6 +55,10 @@ _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
 #: the two draws of a link and step
 STREAM_LOSS, STREAM_DELAY = 0, 1
+#: above this many believed pairs, each message is dead-reckoned once (`Beliefs.known_pairs`)
+MESSAGES_ONCE = 256
+#: fates of links × steps drawn at once (`CommModel._uniforms`)
+FATE_BLOCK = 16384
 
 
 def _mix(z):
@@ -152,6 +157,7 @@ class CommModel:
                 for g in e['partition']:
                     self._index(g, f'events.{i}.partition')
         self._pending_events = [(event_step(float(e['at']), self.dt), e) for e in self.events]
+        self._fates = {}                    # stream -> (key, first step, uniforms (steps, K, J))
 
     def set_partition(self, groups):
         """Groups of agent names that cannot hear each other ([] or None: no partition)."""
@@ -200,9 +206,11 @@ class CommModel:
         return b if (b > 0.0 and step >= start and (end is None or step < end)) else 0.0
 
     def _param(self, key, recv, send):
+        """The value of ``key`` on the links (K, J): the base value (a number) where no link
+        overrides it, else an array."""
         base = getattr(self, key)
         if key not in self._ovr:
-            return np.full((len(recv), len(send)), base)
+            return base
         o = self._ovr[key][np.ix_(recv, send)]
         return np.where(np.isnan(o), base, o)
 
@@ -219,7 +227,7 @@ class CommModel:
         b = self.burst_at(step)
         if b > 0.0:
             p = 1.0 - (1.0 - p) * (1.0 - b)
-        ok = link_uniforms(self.seed, step, rk, sj, STREAM_LOSS) >= p
+        ok = self._uniforms(step, recv, send, STREAM_LOSS) >= p
         if self.partition:
             ok &= self.labels[rk] == self.labels[sj]
         if self.radio_range is not None:
@@ -229,12 +237,33 @@ class CommModel:
             ok &= dx * dx + dy * dy <= self.radio_range * self.radio_range
         delay_t = self._param('latency', recv, send)
         jit = self._param('jitter', recv, send)
-        if np.any(jit > 0.0):
-            delay_t = delay_t + jit * link_uniforms(self.seed, step, rk, sj, STREAM_DELAY)
-        delay = np.maximum(np.ceil(delay_t / self.dt - 1e-9), 0.0).astype(np.int64)
+        if np.ndim(delay_t) == 0 and np.ndim(jit) == 0 and jit == 0.0:     # one delay for all links
+            delay = max(0, math.ceil(delay_t / self.dt - 1e-9))
+        else:
+            if np.any(jit > 0.0):
+                delay_t = delay_t + jit * self._uniforms(step, recv, send, STREAM_DELAY)
+            delay = np.maximum(np.ceil(np.divide(delay_t, self.dt) - 1e-9), 0.0).astype(np.int64)
         arrival = np.where(ok, step + delay, -1)
         arrival[rk == sj] = step
         return arrival
+
+    def _uniforms(self, step, recv, send, stream):
+        """`link_uniforms` (K, J) of a step, taken from a block of the next steps drawn at once
+        (about FATE_BLOCK numbers; the same numbers, since each is a pure function of its
+        key): a step's hashing costs numpy's per-call overhead, not arithmetic, on small
+        swarms.  The block is kept per stream for the last (receivers, senders) asked."""
+        rk, sj = recv[:, None], send[None, :]
+        size = recv.size * send.size
+        if send.size < 2 or size * 2 > FATE_BLOCK:       # one link (a realtime agent), or large
+            return link_uniforms(self.seed, step, rk, sj, stream)
+        key = (recv.tobytes(), send.tobytes())
+        cached = self._fates.get(stream)
+        if cached is not None and cached[0] == key and cached[1] <= step < cached[1] + len(cached[2]):
+            return cached[2][step - cached[1]]
+        start, steps = step, np.arange(step, step + FATE_BLOCK // size)[:, None, None]
+        block = link_uniforms(self.seed, steps, rk, sj, stream)
+        self._fates[stream] = (key, start, block)
+        return block[step - start]
 
     def max_age_steps(self) -> int:
         """Beliefs older than this many steps are forgotten (timeout)."""
@@ -283,28 +312,53 @@ class Beliefs:
         for m, arr, st in self.pending:
             due = (arr >= 0) & (arr <= step) & (m > self.stamp)
             if due.any():
-                self.stamp = np.where(due, m, self.stamp)
-                self.state = np.where(due[None], st[:, None, :], self.state)
+                np.copyto(self.stamp, m, where=due)
+                np.copyto(self.state, st[:, None, :], where=due)
             if np.any(arr > step):
                 keep.append((m, arr, st))
         self.pending = keep
 
-    def table(self, i: int, step: int, model: CommModel):
-        """Rows (agent indices, ascending) receiver ``recv[i]`` knows at ``step`` and their
-        (x, y, cos θ, sin θ), dead-reckoned to t_step if the model says so; the receiver's own
-        row is a placeholder (its true state is put in by `belief_control`)."""
-        k = int(self.recv[i])
-        age = step - self.stamp[i]
-        known = (self.stamp[i] >= 0) & (age <= model.max_age_steps())
-        known[k] = True
-        rows = np.flatnonzero(known)
-        x, y, qz, qw, u = self.state[:, i, rows]
-        age = age[rows]
+    def known_pairs(self, step: int, model: CommModel, active=None):
+        """What the receivers at positions ``active`` (default: all) believe at ``step``: the
+        pairs (a, j), a the position in ``active``, j a sender row ≠ the receiver, heard within
+        the timeout, sorted by (a, j); and the senders' (x, y, cos θ, sin θ) of each pair,
+        dead-reckoned to t_step if the model says so (elementwise, so a receiver's pairs do
+        not depend on which other receivers are asked for)."""
+        stamp, other = self.stamp, self.other
+        if active is not None:
+            stamp, other = stamp[active], other[active]
+        age = step - stamp
+        max_age = model.max_age_steps()
+        a, j = np.nonzero((stamp >= 0) & (age <= max_age) & other)
+        age = age[a, j]
+        rows = active[a] if active is not None else a
+        if a.size <= MESSAGES_ONCE:
+            return (a, j) + self._predicted(step, model, rows, j, age)
+        # every receiver of the message (j, stamp) holds the same state: predict and frame each
+        # message once (N × distinct ages, not N²), elementwise, so the same bits
+        msg = age * len(self.other[0]) + j
+        first = np.zeros((max_age + 1) * len(self.other[0]), dtype=np.intp)
+        first[msg] = np.arange(msg.size)
+        seen = np.zeros(first.size, dtype=bool)
+        seen[msg] = True
+        one = first[seen]                                       # a pair of each message
+        back = (np.cumsum(seen) - 1)[msg]                       # pair → its message's row
+        return (a, j) + tuple(v[back] for v in self._predicted(step, model, rows[one], j[one], age[one]))
+
+    def _predicted(self, step, model, rows, j, age):
+        """(x, y, cos θ, sin θ) of the beliefs (rows, j) of the given ages, dead-reckoned to
+        t_step if the model says so."""
+        x, y, qz, qw, u = self.state[:, rows, j]
         if model.dead_reckoning and np.any(age > 0):
             pos, qz, qw = dead_reckon(np.stack([x, y], axis=1), qz, qw, u, age * model.dt, moved=age > 0)
             x, y = pos[:, 0], pos[:, 1]
-        c, s = frame_from_quaternion(qz, qw)
-        return rows, x, y, c, s
+        return (x, y) + frame_from_quaternion(qz, qw)
+
+    def table(self, i: int, step: int, model: CommModel):
+        """Rows (agent indices, ascending) receiver ``recv[i]`` knows at ``step``, its own row
+        included, and the others' (x, y, cos θ, sin θ) (`known_pairs`)."""
+        _, j, x, y, c, s = self.known_pairs(step, model, np.array([i]))
+        return np.union1d(j, [self.recv[i]]), x, y, c, s
 
 
 def dead_reckon(pos, qz, qw, u, horizon, moved=None):
@@ -320,25 +374,55 @@ def dead_reckon(pos, qz, qw, u, horizon, moved=None):
     return (np.where(m[:, None], p2, pos), np.where(m, qz2, qz), np.where(m, qw2, qw))
 
 
-def belief_control(law: LawConfig, beliefs: Beliefs, i: int, step: int, model: CommModel,
-                   own_xy, own_theta, lambda_, is_leader, steering_own, target=None, barrier=None):
-    """u of receiver ``beliefs.recv[i]`` at ``step`` from its own true state and what it
-    believes of the others (`Beliefs.table`), with THE law `swarm_control` (dense sums over the
-    table, in agent-index order).  is_leader (N,) are the step's leader flags of all agents.
-    (A dead agent stays in the table until its last state is older than the timeout: the
-    receiver cannot know it died.)"""
-    k = int(beliefs.recv[i])
-    rows, x, y, c, s = beliefs.table(i, step, model)
-    own = int(np.searchsorted(rows, k))
-    pos = np.stack([x, y], axis=1)
-    pos[own] = own_xy
-    oc, os_ = heading_frame(np.array([float(own_theta)]))
-    c, s = np.array(c), np.array(s)
-    c[own], s[own] = oc[0], os_[0]
-    flags = None if is_leader is None else np.asarray(is_leader, bool)[rows]
-    u = swarm_control(pos, c, s, np.array([own]), law, lambda_=float(lambda_), is_leader=flags,
-                      steering=np.array([float(steering_own)]), target=target, barrier=barrier)
-    return float(u[0])
+def belief_controls(law: LawConfig, beliefs: Beliefs, step: int, model: CommModel, own_xy, own_theta,
+                    lambda_, is_leader, steering, target=None, barrier=None, active=None):
+    """u (K,) of the receivers ``beliefs.recv`` at ``step``, each from its own true state
+    (own_xy (K, 2), own_theta (K,)) and what it believes of the others (`Beliefs.known_pairs`),
+    with THE law `swarm_control`, all receivers in one call: the table holds the receivers'
+    own rows, then one row per believed (receiver, sender) pair, and the law sums over that
+    pair list (np.bincount, each receiver's senders in index order).  A receiver's sum is
+    therefore the same whichever receivers are asked with it: an agent asking for itself
+    alone gets the batch engine's u bit for bit.  is_leader (N,): the step's leader flags of
+    all agents; steering (K,); active (K,) bool or None: receivers out of the table (dead,
+    frozen) get u = 0.  (A dead agent stays in the others' beliefs until its last state is
+    older than the timeout: a receiver cannot know it died.)"""
+    K = beliefs.recv.size
+    act = slice(None) if active is None else np.flatnonzero(active)
+    a, j, x, y, c, s = beliefs.known_pairs(step, model, None if active is None else act)
+    own_xy = np.asarray(own_xy, float).reshape(K, 2)[act]
+    m = own_xy.shape[0]
+    pos = np.empty((m + a.size, 2))
+    pos[:m] = own_xy
+    pos[m:, 0], pos[m:, 1] = x, y
+    oc, os_ = heading_frame(np.asarray(own_theta, float).reshape(K)[act])
+    cos_t, sin_t = np.concatenate((oc, c)), np.concatenate((os_, s))
+    flags = nearest = None
+    if is_leader is not None and law.uses_leaders:
+        is_leader = np.asarray(is_leader, bool)
+        flags = np.concatenate((is_leader[beliefs.recv[act]], is_leader[j]))
+        nearest = _nearest_believed_leader(pos, a, m, flags[m:])
+    u = np.zeros(K)
+    u[act] = swarm_control(pos, cos_t, sin_t, np.arange(m), law, lambda_=float(lambda_), is_leader=flags,
+                           steering=np.asarray(steering, float).reshape(K)[act], target=target,
+                           barrier=barrier, pairs=(a, m + np.arange(a.size)), nearest=nearest)
+    return u
+
+
+def _nearest_believed_leader(pos, a, m, leader_pair):
+    """l(k) (eq. 10) of each of the m receivers: the table row (m + pair index) of the believed
+    leader nearest to it (Euclidean, as `pair_sums.nearest_leader` measures it; ties to the
+    lower sender row), −1 if it believes in none."""
+    out = np.full(m, -1, dtype=np.intp)
+    p = np.flatnonzero(leader_pair)
+    if p.size:
+        d = pos[a[p]] - pos[m + p]
+        d *= d
+        order = np.lexsort((p, d[:, 0] + d[:, 1], a[p]))       # by receiver, distance, sender
+        recv = a[p][order]
+        first = np.ones(recv.size, dtype=bool)                  # the first of each receiver
+        np.not_equal(recv[1:], recv[:-1], out=first[1:])
+        out[recv[first]] = m + p[order[first]]
+    return out
 
 
 def delay_stats(delay_counts, dt: float) -> dict:

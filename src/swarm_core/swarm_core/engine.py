@@ -20,7 +20,8 @@ from scipy.spatial import cKDTree
 from .faults import alive_control, event_names, reunion_law
 from .integrate import rk4_step, zoh_step
 from .pair_sums import DENSE_LIMIT, sparse_coupling
-from .comms import Beliefs, belief_control, delay_stats
+from .large_swarms import COMPILED, COMPILED_LIMIT, available as compiled_available
+from .comms import Beliefs, belief_controls, delay_stats
 from .frenet import heading_frame, quaternion_from_heading
 from .scenario import Scenario
 from .trajectory import Trajectory
@@ -72,6 +73,7 @@ class SwarmStepper:
         # a table of at most DENSE_LIMIT rows is summed densely whatever λ (`sparse_coupling`)
         self._always_dense = neighbour_search == 'all' or (neighbour_search == 'auto'
                                                           and self.n <= DENSE_LIMIT)
+        self._compiled = neighbour_search == 'auto' and self.n >= COMPILED_LIMIT and compiled_available()
         self._is_leader = (None, None)      # (leader indices, flags) of the last step
         noise = scn.spec.noise
         self.noise_scale = np.array([noise.position, noise.position, noise.heading])
@@ -83,7 +85,10 @@ class SwarmStepper:
         self._init_comms()
 
     def _pairs(self, pos, lam):
-        """None (all pairs, dense) or the KD-tree pairs within w where only those carry weight."""
+        """None (all pairs, dense), the KD-tree pairs within w where only those carry weight, or
+        from COMPILED_LIMIT agents on 'compiled' (`large_swarms`, to rounding)."""
+        if self._compiled and len(pos) >= COMPILED_LIMIT:
+            return COMPILED
         if self._always_dense or self.law.couples_globally(lam):
             return None
         if self.neighbour_search == 'auto' and not sparse_coupling(len(pos), self.law, lam):
@@ -162,8 +167,8 @@ class SwarmStepper:
 
     # ---------------------------------------------------------------- communication model
     # A separate path (swarm_core.comms), taken only when the scenario's radio is not perfect:
-    # every receiver computes its u with THE law on its own belief table (a loop over
-    # receivers; the fates of all links of a step are drawn at once, vectorised).
+    # every receiver computes its u with THE law on its own beliefs (one law call over the
+    # believed pairs of all receivers; the fates of all links of a step are drawn at once).
 
     def _init_comms(self):
         self.comms = self.scn.comm_model()
@@ -181,13 +186,13 @@ class SwarmStepper:
         if self._comms_step != n:               # the radio delivers once per step
             qz, qw = quaternion_from_heading(theta)
             arrival = self.comms.decide(n, self.receivers, pos, self.receivers, pos)
-            self.beliefs.receive(n, arrival, pos[:, 0], pos[:, 1], qz, qw, self.u_prev, alive=alive)
+            self.beliefs.receive(n, arrival, pos[:, 0], pos[:, 1], qz, qw, self.u_prev,
+                                 alive=None if self.faults.all_alive else alive)
             self._comms_step = n
         s = np.zeros(self.n) if steering is None else np.asarray(steering, dtype=float)
         law, target = reunion_law(self.law, self.target, self.plan.rendezvous_now)
-        return np.array([belief_control(law, self.beliefs, k, n, self.comms, pos[k], theta[k], lam,
-                                        is_leader, s[k], target, self.barrier) if alive[k] else 0.0
-                         for k in range(self.n)])
+        return belief_controls(law, self.beliefs, n, self.comms, pos, theta, lam, is_leader, s, target,
+                               self.barrier, active=None if self.faults.all_alive else alive)
 
     def comms_stats(self) -> dict | None:
         """What the radio did so far: messages sent/delivered (links j ≠ k), delays."""

@@ -24,7 +24,7 @@ import numpy as np
 
 from .frenet import PairGains
 from .law_parameters import BARRIER_MODES, DEFAULTS, LAW_KINDS, LAW_TABLE
-from .pair_sums import _combine, _pair_sum_sparse, _pair_sums_dense
+from .pair_sums import _combine, _pair_sum_sparse, _pair_sums_dense, nearest_leader
 
 
 @dataclass(frozen=True)
@@ -135,7 +135,7 @@ def barrier_term(pos_k, cos_k, sin_k, barrier, law: LawConfig):
 
 
 def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
-                  is_leader=None, steering=None, target=None, barrier=None, pairs=None):
+                  is_leader=None, steering=None, target=None, barrier=None, pairs=None, nearest=None):
     """Curvature controls u_k of the receivers (eq. 4, 9, 10-14, 15, 16).
 
     pos (N, 2), cos_t, sin_t (N,): the table of agent states (frames from
@@ -145,9 +145,13 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
     is_leader (N,) bool: leader flags (used by 'leader_following' and 'homotopy').
     steering (K,): s_k of each receiver (read where the receiver is a leader).
     target (2,), barrier (m, 2): world geometry, or None.
-    pairs: None (default) sums over the whole table, densely in blocks of rows; or
+    pairs: None (default) sums over the whole table, densely in blocks of rows; 'compiled'
+    (`large_swarms.COMPILED`) the same terms in compiled kernels on every core; or
     (receiver position, sender row) arrays from a neighbour search within w, summed in that
     order with np.bincount.  Pairs beyond w may be left out only where they carry weight 0.
+    nearest (K,): with pairs, each receiver's nearest leader l(k) as a table row (−1: none),
+    where the table is not one shared view of the swarm (`comms.belief_controls`); default:
+    `pair_sums.nearest_leader` on the table.
     The same inputs in the same mode give bit-identical results whatever K is, which is what
     makes an agent node's u equal the batch engine's.
     """
@@ -173,8 +177,10 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
                                             None if recv_leader is None else recv_leader[redo],
                                             careful=True)
             sums[redo] = _combine(m, has_cs, F[:, redo], cos_sin, law)
+    elif isinstance(pairs, str):    # 'compiled': large swarms, numba (`large_swarms`), to rounding
+        sums = _compiled_sums(pos, cos_sin, F, receivers, law, lam, q0, leaders)
     else:
-        sums = _pair_sum_sparse(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, leaders, pairs)
+        sums = _pair_sum_sparse(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, leaders, pairs, nearest)
 
     if leaders is not None:
         s = np.zeros(n_recv) if steering is None else np.asarray(steering, dtype=float)
@@ -182,6 +188,15 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
     else:
         u = sums
     return _add_world_terms(u, pos, F, receivers, law, target, barrier)
+
+
+def _compiled_sums(pos, cos_sin, F, receivers, law, lam, q0, leaders):
+    """Σ_j W_jk u_jk of the receivers from `large_swarms.compiled_moments` (every table row
+    is summed; numba is imported on first use only)."""
+    from .large_swarms import compiled_moments
+    l_of_k = None if leaders is None else nearest_leader(pos, np.arange(len(pos)), leaders.nonzero()[0])
+    m = compiled_moments(pos, cos_sin[0], cos_sin[1], law, lam, q0, leaders, l_of_k)
+    return _combine(m[:, receivers], True, F, cos_sin, law)
 
 
 def _add_world_terms(u, pos, F, receivers, law, target, barrier):

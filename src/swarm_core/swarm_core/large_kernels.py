@@ -1,0 +1,101 @@
+"""The compiled kernels of `large_swarms` (numba; this module is imported only from there, on
+first use, so no agent process pays for numba).  Compiled code is cached on disk
+(``cache=True``): later processes load it."""
+import numba as nb
+import numpy as np
+
+# sums may be reassociated (SIMD), products fused; no other fast-math liberty (the self
+# pair and coincident pairs rely on ρ² == 0 being seen)
+FASTMATH = {'reassoc', 'contract'}
+
+
+@nb.njit(inline='always', fastmath=FASTMATH)
+def pair(dx, dy, cj, sj, partner, w2, far, gain, alpha, ar02, target, normalised):
+    """The six weighted terms of one pair, branch-free (0 for the self pair and coincident
+    pairs: ρ² = 0, as a careful pass of the reference gives them)."""
+    rr = dx * dx + dy * dy
+    weight = 1.0 if rr < w2 else far
+    weight = weight * gain if partner else weight
+    weight = 0.0 if rr == 0.0 else weight
+    inv = 1.0 / (1.0 if rr == 0.0 else rr)
+    h = inv * ar02 - alpha
+    hn = h * np.sqrt(inv)
+    h = (h if not normalised else hn) if target else hn
+    inv *= weight
+    h *= weight
+    if target:                                      # eq. 15: h·r_jk within w only
+        return 0.0, 0.0, h * dx, h * dy, 0.0, 0.0
+    return dx * dy * inv, (dy * dy - dx * dx) * inv, dx * h, dy * h, cj * weight, sj * weight
+
+
+@nb.njit(parallel=True, cache=True, fastmath=FASTMATH)
+def all_pairs(x, y, cos_t, sin_t, w2, far, partner, gain, alpha, ar02, target, normalised):
+    """Moments (6, n): every receiver k against every agent j (far, partner, gain per k)."""
+    n = x.size
+    m = np.empty((6, n))
+    for k in nb.prange(n):
+        a = b = hx = hy = c = s = 0.0
+        xk, yk, fk, pk, gk = x[k], y[k], far[k], partner[k], gain[k]
+        for j in range(n):
+            t = pair(xk - x[j], yk - y[j], cos_t[j], sin_t[j], j == pk, w2, fk, gk, alpha, ar02,
+                     target, normalised)
+            a += t[0]
+            b += t[1]
+            hx += t[2]
+            hy += t[3]
+            c += t[4]
+            s += t[5]
+        m[0, k], m[1, k], m[2, k], m[3, k], m[4, k], m[5, k] = a, b, hx, hy, c, s
+    return m
+
+
+@nb.njit(cache=True)
+def cells(x, y, w):
+    """A cell list of side w: the agents in cell order, their keys cx·ny + cy (one empty
+    cell all round), ny, and the first position of each cell (None: binary search)."""
+    cx = np.floor((x - x.min()) / w).astype(np.int64) + 1
+    cy = np.floor((y - y.min()) / w).astype(np.int64) + 1
+    ny = cy.max() + 2
+    key = cx * ny + cy
+    order = np.argsort(key, kind='mergesort')
+    sorted_key = key[order]
+    ncells = (cx.max() + 2) * ny
+    start = np.zeros(ncells + 1 if ncells <= 8 * x.size + 64 else 0, dtype=np.int64)
+    if start.size:
+        for i in range(x.size):
+            start[sorted_key[i] + 1] += 1
+        start = np.cumsum(start)                    # start[c]: first position of cell c
+    return order, sorted_key, ny, start
+
+
+@nb.njit(parallel=True, cache=True, fastmath=FASTMATH)
+def cell_pairs(x, y, cos_t, sin_t, w, far, partner, gain, alpha, ar02, target, normalised):
+    """Moments (6, n): every receiver against the agents of its 3 × 3 cells (pairs within w)."""
+    order, sorted_key, ny, start = cells(x, y, w)
+    xs, ys, cs, ss = x[order], y[order], cos_t[order], sin_t[order]
+    where = np.empty(x.size, dtype=np.int64)
+    where[order] = np.arange(x.size)
+    m = np.empty((6, x.size))
+    for i in nb.prange(x.size):
+        k = order[i]
+        a = b = hx = hy = c = s = 0.0
+        xk, yk, fk, gk = xs[i], ys[i], far[k], gain[k]
+        pk = where[partner[k]] if partner[k] >= 0 else -1
+        for col in range(-1, 2):                    # cells (cx + col, cy − 1 … cy + 1)
+            first = sorted_key[i] + col * ny - 1
+            if start.size:
+                lo, hi = start[first], start[first + 3]
+            else:
+                lo = np.searchsorted(sorted_key, first)
+                hi = np.searchsorted(sorted_key, first + 3)
+            for jj in range(lo, hi):
+                t = pair(xk - xs[jj], yk - ys[jj], cs[jj], ss[jj], jj == pk, w * w, fk, gk, alpha,
+                         ar02, target, normalised)
+                a += t[0]
+                b += t[1]
+                hx += t[2]
+                hy += t[3]
+                c += t[4]
+                s += t[5]
+        m[0, k], m[1, k], m[2, k], m[3, k], m[4, k], m[5, k] = a, b, hx, hy, c, s
+    return m

@@ -1,0 +1,75 @@
+"""The compiled pair sums of large swarms (swarm_core.large_swarms) against the reference
+(`laws.swarm_control` dense/sparse numpy paths) on n = 3,000, where the reference is still
+affordable: equal to 1e-9 (they add the same terms in another order), for every coupling;
+and the batch engine takes them only from COMPILED_LIMIT agents on."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from swarm_core import large_swarms
+from swarm_core.frenet import PairGains, heading_frame
+from swarm_core.laws import LawConfig, swarm_control
+
+pytestmark = pytest.mark.skipif(not large_swarms.available(), reason='numba is not installed')
+
+N = 3000
+
+
+def table(n=N, spacing=1.5, seed=0):
+    rng = np.random.default_rng(seed)
+    side = int(np.ceil(np.sqrt(n)))
+    grid = np.stack(np.meshgrid(np.arange(side), np.arange(side)), -1).reshape(-1, 2)[:n] * spacing
+    pos = grid + rng.uniform(-0.4, 0.4, (n, 2))
+    pos[7] = pos[8]                                      # one coincident pair
+    c, s = heading_frame(rng.uniform(-np.pi, np.pi, n))
+    leaders = np.zeros(n, bool)
+    leaders[[0, n // 2, n - 1]] = True
+    return pos, c, s, leaders, rng.uniform(-0.2, 0.2, n)
+
+
+@pytest.mark.parametrize('law, lam', [
+    (LawConfig(kind='global'), 0.0),
+    (LawConfig(kind='homotopy', q0=1.0), 0.4),
+    (LawConfig(kind='homotopy', q0=0.0), 1.0),
+    (LawConfig(kind='local'), 0.0),
+    (LawConfig(kind='leader_following'), 1.0),
+    (LawConfig(kind='target', target_normalised=True), 0.0),
+    (LawConfig(kind='homotopy', q0=0.5, gains=PairGains(alpha=2.0, r0=0.7)), 0.7),
+])
+def test_compiled_equals_the_reference_to_1e_9(law, lam):
+    pos, c, s, leaders, steer = table()
+    recv = np.arange(N)
+    kw = dict(lambda_=lam, is_leader=leaders, steering=steer)
+    ref = swarm_control(pos, c, s, recv, law, **kw)
+    fast = swarm_control(pos, c, s, recv, law, pairs=large_swarms.COMPILED, **kw)
+    assert np.isfinite(ref).all()
+    err = np.abs(fast - ref)
+    assert err.max() <= 1e-9 * max(1.0, np.abs(ref).max()), err.max()
+    assert np.abs(ref).max() > 1e-3                      # not trivially zero
+    # a wrong term would show: drop the leader gain and the sums differ
+    if law.uses_leaders and lam > 0:
+        plain = swarm_control(pos, c, s, recv, law, pairs=large_swarms.COMPILED, lambda_=lam, steering=steer)
+        assert np.abs(plain - ref).max() > 1e-6
+
+
+def test_engine_takes_the_compiled_path_only_for_large_swarms():
+    from swarm_core.engine import SwarmStepper
+    from swarm_core.scenario import parse
+    def stepper(n, **kw):
+        return SwarmStepper(parse(dict(name='big', dt=0.05, duration=1.0, law=dict(kind='global'),
+                                       agents=dict(count=n, positions={'rule': 'grid', 'spacing': 1.5}))), **kw)
+    small = stepper(2000)
+    assert small._pairs(small.pos, 0.0) is None
+    big = stepper(large_swarms.COMPILED_LIMIT)
+    assert big._pairs(big.pos, 0.0) == large_swarms.COMPILED
+    assert stepper(large_swarms.COMPILED_LIMIT, neighbour_search='all')._pairs(big.pos, 0.0) is None
+
+
+def test_agent_processes_do_not_import_numba():
+    """What an agent process imports (its core, the laws, the radio, faults) leaves numba out."""
+    code = ('import sys, swarm_agent.agent_core, swarm_core.laws, swarm_core.comms, swarm_core.engine; '
+            'print("numba" in sys.modules)')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == 'False'
