@@ -7,7 +7,7 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import Field, model_validator
 
 from .inputs import MAX_GAIN
-from .scenario_schema import Curvature, Finite, Gain, Lambda, NonNeg, Point, Positive, Strict
+from .scenario_schema import Curvature, Finite, Gain, Lambda, NonNeg, Point, Positive, RampSeconds, SimTime, Strict
 from .schedules import (ConstantLambda, ConstantSteering, RampSchedule, SinusoidSteering, TanhWindow,
                         WaypointSteering)
 
@@ -27,9 +27,9 @@ class TanhWindowSpec(Strict):
 
 
 class RampSpec(Strict):
-    at: NonNeg
+    at: SimTime
     to: Lambda
-    duration: NonNeg = 20.0
+    duration: RampSeconds = 20.0
     shape: Literal['smoothstep', 'linear', 'step', 'tanh'] = 'smoothstep'
 
 

@@ -18,18 +18,23 @@ import io
 import itertools
 import json
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from . import scenario
-from .atomic import atomic_path, write_atomic
+from . import placement, scenario
+from .atomic import atomic_path
+from .study_cache import ROW_METRICS, Cache, row_error
 
-#: metrics taken from `analysis.summary_of` into every row
-ROW_METRICS = ('final_clusters', 'max_clusters', 'min_distance', 'final_polarisation',
-               'intrusions_total', 'closest_centroid_target_distance')
+
+
+#: most cells (grid points) and runs (cells × seeds) a study may have: checked from the
+#: lengths of the grid's lists before any cell is made
+MAX_CELLS = 10_000
+MAX_RUNS = 100_000
 
 
 class StudyError(ValueError):
@@ -54,13 +59,15 @@ def parse_values(text: str) -> list:
             raise StudyError(f'{text!r}: a range is START:STOP:COUNT (numbers, COUNT an integer)') from None
         if n < 1:
             raise StudyError(f'{text!r}: empty range (COUNT must be ≥ 1)')
+        if n > MAX_CELLS:
+            raise StudyError(f'{text!r}: {n} values; a study has at most {MAX_CELLS} cells')
         return [float(v) for v in np.linspace(a, b, n)] if n > 1 else [a]
     vals = []
     for item in text.split(','):
         if not item.strip():
             raise StudyError(f'{text!r}: empty value in the list')
         try:
-            vals.append(yaml.safe_load(item))
+            vals.append(scenario.safe_yaml(item))
         except yaml.YAMLError:
             raise StudyError(f'{text!r}: cannot read value {item!r}') from None
     return vals
@@ -132,13 +139,30 @@ class Study:
 
 def _scenario_text(name_or_path):
     try:
-        text, source = scenario.resolve(name_or_path)
+        data, source = scenario.read_yaml(name_or_path)
     except scenario.ScenarioError as err:
         raise StudyError(str(err)) from None
-    data = yaml.safe_load(text)
     if not isinstance(data, dict):
         raise StudyError(f'{source}: a scenario is a YAML mapping')
     return data, source
+
+
+def check_size(grid: dict, seeds) -> None:
+    """StudyError if ``grid`` ({field: values}) has more than `MAX_CELLS` cells or, with
+    ``seeds`` (a count or a list), more than `MAX_RUNS` runs; from the lengths alone."""
+    cells = math.prod(len(v) for v in grid.values())
+    if cells > MAX_CELLS:
+        raise StudyError(f'{cells} cells ({" × ".join(str(len(v)) for v in grid.values())}): '
+                         f'a study has at most {MAX_CELLS}')
+    if isinstance(seeds, int) and not isinstance(seeds, bool):
+        n_seeds = seeds
+    elif isinstance(seeds, (list, tuple, range)):
+        n_seeds = len(seeds)
+    else:
+        raise StudyError(f'seeds: {seeds!r} is not a count or a list of seeds')
+    if cells * n_seeds > MAX_RUNS:
+        raise StudyError(f'{cells} cells × {n_seeds} seeds = {cells * n_seeds} runs: '
+                         f'a study has at most {MAX_RUNS}')
 
 
 def make_study(scenario_name, sets=(), seeds=10, first_seed=0, fixed=None, name=None) -> Study:
@@ -150,6 +174,7 @@ def make_study(scenario_name, sets=(), seeds=10, first_seed=0, fixed=None, name=
         if fld in grid:
             raise StudyError(f'--set {fld}: given twice')
         grid[fld] = vals
+    check_size(grid, seeds)
     seed_list = list(range(first_seed, first_seed + seeds)) if isinstance(seeds, int) else list(seeds)
     return Study(data=data, source=source, grid=grid, fixed=dict(fixed or {}), seeds=seed_list,
                  name=name or data.get('name', 'study'))
@@ -168,12 +193,12 @@ def load_study(path, base_dir=None) -> Study:
         figure: {check: all}           # optional
     """
     p = Path(path)
-    try:
-        doc = yaml.safe_load(p.read_text())
-    except OSError as err:
-        raise StudyError(f'{path}: cannot read: {err.strerror}') from None
-    except yaml.YAMLError as err:
-        raise StudyError(f'{path}: not valid YAML: {str(err).splitlines()[0]}') from None
+    if not p.is_file():
+        raise StudyError(f'{path}: cannot read: no such file')
+    try:                          # the limits of scenario files: size, no aliases, depth
+        doc, _ = scenario.read_yaml(str(p))
+    except scenario.ScenarioError as err:
+        raise StudyError(str(err)) from None
     if not isinstance(doc, dict):
         raise StudyError(f'{path}: a study is a YAML mapping')
     unknown = set(doc) - {'name', 'description', 'scenario', 'seeds', 'first_seed', 'set', 'grid', 'figure'}
@@ -347,27 +372,6 @@ def run_task(task: Task) -> dict:
     return {'key': task.key, 'result': row, 'wall': s['wall_seconds']}
 
 
-class Cache:
-    """One JSON file per finished run under ``root`` (written atomically)."""
-
-    def __init__(self, root):
-        self.root = Path(root)
-        self.root.mkdir(parents=True, exist_ok=True)
-
-    def _path(self, key):
-        return self.root / f'{key}.json'
-
-    def get(self, key):
-        p = self._path(key)
-        try:
-            return json.loads(p.read_text())
-        except (OSError, ValueError):
-            return None
-
-    def put(self, key, doc):
-        write_atomic(self._path(key), json.dumps(doc))
-
-
 # ------------------------------------------------------------------ executors
 
 def _ignore_sigint():
@@ -432,6 +436,19 @@ def _dask_map(todo, scheduler):
             cluster.close()
 
 
+def _cached(cache, task) -> bool:
+    """Whether the cache holds the task's row; a file that is not one (`study_cache.row_error`)
+    is run again, with one warning."""
+    doc = cache.get(task.key)
+    if doc is None and not cache.path(task.key).exists():
+        return False
+    agents = placement.AgentsSpec.model_validate(task.data['agents']).count
+    why = 'not JSON' if doc is None else row_error(doc, task.cell, task.seed, agents)
+    if why:
+        warnings.warn(f'study cache {cache.path(task.key)}: {why}; running it again', stacklevel=3)
+    return why is None
+
+
 def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, version=None,
               on_result=None):
     """Run every task not in the cache; return (rows in cell × seed order, counts).
@@ -441,7 +458,7 @@ def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, v
     (KeyboardInterrupt) leaves the finished runs in the cache and propagates."""
     cache = Cache(cache_dir)
     all_tasks = tasks(study, version)
-    todo = [t for t in all_tasks if cache.get(t.key) is None]
+    todo = [t for t in all_tasks if not _cached(cache, t)]
     counts = {'total': len(all_tasks), 'cached': len(all_tasks) - len(todo), 'ran': 0}
     by_key = {t.key: t for t in todo}
     bar = None
