@@ -323,6 +323,15 @@ class Scenario:
         return self.spec.dt
 
     @property
+    def content_hash(self) -> str:
+        """A hash of the validated scenario (with its overrides: seed, dt, duration): two
+        processes that loaded the same run have the same one (``swarm join`` checks it)."""
+        import hashlib
+        import json
+        text = json.dumps(self.spec.model_dump(mode='json', by_alias=True), sort_keys=True, separators=(',', ':'))
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    @property
     def duration(self):
         return self.spec.duration
 

@@ -39,7 +39,7 @@ import math
 import sys
 import time
 
-from swarm_core.inputs import LAMBDA_BOUND
+from swarm_core.inputs import LAMBDA_BOUND, PAUSE_BOUND, RAMP_BOUND, STEERING_BOUND
 from swarm_ros import protocol as P
 from swarm_ros.cliutil import add_wait, cli_node
 
@@ -78,14 +78,10 @@ def _publish_once(msg_type, topic, msg, wait, qos_depth=10, for_node=None, prog=
         if pub.get_subscription_count() == 0:
             return False
         settle = time.monotonic() + 0.2          # let the subscribers' side of the match settle
-        if watch is not None:                    # ... and hear the run (every run on the domain)
-            limit = time.monotonic() + (2.0 if runinfo.has_world(node) else 0.0)
-            while not watch.runs and time.monotonic() < limit:
-                ex.spin_once(timeout_sec=0.05)
-            if watch.runs:                       # a second run's announcement may come just after
-                settle = time.monotonic() + 0.5
         while time.monotonic() < settle:
             ex.spin_once(timeout_sec=0.05)
+        if watch is not None:                    # ... and hear every run on the domain
+            watch.settle(ex)
         if watch is not None:
             run, err = runinfo.one_run(watch.runs, prog)
             err = err or (runinfo.unknown_agent(run, agent, prog) if agent else None)
@@ -108,8 +104,8 @@ def lambda_main(argv) -> int:
     if not LAMBDA_BOUND.ok(a.value):
         print(f'swarm lambda: {LAMBDA_BOUND.error(a.value)}', file=sys.stderr)
         return 2
-    if not (math.isfinite(a.ramp) and a.ramp >= 0.0):
-        print(f'swarm lambda: --ramp {a.ramp!r} rejected: must be finite and ≥ 0', file=sys.stderr)
+    if not RAMP_BOUND.ok(a.ramp):
+        print(f'swarm lambda: --{RAMP_BOUND.error(a.ramp)}', file=sys.stderr)
         return 2
     from std_msgs.msg import Float64, Float64MultiArray
     try:
@@ -120,7 +116,12 @@ def lambda_main(argv) -> int:
     except RunRefused as err:
         print(err, file=sys.stderr)
         return 1
-    if _publish_once(Float64, '/swarm/lambda', Float64(data=a.value), 1.0):
+    try:                                 # the same run checks as every verb
+        sent = _publish_once(Float64, '/swarm/lambda', Float64(data=a.value), 1.0, prog='swarm lambda')
+    except RunRefused as err:
+        print(err, file=sys.stderr)
+        return 1
+    if sent:
         print(f'swarm lambda: no commander found; published λ={a.value:g} on /swarm/lambda')
         return 0
     print('swarm lambda: no running swarm found (nothing subscribes /swarm/lambda); '
@@ -135,8 +136,8 @@ def steer_main(argv) -> int:
     p.add_argument('value', type=float, help='curvature s_k (finite; + turns anticlockwise)')
     add_wait(p, 'the agent')
     a = p.parse_args(argv)
-    if not math.isfinite(a.value):
-        print(f'swarm steer: steering {a.value!r} rejected: not finite', file=sys.stderr)
+    if not STEERING_BOUND.ok(a.value):
+        print(f'swarm steer: {STEERING_BOUND.error(a.value)}', file=sys.stderr)
         return 2
     name = a.agent.strip('/')
     if not name or '/' in name or not name.replace('_', 'a').isalnum():
@@ -214,8 +215,8 @@ def pause_main(argv) -> int:
         'heard, its process is stopped (SIGSTOP) and resumed (SIGCONT) with the state it had.'), argv, seconds=True)
     if name is None:
         return 2
-    if not (math.isfinite(a.seconds) and a.seconds > 0):
-        print(f'swarm pause: {a.seconds!r} seconds rejected: must be finite and > 0', file=sys.stderr)
+    if not PAUSE_BOUND.ok(a.seconds):
+        print(f'swarm pause: {PAUSE_BOUND.error(a.seconds)}', file=sys.stderr)
         return 2
     code = _send('pause', {'kind': 'freeze', 'agent': name, 'for': a.seconds}, a.wait)
     if code:
@@ -270,10 +271,7 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
             if not unknown and 't' in clock:
                 break
             ex.spin_once(timeout_sec=0.05)
-        from swarm_ros.runinfo import has_world      # the run's announcement(s), if a world is there
-        limit = time.monotonic() + (0.5 if watch.runs else 2.0 if has_world(node) else 0.0)
-        while time.monotonic() < limit:
-            ex.spin_once(timeout_sec=0.05)
+        watch.settle(ex)                             # every run's announcement
         run, err = one_run(watch.runs, prog)
         if err:
             print(err, file=sys.stderr)

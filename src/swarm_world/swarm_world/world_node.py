@@ -136,8 +136,10 @@ class WorldNode(RealtimeWorld, Node):
         # the run's identity; other runs on this domain are heard here (and refused before the start)
         self.pub_run = self.create_publisher(String, P.RUN, P.qos_latched())
         self.since = time.time()
-        self.pub_run.publish(String(data=run_json(self.run_id, self.scn.name, self.mode, self.names, self.since)))
-        self.runs = RunWatch(self)
+        remote = [nm for nm in self.remote_agents.split(',') if nm]
+        self.pub_run.publish(String(data=run_json(self.run_id, self.scn.name, self.mode, self.names, self.since,
+                                                  self.scn.content_hash, remote)))
+        self.runs = RunWatch(self, log=self.get_logger().warning)
         self.second_world_at = None     # when a second /world node was first seen (no announcement yet)
         if self.mode == 'realtime':
             self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_latched(10))  # the commander's
