@@ -23,7 +23,7 @@ MAX_GAIN = 1e6
 MAX_TIME = 1e7
 #: most steps of a run (its step count is checked before anything is allocated)
 MAX_STEPS = 10_000_000
-#: most recorded values a run may hold: samples × agents (`check_run_size`; about 40 bytes each)
+#: most recorded values a run may hold: (steps + 1) × agents (`check_run_size`; about 40 bytes each)
 MAX_AGENT_SAMPLES = 50_000_000
 
 
@@ -72,16 +72,17 @@ DT_BOUND = Bound('dt', 1e-6, 10.0)
 DURATION_BOUND = Bound('duration', 0.0, MAX_TIME, open_lo=True)
 
 
-def check_run_size(steps: int, agents: int, record_every: int = 1) -> None:
-    """InputError unless a run of ``steps`` steps of ``agents`` agents (keeping every
-    ``record_every``-th step) is within `MAX_STEPS` and `MAX_AGENT_SAMPLES`: checked before a
-    run allocates its records, so an absurd one is one line, not a MemoryError."""
+def check_run_size(steps: int, agents: int) -> None:
+    """InputError unless a run of ``steps`` steps of ``agents`` agents is within `MAX_STEPS`
+    and `MAX_AGENT_SAMPLES` (the world records every step): checked when the scenario is
+    validated, before a run allocates its records, so an absurd one is one line, not a
+    MemoryError."""
     if steps > MAX_STEPS:
         raise InputError(f'{steps} steps: a run has at most {MAX_STEPS} (raise dt or shorten the duration)')
-    samples = (steps // max(1, record_every) + 1) * agents
+    samples = (steps + 1) * agents
     if samples > MAX_AGENT_SAMPLES:
         raise InputError(f'{steps} steps of {agents} agents: {samples} recorded values, at most '
-                         f'{MAX_AGENT_SAMPLES} (shorten the run, raise dt or --record-every)')
+                         f'{MAX_AGENT_SAMPLES} (shorten the run or raise dt)')
 
 
 #: deepest nesting of [ and { a JSON input may have (a command or request has 2 or 3)
