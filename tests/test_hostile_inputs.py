@@ -245,3 +245,14 @@ def test_a_rebuild_never_replaces_a_longer_record(tmp_path, capsys):
     (run_dir / 'trajectory.npz').unlink()                # nothing saved: the rebuild is written
     assert launch.salvage(scn, run_dir, bag, 'lockstep', 0.0, figure=False)
     assert launch.saved_samples(run_dir / 'trajectory.npz') == len(traj.t) - 1
+
+
+def test_the_world_and_join_agree_on_the_scenario_hash():
+    """The world loads the scenario from its parameters, `swarm join` from its options: the
+    same run gives the same hash (announced on /swarm/run), another seed or duration another."""
+    from swarm_ros.scenario_params import reload_scenario, scenario_parameters
+    for over in ({}, dict(duration=30.0), dict(seed=3)):
+        mine = scenario.load('homotopy_global', **over)
+        world = reload_scenario(**scenario_parameters(mine, 'homotopy_global', duration=over.get('duration', 0.0)))
+        assert world.content_hash == mine.content_hash
+    assert len({scenario.load('homotopy_global', **o).content_hash for o in ({}, dict(seed=3), dict(dt=0.025))}) == 3
