@@ -118,7 +118,7 @@ class CommanderNode(Node):
         d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
         self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=('lockstep', 'realtime'))
         self.ramp = d('ramp', 20.0, 'ramp duration (sim s) of a λ set-point from /swarm/lambda or the '
-                      'lambda parameter (0 = jump)', lo=0.0, hi=1e6)
+                      'lambda parameter (0 = jump)', lo=RAMP_BOUND.lo, hi=RAMP_BOUND.hi)
         self.ramp_shape = d('ramp_shape', 'smoothstep', 'shape of set-point ramps',
                             choices=('smoothstep', 'linear', 'tanh', 'step'))
         self.heard_timeout = d('heard_timeout', 1.0, 'realtime: an agent silent for this many sim s is not heard '
