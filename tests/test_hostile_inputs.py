@@ -40,6 +40,9 @@ def test_the_schema_takes_its_bounds_from_the_same_objects():
                           (dict(leaders={'fixed': {'agent_0': {'kind': 'constant', 'curvature': 1e9}}}), 'curvature'),
                           (dict(faults=[{'at': 1, 'freeze': 'agent_1', 'for': 1e308}]), 'for'),
                           (dict(faults=[{'at': 1e308, 'kill': 'agent_1'}]), 'at'),
+                          (dict(leaders={'fixed': {'agent_0': {'kind': 'sinusoid', 'period': 1e-310}}}), 'period'),
+                          (dict(leaders={'fixed': {'agent_0': {'kind': 'sinusoid', 'amplitude': 1e6,
+                                                               'offset': 1e6}}}), 'steering bound'),
                           (dict(**{'lambda': {'kind': 'ramps', 'ramps': [{'at': 1, 'to': 1, 'duration': 1e308}]}}),
                            'duration')]:
         with pytest.raises(scenario.ScenarioError, match=where):
