@@ -145,7 +145,7 @@ GOOD = {'run_id': 'a1', 'scenario': 's', 'mode': 'lockstep', 'agents': ['x'], 's
 
 @pytest.mark.parametrize('change, why', [
     (dict(since=None), 'since'), (dict(since='10'), 'since'), (dict(since=True), 'since'),
-    (dict(run_id=''), 'run_id'), (dict(run_id='a b'), 'run_id'), (dict(run_id=7), 'run_id'),
+    (dict(run_id='x' * 33), 'run_id'), (dict(run_id='a b'), 'run_id'), (dict(run_id=7), 'run_id'),
     (dict(agents='x'), 'agents'), (dict(agents=[1]), 'agents'),
 ])
 def test_an_announcement_without_what_the_give_way_rule_needs_is_ignored(change, why):

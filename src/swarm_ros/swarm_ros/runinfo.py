@@ -74,16 +74,16 @@ def older_runs(runs: dict, run_id: str, since: float) -> list:
 
 def run_error(text: str):
     """Why a ``/swarm/run`` text is not an announcement the give-way rule can use (None if it
-    is one): JSON (bounded, `json_value`) holding a valid ``run_id``, ``agents`` a list of
-    names and ``since`` a finite number."""
+    is one): JSON (bounded, `json_value`) holding a valid ``run_id`` ('' for a world started
+    without one), ``agents`` a list of names and ``since`` a finite number."""
     try:
         d = json_value(text, MAX_RUN_CHARS)
     except ValueError as err:
         return f'not JSON ({err})'
     if not isinstance(d, dict):
         return 'not a JSON object'
-    if not (isinstance(d.get('run_id'), str) and d['run_id'] and valid_run_id(d['run_id'])):
-        return f'run_id {d.get("run_id")!r} is not 1-32 letters, digits, _ or -'
+    if not (isinstance(d.get('run_id'), str) and valid_run_id(d['run_id'])):
+        return f'run_id {d.get("run_id")!r} is not 1-32 letters, digits, _ or - (or empty: no id)'
     if not (isinstance(d.get('agents'), list) and all(isinstance(a, str) for a in d['agents'])):
         return 'agents is not a list of names'
     since = d.get('since')

@@ -228,7 +228,8 @@ class WorldNode(RealtimeWorld, Node):
 
     # ------------------------------------------------------------ lockstep
     def other_run(self):
-        """Stop (one error line, exit 1) rather than mix with an older run (runinfo.give_way)."""
+        """Refuse to start (one error line, exit 1) rather than mix with an older run
+        (runinfo.give_way); once started, go on whatever is announced."""
         worlds = 1 if self.started else sum(
             1 for nm, ns in self.get_node_names_and_namespaces() if nm == 'world' and ns == '/')
         if worlds > 1 and not older_runs(self.runs.runs, self.run_id, self.since):
