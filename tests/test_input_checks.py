@@ -181,13 +181,18 @@ def test_the_younger_of_two_runs_gives_way_before_its_start_only():
 def test_every_live_verb_decides_once_every_announcer_is_heard():
     """runinfo.heard_every_writer: the verbs wait until each /swarm/run writer in the graph
     has been heard (kept or ignored), then refuse alike where two runs are announced."""
-    from swarm_ros.runinfo import heard_every_writer
+    from swarm_ros.runinfo import heard_every_writer, verb_refusal
     a = parse_run(run_json('aaaa', 's', 'lockstep', ['agent_0'], 5.0))
     assert not heard_every_writer({'aaaa': a}, 0, 2)
     assert heard_every_writer({'aaaa': a}, 1, 2) and heard_every_writer({'aaaa': a}, 0, 1)
     b = dict(a, run_id='bbbb')
     for prog in ('swarm lambda', 'swarm steer', 'swarm kill', 'swarm pause', 'swarm drop', 'swarm partition'):
-        assert one_run({'aaaa': a, 'bbbb': b}, prog)[1].startswith(f'{prog}: 2 runs share')
+        assert verb_refusal({'aaaa': a, 'bbbb': b}, 0, 2, prog)[1].startswith(f'{prog}: 2 runs share')
+        # a second writer never heard (a QoS the verb cannot read): refused too
+        assert '2 writers announce runs' in verb_refusal({'aaaa': a}, 0, 2, prog)[1]
+        assert verb_refusal({'aaaa': a}, 0, 1, prog) == (a, None)
+        assert verb_refusal({'aaaa': a}, 1, 2, prog) == (a, None)         # one writer says garbage
+    assert "unknown agent 'ghost'" in verb_refusal({'aaaa': a}, 0, 1, 'swarm kill', 'ghost')[1]
 
 
 def test_join_refuses_another_scenario_and_agents_the_run_has():

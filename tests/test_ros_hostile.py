@@ -210,6 +210,16 @@ def test_live_verbs_that_cannot_act_exit_nonzero_and_name_the_run(rclpy_context,
             assert p.returncode == 1, (verb, out)
             assert '2 runs share this ROS_DOMAIN_ID' in out and 'c0ffee00' in out and 'deadbeef' in out, out
         assert not world.done and world.failed is None
+        # a fake announcer as `ros2 topic pub -r 1` (volatile: a transient-local reader never
+        # hears it): the verbs still refuse, alike
+        other.destroy_publisher(pub)
+        vol = other.create_publisher(String, P.RUN, 10)
+        other.create_timer(1.0, lambda: vol.publish(String(data=run_json('deadbeef', 'x', 'realtime', ['agent_1'],
+                                                                          1.0))))
+        for verb in (('kill', 'agent_1'), ('lambda', '0.5'), ('steer', 'agent_0', '0.01')):
+            p, out = run(*verb)
+            assert p.returncode == 1 and '2 writers announce runs' in out, (verb, out)
+        assert not world.done
     finally:
         sp.close()
 

@@ -150,6 +150,20 @@ def heard_every_writer(runs: dict, ignored: int, writers: int) -> bool:
     return len(runs) + ignored >= writers
 
 
+def verb_refusal(runs: dict, ignored: int, writers: int, prog: str, agent=None):
+    """(the run, None) where a live verb may act, else (None, the one error line), the same
+    for every verb: two runs announced, a second ``/swarm/run`` writer whose announcement
+    was not heard (a QoS that cannot be read, or silence), or an ``agent`` the run lacks."""
+    run, err = one_run(runs, prog)
+    if err is None and writers > 1 and not heard_every_writer(runs, ignored, writers):
+        err = (f'{prog}: {writers} writers announce runs on this ROS_DOMAIN_ID and only '
+               f'{len(runs) + ignored} could be heard; refusing to act on an unknown one '
+               '(give each run its own ROS_DOMAIN_ID)')
+    if err is None and agent:
+        err = unknown_agent(run, agent, prog)
+    return (None, err) if err else (run, None)
+
+
 class RunWatch:
     """Collects the ``/swarm/run`` announcements heard on ``node`` ({run id: dict}); one that
     is not an announcement (`run_error`) is ignored with one line to ``log`` (if given)."""
@@ -172,13 +186,14 @@ class RunWatch:
         if self.log is not None:
             self.log(f'{P.RUN}: ignored an announcement {msg.data[:80]!r}: {why}')
 
-    def settle(self, ex, limit: float = ANNOUNCE_WAIT):
+    def decide(self, ex, prog: str, agent=None, limit: float = ANNOUNCE_WAIT):
         """Spin ``ex`` until every writer of ``/swarm/run`` in the graph has been heard (at
         most ``limit`` s), so that a live verb sees a second run however late it is
-        discovered; every verb decides after this same wait."""
+        discovered, then `verb_refusal`: every verb decides after this same wait, alike."""
         end = time.monotonic() + limit
         while time.monotonic() < end:
             ex.spin_once(timeout_sec=0.05)
             writers = self.node.count_publishers(P.RUN)
             if heard_every_writer(self.runs, self.ignored, writers) and (writers or not has_world(self.node)):
-                return
+                break
+        return verb_refusal(self.runs, self.ignored, self.node.count_publishers(P.RUN), prog, agent)

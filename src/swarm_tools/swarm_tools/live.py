@@ -81,10 +81,7 @@ def _publish_once(msg_type, topic, msg, wait, qos_depth=10, for_node=None, prog=
         while time.monotonic() < settle:
             ex.spin_once(timeout_sec=0.05)
         if watch is not None:                    # ... and hear every run on the domain
-            watch.settle(ex)
-        if watch is not None:
-            run, err = runinfo.one_run(watch.runs, prog)
-            err = err or (runinfo.unknown_agent(run, agent, prog) if agent else None)
+            run, err = watch.decide(ex, prog, agent)
             if err:
                 raise RunRefused(err)
             print(f'{prog}: reached {runinfo.describe(run)}' if run else
@@ -239,7 +236,7 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
     from rosgraph_msgs.msg import Clock
     from std_msgs.msg import String
 
-    from swarm_ros.runinfo import RunWatch, describe, one_run
+    from swarm_ros.runinfo import RunWatch, describe
     with cli_node('swarm_cli_events') as (node, ex):
         clock = {}
         node.create_subscription(Clock, P.CLOCK, lambda m: clock.__setitem__('t', P.stamp_to_time(m.clock)), 10)
@@ -271,8 +268,7 @@ def publish_event(kind: str, fields: dict, wait: float, check_names=(), prog='sw
             if not unknown and 't' in clock:
                 break
             ex.spin_once(timeout_sec=0.05)
-        watch.settle(ex)                             # every run's announcement
-        run, err = one_run(watch.runs, prog)
+        run, err = watch.decide(ex, prog)           # every run's announcement
         if err:
             print(err, file=sys.stderr)
             return 1
