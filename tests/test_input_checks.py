@@ -3,6 +3,8 @@ publisher binding, the rate-limited rejection log, who may be signalled, the run
 lockstep messages."""
 from __future__ import annotations
 
+import json
+
 import os
 import subprocess
 import time
@@ -127,8 +129,8 @@ def test_sender_tag_rides_in_the_odometry():
 
 
 def test_run_announcements():
-    a = parse_run(run_json('aaaa', 'homotopy_global', 'lockstep', ['agent_0', 'agent_1']))
-    b = parse_run(run_json('bbbb', 'other', 'realtime', ['agent_0']))
+    a = parse_run(run_json('aaaa', 'homotopy_global', 'lockstep', ['agent_0', 'agent_1'], 5.0))
+    b = parse_run(run_json('bbbb', 'other', 'realtime', ['agent_0'], 6.0))
     assert parse_run('not json') is None and parse_run('{"run_id": 3}') is None
     assert describe(a) == 'run aaaa (homotopy_global, lockstep, 2 agents)'
     assert one_run({'aaaa': a}, 'swarm kill') == (a, None)
@@ -138,21 +140,68 @@ def test_run_announcements():
     assert unknown_agent(a, 'agent_1', 'swarm kill') is None
 
 
-def test_the_younger_of_two_runs_gives_way():
-    """runinfo.give_way: an older run heard makes this one stop (before or after its start); a
-    younger one does not; before the start a second /world node alone is enough."""
+GOOD = {'run_id': 'a1', 'scenario': 's', 'mode': 'lockstep', 'agents': ['x'], 'since': 10.0}
+
+
+@pytest.mark.parametrize('change, why', [
+    (dict(since=None), 'since'), (dict(since='10'), 'since'), (dict(since=True), 'since'),
+    (dict(run_id='x' * 33), 'run_id'), (dict(run_id='a b'), 'run_id'), (dict(run_id=7), 'run_id'),
+    (dict(agents='x'), 'agents'), (dict(agents=[1]), 'agents'),
+])
+def test_an_announcement_without_what_the_give_way_rule_needs_is_ignored(change, why):
+    """since (a finite number), run_id and the agents list: without one of them the
+    announcement is not one (the world ignores it with one line: RunWatch.log)."""
+    from swarm_ros.runinfo import run_error
+    doc = {k: v for k, v in {**GOOD, **change}.items() if v is not None}
+    assert why in run_error(json.dumps(doc)) and parse_run(json.dumps(doc)) is None
+    assert 'not a finite number' in run_error(json.dumps(GOOD).replace('10.0', '1e999'))
+    assert 'nested deeper' in run_error('[' * 100000)
+    assert run_error(json.dumps(GOOD)) is None
+
+
+def test_the_younger_of_two_runs_gives_way_before_its_start_only():
+    """runinfo.give_way: an older run heard makes this one refuse to start; a younger one does
+    not; before the start a second /world node alone is enough.  Once started a run never
+    stops for an announcement, whatever it says."""
     from swarm_ros.runinfo import give_way
-    old = {'run_id': 'a1', 'scenario': 's', 'mode': 'lockstep', 'agents': ['x'], 'since': 10.0}
+    old = dict(GOOD)
     young = dict(old, run_id='b2', since=30.0)
     assert give_way({}, 'me', 20.0, 1, False, '7') is None
     assert give_way({'b2': young}, 'me', 20.0, 1, True, '7') is None
     line = give_way({'a1': old}, 'me', 20.0, 1, False, '7')
     assert line.startswith('another swarm run is on ROS_DOMAIN_ID=7 (run a1 (s, lockstep, 1 agents))')
     assert 'refusing to start' in line
-    assert 'stopping this one' in give_way({'a1': old}, 'me', 20.0, 1, True, '7')
+    assert give_way({'a1': old}, 'me', 20.0, 1, True, '7') is None
+    assert give_way({'a1': dict(old, since=-1e300)}, 'me', 20.0, 2, True, '7') is None
     assert 'a second /world node' in give_way({}, 'me', 20.0, 2, False, '7')
     assert give_way({}, 'me', 20.0, 2, True, '7') is None
     assert give_way({'me': dict(old, run_id='me')}, 'me', 20.0, 1, False, '7') is None
+
+
+def test_every_live_verb_decides_once_every_announcer_is_heard():
+    """runinfo.heard_every_writer: the verbs wait until each /swarm/run writer in the graph
+    has been heard (kept or ignored), then refuse alike where two runs are announced."""
+    from swarm_ros.runinfo import heard_every_writer, verb_refusal
+    a = parse_run(run_json('aaaa', 's', 'lockstep', ['agent_0'], 5.0))
+    assert not heard_every_writer({'aaaa': a}, 0, 2)
+    assert heard_every_writer({'aaaa': a}, 1, 2) and heard_every_writer({'aaaa': a}, 0, 1)
+    b = dict(a, run_id='bbbb')
+    for prog in ('swarm lambda', 'swarm steer', 'swarm kill', 'swarm pause', 'swarm drop', 'swarm partition'):
+        assert verb_refusal({'aaaa': a, 'bbbb': b}, 0, 2, prog)[1].startswith(f'{prog}: 2 runs share')
+        # a second writer never heard (a QoS the verb cannot read): refused too
+        assert '2 writers announce runs' in verb_refusal({'aaaa': a}, 0, 2, prog)[1]
+        assert verb_refusal({'aaaa': a}, 0, 1, prog) == (a, None)
+        assert verb_refusal({'aaaa': a}, 1, 2, prog) == (a, None)         # one writer says garbage
+    assert "unknown agent 'ghost'" in verb_refusal({'aaaa': a}, 0, 1, 'swarm kill', 'ghost')[1]
+
+
+def test_join_refuses_another_scenario_and_agents_the_run_has():
+    from swarm_ros.runinfo import join_error
+    run = parse_run(run_json('aaaa', 's', 'lockstep', ['agent_0', 'agent_1', 'agent_2'], 5.0, 'h1', ['agent_2']))
+    assert join_error(run, ['agent_2'], 'h1') is None
+    assert 'another scenario' in join_error(run, ['agent_2'], 'h2')
+    assert 'already has agent_0, agent_1' in join_error(run, ['agent_0', 'agent_1', 'agent_2'], 'h1')
+    assert 'already has agent_0' in join_error(dict(run, remote=None), ['agent_0'], 'h1')
 
 
 def batch(tag, index, step, x):

@@ -166,7 +166,9 @@ def test_swarm_run_rejects_a_bad_scenario(tmp_path, swarm_cmd):
 
 def test_cli_rejects_bad_lambda_and_steering(swarm_cmd):
     for args, word in ((['lambda', 'nan'], 'λ=nan'), (['lambda', '1.5'], 'λ=1.5'), (['lambda', '--', '-0.5'], 'λ=-0.5'),
-                       (['steer', 'agent_0', 'inf'], 'not finite')):
+                       (['steer', 'agent_0', 'inf'], 'steering=inf'), (['steer', 'agent_0', '1e308'], 'steering=1e+308'),
+                       (['pause', 'agent_1', '1e308'], 'pause seconds=1e+308'),
+                       (['lambda', '1', '--ramp', '1e308'], 'ramp=1e+308')):
         r = subprocess.run([swarm_cmd, *args], capture_output=True, text=True, timeout=60)
         assert r.returncode == 2 and word in r.stderr, (args, r.stderr)
 

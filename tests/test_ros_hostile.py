@@ -104,7 +104,7 @@ def test_a_second_run_on_the_domain_is_refused_and_lockstep_messages_of_another_
     ex = make_executor(ctx)
     other = rclpy.create_node('other_world', context=ctx)
     pub = other.create_publisher(String, P.RUN, P.qos_latched())
-    pub.publish(String(data=run_json('aaaa1111', 'homotopy_global', 'lockstep', ['agent_0'])))
+    pub.publish(String(data=run_json('aaaa1111', 'homotopy_global', 'lockstep', ['agent_0'], 1.0)))
     world = WorldNode(context=ctx, parameter_overrides=overrides(dict(scenario='homotopy_global', duration=1.0,
                                                                       run_id='bbbb2222')),
                       log=lambda *a, **k: None)
@@ -178,10 +178,13 @@ class Spinner:
 def test_live_verbs_that_cannot_act_exit_nonzero_and_name_the_run(rclpy_context, swarm_cmd, processes):
     """`swarm kill ghost` / `swarm kill agent_99` exit 2 with the reason (they exited 0 and the
     refusal was only in the world's log); a good name says which run was reached; with a
-    second run on the domain the verb refuses (exit 1) naming both."""
-    world = WorldNode(context=rclpy_context, parameter_overrides=overrides(dict(
-        scenario='homotopy_global', duration=1.0, run_id='c0ffee00')), log=lambda *a, **k: None)
-    sp = Spinner(rclpy_context, [world])
+    second run announced on the domain every verb refuses alike (exit 1) naming both, and the
+    world does not stop for it."""
+    from homotopy_commander.commander_node import CommanderNode
+    ps = overrides(dict(scenario='homotopy_global', duration=1.0, run_id='c0ffee00'))
+    world = WorldNode(context=rclpy_context, parameter_overrides=ps, log=lambda *a, **k: None)
+    commander = CommanderNode(context=rclpy_context, parameter_overrides=ps)
+    sp = Spinner(rclpy_context, [world, commander])
     env = dict(os.environ)
 
     def run(*args):
@@ -198,12 +201,25 @@ def test_live_verbs_that_cannot_act_exit_nonzero_and_name_the_run(rclpy_context,
         assert 'reached run c0ffee00 (homotopy_global, lockstep, 6 agents)' in out, out
         other = rclpy.create_node('other_world', context=rclpy_context)
         pub = other.create_publisher(String, P.RUN, P.qos_latched())
-        pub.publish(String(data=run_json('deadbeef', 'x', 'realtime', ['agent_1'])))
+        # a younger run (an older one would make this world, not yet started, give way)
+        pub.publish(String(data=run_json('deadbeef', 'x', 'realtime', ['agent_1'], time.time() + 1e6)))
         sp.close()
-        sp = Spinner(rclpy_context, [world, other])
-        p, out = run('kill', 'agent_1')
-        assert p.returncode == 1, out
-        assert '2 runs share this ROS_DOMAIN_ID' in out and 'c0ffee00' in out and 'deadbeef' in out, out
+        sp = Spinner(rclpy_context, [world, commander, other])
+        for verb in (('kill', 'agent_1'), ('pause', 'agent_1', '1'), ('lambda', '0.5'), ('steer', 'agent_0', '0.01')):
+            p, out = run(*verb)
+            assert p.returncode == 1, (verb, out)
+            assert '2 runs share this ROS_DOMAIN_ID' in out and 'c0ffee00' in out and 'deadbeef' in out, out
+        assert not world.done and world.failed is None
+        # a fake announcer as `ros2 topic pub -r 1` (volatile: a transient-local reader never
+        # hears it): the verbs still refuse, alike
+        other.destroy_publisher(pub)
+        vol = other.create_publisher(String, P.RUN, 10)
+        other.create_timer(1.0, lambda: vol.publish(String(data=run_json('deadbeef', 'x', 'realtime', ['agent_1'],
+                                                                          1.0))))
+        for verb in (('kill', 'agent_1'), ('lambda', '0.5'), ('steer', 'agent_0', '0.01')):
+            p, out = run(*verb)
+            assert p.returncode == 1 and '2 writers announce runs' in out, (verb, out)
+        assert not world.done
     finally:
         sp.close()
 

@@ -47,7 +47,7 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from swarm_core.faults import event_names
 from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.command_plan import check_command
-from swarm_core.inputs import LAMBDA_BOUND
+from swarm_core.inputs import LAMBDA_BOUND, RAMP_BOUND, STEERING_BOUND
 from swarm_ros import protocol as P
 from swarm_ros.layouts import Decision, States
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, decoded
@@ -118,7 +118,7 @@ class CommanderNode(Node):
         d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
         self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=('lockstep', 'realtime'))
         self.ramp = d('ramp', 20.0, 'ramp duration (sim s) of a λ set-point from /swarm/lambda or the '
-                      'lambda parameter (0 = jump)', lo=0.0, hi=1e6)
+                      'lambda parameter (0 = jump)', lo=RAMP_BOUND.lo, hi=RAMP_BOUND.hi)
         self.ramp_shape = d('ramp_shape', 'smoothstep', 'shape of set-point ramps',
                             choices=('smoothstep', 'linear', 'tanh', 'step'))
         self.heard_timeout = d('heard_timeout', 1.0, 'realtime: an agent silent for this many sim s is not heard '
@@ -323,12 +323,9 @@ class CommanderNode(Node):
             v = p.value
             if p.type_ != Parameter.Type.DOUBLE:
                 return SetParametersResult(successful=False, reason=f'{p.name}: want a double, got {v!r}')
-            if p.name == 'lambda' and not LAMBDA_BOUND.ok(v):
-                return SetParametersResult(successful=False, reason=f'lambda: {LAMBDA_BOUND.error(v)}')
-            if p.name == 'ramp' and not (math.isfinite(v) and v >= 0.0):
-                return SetParametersResult(successful=False, reason=f'ramp={v!r}: must be finite and ≥ 0')
-            if p.name.startswith('steering.') and not math.isfinite(v):
-                return SetParametersResult(successful=False, reason=f'{p.name}={v!r}: not finite')
+            bound = LAMBDA_BOUND if p.name == 'lambda' else RAMP_BOUND if p.name == 'ramp' else STEERING_BOUND
+            if not bound.ok(v):
+                return SetParametersResult(successful=False, reason=f'{p.name}: {bound.error(v)}')
         return SetParametersResult(successful=True)
 
     def _apply_params(self, params):

@@ -45,7 +45,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import Float64
 
 from swarm_core.comms import CommModel, StreamRadio, change_from_event
-from swarm_core.inputs import LAMBDA_BOUND
+from swarm_core.inputs import DT_BOUND, LAMBDA_BOUND, STEERING_BOUND
 from swarm_core.laws import LAW_PARAMETERS, LawConfig
 from swarm_core.robot_units import ROBOT_KINDS
 from swarm_core.scenario import noise_rng
@@ -127,7 +127,8 @@ class AgentNode(Node):
         pose = (d('x', 0.0, 'initial x position'), d('y', 0.0, 'initial y position'),
                 d('theta', 0.0, 'initial heading θ (rad)'))
         self.law = self._declare_law()
-        self.dt = d('dt', 0.05, 'control period / integration step (sim s)', lo=1e-6, hi=10.0)
+        self.dt = d('dt', 0.05, 'control period / integration step (sim s)', lo=DT_BOUND.lo, hi=DT_BOUND.hi,
+                    read_only=True)
         self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=MODES)
         noise = (d('noise_position', 0.0, 'uniform noise half-width on x, y per step', lo=0.0, hi=1e6),
                  d('noise_heading', 0.0, 'uniform noise half-width on θ per step', lo=0.0, hi=1e6))
@@ -189,8 +190,8 @@ class AgentNode(Node):
 
     def _on_steering(self, msg):
         v = msg.data
-        if not math.isfinite(v):
-            self.reject('steer', f'steering s={v!r} for {self.agent_name}: not finite')
+        if not STEERING_BOUND.ok(v):
+            self.reject('steer', f'{self.agent_name}: {STEERING_BOUND.error(v)}')
             return
         self.steering = v
 

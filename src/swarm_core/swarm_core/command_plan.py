@@ -13,7 +13,7 @@ from typing import Sequence
 import numpy as np
 
 from .faults import Failover, elect_successor, followers_of
-from .inputs import LAMBDA_BOUND
+from .inputs import LAMBDA_BOUND, RAMP_BOUND, STEERING_BOUND, json_value
 from .schedules import (ConstantLambda, ConstantSteering, LambdaSchedule, LiveSchedule, SteeringProgram,
                         RAMP_SHAPES)
 
@@ -25,27 +25,18 @@ COMMANDS = ('lambda', 'steer')
 
 def check_command(cmd: dict, n_agents: int) -> dict:
     """A live command, validated and normalised (ValueError names the bad field):
-    ``{'command': 'lambda', 'value': λ ∈ [0, 1], 'ramp': s ≥ 0, 'shape': RAMP_SHAPES}`` or
-    ``{'command': 'steer', 'agent': index, 'value': finite s_k}``; other keys are kept."""
+    ``{'command': 'lambda', 'value': λ (LAMBDA_BOUND), 'ramp': s (RAMP_BOUND), 'shape':
+    RAMP_SHAPES}`` or ``{'command': 'steer', 'agent': index, 'value': s_k (STEERING_BOUND)}``;
+    other keys are kept."""
     out = dict(cmd)
     kind = out.get('command')
-    if kind not in COMMANDS:
+    if not isinstance(kind, str) or kind not in COMMANDS:
         raise ValueError(f'command {kind!r}: one of {", ".join(COMMANDS)}')
-    try:
-        value = float(out.get('value'))
-    except (TypeError, ValueError):
-        raise ValueError(f'{kind} value {out.get("value")!r}: not a number') from None
-    if not math.isfinite(value):
-        raise ValueError(f'{kind} value {value!r}: not finite')
-    out['value'] = value
+    out['value'] = (LAMBDA_BOUND if kind == 'lambda' else STEERING_BOUND).check(out.get('value'))
     if kind == 'lambda':
-        LAMBDA_BOUND.check(value)
-        ramp = float(out.get('ramp', 0.0))
-        if not (math.isfinite(ramp) and ramp >= 0.0):
-            raise ValueError(f'ramp {ramp!r}: must be finite and ≥ 0')
-        out['ramp'] = ramp
+        out['ramp'] = RAMP_BOUND.check(out.get('ramp', 0.0))
         out.setdefault('shape', 'smoothstep')
-        if out['shape'] not in RAMP_SHAPES:
+        if not isinstance(out['shape'], str) or out['shape'] not in RAMP_SHAPES:
             raise ValueError(f'ramp shape {out["shape"]!r}: one of {", ".join(RAMP_SHAPES)}')
     else:
         agent = out.get('agent')
@@ -221,20 +212,23 @@ class CommandPlan:
                 fo.followers[idx] = lk == idx
 
 
+#: longest line of an events file (an event is a few hundred characters)
+MAX_EVENT_CHARS = 65536
+
+
 def read_commands(lines, names) -> dict:
     """{step: [command, ...]} of the ``command`` events among JSON lines (a run's
     ``events.jsonl``, or ``/swarm/events`` messages), agent names turned into indices.
     ValueError names the line of a bad event (no step, unknown agent, bad value)."""
-    import json
     row = {nm: i for i, nm in enumerate(names)}
     out: dict[int, list] = {}
     for k, line in enumerate(lines, 1):
         if not line.strip():
             continue
         try:
-            ev = json.loads(line)
+            ev = json_value(line, MAX_EVENT_CHARS)
         except ValueError as err:
-            raise ValueError(f'line {k}: not JSON ({err})') from None
+            raise ValueError(f'line {k}: not a JSON event ({err})') from None
         if not isinstance(ev, dict) or ev.get('kind') != 'command':
             continue
         step = ev.get('step')
@@ -242,7 +236,7 @@ def read_commands(lines, names) -> dict:
             raise ValueError(f'line {k}: command without a step ≥ 0 (step={step!r})')
         cmd = {key: v for key, v in ev.items() if key not in ('t', 'kind', 'step', 'node')}
         if cmd.get('command') == 'steer':
-            if cmd.get('agent') not in row:
+            if not isinstance(cmd.get('agent'), str) or cmd['agent'] not in row:
                 raise ValueError(f'line {k}: steer command for unknown agent {cmd.get("agent")!r}')
             cmd['agent'] = row[cmd['agent']]
         try:

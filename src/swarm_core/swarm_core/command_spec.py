@@ -6,8 +6,8 @@ from typing import Annotated, Literal, Optional, Union
 
 from pydantic import Field, model_validator
 
-from .inputs import MAX_GAIN
-from .scenario_schema import Curvature, Finite, Gain, Lambda, NonNeg, Point, Positive, Strict
+from .inputs import DT_BOUND, MAX_GAIN, MAX_TIME, STEERING_BOUND
+from .scenario_schema import Curvature, Finite, Gain, Lambda, NonNeg, Point, Positive, RampSeconds, SimTime, Strict
 from .schedules import (ConstantLambda, ConstantSteering, RampSchedule, SinusoidSteering, TanhWindow,
                         WaypointSteering)
 
@@ -27,9 +27,9 @@ class TanhWindowSpec(Strict):
 
 
 class RampSpec(Strict):
-    at: NonNeg
+    at: SimTime
     to: Lambda
-    duration: NonNeg = 20.0
+    duration: RampSeconds = 20.0
     shape: Literal['smoothstep', 'linear', 'step', 'tanh'] = 'smoothstep'
 
 
@@ -52,9 +52,15 @@ class ConstantProgram(Strict):
 class SinusoidProgram(Strict):
     kind: Literal['sinusoid']
     amplitude: Curvature = 0.01
-    period: Positive = 200.0
+    period: Annotated[float, Field(ge=DT_BOUND.lo, le=MAX_TIME, allow_inf_nan=False)] = 200.0
     phase: Finite = 0.0
     offset: Curvature = 0.0
+
+    @model_validator(mode='after')
+    def _within_bound(self):
+        if abs(self.offset) + abs(self.amplitude) > STEERING_BOUND.hi:
+            raise ValueError(f'|offset| + |amplitude| must be at most {STEERING_BOUND.hi:g} (the steering bound)')
+        return self
 
 
 class WaypointProgram(Strict):

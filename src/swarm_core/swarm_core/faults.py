@@ -44,6 +44,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .inputs import PAUSE_BOUND
 from .laws import swarm_control
 from .pair_sums import nearest_leader
 
@@ -70,12 +71,17 @@ class Fault:
     def __post_init__(self):
         if self.kind not in FAULT_KINDS:
             raise ValueError(f'fault kind must be one of {FAULT_KINDS}, got {self.kind!r}')
+        if self.kind == 'freeze':         # one check for every way in (scenario, request, study)
+            PAUSE_BOUND.check(self.duration)
 
 
 def leader_slot(agent: str):
-    """i of 'leader:i', or None for an agent name."""
+    """i of 'leader:i', or None for an agent name (ValueError for 'leader:' without digits)."""
     if agent.startswith('leader:'):
-        return int(agent.split(':', 1)[1])
+        digits = agent[7:]
+        if not (digits.isdigit() and len(digits) <= 6):
+            raise ValueError(f'{agent!r}: leader slots are leader:0, leader:1, ...')
+        return int(digits)
     return None
 
 

@@ -18,12 +18,13 @@ from pydantic import ConfigDict, Field, ValidationError, create_model, field_val
 from .command_plan import CommandPlan
 from .command_spec import ConstantLambdaSpec, LambdaSpec, LeadersSpec, ProgramSpec, build_program, build_schedule
 from .faults import Fault, FaultTimeline, Rendezvous
-from .inputs import InputError
+from .inputs import InputError, check_run_size
 from .law_parameters import LAW_PARAMETER, LAW_TABLE
 from .laws import LawConfig
 from .placement import AGENT_NAME, AgentsSpec, initial_conditions  # noqa: F401  (AGENT_NAME: report.py)
 from .robot_units import RobotsSpec
-from .scenario_schema import Finite, NonNeg, Point, Positive, Strict, bounded
+from .scenario_schema import (Finite, NonNeg, PauseSeconds, Point, Positive, RunSeconds, SimTime, StepSeconds, Strict,
+                              bounded)
 
 #: largest scenario file read (bytes), checked before parsing
 MAX_FILE_BYTES = 2 * 1024 * 1024
@@ -94,10 +95,10 @@ class NoiseSpec(Strict):
 
 class FaultSpec(Strict):
     """``{at: 450, kill: agent_2}`` or ``{at: 300, freeze: leader:0, for: 5.0}`` (faults.py)."""
-    at: NonNeg
+    at: SimTime
     kill: Optional[str] = None
     freeze: Optional[str] = None
-    for_: Optional[Positive] = Field(default=None, alias='for')
+    for_: Optional[PauseSeconds] = Field(default=None, alias='for')
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
 
     @model_validator(mode='after')
@@ -130,7 +131,7 @@ class FailoverSpec(Strict):
 class ReunionSpec(Strict):
     """Over [at, at + for): a shared rendezvous target (eq. 15; point: [x, y], centroid or none)
     and/or far coupling q0 = ``coupling`` (faults.py)."""
-    at: NonNeg
+    at: SimTime
     for_: Positive = Field(alias='for')
     point: Union[Literal['centroid', 'none'], Point] = 'centroid'
     coupling: Optional[bounded(LAW_PARAMETER['q0'].bound)] = None
@@ -158,7 +159,7 @@ class LinkSpec(Strict):
 
 class CommsEventSpec(Strict):
     """A change of the radio at sim time ``at`` (from the first step n with n·dt ≥ at)."""
-    at: NonNeg
+    at: SimTime
     loss: Optional[Probability] = None
     latency: Optional[NonNeg] = None
     jitter: Optional[NonNeg] = None
@@ -236,8 +237,8 @@ class ScenarioSpec(Strict):
     name: str
     description: str = ''
     seed: Annotated[int, Field(ge=0)] = 0
-    dt: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = 0.05
-    duration: Positive = 1000.0
+    dt: StepSeconds = 0.05
+    duration: RunSeconds = 1000.0
     integrator: Literal['zoh', 'rk4'] = 'zoh'
     agents: AgentsSpec
     law: LawSpec = Field(default_factory=LawSpec)
@@ -277,9 +278,11 @@ class ScenarioSpec(Strict):
 
     @model_validator(mode='after')
     def _steps(self):
-        if round(self.duration / self.dt) < 1:
+        steps = round(self.duration / self.dt)
+        if steps < 1:
             raise ValueError(f'duration {self.duration:g} is shorter than one step (dt {self.dt:g}): '
                              'nothing would run')
+        check_run_size(steps, self.agents.count or 0)
         return self
 
     @model_validator(mode='after')
@@ -320,6 +323,15 @@ class Scenario:
     @property
     def dt(self):
         return self.spec.dt
+
+    @property
+    def content_hash(self) -> str:
+        """A hash of the validated scenario (with its overrides: seed, dt, duration): two
+        processes that loaded the same run have the same one (``swarm join`` checks it)."""
+        import hashlib
+        import json
+        text = json.dumps(self.spec.model_dump(mode='json', by_alias=True), sort_keys=True, separators=(',', ':'))
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     @property
     def duration(self):
@@ -496,42 +508,54 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
 _Loader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)     # libyaml when there (4x faster)
 
 
+#: deepest nesting of a scenario or study file (the schema nests about 6 levels)
+MAX_YAML_DEPTH = 32
+
+
 def safe_yaml(text: str):
-    """Parse YAML text with the safe loader, refusing anchors and aliases (``&a`` / ``*a``):
-    an alias bomb (a few lines that expand to billions of values) is refused before anything
-    is built from it.  The node graph is composed, checked (an alias is a node met twice),
+    """Parse YAML text with the safe loader, refusing anchors and aliases (``&a`` / ``*a``)
+    and nesting deeper than `MAX_YAML_DEPTH`: an alias bomb (a few lines that expand to
+    billions of values) is refused before anything is built from it.  The node graph is composed, checked (an alias is a node met twice),
     then constructed."""
     loader = _Loader(text)
     try:
         node = loader.get_single_node()
         if node is None:
             return None
-        seen, stack = set(), [node]
+        seen, stack = set(), [(node, 1)]
         while stack:
-            nd = stack.pop()
+            nd, depth = stack.pop()
             if id(nd) in seen:
                 mark = nd.start_mark
                 raise yaml.composer.ComposerError(None, None, 'YAML aliases (*name) are not allowed in a scenario',
                                                   mark)
+            if depth > MAX_YAML_DEPTH:
+                raise yaml.composer.ComposerError(None, None, f'nested deeper than {MAX_YAML_DEPTH} levels',
+                                                  nd.start_mark)
             seen.add(id(nd))
             if isinstance(nd, yaml.SequenceNode):
-                stack.extend(nd.value)
+                stack.extend((v, depth + 1) for v in nd.value)
             elif isinstance(nd, yaml.MappingNode):
-                for k, v in nd.value:
-                    stack.extend((k, v))
+                stack.extend((x, depth + 1) for kv in nd.value for x in kv)
         return loader.construct_document(node)
     finally:
         loader.dispose()
 
 
-def load(name_or_path: str, **overrides) -> Scenario:
-    """Load a shipped scenario by name, or a YAML file, with optional overrides."""
+def read_yaml(name_or_path: str):
+    """(data, source) of a shipped scenario or a YAML file (a scenario or a study) with the
+    limits of every YAML input: `MAX_FILE_BYTES`, no aliases, `MAX_YAML_DEPTH`."""
     text, source = resolve(name_or_path)
     if len(text) > MAX_FILE_BYTES:
         raise ScenarioError(f'{source}: more than {MAX_FILE_BYTES} bytes')
     try:
-        data = safe_yaml(text)
+        return safe_yaml(text), source
     except yaml.YAMLError as err:
         msg = ' '.join(str(err).split())
         raise ScenarioError(f'{source}: not valid YAML: {msg[:300]}') from None
+
+
+def load(name_or_path: str, **overrides) -> Scenario:
+    """Load a shipped scenario by name, or a YAML file, with optional overrides."""
+    data, source = read_yaml(name_or_path)
     return parse(data, source, **overrides)

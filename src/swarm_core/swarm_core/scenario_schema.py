@@ -7,7 +7,8 @@ from typing import Annotated
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field
 
-from .inputs import LAMBDA_BOUND, MAX_COORD, MAX_GAIN, Bound
+from .inputs import (DT_BOUND, DURATION_BOUND, LAMBDA_BOUND, MAX_COORD, MAX_GAIN, MAX_TIME, PAUSE_BOUND,
+                     RAMP_BOUND, STEERING_BOUND, Bound)
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 NonNeg = Annotated[float, Field(ge=0, allow_inf_nan=False)]
@@ -16,13 +17,13 @@ Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD, allow_inf_nan=False)
 Point = tuple[Coord, Coord]
 #: a gain or curvature: bounded so that u_k and dt·u_k stay finite
 Gain = Annotated[float, Field(ge=0, le=MAX_GAIN, allow_inf_nan=False)]
-Curvature = Annotated[float, Field(ge=-MAX_GAIN, le=MAX_GAIN, allow_inf_nan=False)]
 Length = Annotated[float, Field(gt=0, le=MAX_COORD, allow_inf_nan=False)]
 
 
 def bounded(bound: Bound):
     """A `Bound` as pydantic constraints (pydantic's error texts, as for the other fields)."""
-    return Annotated[float, Field(ge=bound.lo, le=bound.hi, allow_inf_nan=False)]
+    lo = dict(gt=bound.lo) if bound.open_lo else dict(ge=bound.lo)
+    return Annotated[float, Field(le=bound.hi, allow_inf_nan=False, **lo)]
 
 
 def checked(bound: Bound):
@@ -33,6 +34,14 @@ def checked(bound: Bound):
 
 #: λ (eq. 12-14), checked as on every other boundary
 Lambda = checked(LAMBDA_BOUND)
+#: the values a live command or parameter also sets, bounded as on every other boundary
+Curvature = bounded(STEERING_BOUND)
+PauseSeconds = bounded(PAUSE_BOUND)
+RampSeconds = bounded(RAMP_BOUND)
+StepSeconds = bounded(DT_BOUND)
+RunSeconds = bounded(DURATION_BOUND)
+#: a time within a run (sim s)
+SimTime = Annotated[float, Field(ge=0, le=MAX_TIME, allow_inf_nan=False)]
 
 
 class Strict(BaseModel):

@@ -4,6 +4,7 @@ The commander's decisions that use them are in `swarm_core.command_plan`.
 """
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field
 
@@ -71,27 +72,42 @@ class Ramp:
 @dataclass
 class RampSchedule(LambdaSchedule):
     """Piecewise ramps from an initial level; a ramp that starts before the previous one has
-    finished starts from the value reached then (so live set-points chain smoothly)."""
+    finished starts from the value reached then (so live set-points chain smoothly).
+
+    Linear time over a run: a ramp is inserted in start order (after those with the same
+    start), and `value` keeps the level reached when the next ramp took over (``_done`` ramps
+    folded into ``_level``), so a run with many set-points does not re-walk them all at every
+    step; the same sums in the same order as walking from the first ramp."""
 
     initial: float = 0.0
     ramps: list = field(default_factory=list)
+    _done: int = field(default=0, init=False, repr=False, compare=False)
+    _level: float = field(default=math.nan, init=False, repr=False, compare=False)
 
     def then(self, start: float, to: float, duration: float = 20.0, shape: str = 'smoothstep'):
         """Append a ramp (the commander's live set-point) and return self."""
         ramp_shape(0.0, shape)  # validates the shape name
-        self.ramps.append(Ramp(float(start), float(to), float(duration), shape))
-        self.ramps.sort(key=lambda r: r.start)
+        i = bisect.bisect_right(self.ramps, float(start), key=lambda r: r.start)
+        self.ramps.insert(i, Ramp(float(start), float(to), float(duration), shape))
+        if i <= self._done:
+            self._done = 0               # inserted before what is folded: fold again
         return self
 
     def value(self, t):
-        level = self.initial
-        for i, r in enumerate(self.ramps):
+        ramps = self.ramps
+        if self._done == 0 or t < ramps[self._done].start:
+            self._done, self._level = 0, self.initial
+        level = self._level
+        for i in range(self._done, len(ramps)):
+            r = ramps[i]
             if t < r.start:
                 break
-            nxt = self.ramps[i + 1].start if i + 1 < len(self.ramps) else math.inf
+            nxt = ramps[i + 1].start if i + 1 < len(ramps) else math.inf
             upto = min(t, nxt)
             x = 1.0 if r.duration <= 0 else (upto - r.start) / r.duration
             level = level + (r.to - level) * float(ramp_shape(x, r.shape))
+            if t >= nxt:                 # ramp i is over for every later t: fold it
+                self._done, self._level = i + 1, level
         return level
 
 

@@ -60,10 +60,18 @@ def _load_or_exit(name, **over):
         raise SystemExit(2)
 
 
+#: largest events file ``--replay`` reads (a long run's events.jsonl is a few MB)
+MAX_REPLAY_BYTES = 64 * 1024 * 1024
+
+
 def _replay_or_exit(path, scn) -> dict:
     """The commands of an events file by step (schedules.read_commands), or exit 2 naming the problem."""
     try:
-        commands = read_commands(Path(path).read_text().splitlines(), scn.names)
+        with open(path, 'rb') as fh:           # at most the limit, whatever the file is (/dev/zero)
+            raw = fh.read(MAX_REPLAY_BYTES + 1)
+        if len(raw) > MAX_REPLAY_BYTES:
+            raise ValueError(f'more than {MAX_REPLAY_BYTES} bytes')
+        commands = read_commands(raw.decode('utf-8').splitlines(), scn.names)
         late = [s for s in commands if s > scn.steps]
         if late:
             raise ValueError(f'a command at step {late[0]} is after the last step {scn.steps}')

@@ -7,8 +7,7 @@ carries its whole scenario mapping, so a worker needs only the project installed
 cached one JSON file per run, keyed by (scenario content hash, parameter values, seed, code
 version): a study re-run skips what finished.  The table is sorted by cell and seed and holds
 nothing that depends on the executor (no wall times), so it is the same for any executor and
-any number of workers.  The checks are the scenario's own (`outcomes.evaluate`).  The tables,
-rates and figure are in `study_tables` (imported here too).
+any number of workers.  The checks are the scenario's own (`outcomes.evaluate`).
 """
 from __future__ import annotations
 
@@ -16,85 +15,19 @@ import functools
 import hashlib
 import itertools
 import json
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from . import scenario
-from .atomic import write_atomic
-from .study_tables import ROW_METRICS
+from . import placement, scenario
+from .study_cache import ROW_METRICS, Cache, row_error
 # the tables are part of the study API (study.to_csv, study.rates, ...)
 from .study_tables import plot_rates, rates, rates_csv, rates_markdown, to_csv, wilson  # noqa: F401
+from .study_grid import (MAX_CELLS, MAX_RUNS, StudyError, check_size, parse_set, parse_values,  # noqa: F401
+                         set_field)
 
-
-class StudyError(ValueError):
-    """A study that cannot run; the message names the bad input."""
-
-
-# ------------------------------------------------------------------ grid parsing
-
-def parse_values(text: str) -> list:
-    """``5,10,20`` → [5, 10, 20]; ``0:0.05:6`` → 6 values from 0 to 0.05 (both ends);
-    each item is read as YAML (numbers, true/false, strings)."""
-    text = text.strip()
-    if not text:
-        raise StudyError('empty list of values')
-    if ':' in text and not text.startswith(('[', '{')):
-        parts = text.split(':')
-        if len(parts) != 3:
-            raise StudyError(f'{text!r}: a range is START:STOP:COUNT')
-        try:
-            a, b, n = float(parts[0]), float(parts[1]), int(parts[2])
-        except ValueError:
-            raise StudyError(f'{text!r}: a range is START:STOP:COUNT (numbers, COUNT an integer)') from None
-        if n < 1:
-            raise StudyError(f'{text!r}: empty range (COUNT must be ≥ 1)')
-        return [float(v) for v in np.linspace(a, b, n)] if n > 1 else [a]
-    vals = []
-    for item in text.split(','):
-        if not item.strip():
-            raise StudyError(f'{text!r}: empty value in the list')
-        try:
-            vals.append(yaml.safe_load(item))
-        except yaml.YAMLError:
-            raise StudyError(f'{text!r}: cannot read value {item!r}') from None
-    return vals
-
-
-def parse_set(expr: str) -> tuple[str, list]:
-    """``law.leader_gain=5,10`` → ('law.leader_gain', [5, 10])."""
-    fld, eq, vals = expr.partition('=')
-    fld = fld.strip()
-    if not eq or not fld:
-        raise StudyError(f'--set {expr!r}: give FIELD=VALUES, e.g. law.leader_gain=5,10,20')
-    try:
-        return fld, parse_values(vals)
-    except StudyError as err:
-        raise StudyError(f'--set {fld}: {err}') from None
-
-
-def set_field(data: dict, dotted: str, value):
-    """Set ``data[a][b]...`` for ``a.b...`` (integer parts index lists); creates missing mappings."""
-    parts = dotted.split('.')
-    node = data
-    for i, part in enumerate(parts):
-        last = i == len(parts) - 1
-        if isinstance(node, list):
-            if not part.isdigit() or int(part) >= len(node):
-                raise StudyError(f'{dotted}: {".".join(parts[:i]) or "(top)"} has {len(node)} items, no {part!r}')
-            key = int(part)
-        elif isinstance(node, dict):
-            key = part
-            if not last and node.get(key) is None:
-                node[key] = {}
-        else:
-            raise StudyError(f'{dotted}: {".".join(parts[:i])} is a value, not a section')
-        if last:
-            node[key] = json.loads(json.dumps(value))    # a copy: cells never share a mapping
-        else:
-            node = node[key]
 
 
 # ------------------------------------------------------------------ the study
@@ -129,10 +62,9 @@ class Study:
 
 def _scenario_text(name_or_path):
     try:
-        text, source = scenario.resolve(name_or_path)
+        data, source = scenario.read_yaml(name_or_path)
     except scenario.ScenarioError as err:
         raise StudyError(str(err)) from None
-    data = yaml.safe_load(text)
     if not isinstance(data, dict):
         raise StudyError(f'{source}: a scenario is a YAML mapping')
     return data, source
@@ -147,6 +79,7 @@ def make_study(scenario_name, sets=(), seeds=10, first_seed=0, fixed=None, name=
         if fld in grid:
             raise StudyError(f'--set {fld}: given twice')
         grid[fld] = vals
+    check_size(grid, seeds)
     seed_list = list(range(first_seed, first_seed + seeds)) if isinstance(seeds, int) else list(seeds)
     return Study(data=data, source=source, grid=grid, fixed=dict(fixed or {}), seeds=seed_list,
                  name=name or data.get('name', 'study'))
@@ -165,12 +98,12 @@ def load_study(path, base_dir=None) -> Study:
         figure: {check: all}           # optional
     """
     p = Path(path)
-    try:
-        doc = yaml.safe_load(p.read_text())
-    except OSError as err:
-        raise StudyError(f'{path}: cannot read: {err.strerror}') from None
-    except yaml.YAMLError as err:
-        raise StudyError(f'{path}: not valid YAML: {str(err).splitlines()[0]}') from None
+    if not p.is_file():
+        raise StudyError(f'{path}: cannot read: no such file')
+    try:                          # the limits of scenario files: size, no aliases, depth
+        doc, _ = scenario.read_yaml(str(p))
+    except scenario.ScenarioError as err:
+        raise StudyError(str(err)) from None
     if not isinstance(doc, dict):
         raise StudyError(f'{path}: a study is a YAML mapping')
     unknown = set(doc) - {'name', 'description', 'scenario', 'seeds', 'first_seed', 'set', 'grid', 'figure'}
@@ -344,27 +277,6 @@ def run_task(task: Task) -> dict:
     return {'key': task.key, 'result': row, 'wall': s['wall_seconds']}
 
 
-class Cache:
-    """One JSON file per finished run under ``root`` (written atomically)."""
-
-    def __init__(self, root):
-        self.root = Path(root)
-        self.root.mkdir(parents=True, exist_ok=True)
-
-    def _path(self, key):
-        return self.root / f'{key}.json'
-
-    def get(self, key):
-        p = self._path(key)
-        try:
-            return json.loads(p.read_text())
-        except (OSError, ValueError):
-            return None
-
-    def put(self, key, doc):
-        write_atomic(self._path(key), json.dumps(doc))
-
-
 # ------------------------------------------------------------------ executors
 
 def _ignore_sigint():
@@ -429,6 +341,19 @@ def _dask_map(todo, scheduler):
             cluster.close()
 
 
+def _cached(cache, task) -> bool:
+    """Whether the cache holds the task's row; a file that is not one (`study_cache.row_error`)
+    is run again, with one warning."""
+    doc = cache.get(task.key)
+    if doc is None and not cache.path(task.key).exists():
+        return False
+    agents = placement.AgentsSpec.model_validate(task.data['agents']).count
+    why = 'not JSON' if doc is None else row_error(doc, task.cell, task.seed, agents)
+    if why:
+        warnings.warn(f'study cache {cache.path(task.key)}: {why}; running it again', stacklevel=3)
+    return why is None
+
+
 def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, version=None,
               on_result=None):
     """Run every task not in the cache; return (rows in cell × seed order, counts).
@@ -438,7 +363,7 @@ def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, v
     (KeyboardInterrupt) leaves the finished runs in the cache and propagates."""
     cache = Cache(cache_dir)
     all_tasks = tasks(study, version)
-    todo = [t for t in all_tasks if cache.get(t.key) is None]
+    todo = [t for t in all_tasks if not _cached(cache, t)]
     counts = {'total': len(all_tasks), 'cached': len(all_tasks) - len(todo), 'ran': 0}
     by_key = {t.key: t for t in todo}
     bar = None

@@ -11,13 +11,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .atomic import atomic_path
+from .study_cache import ROW_METRICS
 
 if TYPE_CHECKING:
     from .study import Study
-
-#: metrics taken from `analysis.summary_of` into every row
-ROW_METRICS = ('final_clusters', 'max_clusters', 'min_distance', 'final_polarisation',
-               'intrusions_total', 'closest_centroid_target_distance')
 
 
 def table_columns(study: Study, rows) -> list:

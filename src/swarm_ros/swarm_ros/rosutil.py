@@ -13,9 +13,10 @@ class ParameterError(ValueError):
     """A bad start-up parameter; the message is one line naming it."""
 
 
-def declare(node, name, default, description, lo=None, hi=None, choices=None, finite=True):
-    """Declare a parameter with a description (and a range); return its validated value."""
-    desc = ParameterDescriptor(description=description)
+def declare(node, name, default, description, lo=None, hi=None, choices=None, finite=True, read_only=False):
+    """Declare a parameter with a description (and a range); return its validated value.
+    ``read_only``: a value read once at the start, which ``ros2 param set`` may not change."""
+    desc = ParameterDescriptor(description=description, read_only=read_only)
     if isinstance(default, bool):
         pass
     elif isinstance(default, int) and (lo is not None or hi is not None):

@@ -5,10 +5,20 @@ Pure helpers (no ROS import) plus `RunWatch`, which subscribes ``/swarm/run`` on
 from __future__ import annotations
 
 import json
+import math
+import numbers
 import re
 import secrets
+import time
+
+from swarm_core.inputs import json_value
 
 from . import protocol as P
+
+#: longest ``/swarm/run`` text (the agent list of the largest run is about 40 kB)
+MAX_RUN_CHARS = 1 << 20
+#: how long a live verb listens for the announcements of every ``/swarm/run`` writer it sees
+ANNOUNCE_WAIT = 3.0
 
 _ID = re.compile(r'^[A-Za-z0-9_-]{1,32}$')
 
@@ -32,39 +42,75 @@ def declare_run_id(node, what: str) -> str:
     return run_id
 
 
-def run_json(run_id: str, scenario: str, mode: str, agents, since: float = 0.0) -> str:
+def run_json(run_id: str, scenario: str, mode: str, agents, since: float, scenario_hash: str = '',
+             remote=()) -> str:
     """The text of a ``/swarm/run`` message; ``since``: when its world started (wall s, epoch),
-    so that of two runs on one domain the younger one gives way."""
-    return json.dumps(dict(run_id=run_id, scenario=scenario, mode=mode, agents=list(agents), since=since))
+    so that of two runs on one domain the younger one gives way; ``scenario_hash``: the
+    content hash of its scenario (`swarm_core.scenario.Scenario.content_hash`) and ``remote``:
+    the agents other hosts start, which ``swarm join`` checks (`join_error`)."""
+    return json.dumps(dict(run_id=run_id, scenario=scenario, mode=mode, agents=list(agents), since=since,
+                           scenario_hash=scenario_hash, remote=list(remote)))
+
+
+def join_error(run: dict, names, scenario_hash: str, prog: str = 'swarm join'):
+    """Why agents ``names`` of a scenario with ``scenario_hash`` must not join ``run`` (an
+    announcement), or None: the run's scenario (with its seed, dt and duration) is another,
+    or the run starts some of them itself (only its ``remote`` agents come from other hosts)."""
+    if run.get('scenario_hash') != scenario_hash:
+        return (f'{prog}: {describe(run)} runs another scenario (hash {run.get("scenario_hash") or "?"}, '
+                f'here {scenario_hash}): give the same scenario and options as the run')
+    remote = run.get('remote') if isinstance(run.get('remote'), list) else []
+    have = [nm for nm in names if nm not in remote]
+    if have:
+        return (f'{prog}: {describe(run)} already has {", ".join(have[:8])}{", ..." if len(have) > 8 else ""} '
+                f'(it waits for {", ".join(remote[:8]) or "no agent"} from other hosts)')
+    return None
 
 
 def older_runs(runs: dict, run_id: str, since: float) -> list:
-    """The runs heard that are not ``run_id`` and started before ``since`` (or do not say when)."""
-    return [r for rid, r in runs.items()
-            if rid != run_id and not (isinstance(r.get('since'), (int, float)) and r['since'] > since)]
+    """The runs heard that are not ``run_id`` and started before ``since``."""
+    return [r for rid, r in runs.items() if rid != run_id and r['since'] < since]
+
+
+def run_error(text: str):
+    """Why a ``/swarm/run`` text is not an announcement the give-way rule can use (None if it
+    is one): JSON (bounded, `json_value`) holding a valid ``run_id`` ('' for a world started
+    without one), ``agents`` a list of names and ``since`` a finite number."""
+    try:
+        d = json_value(text, MAX_RUN_CHARS)
+    except ValueError as err:
+        return f'not JSON ({err})'
+    if not isinstance(d, dict):
+        return 'not a JSON object'
+    if not (isinstance(d.get('run_id'), str) and valid_run_id(d['run_id'])):
+        return f'run_id {d.get("run_id")!r} is not 1-32 letters, digits, _ or - (or empty: no id)'
+    if not (isinstance(d.get('agents'), list) and all(isinstance(a, str) for a in d['agents'])):
+        return 'agents is not a list of names'
+    since = d.get('since')
+    if isinstance(since, bool) or not isinstance(since, numbers.Real) or not math.isfinite(since):
+        return f'since {since!r} is not a finite number'
+    return None
 
 
 def parse_run(text: str):
-    """The dict of a ``/swarm/run`` message, or None if it is not one."""
-    try:
-        d = json.loads(text)
-    except ValueError:
-        return None
-    if not (isinstance(d, dict) and isinstance(d.get('run_id'), str) and isinstance(d.get('agents'), list)):
-        return None
-    return d
+    """The dict of a ``/swarm/run`` message, or None if it is not one (`run_error`)."""
+    return None if run_error(text) else json_value(text, MAX_RUN_CHARS)
 
 
 def give_way(runs: dict, run_id: str, since: float, worlds: int, started: bool, domain: str):
-    """Why this run must stop (the error line), or None: an older run heard on the domain, or
-    (before the start, when no announcement may have come yet) a second ``/world`` node.  The
-    older run goes on; the younger one gives way, also when discovery finds the other late."""
+    """Why this run must not start (the error line), or None: an older run heard on the
+    domain, or a second ``/world`` node (whose announcement may not have come yet).  The older
+    run goes on; the younger one gives way.  Once started a run never stops for an
+    announcement: a peer's late (or forged) one would cost its trajectory; the live verbs
+    refuse to act while two runs are announced (`one_run`)."""
+    if started:
+        return None
     others = older_runs(runs, run_id, since)
-    if not others and (started or worlds <= 1):
+    if not others and worlds <= 1:
         return None
     what = '; '.join(describe(r) for r in others) if others else 'a second /world node'
     return (f'another swarm run is on ROS_DOMAIN_ID={domain} ({what}): '
-            f'{"stopping" if started else "refusing to start"} this one; give each run its own ROS_DOMAIN_ID')
+            'refusing to start this one; give each run its own ROS_DOMAIN_ID')
 
 
 def describe(run) -> str:
@@ -98,16 +144,56 @@ def has_world(node) -> bool:
     return any(nm == 'world' for nm, _ in node.get_node_names_and_namespaces())
 
 
-class RunWatch:
-    """Collects the ``/swarm/run`` announcements heard on ``node`` ({run id: dict})."""
+def heard_every_writer(runs: dict, ignored: int, writers: int) -> bool:
+    """Whether each of the ``writers`` of ``/swarm/run`` in the graph has been heard (an
+    announcement kept in ``runs`` or one ``ignored``): a live verb decides only then."""
+    return len(runs) + ignored >= writers
 
-    def __init__(self, node):
+
+def verb_refusal(runs: dict, ignored: int, writers: int, prog: str, agent=None):
+    """(the run, None) where a live verb may act, else (None, the one error line), the same
+    for every verb: two runs announced, a second ``/swarm/run`` writer whose announcement
+    was not heard (a QoS that cannot be read, or silence), or an ``agent`` the run lacks."""
+    run, err = one_run(runs, prog)
+    if err is None and writers > 1 and not heard_every_writer(runs, ignored, writers):
+        err = (f'{prog}: {writers} writers announce runs on this ROS_DOMAIN_ID and only '
+               f'{len(runs) + ignored} could be heard; refusing to act on an unknown one '
+               '(give each run its own ROS_DOMAIN_ID)')
+    if err is None and agent:
+        err = unknown_agent(run, agent, prog)
+    return (None, err) if err else (run, None)
+
+
+class RunWatch:
+    """Collects the ``/swarm/run`` announcements heard on ``node`` ({run id: dict}); one that
+    is not an announcement (`run_error`) is ignored with one line to ``log`` (if given)."""
+
+    def __init__(self, node, log=None):
         from std_msgs.msg import String
+        self.node, self.log = node, log
         self.runs = {}
+        self.ignored = 0
         # depth 10: several worlds on one domain are each heard (transient-local, one sample each)
         self.sub = node.create_subscription(String, P.RUN, self._on_run, P.qos_latched(10))
 
     def _on_run(self, msg):
-        d = parse_run(msg.data)
-        if d is not None:
+        why = run_error(msg.data)
+        if why is None:
+            d = parse_run(msg.data)
             self.runs[d['run_id']] = d
+            return
+        self.ignored += 1
+        if self.log is not None:
+            self.log(f'{P.RUN}: ignored an announcement {msg.data[:80]!r}: {why}')
+
+    def decide(self, ex, prog: str, agent=None, limit: float = ANNOUNCE_WAIT):
+        """Spin ``ex`` until every writer of ``/swarm/run`` in the graph has been heard (at
+        most ``limit`` s), so that a live verb sees a second run however late it is
+        discovered, then `verb_refusal`: every verb decides after this same wait, alike."""
+        end = time.monotonic() + limit
+        while time.monotonic() < end:
+            ex.spin_once(timeout_sec=0.05)
+            writers = self.node.count_publishers(P.RUN)
+            if heard_every_writer(self.runs, self.ignored, writers) and (writers or not has_world(self.node)):
+                break
+        return verb_refusal(self.runs, self.ignored, self.node.count_publishers(P.RUN), prog, agent)

@@ -9,6 +9,7 @@ which flat ROS parameters do not hold, and every process of a run parses the who
 file: a reference keeps that file small however large the scenario.  See docs/ros-graph.md."""
 from __future__ import annotations
 
+from swarm_core.inputs import DT_BOUND, DURATION_BOUND
 from swarm_core.scenario import ScenarioError, load
 
 #: name -> (default, description, limits); 0 / -1: the scenario's own value
@@ -16,8 +17,8 @@ SCENARIO_PARAMETERS = {
     'scenario': ('homotopy_global', 'scenario name or YAML path; the node loads it (λ schedule, leaders, '
                  'faults, comms, target, barrier)', {}),
     'seed': (-1, "seed (-1: the scenario's)", dict(lo=-1, hi=2**31 - 1)),
-    'duration': (0.0, "run length in sim s (0: the scenario's)", dict(lo=0.0, hi=1e9)),
-    'dt': (0.0, "step (0: the scenario's)", dict(lo=0.0, hi=10.0)),
+    'duration': (0.0, "run length in sim s (0: the scenario's)", dict(lo=0.0, hi=DURATION_BOUND.hi)),
+    'dt': (0.0, "step (0: the scenario's)", dict(lo=0.0, hi=DT_BOUND.hi)),
 }
 
 
@@ -37,7 +38,9 @@ def declare_scenario(node):
     """Declare `SCENARIO_PARAMETERS` on ``node`` (with descriptions and ranges) and load the
     scenario they name; a bad one raises ``ParameterError('parameter scenario: ...')``."""
     from .rosutil import ParameterError, declare      # ROS: only here, the rest is pure
-    values = {nm: declare(node, nm, default, text, **lim) for nm, (default, text, lim) in SCENARIO_PARAMETERS.items()}
+    # read once, at the start: read-only (`ros2 param set /world dt 0.0` is refused)
+    values = {nm: declare(node, nm, default, text, read_only=True, **lim)
+              for nm, (default, text, lim) in SCENARIO_PARAMETERS.items()}
     try:
         return reload_scenario(**values)
     except ScenarioError as err:

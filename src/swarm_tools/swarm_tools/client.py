@@ -16,7 +16,7 @@ import math
 import threading
 import time
 
-from swarm_core.inputs import LAMBDA_BOUND
+from swarm_core.inputs import LAMBDA_BOUND, PAUSE_BOUND, RAMP_BOUND, STEERING_BOUND
 from swarm_ros import protocol as P
 from swarm_ros import runinfo
 
@@ -50,11 +50,11 @@ def _quiet(_line):
 
 
 def check_lambda(value: float, ramp: float) -> None:
-    """ValueError for a λ outside [0, 1] (`LAMBDA_BOUND`) or a ramp that is not finite and ≥ 0."""
+    """ValueError for a λ outside [0, 1] (`LAMBDA_BOUND`) or a ramp outside `RAMP_BOUND`."""
     if not LAMBDA_BOUND.ok(value):
         raise ValueError(LAMBDA_BOUND.error(value))
-    if not (math.isfinite(ramp) and ramp >= 0.0):
-        raise ValueError(f'--ramp {ramp!r} rejected: must be finite and ≥ 0')
+    if not RAMP_BOUND.ok(ramp):
+        raise ValueError(f'--{RAMP_BOUND.error(ramp)}')
 
 
 def check_partition(groups) -> list:
@@ -153,14 +153,19 @@ class Client:
         return sorted(ns.strip('/') for nm, ns in self.node.get_node_names_and_namespaces()
                       if nm == 'agent' and ns.strip('/'))
 
-    def one_run(self, prog: str, agent=None, heard: float = 0.5):
-        """The one run on the domain (None if the swarm does not announce one), after waiting
-        for its announcement (2 s if a world is there) and ``heard`` s more for a second one;
-        `TwoRuns` / `UnknownAgent` (the line says why)."""
-        self.until(lambda: self.watch.runs, 2.0 if runinfo.has_world(self.node) else 0.0)
-        if self.watch.runs:
-            time.sleep(heard)
-        run, err = runinfo.one_run(self.runs, prog)
+    def one_run(self, prog: str, agent=None):
+        """The one run on the domain (None if the swarm does not announce one), once every
+        writer of ``/swarm/run`` in the graph has been heard (at most `runinfo.ANNOUNCE_WAIT`
+        s: every verb decides after this same wait); `TwoRuns` for two runs or a writer that
+        cannot be heard, `UnknownAgent` (the line says why)."""
+        node, watch = self.node, self.watch
+
+        def heard():
+            writers = node.count_publishers(P.RUN)
+            return runinfo.heard_every_writer(watch.runs, watch.ignored, writers) and (
+                writers or not runinfo.has_world(node))
+        self.until(heard, runinfo.ANNOUNCE_WAIT)
+        run, err = runinfo.verb_refusal(self.runs, watch.ignored, node.count_publishers(P.RUN), prog)
         if err:
             raise TwoRuns(err)
         err = runinfo.unknown_agent(run, agent, prog) if agent else None
@@ -204,7 +209,7 @@ class Client:
         if self.send(Float64MultiArray, P.LAMBDA_SETPOINT, Float64MultiArray(data=[value, ramp]), wait,
                      for_node='commander', prog=prog, say=say):
             return 'commander'
-        if self.send(Float64, P.LAMBDA, Float64(data=value), 1.0):
+        if self.send(Float64, P.LAMBDA, Float64(data=value), 1.0, prog=prog, say=say):
             return 'topic'
         raise NoSwarm(f'{prog}: no running swarm found (nothing subscribes {P.LAMBDA}); '
                       "is ROS_DOMAIN_ID the same as the run's?")
@@ -212,8 +217,8 @@ class Client:
     def steer(self, agent: str, curvature: float, wait: float = 10.0, prog='swarm steer', say=_quiet) -> str:
         """Leader steering ``curvature`` for ``agent`` (to the commander); gives the name."""
         from std_msgs.msg import Float64
-        if not math.isfinite(curvature):
-            raise ValueError(f'steering {curvature!r} rejected: not finite')
+        if not STEERING_BOUND.ok(curvature):
+            raise ValueError(STEERING_BOUND.error(curvature))
         name = agent_name(agent)
         if name is None:
             raise ValueError(f'{agent!r} is not an agent name')
@@ -232,8 +237,8 @@ class Client:
             raise ValueError(f'{agent!r} is not an agent name')
         request = dict(kind=kind, agent=name)
         if kind == 'freeze':
-            if not (math.isfinite(seconds) and seconds > 0):
-                raise ValueError(f'{seconds!r} seconds rejected: must be finite and > 0')
+            if not PAUSE_BOUND.ok(seconds):
+                raise ValueError(PAUSE_BOUND.error(seconds))
             request['for'] = float(seconds)
         if not self.send(String, P.FAULT_REQUEST, String(data=json.dumps(request)), wait, P.qos_latched(10),
                          for_node='world', prog=prog, agent=name, say=say):

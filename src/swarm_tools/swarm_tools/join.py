@@ -64,6 +64,7 @@ class JoinPlan:
     params: dict                # their parameters; the run id is set once the run is heard
     server: str                 # the run's discovery server, ADDR:PORT
     wait: float                 # s to wait for the run
+    scenario_hash: str = ''     # Scenario.content_hash: the run's must be the same
 
 
 def plan(a, scn, ref: str) -> JoinPlan:
@@ -78,7 +79,7 @@ def plan(a, scn, ref: str) -> JoinPlan:
     params = {f'/{nm}/agent': params[f'/{nm}/agent'] for nm in names}
     set_state_readers(params, 1 if a.recorded else 0, a.mode)
     return JoinPlan(scenario=a.scenario, roster=list(scn.names), agents=a.agents, names=names, params=params,
-                    server=f'{addr}:{port}', wait=a.wait)
+                    server=f'{addr}:{port}', wait=a.wait, scenario_hash=scn.content_hash)
 
 
 def main(argv=None) -> int:
@@ -133,11 +134,13 @@ def execute(join: JoinPlan, start, alive, stopped) -> int:
 
 def _heard(join: JoinPlan, watch):
     """(the run's announcement or None, an error line or None)."""
-    from swarm_ros.runinfo import describe, one_run
+    from swarm_ros.runinfo import describe, join_error, one_run
     run, err = one_run(watch.runs, 'swarm join')
     if err is None and run is not None and list(run.get('agents', [])) != join.roster:
         err = (f'swarm join: {describe(run)} has other agents than {join.scenario}: '
                'give the same scenario options as the run')
+    if err is None and run is not None:
+        err = join_error(run, join.names, join.scenario_hash)
     return run, err
 
 

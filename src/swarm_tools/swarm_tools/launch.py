@@ -363,6 +363,8 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     run.record, run.foxglove = a.record or None, a.foxglove
     run.use_server = a.discovery == 'server' or (a.discovery == 'auto' and (
         run.processes > dds.SIMPLE_LIMIT or bool(remote)))
+    if remote:          # announced on /swarm/run: `swarm join` refuses any other agent
+        run.params['/world'].update(remote_agents=','.join(scn.names[i] for i in remote))
     if per > 1:
         # the world waits for the step relay's readers: one per agent process
         run.params['/world'].update(step_readers=len(run.groups) + len(remote))
@@ -437,8 +439,9 @@ def finish(run: RunPlan, code: int, wall: float) -> int:
         write_run_outputs(run, code, wall)
     elif code != 0:
         print(f'swarm run: stopped (code {code}) after {wall:.1f} s', file=sys.stderr, flush=True)
-        if not run.in_process:
-            salvage(run.scn, run.out, run.record, run.mode, wall, figure=run.figure)
+        if not run.in_process and not salvage(run.scn, run.out, run.record, run.mode, wall, figure=run.figure) \
+                and run.traj_file.exists():             # the world's own record is the longer one
+            write_run_outputs(run, code, wall)
     if code == 0 and run.record and not run.in_process and not bag_complete(run.record):
         print(f'swarm run: the bag {run.record} is not complete: its recorder stopped early (see above)',
               file=sys.stderr, flush=True)
@@ -519,11 +522,25 @@ def main(argv=None) -> int:
     return finish(run, code, wall)
 
 
+def saved_samples(path) -> int:
+    """The samples of a trajectory.npz (0 if there is none or it cannot be read)."""
+    import numpy as np
+    try:
+        with np.load(path) as z:
+            return int(z['t'].shape[0])
+    except (OSError, ValueError, KeyError, EOFError):
+        return 0
+
+
 def salvage(scn, out: Path, bag, mode: str, wall: float, figure: bool = True) -> bool:
-    """The world ended without writing trajectory.npz (killed, crashed): rebuild the run from
-    the bag of ``--record`` (`swarm_tools.report`) into ``out``, or say plainly what is lost."""
+    """The run ended with an error: rebuild it from the bag of ``--record``
+    (`swarm_tools.report`) into ``out``, or say plainly what is lost.  A rebuild never replaces
+    a longer record: if the world saved a trajectory.npz with at least as many samples, that
+    one is kept (False)."""
     lost = 'the trajectory is lost (the world keeps it in memory until the end)'
     if not bag or not Path(bag).is_file():
+        if saved_samples(out / 'trajectory.npz'):
+            return False                    # the world saved what it had
         print(f'swarm run: {lost}; {out}/events.jsonl is kept. Record the run (--record BAG.mcap) '
               'to be able to rebuild it', file=sys.stderr, flush=True)
         return False
@@ -540,6 +557,11 @@ def salvage(scn, out: Path, bag, mode: str, wall: float, figure: bool = True) ->
         traj.meta.update(scenario=scn.name, seed=scn.seed, duration=scn.duration, source='bag',
                          mode=mode, wall_seconds=wall, interrupted=True,
                          events=read_events(out / 'events.jsonl'))
+        saved = saved_samples(out / 'trajectory.npz')
+        if saved >= len(traj.t):
+            print(f'swarm run: kept the trajectory the world saved ({saved} samples); the bag holds '
+                  f'{len(traj.t)}', file=sys.stderr, flush=True)
+            return False
         series, checks = analyse(traj, scenario=scn)
         write_outputs(out, scn, traj, series, checks, figure=figure)
     except (ValueError, OSError, IndexError) as err:

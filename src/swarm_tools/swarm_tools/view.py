@@ -20,7 +20,8 @@ Built on the ``foxglove-sdk`` WebSocket server:
 * clients may publish (capability ``clientPublish``, encodings ``cdr`` and ``json``) on
   `client_topic` topics only: ``/swarm/lambda`` and the agents' ``/<agent>/steering``, as
   ``std_msgs/msg/Float64``.  Each value is republished on ROS as a user's
-  ``ros2 topic pub`` would (`publish_client_value`); the commander checks it.
+  ``ros2 topic pub`` would (`publish_client_value`), if its `Bound` (λ or steering) takes it;
+  the commander checks it too.
 """
 from __future__ import annotations
 
@@ -33,6 +34,7 @@ import time
 from pathlib import Path
 
 from swarm_core.atomic import write_atomic
+from swarm_core.inputs import LAMBDA_BOUND, STEERING_BOUND
 
 from .bag import parse_float64
 from .msgdefs import DefinitionNotFound, has_leading_stamp, leading_stamp_ns, message_definition
@@ -64,6 +66,11 @@ class ClientMessageError(ValueError):
 def client_topic(topic: str) -> bool:
     """Whether a Foxglove client may publish on ``topic``: λ and the agents' steering."""
     return topic == LAMBDA_TOPIC or bool(_STEERING.fullmatch(topic))
+
+
+def client_bound(topic: str):
+    """The `Bound` of a client's value on ``topic`` (a `client_topic`): λ or a steering s_k."""
+    return LAMBDA_BOUND if topic == LAMBDA_TOPIC else STEERING_BOUND
 
 
 def client_float64(encoding: str, data: bytes) -> float:
@@ -287,6 +294,9 @@ class Bridge:
             value = client_float64(encoding, data)
         except ClientMessageError as err:
             self.status(f'{topic}: {err}')
+            return
+        if not client_bound(topic).ok(value):
+            self.status(f'{topic}: {client_bound(topic).error(value)}')
             return
         self.work.put(('publish', topic, value))
 

@@ -2,12 +2,12 @@
 the ``/swarm/leaders`` names and the live requests on ``/swarm/fault_request``."""
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 
 from swarm_core.faults import FAULT_KINDS, Fault
+from swarm_core.inputs import PAUSE_BOUND, json_value
 
 
 def parse_point(text):
@@ -53,14 +53,21 @@ def leader_flags(text, row):
     return flags, [nm for nm in names if nm not in row]
 
 
+#: longest ``/swarm/fault_request`` text (a request is a few dozen characters)
+MAX_REQUEST_CHARS = 4096
+
+
 def fault_request(text):
-    """A ``/swarm/fault_request`` JSON text → a live `Fault`; ValueError, KeyError or
-    TypeError when it is not one."""
-    req = json.loads(text)
+    """A ``/swarm/fault_request`` JSON text → a live `Fault` (its pause checked by
+    `PAUSE_BOUND`); ValueError, KeyError or TypeError when it is not one."""
+    req = json_value(text, MAX_REQUEST_CHARS)
     kind, agent = req['kind'], req['agent']
-    dur = float(req.get('for', 0.0))
     if kind not in FAULT_KINDS:
         raise ValueError(f'kind must be one of {FAULT_KINDS}')
-    if kind == 'freeze' and not (math.isfinite(dur) and dur > 0):
-        raise ValueError(f'freeze needs "for" > 0 seconds, got {dur!r}')
-    return Fault(0.0, kind, agent, dur, source='live')
+    if not isinstance(agent, str):
+        raise TypeError(f'agent {agent!r} is not a name')
+    if kind == 'freeze':
+        if 'for' not in req:
+            raise ValueError('freeze needs "for" seconds')
+        return Fault(0.0, kind, agent, PAUSE_BOUND.check(req['for']), source='live')
+    return Fault(0.0, kind, agent, source='live')

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from swarm_core.comms import event_step
-from swarm_core.inputs import LAMBDA_BOUND
+from swarm_core.inputs import LAMBDA_BOUND, STEERING_BOUND
 from swarm_ros.layouts import States, Step
 
 
@@ -41,7 +41,7 @@ def comms_schedule(comms, dt):
 
 def decision_valid(lam, flags, steering, n):
     """A commander decision is usable: λ in [0, 1], finite steering, one flag per agent."""
-    return bool(LAMBDA_BOUND.ok(lam) and np.all(np.isfinite(steering)) and len(flags) == n)
+    return bool(LAMBDA_BOUND.ok(lam) and np.all(np.abs(steering) <= STEERING_BOUND.hi) and len(flags) == n)
 
 
 class LockstepBarrier:

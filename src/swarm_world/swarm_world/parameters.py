@@ -29,6 +29,8 @@ WORLD = {
                      'agent)', dict(lo=0, hi=100000)),
     'clock_readers': (0, 'with wait_for_recorder: /clock readers to wait for (0: commander + recorder; '
                       'lockstep agents take their time from the step messages)', dict(lo=0, hi=100000)),
+    'remote_agents': ('', 'the agents other hosts start (swarm join), comma-separated; announced on /swarm/run',
+                      {}),
     'pid_file': ('', 'JSON {agent: pid} of the agent processes, for kill/pause ("": none)', {}),
     'events_file': ('', 'append every event here as JSON lines ("": output_dir/events.jsonl)', {}),
     'trail_length': (200, 'trail points per agent in the markers', dict(lo=0, hi=100000)),

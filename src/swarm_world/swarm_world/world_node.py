@@ -140,8 +140,10 @@ class WorldNode(RealtimeWorld, Node):
         # the run's identity; other runs on this domain are heard here (and refused before the start)
         self.pub_run = self.create_publisher(String, P.RUN, P.qos_latched())
         self.since = time.time()
-        self.pub_run.publish(String(data=run_json(self.run_id, self.scn.name, self.mode, self.names, self.since)))
-        self.runs = RunWatch(self)
+        remote = [nm for nm in self.remote_agents.split(',') if nm]
+        self.pub_run.publish(String(data=run_json(self.run_id, self.scn.name, self.mode, self.names, self.since,
+                                                  self.scn.content_hash, remote)))
+        self.runs = RunWatch(self, log=self.get_logger().warning)
         self.second_world_at = None     # when a second /world node was first seen (no announcement yet)
         if self.mode == 'realtime':
             self.create_subscription(Float64, P.LAMBDA, self._on_lambda, P.qos_latched(10))  # the commander's
@@ -231,7 +233,8 @@ class WorldNode(RealtimeWorld, Node):
 
     # ------------------------------------------------------------ lockstep
     def other_run(self):
-        """Stop (one error line, exit 1) rather than mix with an older run (runinfo.give_way)."""
+        """Refuse to start (one error line, exit 1) rather than mix with an older run
+        (runinfo.give_way); once started, go on whatever is announced."""
         worlds = 1 if self.started else sum(
             1 for nm, ns in self.get_node_names_and_namespaces() if nm == 'world' and ns == '/')
         if worlds > 1 and not older_runs(self.runs.runs, self.run_id, self.since):
