@@ -26,7 +26,7 @@ from . import scenario
 from .atomic import write_atomic
 from .study_tables import ROW_METRICS
 # the tables are part of the study API (study.to_csv, study.rates, ...)
-from .study_tables import plot_rates, rates, rates_csv, rates_markdown, to_csv, wilson  # noqa: F401
+from .study_tables import plot_rates, rates, rates_csv, rates_markdown, to_csv, to_parquet, wilson  # noqa: F401
 
 
 class StudyError(ValueError):
@@ -294,16 +294,25 @@ class Task:
     data: dict
     source: str
     version: str = ''
+    engine: str = 'fast'
 
 
-def tasks(study: Study, version: str | None = None) -> list[Task]:
+#: the engines a study runs on: 'fast' (`fast.simulate`: the compiled kernel where it covers
+#: the run, else the reference) and 'reference' (`engine.simulate`)
+ENGINES = ('fast', 'reference')
+
+
+def tasks(study: Study, version: str | None = None, engine: str = 'fast') -> list[Task]:
+    if engine not in ENGINES:
+        raise StudyError(f'engine {engine!r}: one of {", ".join(ENGINES)}')
     version = version or code_version()
     base = hashlib.sha256(_canon([study.data, study.fixed]).encode()).hexdigest()
     out = []
     for ci, cell in enumerate(study.cells()):
         data = study.cell_data(cell)
         for seed in study.seeds:
-            out.append(Task(run_key(base, cell, seed, version), ci, cell, seed, data, study.source, version))
+            key = run_key(base, cell, seed, version if engine == 'fast' else f'{version}-{engine}')
+            out.append(Task(key, ci, cell, seed, data, study.source, version, engine))
     return out
 
 
@@ -319,13 +328,16 @@ def _num(v):
 
 def run_task(task: Task) -> dict:
     """Simulate one run and return its row's results (checks and metrics; no wall time)."""
-    from . import engine
     from .analysis import analyse, summary_of
     if task.version and task.version != code_version():
         raise RuntimeError(f'this worker runs swarm_core {code_version()}, the study needs {task.version}: '
                            'install the same project version on every worker')
     scn = scenario.parse(task.data, task.source, seed=task.seed)
-    traj = engine.simulate(scn)
+    if task.engine == 'fast':
+        from .fast import simulate
+    else:
+        from .engine import simulate
+    traj = simulate(scn)
     series, checks = analyse(traj, scenario=scn)
     s = summary_of(scn, traj, series, checks)
     row = {'ok': s['behaviour_ok']}
@@ -430,14 +442,15 @@ def _dask_map(todo, scheduler):
 
 
 def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, version=None,
-              on_result=None):
+              on_result=None, engine='fast'):
     """Run every task not in the cache; return (rows in cell × seed order, counts).
 
+    ``engine``: 'fast' (default) or 'reference' (`ENGINES`); each has its own cache keys.
     ``scheduler``: None for local processes (``jobs``), else a Dask address or ``local:N``.
     ``on_result(counts)`` is called after each finished run is cached.  Ctrl-C
     (KeyboardInterrupt) leaves the finished runs in the cache and propagates."""
     cache = Cache(cache_dir)
-    all_tasks = tasks(study, version)
+    all_tasks = tasks(study, version, engine)
     todo = [t for t in all_tasks if cache.get(t.key) is None]
     counts = {'total': len(all_tasks), 'cached': len(all_tasks) - len(todo), 'ran': 0}
     by_key = {t.key: t for t in todo}

@@ -48,6 +48,24 @@ def to_csv(study: Study, rows) -> str:
     return buf.getvalue()
 
 
+def to_parquet(study: Study, rows, path):
+    """The tidy table of `to_csv` as Parquet at ``path`` (written atomically): the same
+    columns and rows, each column typed (bool, int64, double or string; missing values null)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    cols = table_columns(study, rows)
+    arrays = []
+    for c in cols:
+        vals = [r.get(c) for r in rows]
+        try:
+            arrays.append(pa.array(vals))
+        except (pa.ArrowInvalid, pa.ArrowTypeError):    # mixed kinds: as the CSV writes them
+            arrays.append(pa.array([None if v is None else _cell_str(v) for v in vals], pa.string()))
+    with atomic_path(path, '.parquet') as tmp:
+        pq.write_table(pa.Table.from_arrays(arrays, names=cols), tmp)
+    return path
+
+
 def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
     """Wilson score interval (95 % by default) of a binomial rate k/n."""
     if n == 0:
