@@ -203,9 +203,10 @@ def _steering(prog, t):
 
 @njit(cache=True)
 def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choose_at, choose_rise,
-         noise, r_rec, th_rec, u_rec, lead_rec):
+         noise, every, r_rec, th_rec, u_rec, lead_rec):
     """Every step of a run (the commander's plan, the law, the zoh step, the noise) with the
-    records filled in place; returns the step at which the rule chose the leaders (−1: none)."""
+    records of every ``every``-th step filled in place; returns the step at which the rule
+    chose the leaders (−1: none)."""
     n = x.size
     steps = lams.size - 1
     alpha, eta, mu, r0, w, leader_gain = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5]
@@ -233,9 +234,11 @@ def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choos
             (1.0, 0.0) if code == 2 else (lam, q0)
         lead = is_leader if code >= 2 else np.zeros(n, np.bool_)
         _control(x, y, c, s, eff_lam, eff_q0, lead, steer, alpha, eta, mu, r0, w, leader_gain, mom, u)
-        for k in range(n):
-            r_rec[i, k, 0], r_rec[i, k, 1] = x[k], y[k]
-            th_rec[i, k], u_rec[i, k], lead_rec[i, k] = theta[k], u[k], is_leader[k]
+        if i % every == 0:
+            row = i // every
+            for k in range(n):
+                r_rec[row, k, 0], r_rec[row, k, 1] = x[k], y[k]
+                th_rec[row, k], u_rec[row, k], lead_rec[row, k] = theta[k], u[k], is_leader[k]
         if i == steps:
             break
         for k in range(n):                       # the exact arc of `integrate.zoh_step`
@@ -321,18 +324,17 @@ def simulate(scn, *, integrator=None, record_every: int = 1, neighbour_search: s
     else:
         progs = list(plan.fixed_leaders.values())
         leader_prog[list(plan.fixed_leaders)] = np.arange(len(progs))
-    r = np.empty((steps + 1, n, 2))
-    th, u = np.empty((steps + 1, n)), np.empty((steps + 1, n))
-    lead = np.empty((steps + 1, n), dtype=bool)
+    rows = steps // record_every + 1
+    r, th, u = np.empty((rows, n, 2)), np.empty((rows, n)), np.empty((rows, n))
+    lead = np.empty((rows, n), dtype=bool)
     lams = _lambdas(plan.schedule, steps, scn.dt)
     chosen = _run(scn.pos0[:, 0].copy(), scn.pos0[:, 1].copy(), scn.theta0.astype(float),
                   float(scn.dt), lams, LAW_CODES[law.kind], float(law.q0), gains, leader_prog,
                   _program_rows(progs), rule, float(plan.choose_at), CHOOSE_RISE, _noise(scn, steps),
-                  r, th, u, lead)
+                  int(record_every), r, th, u, lead)
     events = []
     if chosen >= 0:
-        rows = np.flatnonzero(leader_prog >= 0)
-        slots = [int(k) for k in sorted(rows, key=lambda k: leader_prog[k])]
+        slots = [int(k) for k in sorted(np.flatnonzero(leader_prog >= 0), key=lambda k: leader_prog[k])]
         events.append(event_names(dict(t=chosen * scn.dt, kind='leaders_chosen',
                                        leaders=sorted(slots), slots=slots), scn.names))
     if progress is not None:
@@ -342,8 +344,7 @@ def simulate(scn, *, integrator=None, record_every: int = 1, neighbour_search: s
                 integrator='zoh', steps=steps, record_every=record_every,
                 wall_seconds=time.perf_counter() - wall, neighbour_search=neighbour_search,
                 interrupted=False, events=events, engine='fast')
-    return Trajectory(scn.names, (np.arange(steps + 1) * scn.dt)[every], r[every], th[every], u[every],
-                      lams[every], lead[every], meta)
+    return Trajectory(scn.names, (np.arange(steps + 1) * scn.dt)[every], r, th, u, lams[every], lead, meta)
 
 
 def warm_up() -> float:
@@ -355,5 +356,5 @@ def warm_up() -> float:
     _run(np.array([0.0, 1.0]), np.zeros(n), np.zeros(n), 0.1, _tanh_window(np.arange(steps + 1) * 0.1,
          400.0, 600.0, 30.0, 0.0, 1.0), 3, 1.0, np.array([0.02, 0.02, 0.02, 1.5, 4.0, 30.0]),
          np.full(n, -1, dtype=np.int64), _program_rows([ConstantSteering(0.01)]), True, 0.0, CHOOSE_RISE,
-         np.zeros((0, n, 3)), r, th, u, np.empty((steps + 1, n), dtype=bool))
+         np.zeros((0, n, 3)), 1, r, th, u, np.empty((steps + 1, n), dtype=bool))
     return time.perf_counter() - t0
