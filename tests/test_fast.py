@@ -17,7 +17,7 @@ from swarm_core.study_tables import _cell_str
 
 #: the shipped scenarios the reference runs instead (and why: `fast.fallback_reason`)
 FALLBACK = {'homotopy_reunion': 'reunion', 'leader_failover': 'faults or failover',
-            'leader_no_failover': 'faults or failover', 'target_barrier': 'law target'}
+            'leader_no_failover': 'faults or failover'}
 
 
 def _max_diff(a, b):
@@ -51,6 +51,13 @@ def test_fast_equals_reference_to_t50_on_every_shipped_scenario(name):
         'agent_0': {'kind': 'sinusoid', 'amplitude': 0.02, 'period': 20.0},
         'agent_5': {'kind': 'constant', 'curvature': -0.01}}},
          **{'lambda': {'kind': 'ramps', 'ramps': [{'at': 5.0, 'to': 1.0, 'duration': 10.0}]}}),
+    # Fig. 5 past the barrier at x = 200, its literal reading and unit target vectors
+    dict(name='target_barrier', duration=240.0,
+         target={'position': [400, 0], 'gain': 0.05, 'normalised': True},
+         barrier={'points': [[200, 2], [201, 1], [201, -1], [200, -2], [199, -1], [199, 1]],
+                  'gain': 5.0, 'mode': 'literal'}),
+    # the homotopy law with a target term (eq. 15 added to any law)
+    dict(name='homotopy_global', duration=50.0, target={'position': [30, 10], 'gain': 0.2}),
 ])
 def test_fast_equals_reference_on_the_features_it_covers(over):
     over = dict(over)

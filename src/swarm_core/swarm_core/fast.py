@@ -3,12 +3,13 @@
 `simulate` takes the runs the kernel covers and hands every other run to the reference
 engine (`engine.simulate`, today's numpy engine, which the ROS nodes are checked against bit
 for bit); `fallback_reason` says why a run is not covered.  Covered: the zoh integrator; the
-laws global, local, leader_following and homotopy (eq. 4, 9, 10-14) over all pairs of at most
+laws global, local, leader_following, homotopy and target (eq. 4, 9, 10-15) with the target
+and barrier terms (eq. 15, 16) over all pairs of at most
 `pair_sums.DENSE_LIMIT` agents; fixed leaders or the lateral_extremes rule; constant and
 sinusoid steering programs; any λ schedule (evaluated ahead by the schedule itself, as the
 commander does); per-agent noise (the same streams, drawn ahead).  Not covered (the reference
-runs): faults, failover, reunion, a radio model, a target or barrier term, the target law,
-waypoint steering, rk4, live commands, more than DENSE_LIMIT agents.
+runs): faults, failover, reunion, a radio model, waypoint steering, rk4, live commands, more
+than DENSE_LIMIT agents.
 
 The kernel forms each receiver's pair sums as the reference does (`pair_sums._pair_sums_dense`
 and `_combine`: the same moments, products and numpy's pairwise summation order), so it agrees
@@ -31,7 +32,7 @@ from .schedules import ConstantLambda, ConstantSteering, SinusoidSteering, TanhW
 from .trajectory import Trajectory
 
 #: law kinds the kernel covers → code (effective λ, q0 as `LawConfig.effective_lambda_q0`)
-LAW_CODES = {'global': 0, 'local': 1, 'leader_following': 2, 'homotopy': 3}
+LAW_CODES = {'global': 0, 'local': 1, 'leader_following': 2, 'homotopy': 3, 'target': 4}
 
 
 def fallback_reason(scn, integrator=None, commands=None) -> str | None:
@@ -44,8 +45,6 @@ def fallback_reason(scn, integrator=None, commands=None) -> str | None:
         (len(scn.names) > DENSE_LIMIT, f'more than {DENSE_LIMIT} agents'),
         (bool(spec.faults) or spec.failover is not None, 'faults or failover'),
         (bool(spec.reunion), 'reunion'),
-        (spec.target is not None and scn.law.target_gain != 0.0, 'target term'),
-        (spec.barrier is not None and scn.law.barrier_gain != 0.0, 'barrier term'),
         (spec.comms is not None and scn.comm_model() is not None, 'radio model'),
     )
     for bad, why in checks:
@@ -157,6 +156,64 @@ def _control(x, y, c, s, lam, q0, is_leader, steer, alpha, eta, mu, r0, w, leade
 
 
 @njit(cache=True)
+def _target_control(x, y, c, s, alpha, r0, w, normalised, u):
+    """u_k of the target law's collision avoidance within w (eq. 15, first line), as
+    `pair_sums._pair_sums_dense` and `_combine` form it: c·Hy − s·Hx."""
+    n = x.size
+    ar2 = alpha * r0 * r0
+    hx, hy = np.empty(n), np.empty(n)
+    for k in range(n):
+        for j in range(n):
+            dx = x[k] - x[j]
+            dy = y[k] - y[j]
+            rr = dx * dx + dy * dy
+            if j == k:
+                rr = np.inf
+            within = rr < w * w
+            rr = 1.0 / rr
+            h = rr * ar2 - alpha
+            if normalised:
+                h = h * math.sqrt(rr)
+            h = h * within
+            hx[j], hy[j] = dx * h, dy * h
+        u[k] = _pairwise(hy, 0, n) * c[k] - _pairwise(hx, 0, n) * s[k]
+
+
+@njit(cache=True)
+def _world_terms(x, y, c, s, world, barrier, alpha, r0, w, u):
+    """u plus the target term (eq. 15, `laws.target_term`) and the barrier term (eq. 16,
+    `laws.barrier_term`); world = (target on, x, y, γ, normalised, barrier on, s_b, literal)."""
+    for k in range(x.size):
+        if world[0] != 0.0:
+            dx, dy = world[1] - x[k], world[2] - y[k]
+            d2 = dx * dx + dy * dy
+            inv = 1.0 / d2 if d2 > 0.0 else 0.0
+            across = dy * c[k] - dx * s[k]
+            if world[4] != 0.0:
+                across = across * math.sqrt(inv)
+            u[k] = u[k] + world[3] * alpha * (1.0 - r0 * r0 * inv) * across * (1.0 if d2 > 0.0 else 0.0)
+        if world[5] != 0.0:
+            vx = vy = 0.0
+            for i in range(barrier.shape[0]):
+                bx, by = barrier[i, 0] - x[k], barrier[i, 1] - y[k]
+                if bx * bx + by * by < w * w:
+                    vx += bx
+                    vy += by
+            norm = math.hypot(vx, vy)
+            if norm > 0.0:
+                vx, vy = vx / norm, vy / norm
+            else:
+                vx = vy = 0.0
+            ahead = vx * c[k] + vy * s[k]
+            side = vy * c[k] - vx * s[k]
+            if world[7] != 0.0:
+                gate = 1.0 if ahead > 0.0 else -1.0 if ahead < 0.0 else 0.0
+            else:
+                gate = 1.0 if ahead > 0.0 else 0.0
+            u[k] = u[k] + -world[6] * gate * side
+
+
+@njit(cache=True)
 def _frames(theta, c, s):
     """(cos θ, sin θ) through the planar quaternion, as `frenet.heading_frame`."""
     for k in range(theta.size):
@@ -203,7 +260,7 @@ def _steering(prog, t):
 
 @njit(cache=True)
 def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choose_at, choose_rise,
-         noise, every, r_rec, th_rec, u_rec, lead_rec):
+         world, barrier, noise, every, r_rec, th_rec, u_rec, lead_rec):
     """Every step of a run (the commander's plan, the law, the zoh step, the noise) with the
     records of every ``every``-th step filled in place; returns the step at which the rule
     chose the leaders (−1: none)."""
@@ -232,8 +289,12 @@ def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choos
             steer[k] = _steering(progs[leader_prog[k]], t) if is_leader[k] else 0.0
         eff_lam, eff_q0 = (0.0, 1.0) if code == 0 else (0.0, 0.0) if code == 1 else \
             (1.0, 0.0) if code == 2 else (lam, q0)
-        lead = is_leader if code >= 2 else np.zeros(n, np.bool_)
-        _control(x, y, c, s, eff_lam, eff_q0, lead, steer, alpha, eta, mu, r0, w, leader_gain, mom, u)
+        lead = is_leader if code == 2 or code == 3 else np.zeros(n, np.bool_)
+        if code == 4:
+            _target_control(x, y, c, s, alpha, r0, w, world[4] != 0.0, u)
+        else:
+            _control(x, y, c, s, eff_lam, eff_q0, lead, steer, alpha, eta, mu, r0, w, leader_gain, mom, u)
+        _world_terms(x, y, c, s, world, barrier, alpha, r0, w, u)
         if i % every == 0:
             row = i // every
             for k in range(n):
@@ -290,6 +351,19 @@ def _program_rows(progs):
     return rows
 
 
+def _world(scn):
+    """(world, barrier points) of `_world_terms`: the target and barrier terms where the
+    scenario has them and their gains are not 0 (as `laws._add_world_terms`)."""
+    law = scn.law
+    world, barrier = np.zeros(8), np.zeros((0, 2))
+    if scn.target is not None and law.target_gain != 0.0:
+        world[:5] = (1.0, *scn.target, law.target_gain, float(law.target_normalised))
+    if scn.barrier is not None and law.barrier_gain != 0.0 and len(scn.barrier):
+        world[5:] = (1.0, law.barrier_gain, float(law.barrier_mode == 'literal'))
+        barrier = scn.barrier
+    return world, barrier
+
+
 def _noise(scn, steps):
     """(steps, n, 3) noise of every step, from each agent's own stream (as the reference draws
     it, three numbers per step), or an empty array without noise."""
@@ -330,7 +404,7 @@ def simulate(scn, *, integrator=None, record_every: int = 1, neighbour_search: s
     lams = _lambdas(plan.schedule, steps, scn.dt)
     chosen = _run(scn.pos0[:, 0].copy(), scn.pos0[:, 1].copy(), scn.theta0.astype(float),
                   float(scn.dt), lams, LAW_CODES[law.kind], float(law.q0), gains, leader_prog,
-                  _program_rows(progs), rule, float(plan.choose_at), CHOOSE_RISE, _noise(scn, steps),
+                  _program_rows(progs), rule, float(plan.choose_at), CHOOSE_RISE, *_world(scn), _noise(scn, steps),
                   int(record_every), r, th, u, lead)
     events = []
     if chosen >= 0:
@@ -356,5 +430,5 @@ def warm_up() -> float:
     _run(np.array([0.0, 1.0]), np.zeros(n), np.zeros(n), 0.1, _tanh_window(np.arange(steps + 1) * 0.1,
          400.0, 600.0, 30.0, 0.0, 1.0), 3, 1.0, np.array([0.02, 0.02, 0.02, 1.5, 4.0, 30.0]),
          np.full(n, -1, dtype=np.int64), _program_rows([ConstantSteering(0.01)]), True, 0.0, CHOOSE_RISE,
-         np.zeros((0, n, 3)), 1, r, th, u, np.empty((steps + 1, n), dtype=bool))
+         np.zeros(8), np.zeros((0, 2)), np.zeros((0, n, 3)), 1, r, th, u, np.empty((steps + 1, n), dtype=bool))
     return time.perf_counter() - t0
