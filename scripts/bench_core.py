@@ -60,13 +60,30 @@ def steps_per_second(n, kind, min_seconds=1.0, search='auto'):
             return steps / el, steps / max(cpu, 1e-9), search
 
 
-def full_run(name, dt, comms=None, duration=None):
+def full_run(name, dt, comms=None, duration=None, engine_name='reference'):
     """(wall s, CPU s) of one simulate() of a shipped scenario to its duration at dt, with the
-    radio ``comms`` (a scenario ``comms`` mapping) or its own."""
+    radio ``comms`` (a scenario ``comms`` mapping) or its own, on the reference engine or the
+    fast one (`swarm_core.fast`, compiled or loaded first)."""
     from swarm_core import engine, scenario
+    simulate = engine.simulate
+    if engine_name == 'fast':
+        from swarm_core import fast
+        fast.warm_up()
+        simulate = fast.simulate
     scn = scenario.load(name, dt=dt, comms=comms, duration=duration)
     t0, c0 = time.perf_counter(), time.process_time()
-    engine.simulate(scn)
+    simulate(scn)
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
+def fast_start(cold):
+    """(wall s, CPU s) of importing `swarm_core.fast` and compiling its kernels (``cold``: into
+    an empty numba cache) or loading them from the cache."""
+    if cold:
+        os.environ['NUMBA_CACHE_DIR'] = tempfile.mkdtemp()
+    t0, c0 = time.perf_counter(), time.process_time()
+    from swarm_core import fast
+    fast.warm_up()
     return time.perf_counter() - t0, time.process_time() - c0
 
 
@@ -138,8 +155,12 @@ def worker(spec):
         wall, cpu, search = steps_per_second(spec['n'], spec['kind'], spec['min_seconds'],
                                              spec.get('search', 'auto'))
         out = dict(wall=wall, cpu=cpu, search=search)
+    elif spec['what'] == 'start':
+        wall, cpu = fast_start(spec['cold'])
+        out = dict(wall=wall, cpu=cpu)
     else:
-        wall, cpu = full_run(spec['name'], spec['dt'], spec.get('comms'), spec.get('duration'))
+        wall, cpu = full_run(spec['name'], spec['dt'], spec.get('comms'), spec.get('duration'),
+                             spec.get('engine', 'reference'))
         out = dict(wall=wall, cpu=cpu)
     out['module'] = swarm_core.__file__
     print(json.dumps(out))
@@ -221,8 +242,10 @@ def main(argv=None):
         specs += [dict(what='sps', kind=kind, n=n, min_seconds=min_s, search='kdtree')
                   for kind, ns in sizes.items() for n in ns if n >= COMPILED_LIMIT]
     if not a.no_runs:
-        specs += [dict(what='run', name='homotopy_global', dt=dt, duration=a.duration) for dt in (0.05, 0.1)]
+        specs += [dict(what='run', name='homotopy_global', dt=dt, duration=a.duration, engine=eng)
+                  for dt in (0.05, 0.1) for eng in ('reference', 'fast')]
         specs += [dict(what='run', name='homotopy_global', dt=0.1, duration=a.duration, comms=dict(loss=0.5))]
+        specs += [dict(what='start', cold=cold) for cold in (True, False)]
     res = dict(command='scripts/bench_core.py ' + ' '.join(sys.argv[1:] if argv is None else argv),
                load_before=loadavg(), cpus=os.cpu_count(), repeats=repeats, compare=a.compare,
                current={}, baseline={})
@@ -232,8 +255,8 @@ def main(argv=None):
             for spec in specs:
                 key = spec_key(spec)
                 runs = {'current': [], 'baseline': []}
-                for _ in range(repeats):
-                    if base_src:
+                for _ in range(repeats):      # a baseline has no fast engine to measure
+                    if base_src and spec['what'] != 'start' and spec.get('engine') != 'fast':
                         runs['baseline'].append(run_worker(spec, base_src))
                     runs['current'].append(run_worker(spec))
                 for side, rr in runs.items():
@@ -244,9 +267,9 @@ def main(argv=None):
                     if 'search' in rr[0]:
                         row['search'] = rr[0]['search']
                     res[side][key] = row
-                unit = {'sps': 'steps/s', 'run': 's', 'law': 'µs/call', 'agent': 'µs/call'}[spec['what']]
+                unit = {'sps': 'steps/s', 'run': 's', 'law': 'µs/call', 'agent': 'µs/call', 'start': 's'}[spec['what']]
                 line = f'{key:28s} current {res["current"][key]["wall"]:9.2f} {unit} (cpu {res["current"][key]["cpu"]:.2f})'
-                if base_src:
+                if key in res['baseline']:
                     line += f'   baseline {res["baseline"][key]["wall"]:9.2f} (cpu {res["baseline"][key]["cpu"]:.2f})'
                 print(line, file=sys.stderr, flush=True)
         except KeyboardInterrupt:
@@ -269,8 +292,10 @@ def spec_key(spec):
         return f'law {spec["receivers"]} {lam}'
     if spec['what'] == 'agent':
         return 'AgentCore.control'
+    if spec['what'] == 'start':
+        return 'fast import + ' + ('compile' if spec['cold'] else 'cached load')
     radio = ' ' + ', '.join(f'{k} {v:g}' for k, v in spec['comms'].items()) if spec.get('comms') else ''
-    return f'{spec["name"]} dt={spec["dt"]}{radio}'
+    return f'{spec["name"]} dt={spec["dt"]}{radio} {spec.get("engine", "reference")}'
 
 
 def table(res):
@@ -303,11 +328,14 @@ def table(res):
             f' before ({res["compare"]}) steps/s | before, per CPU s | speed-up (wall) |',
             lambda key, row: f'| {row["kind"]} | {row["n"]} | {row.get("search", "")} |', 1,
             lambda row, b: f'{row["wall"] / b["wall"]:.1f}×')
-    section(('run',), '| run | steps | wall (s) | CPU (s) |',
+    section(('run',), '| run (engine) | steps | wall (s) | CPU (s) |',
             ' before: wall (s) | before: CPU (s) | speed-up (CPU) |',
             lambda key, row: f'| {key} to t = {row.get("duration") or 1000:g} | '
-                             f'{int(round((row.get("duration") or 1000) / row["dt"]))} |', 2,
+                             f'{int(round((row.get("duration") or 1000) / row["dt"]))} |', 3,
             lambda row, b: f'{b["cpu"] / row["cpu"]:.2f}×')
+    section(('start',), '| fast engine start-up (per process) | wall (s) | CPU (s) |',
+            ' before: wall (s) | before: CPU (s) | speed-up (CPU) |',
+            lambda key, row: f'| {key} |', 2, lambda row, b: f'{b["cpu"] / row["cpu"]:.2f}×')
     section(('law', 'agent'), '| one call, n = 6 (homotopy_global states at t = 450) | µs/call | µs CPU/call |',
             ' before: µs/call | before: µs CPU/call | speed-up (CPU) |', call_label, 1,
             lambda row, b: f'{b["cpu"] / row["cpu"]:.2f}×')

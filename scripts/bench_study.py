@@ -14,6 +14,11 @@ also gives the time per run outside the engine: (wall × workers − Σ engine s
 the engine seconds measured inside the workers (idle workers at the end of a round count too).
 The parent imports `swarm_core.simulate_cli` first, as `swarm sweep` does, so the local
 pool's forked workers start with the engine imported.
+
+``--engines``: instead, the fast engine against the reference, side by side in one run (local
+processes, the study's seeds unless --seeds is given): wall time and CPU seconds per run (this
+process and its workers, `resource.getrusage`), the kernel's compile/load time, and whether the
+per-run outcomes (every check) are the same.
 """
 from __future__ import annotations
 
@@ -58,22 +63,82 @@ def per_task_ms(study_tasks, workers, scheduler=None, repeat=3):
     return round(1000 * statistics.median(times) * workers / len(study_tasks), 2)
 
 
+def cpu_seconds():
+    """CPU seconds of this process and of its finished children (the pool's workers)."""
+    import resource
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def outcomes(rows):
+    """The per-run outcomes of a table: every check's verdict and the cluster count at the end."""
+    return [{k: v for k, v in r.items() if isinstance(v, bool) or v is None or k == 'final_clusters'}
+            for r in rows]
+
+
+def engines_main(a, s) -> int:
+    """The fast engine against the reference on the same study (see the module's doc)."""
+    from swarm_core import fast
+    from swarm_core import study as st
+    n = len(s.cells()) * len(s.seeds)
+    t0 = time.perf_counter()
+    compile_s = fast.warm_up()          # in this process: the forked workers inherit the kernels
+    res = {'study': s.name, 'runs': n, 'workers': a.workers, 'import_s': round(t0 - _T_START, 2),
+           'warm_up_s': round(compile_s, 2)}
+    tables = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in range(a.rounds):
+            for eng in ('reference', 'fast'):
+                w0, c0 = time.perf_counter(), cpu_seconds()
+                rows, counts = st.run_study(s, Path(tmp) / f'{eng}{r}', jobs=a.workers, engine=eng)
+                wall, cpu = time.perf_counter() - w0, cpu_seconds() - c0
+                res.setdefault(f'{eng}_wall_s', []).append(round(wall, 2))
+                res.setdefault(f'{eng}_cpu_ms_per_run', []).append(round(1000 * cpu / n, 1))
+                tables[eng] = rows
+                print(f'round {r}: {eng:9s} {n} runs in {wall:.1f} s wall, {1000 * cpu / n:.1f} ms CPU per run',
+                      flush=True)
+    diff = [i for i, (x, y) in enumerate(zip(outcomes(tables['fast']), outcomes(tables['reference']))) if x != y]
+    res['outcomes_differ'] = [{**tables['fast'][i], 'reference': outcomes(tables['reference'])[i]} for i in diff]
+    for eng in ('reference', 'fast'):
+        res[f'{eng}_cpu_ms_per_run_median'] = statistics.median(res[f'{eng}_cpu_ms_per_run'])
+        res[f'{eng}_wall_s_median'] = statistics.median(res[f'{eng}_wall_s'])
+    res['speed_up_cpu'] = round(res['reference_cpu_ms_per_run_median'] / res['fast_cpu_ms_per_run_median'], 1)
+    print(json.dumps(res, indent=1))
+    if a.json:
+        Path(a.json).write_text(json.dumps(res, indent=1) + '\n')
+    return 0
+
+
+_T_START = time.perf_counter()
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument('--study', default=str(ROOT / 'studies' / 'fig3_ramp.yaml'))
-    p.add_argument('--seeds', type=int, default=2, help='seeds per cell (default 2)')
+    p.add_argument('--seeds', type=int, default=None, help='seeds per cell (default 2; --engines: the study\'s)')
     p.add_argument('--workers', type=int, default=2)
     p.add_argument('--rounds', type=int, default=2)
     p.add_argument('--duration', type=float, help="override the runs' duration (shorter runs: a larger share of overhead)")
     p.add_argument('--json', help='also write the numbers here')
+    p.add_argument('--engines', action='store_true', help='the fast engine against the reference (local processes)')
     a = p.parse_args(argv)
+    if a.engines:
+        from swarm_core import simulate_cli  # noqa: F401
+        from swarm_core import study as st
+        s = st.load_study(a.study)
+        if a.seeds is not None:
+            s.seeds = list(range(a.seeds))
+        if a.duration:
+            s.fixed['duration'] = a.duration
+        st.validate(s)
+        return engines_main(a, s)
 
     from distributed import LocalCluster
     from swarm_core import simulate_cli  # noqa: F401  (as in `swarm sweep`: forked workers inherit it)
     from swarm_core import study as st
 
     s = st.load_study(a.study)
-    s.seeds = list(range(a.seeds))
+    s.seeds = list(range(2 if a.seeds is None else a.seeds))
     if a.duration:
         s.fixed['duration'] = a.duration
     st.validate(s)

@@ -76,17 +76,50 @@ def leader_membership(labels, leader_idx):
     return out
 
 
-def time_series(t, r, theta, leader, w, *, target=None, barrier_points=None, every: int = 1):
-    """Metric time series over a trajectory, sampled every ``every`` records.
+#: up to this many agents `time_series` takes every sample at once (`_dense_samples`)
+DENSE_SAMPLES = 32
 
-    Returns a dict of arrays: t, clusters, polarisation, min_distance, centroid (T, 2),
-    one_leader_per_cluster (bool: each cluster holds exactly one leader), and, where the
-    scenario has them, centroid_target_distance, min_target_distance, intrusions.
-    Agents whose row is not finite (dead: faults.py) are left out of each sample."""
-    barrier = Barrier(barrier_points) if barrier_points is not None else None
-    idx = np.arange(0, len(t), every)
-    if idx[-1] != len(t) - 1:
-        idx = np.append(idx, len(t) - 1)
+
+def _components(adj):
+    """Connected components of each graph of a stack (S, n, n) of boolean adjacencies with
+    self loops: (count (S,), labels (S, n), the lowest agent index of each one's component)."""
+    s, n, _ = adj.shape
+    labels = np.broadcast_to(np.arange(n), (s, n)).copy()
+    while True:                                  # at most n rounds: each takes the neighbours' least
+        nxt = np.where(adj, labels[:, None, :], n).min(axis=2)
+        if np.array_equal(nxt, labels):
+            return (labels == np.arange(n)).sum(axis=1), labels
+        labels = nxt
+
+
+def _dense_samples(r, theta, leader, w):
+    """clusters, polarisation, min_distance and one_leader_per_cluster of every sample of a
+    small swarm with finite rows, as the per-sample functions give them, in blocks of samples."""
+    n = r.shape[1]
+    out = {k: [] for k in ('clusters', 'polarisation', 'min_distance', 'one_leader_per_cluster')}
+    block = max(1, 200_000 // (n * n))
+    eye = np.eye(n, dtype=bool)
+    for a in range(0, len(r), block):
+        rb, lb = r[a:a + block], leader[a:a + block]
+        dx = rb[:, :, None, 0] - rb[:, None, :, 0]
+        dy = rb[:, :, None, 1] - rb[:, None, :, 1]
+        d2 = dx * dx + dy * dy
+        count, labels = _components((d2 < w * w) | eye)
+        out['clusters'].append(count)
+        d2[:, eye] = np.inf
+        out['min_distance'].append(np.sqrt(d2.min(axis=(1, 2))) if n > 1 else np.full(len(rb), np.inf))
+        th = theta[a:a + block]
+        out['polarisation'].append(np.hypot(np.cos(th).mean(axis=1), np.sin(th).mean(axis=1)))
+        # leaders per component (its root: the lowest index), 1 in every one; no leader: False
+        per = (lb[:, None, :] & (labels[:, None, :] == np.arange(n)[None, :, None])).sum(axis=2)
+        roots = labels == np.arange(n)
+        out['one_leader_per_cluster'].append(np.all((per == 1) | ~roots, axis=1) & lb.any(axis=1))
+    return {k: np.concatenate(v) for k, v in out.items()}
+
+
+def _each_sample(r, theta, leader, w, idx):
+    """The per-sample metrics of `_dense_samples`, one sample at a time, leaving out the
+    agents whose row is not finite."""
     out = {k: [] for k in ('clusters', 'polarisation', 'min_distance', 'one_leader_per_cluster')}
     for i in idx:
         ok = np.isfinite(r[i]).all(axis=1) & np.isfinite(theta[i])
@@ -98,6 +131,24 @@ def time_series(t, r, theta, leader, w, *, target=None, barrier_points=None, eve
         lead = np.flatnonzero(lead_i)
         per = [len(v) for v in leader_membership(labels, lead).values()] if len(lead) else [0]
         out['one_leader_per_cluster'].append(all(p == 1 for p in per))
+    return out
+
+
+def time_series(t, r, theta, leader, w, *, target=None, barrier_points=None, every: int = 1):
+    """Metric time series over a trajectory, sampled every ``every`` records.
+
+    Returns a dict of arrays: t, clusters, polarisation, min_distance, centroid (T, 2),
+    one_leader_per_cluster (bool: each cluster holds exactly one leader), and, where the
+    scenario has them, centroid_target_distance, min_target_distance, intrusions.
+    Agents whose row is not finite (dead: faults.py) are left out of each sample."""
+    barrier = Barrier(barrier_points) if barrier_points is not None else None
+    idx = np.arange(0, len(t), every)
+    if idx[-1] != len(t) - 1:
+        idx = np.append(idx, len(t) - 1)
+    if 2 <= r.shape[1] <= DENSE_SAMPLES and np.isfinite(r[idx]).all() and np.isfinite(theta[idx]).all():
+        out = _dense_samples(r[idx], theta[idx], np.asarray(leader)[idx], w)   # no dead agents
+    else:
+        out = _each_sample(r, theta, leader, w, idx)
     res = {k: np.asarray(v) for k, v in out.items()}
     res['t'] = np.asarray(t)[idx]
     finite = np.isfinite(r[idx]).all()

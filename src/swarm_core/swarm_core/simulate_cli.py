@@ -81,6 +81,20 @@ def _replay_or_exit(path, scn) -> dict:
     return commands
 
 
+def _engine_option(p):
+    p.add_argument('--engine', choices=['fast', 'reference'], default='fast', help=(
+        'fast (default): the compiled kernel (swarm_core.fast) where it covers the run, else the '
+        'reference; reference: the numpy engine the ROS nodes are checked against'))
+
+
+def _simulator(name):
+    """``simulate`` of engine ``name`` (the fast module is imported only when asked for)."""
+    if name == 'reference':
+        return engine.simulate
+    from . import fast
+    return fast.simulate
+
+
 def simulate_main(argv) -> int:
     p = argparse.ArgumentParser(prog='swarm simulate', description=(
         'Run a scenario in the batch engine (pure numpy, no ROS) and write trajectory.npz, '
@@ -96,6 +110,7 @@ def simulate_main(argv) -> int:
     p.add_argument('--quiet', action='store_true', help='no progress output')
     p.add_argument('--replay', metavar='EVENTS.jsonl', help=(
         "re-apply a run's live commands (the 'command' events of its events.jsonl) at their steps"))
+    _engine_option(p)
     a = p.parse_args(argv)
     if a.record_every < 1:
         p.error('--record-every must be ≥ 1')
@@ -112,8 +127,11 @@ def simulate_main(argv) -> int:
         print(f'swarm simulate: {src}, {len(scn.names)} agents, law {scn.law.kind}, '
               f'dt {scn.dt}, t = 0..{scn.duration:g} ({scn.steps} steps), seed {scn.seed}', file=sys.stderr)
     commands = _replay_or_exit(a.replay, scn) if a.replay else None
-    traj = engine.simulate(scn, record_every=a.record_every, commands=commands,
-                           progress=_Progress(f'{scn.name} seed {scn.seed}', not a.quiet))
+    traj = _simulator(a.engine)(scn, record_every=a.record_every, commands=commands,
+                                progress=_Progress(f'{scn.name} seed {scn.seed}', not a.quiet))
+    if not a.quiet and traj.meta.get('fallback'):
+        print(f'swarm simulate: the fast engine does not cover this run ({traj.meta["fallback"]}): '
+              'the reference engine ran it', file=sys.stderr)
     series, checks = analyse(traj, scenario=scn)
     try:
         summary = write_outputs(out, scn, traj, series, checks, figure=not a.no_figure)
@@ -275,6 +293,7 @@ def sweep_main(argv) -> int:
     g.add_argument('--check', default=None, help="study: the check whose rate the figure shows (default 'all': every check)")
     g.add_argument('--no-figure', action='store_true', help='study: skip the figure')
     g.add_argument('--quiet', action='store_true', help='study: no progress bar')
+    _engine_option(g)
     a = p.parse_args(argv)
     if a.seeds is not None and a.seeds < 1:
         p.error('--seeds must be ≥ 1')
@@ -329,7 +348,7 @@ def sweep_main(argv) -> int:
 
 def study_main(p, a) -> int:
     """`swarm sweep --set ... / --study FILE`: validate every cell, run (cached), write
-    runs.csv (one row per run), rates.csv and rates.md (rate per cell and check, 95 % Wilson
+    runs.csv and runs.parquet (one row per run), rates.csv and rates.md (rate per cell and check, 95 % Wilson
     CI) and a figure into --out."""
     from . import study as st
     if a.study and a.scenarios:
@@ -361,12 +380,15 @@ def study_main(p, a) -> int:
     where = f'Dask {a.scheduler}' if a.scheduler else f'{a.jobs} local process{"es" if a.jobs > 1 else ""}'
     print(f'swarm sweep: study {study.name}: {study.source}, {n_cells} cells × {len(study.seeds)} seeds '
           f'= {n_cells * len(study.seeds)} runs on {where}; cache {out / "cache"}', file=sys.stderr)
+    if a.engine == 'fast':              # compiled (or loaded) once here: forked workers inherit it
+        from . import fast
+        fast.warm_up()
     t0 = time.perf_counter()
     interrupted = False
     counts = {}
     try:
         rows, counts = st.run_study(study, out / 'cache', jobs=a.jobs, scheduler=a.scheduler,
-                                    progress=not a.quiet)
+                                    progress=not a.quiet, engine=a.engine)
     except KeyboardInterrupt:
         interrupted = True
     except OSError as err:              # the cache (a full or read-only disk)
@@ -384,7 +406,7 @@ def study_main(p, a) -> int:
         print(write_failed('swarm sweep', out, err), file=sys.stderr)
         return 1
     print(f'swarm sweep: {counts["ran"]} runs done, {counts["cached"]} from the cache, {wall:.1f}s wall; '
-          f'wrote {out}/runs.csv, rates.csv, rates.md' + ''.join(f', {f}' for f in figures),
+          f'wrote {out}/runs.csv, runs.parquet, rates.csv, rates.md' + ''.join(f', {f}' for f in figures),
           file=sys.stderr)
     return 0
 
@@ -394,6 +416,7 @@ def _write_study(out, study, rows, a) -> list:
     names of the figures written."""
     from . import study as st
     write_atomic(out / 'runs.csv', st.to_csv(study, rows))
+    st.to_parquet(study, rows, out / 'runs.parquet')
     rr = st.rates(study, rows)
     write_atomic(out / 'rates.csv', st.rates_csv(study, rr))
     md = st.rates_markdown(study, rr)

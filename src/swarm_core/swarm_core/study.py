@@ -24,7 +24,7 @@ import numpy as np
 from . import placement, scenario
 from .study_cache import ROW_METRICS, Cache, row_error
 # the tables are part of the study API (study.to_csv, study.rates, ...)
-from .study_tables import plot_rates, rates, rates_csv, rates_markdown, to_csv, wilson  # noqa: F401
+from .study_tables import plot_rates, rates, rates_csv, rates_markdown, to_csv, to_parquet, wilson  # noqa: F401
 from .study_grid import (MAX_CELLS, MAX_RUNS, StudyError, check_size, parse_set, parse_values,  # noqa: F401
                          set_field)
 
@@ -227,16 +227,25 @@ class Task:
     data: dict
     source: str
     version: str = ''
+    engine: str = 'fast'
 
 
-def tasks(study: Study, version: str | None = None) -> list[Task]:
+#: the engines a study runs on: 'fast' (`fast.simulate`: the compiled kernel where it covers
+#: the run, else the reference) and 'reference' (`engine.simulate`)
+ENGINES = ('fast', 'reference')
+
+
+def tasks(study: Study, version: str | None = None, engine: str = 'fast') -> list[Task]:
+    if engine not in ENGINES:
+        raise StudyError(f'engine {engine!r}: one of {", ".join(ENGINES)}')
     version = version or code_version()
     base = hashlib.sha256(_canon([study.data, study.fixed]).encode()).hexdigest()
     out = []
     for ci, cell in enumerate(study.cells()):
         data = study.cell_data(cell)
         for seed in study.seeds:
-            out.append(Task(run_key(base, cell, seed, version), ci, cell, seed, data, study.source, version))
+            key = run_key(base, cell, seed, version if engine == 'fast' else f'{version}-{engine}')
+            out.append(Task(key, ci, cell, seed, data, study.source, version, engine))
     return out
 
 
@@ -252,13 +261,16 @@ def _num(v):
 
 def run_task(task: Task) -> dict:
     """Simulate one run and return its row's results (checks and metrics; no wall time)."""
-    from . import engine
     from .analysis import analyse, summary_of
     if task.version and task.version != code_version():
         raise RuntimeError(f'this worker runs swarm_core {code_version()}, the study needs {task.version}: '
                            'install the same project version on every worker')
     scn = scenario.parse(task.data, task.source, seed=task.seed)
-    traj = engine.simulate(scn)
+    if task.engine == 'fast':
+        from .fast import simulate
+    else:
+        from .engine import simulate
+    traj = simulate(scn)
     series, checks = analyse(traj, scenario=scn)
     s = summary_of(scn, traj, series, checks)
     row = {'ok': s['behaviour_ok']}
@@ -355,14 +367,15 @@ def _cached(cache, task) -> bool:
 
 
 def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, version=None,
-              on_result=None):
+              on_result=None, engine='fast'):
     """Run every task not in the cache; return (rows in cell × seed order, counts).
 
+    ``engine``: 'fast' (default) or 'reference' (`ENGINES`); each has its own cache keys.
     ``scheduler``: None for local processes (``jobs``), else a Dask address or ``local:N``.
     ``on_result(counts)`` is called after each finished run is cached.  Ctrl-C
     (KeyboardInterrupt) leaves the finished runs in the cache and propagates."""
     cache = Cache(cache_dir)
-    all_tasks = tasks(study, version)
+    all_tasks = tasks(study, version, engine)
     todo = [t for t in all_tasks if not _cached(cache, t)]
     counts = {'total': len(all_tasks), 'cached': len(all_tasks) - len(todo), 'ran': 0}
     by_key = {t.key: t for t in todo}

@@ -45,6 +45,24 @@ def to_csv(study: Study, rows) -> str:
     return buf.getvalue()
 
 
+def to_parquet(study: Study, rows, path):
+    """The tidy table of `to_csv` as Parquet at ``path`` (written atomically): the same
+    columns and rows, each column typed (bool, int64, double or string; missing values null)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    cols = table_columns(study, rows)
+    arrays = []
+    for c in cols:
+        vals = [r.get(c) for r in rows]
+        try:
+            arrays.append(pa.array(vals))
+        except (pa.ArrowInvalid, pa.ArrowTypeError):    # mixed kinds: as the CSV writes them
+            arrays.append(pa.array([None if v is None else _cell_str(v) for v in vals], pa.string()))
+    with atomic_path(path, '.parquet') as tmp:
+        pq.write_table(pa.Table.from_arrays(arrays, names=cols), tmp)
+    return path
+
+
 def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
     """Wilson score interval (95 % by default) of a binomial rate k/n."""
     if n == 0:
@@ -128,12 +146,15 @@ def plot_rates(study: Study, rates_rows, path, check='all', title=None):
             i, j = ys.index(r[a]), xs.index(r[b])
             z[i, j] = r['rate']
             txt[i, j] = f'{r["passed"]}/{r["n"]}'
-        fig, ax = plt.subplots(figsize=(1.2 * len(xs) + 2.5, 0.8 * len(ys) + 1.8))
+        dense = max(len(xs), len(ys)) > 10          # a phase diagram: no counts, fewer ticks
+        size = (9.0, 7.0) if dense else (1.2 * len(xs) + 2.5, 0.8 * len(ys) + 1.8)
+        fig, ax = plt.subplots(figsize=size)
         im = ax.imshow(z, origin='lower', cmap='viridis', vmin=0, vmax=1, aspect='auto')
-        for (i, j), s in txt.items():
+        for (i, j), s in ({} if dense else txt).items():
             ax.text(j, i, s, ha='center', va='center', color='w' if z[i, j] < 0.6 else 'k', fontsize=9)
-        ax.set_xticks(range(len(xs)), [f'{v:g}' if isinstance(v, float) else str(v) for v in xs])
-        ax.set_yticks(range(len(ys)), [f'{v:g}' if isinstance(v, float) else str(v) for v in ys])
+        for axis, vals in ((ax.set_xticks, xs), (ax.set_yticks, ys)):
+            ticks = range(0, len(vals), max(1, len(vals) // 10))
+            axis(ticks, [f'{vals[i]:g}' if isinstance(vals[i], float) else str(vals[i]) for i in ticks])
         ax.set_xlabel(b)
         ax.set_ylabel(a)
         fig.colorbar(im, ax=ax, label=f'{check} rate')
