@@ -3,10 +3,11 @@
 Lockstep: reads one packed ``/lockstep/step`` message per step (states of all agents, λ,
 leader flags, s_k, target, barrier of that step), computes u with the core law, integrates,
 publishes its next state on ``/swarm/states``.
-Realtime: a timer at the control rate (1/dt in sim time) uses the newest states on
-``/swarm/states`` of agents within w (all agents when the law couples globally), the newest
-``/swarm/lambda``, ``/swarm/leaders``, its ``steering`` topic, ``/world/target`` and
-``/world/barrier``.
+Realtime: a timer at the control rate (1/dt in sim time) uses the newest states of agents
+within w (all agents when the law couples globally), read from the agent processes' batches
+on ``/swarm/agent_states``, the newest ``/swarm/lambda``, ``/swarm/leaders``, its ``steering``
+topic, ``/world/target`` and ``/world/barrier``; it publishes its state on ``/swarm/states``
+and, alone, in its own batch.
 Bad inputs are rejected with one log line naming them; no NaN ever enters the state.
 
 `AgentNode` is what every agent node has whatever its mode (name, parameters, its pure
@@ -18,7 +19,7 @@ parameters, takes the mode's own input (`on_input`), and says how a radio change
 In an agent container (``swarm_agents``, `swarm_agent.container_node`) the node is built with
 ``contained=True``: it keeps its name, parameters, logger, ``steering`` subscription and
 ``/swarm/states`` publisher, and the container feeds it the inputs its agents share (the step
-relay, ``/swarm/states``, λ, leaders, target, barrier, events) from one subscription each.
+relay, ``/swarm/agent_states``, λ, leaders, target, barrier, events) from one subscription each.
 
 Communication model (parameter ``comms``: the scenario's ``comms`` section as JSON, '' = a
 perfect radio; see swarm_core.comms): the agent applies it on its receive side.  Lockstep: from
