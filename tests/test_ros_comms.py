@@ -14,9 +14,8 @@ import pytest
 pytestmark = pytest.mark.ros
 
 rclpy = pytest.importorskip('rclpy')
-from nav_msgs.msg import Odometry  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
-from std_msgs.msg import String  # noqa: E402
+from std_msgs.msg import Float64MultiArray, String  # noqa: E402
 
 from swarm_agent.agent_node import AgentNode  # noqa: E402
 from swarm_core.engine import simulate
@@ -25,9 +24,10 @@ from swarm_core.scenario import load  # noqa: E402
 from swarm_tools.launch import build_nodes  # noqa: E402
 from swarm_tools.node_params import agent_parameters, node_parameters  # noqa: E402
 from swarm_ros import protocol as P  # noqa: E402
+from swarm_ros.layouts import ProcessStates  # noqa: E402
 from swarm_ros.rosutil import make_executor  # noqa: E402
 
-from conftest import odom, overrides, run_nodes, short_homotopy, spin_for  # noqa: E402
+from conftest import overrides, run_nodes, short_homotopy, spin_for  # noqa: E402
 
 #: a lossy, delayed radio with one worse link and a partition from t = 5 to 8
 COMMS = {'loss': 0.25, 'latency': 0.1, 'jitter': 0.1, 'timeout': 0.6,
@@ -126,7 +126,7 @@ def test_realtime_latency_and_swarm_drop(rclpy_context, swarm_cmd, processes):
     agent = AgentNode('agent', namespace='agent_1', context=ctx, parameter_overrides=overrides(prm))
     probe = rclpy.create_node('probe', context=ctx)
     clock = probe.create_publisher(Clock, '/clock', 10)
-    states = probe.create_publisher(Odometry, P.STATES, P.qos_latched(10))
+    states = probe.create_publisher(Float64MultiArray, P.AGENT_STATES, P.qos_latched(10))   # agent_0's process
     ex.add_node(agent)
     ex.add_node(probe)
     assert agent.radio_on
@@ -140,7 +140,8 @@ def test_realtime_latency_and_swarm_drop(rclpy_context, swarm_cmd, processes):
             c = Clock()
             c.clock.sec, c.clock.nanosec = P.time_to_stamp(t[0])
             clock.publish(c)
-            states.publish(odom('agent_0', -1.0 + t[0], 1.0, 0.0, t[0]))
+            states.publish(ProcessStates(9.0, [0], [t[0]], np.array([[-1.0 + t[0]], [1.0], [0.0], [1.0]]), [0.0])
+                           .to_cdr(agent.run_id))
             spin_for(ex, lambda: False, 0.03)
             if 0 in agent.driver.stream.newest:              # agent_0's newest delivered state
                 lags.append(agent._now() - agent.driver.stream.newest[0][0])

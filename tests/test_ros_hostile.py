@@ -16,14 +16,14 @@ import pytest
 import rclpy
 from geometry_msgs.msg import Point32, PointStamped, PolygonStamped
 from nav_msgs.msg import Odometry
-from std_msgs.msg import Float64, String
+from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_agent.agent_node import AgentNode
 from swarm_core.scenario import load
 from swarm_tools.launch import build_nodes
 from swarm_tools.node_params import agent_parameters, node_parameters
 from swarm_ros import protocol as P
-from swarm_ros.layouts import States, Step
+from swarm_ros.layouts import ProcessStates, States, Step
 from swarm_ros.rosutil import make_executor
 from swarm_ros.runinfo import run_json
 from swarm_world.world_node import WorldNode
@@ -35,7 +35,8 @@ pytestmark = pytest.mark.ros
 
 def test_hostile_publisher_during_a_realtime_run(tmp_path, rclpy_context):
     """During a short realtime run a probe publishes future and duplicate states, NaN / inf
-    states, a flood of bad λ and steering values, a NaN target and a 10,000-point polygon.
+    states (on /swarm/states, which only the recorder and tools read, and as a process's batch
+    on /swarm/agent_states, which the world, commander and agents read), a flood of bad λ and steering values, a NaN target and a 10,000-point polygon.
     Every node stays up (a callback exception would end the spin), every recorded state is
     finite, the spoofed states never enter the world's record, and each node logs at most a
     couple of lines per kind of rejection."""
@@ -46,6 +47,7 @@ def test_hostile_publisher_during_a_realtime_run(tmp_path, rclpy_context):
     world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
     probe = rclpy.create_node('probe', context=ctx)
     states = probe.create_publisher(Odometry, P.STATES, P.qos_latched(10))
+    batches = probe.create_publisher(Float64MultiArray, P.AGENT_STATES, P.qos_latched(10))
     lam = probe.create_publisher(Float64, P.LAMBDA, P.qos_reliable(100))
     steer = probe.create_publisher(Float64, P.steering_topic('agent_0'), P.qos_reliable(100))
     target = probe.create_publisher(PointStamped, P.TARGET, P.qos_latched())
@@ -60,6 +62,12 @@ def test_hostile_publisher_during_a_realtime_run(tmp_path, rclpy_context):
     states.publish(odom('agent_3', 777.0, 777.0, 0.0, now + 0.5))      # a second agent_3
     states.publish(odom('agent_2', float('nan'), 0.0, 0.0, now))
     states.publish(odom('agent_1', float('inf'), 0.0, 0.0, now))
+
+    def batch(i, x, t):          # a state of agent i from the probe's "process"
+        return ProcessStates(31.0, [i], [t], np.array([[x], [x], [0.0], [1.0]]), [0.0]).to_cdr(world.run_id)
+    batches.publish(batch(4, 900.0, 500.0))
+    batches.publish(batch(3, 777.0, now + 0.5))
+    batches.publish(batch(2, float('nan'), now))
     for i in range(2000):
         lam.publish(Float64(data=(float('nan'), float('inf'), 2.0 + i, -1.0 - i)[i % 4]))
         if i % 10 == 0:
@@ -272,17 +280,19 @@ def test_a_second_swarm_run_on_the_domain_refuses_and_the_first_is_not_mixed(tmp
 
 
 def test_world_rejects_future_and_second_publisher_states(rclpy_context):
-    """The two reproduced take-overs, at the world (realtime, states fed as raw bytes): a state
-    stamped far in the future made every true state after it "older" (rejected for 30 s); a
-    second publisher of agent_3 with a slightly later stamp replaced its true position."""
+    """The two reproduced take-overs, at the world (realtime, the processes' batches of states
+    fed as raw bytes): a state stamped far in the future made every true state after it
+    "older" (rejected for 30 s); a second process sending agent_3 with a slightly later stamp
+    replaced its true position."""
     world = WorldNode(context=rclpy_context, parameter_overrides=overrides(dict(
         scenario='homotopy_global', duration=5.0, mode='realtime')), log=lambda *a, **k: None)
-    real = P.OdometryWriter('agent_3', tag=1234.0)
-    spoof = P.OdometryWriter('agent_3', tag=99.0)
-    world._on_state(real(0, 0, 1.0, 2.0, 0.0, 1.0, 0.0))
-    world._on_state(P.OdometryWriter('agent_4', tag=77.0)(500, 0, 9.0, 9.0, 0.0, 1.0, 0.0))   # t = 500
-    world._on_state(spoof(0, 50_000_000, 777.0, 777.0, 0.0, 1.0, 0.0))                        # t = 0.05
-    world._on_state(P.OdometryWriter('agent_4', tag=5.0)(0, 100_000_000, 3.0, 4.0, 0.0, 1.0, 0.0))
+
+    def batch(tag, i, t, x, y):
+        return ProcessStates(tag, [i], [t], np.array([[x], [y], [0.0], [1.0]]), [0.0]).to_cdr(world.run_id)
+    world._on_state(batch(1234.0, 3, 0.0, 1.0, 2.0))
+    world._on_state(batch(77.0, 4, 500.0, 9.0, 9.0))                  # t = 500
+    world._on_state(batch(99.0, 3, 0.05, 777.0, 777.0))               # a second process for agent_3
+    world._on_state(batch(5.0, 4, 0.1, 3.0, 4.0))
     assert world.newest['agent_3'][:3] == (0.0, 1.0, 2.0)
     assert world.newest['agent_4'][:3] == (0.1, 3.0, 4.0)
     assert {'future-stamp', 'second-publisher'} <= set(world.reject.kinds), world.reject.lines

@@ -3,7 +3,8 @@
 Runs the scenario's `swarm_core.command_plan.CommandPlan` (the batch engine runs the same):
 - lockstep: on each ``/lockstep/states`` (the states of step n) it decides λ, leaders and
   s_k for step n and answers on ``/lockstep/decision``;
-- realtime: a timer at 1/dt (sim time) decides from the newest ``/swarm/states``.
+- realtime: a timer at 1/dt (sim time) decides from the newest states, read from the agent
+  processes' batches (``/swarm/agent_states``: one message per process and tick).
 It publishes the λ in force on ``/swarm/lambda``, ``/<leader>/steering`` (both reliable,
 transient-local) and ``/swarm/leaders`` (latched).
 
@@ -38,7 +39,6 @@ import sys
 import time
 
 import numpy as np
-from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -49,8 +49,8 @@ from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.command_plan import check_command
 from swarm_core.inputs import LAMBDA_BOUND, RAMP_BOUND, STEERING_BOUND
 from swarm_ros import protocol as P
-from swarm_ros.layouts import Decision, States
-from swarm_ros.msg_checks import FUTURE_TOLERANCE, RejectLog, Senders, decoded
+from swarm_ros.layouts import Decision, ProcessStates, States
+from swarm_ros.msg_checks import FUTURE_TOLERANCE, ProcessSenders, RejectLog, check_agent_states, decoded
 from swarm_ros.rosutil import declare, gid_key, run_node, steady_clock, when_matched
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
@@ -96,7 +96,7 @@ class CommanderNode(Node):
         self.dt = self.scn.dt
         self.plan = self.scn.command_plan()
         self.reject = RejectLog(self.get_logger())
-        self.senders = Senders()     # realtime: each agent name bound to its first publisher
+        self.senders = ProcessSenders(self.n)    # realtime: each agent bound to its first process
         self.t = 0.0
         self.lam = float(self.plan.schedule.value(0.0))
         self._declare_live_parameters()
@@ -185,11 +185,12 @@ class CommanderNode(Node):
             self._join_lockstep()
 
     def _start_realtime(self):
-        """A timer at 1/dt (sim time) decides from the newest /swarm/states."""
+        """A timer at 1/dt (sim time) decides from the newest states (/swarm/agent_states)."""
         self.pos = self.scn.pos0.copy()
         self.quat = np.stack(quaternion_from_heading(self.scn.theta0), axis=1)   # (n, 2) qz, qw heard
         self.last_seen = np.full(self.n, -np.inf)
-        self.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)), raw=True)
+        self.create_subscription(Float64MultiArray, P.AGENT_STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)),
+                                 raw=True)
         self.timer = self.create_timer(self.dt, self._on_tick)
 
     def _recorder_matched(self):
@@ -399,23 +400,21 @@ class CommanderNode(Node):
         self.publish_outputs(lam, flags, steering, force=(s.n % self.publish_every == 0))
 
     def _on_state(self, raw):
-        """Realtime: a serialized /swarm/states message (decoded without building an Odometry)."""
-        try:
-            name, sec, nsec, pose, _, tag = P.cdr_to_odometry_tagged(raw)
-        except Exception:          # noqa: BLE001 - agents and the world log these
+        """Realtime: the states of one agent process (a serialized /swarm/agent_states
+        message).  Bad ones are dropped without a line (the agents and the world log them): a
+        message of another run, not finite, naming an agent outside the roster or twice, or
+        not planar; a state from a second process for that agent, or stamped in the future."""
+        m = decoded(ProcessStates, raw, self.run_id, lambda *_: None, 'state-decode')
+        if m is None or check_agent_states(m.index, m.pose, self.n, P.AGENT_STATES) is not None:
             return
-        i = self.row.get(name)
-        vals = (pose[0], pose[1], pose[4], pose[5])
-        if i is None or not all(math.isfinite(v) for v in vals):
-            return        # agents and the world log these
-        t = sec + nsec * 1e-9
         now = self.get_clock().now().nanoseconds * 1e-9
-        if self.senders.check(name, tag) is not None or t > now + FUTURE_TOLERANCE:
-            return        # a second publisher of that name, or a stamp from the future (logged there too)
-        self.senders.accept(name, tag)
-        self.pos[i] = vals[:2]
-        self.quat[i] = vals[2:]
-        self.last_seen[i] = t
+        ok, _ = self.senders.check(m.index, m.tag)
+        ok &= m.t <= now + FUTURE_TOLERANCE
+        idx = m.index[ok]
+        self.senders.accept(idx, m.tag)
+        self.pos[idx] = m.pose[:2, ok].T
+        self.quat[idx] = m.pose[2:, ok].T
+        self.last_seen[idx] = m.t[ok]
 
     def _on_tick(self):
         t = self.get_clock().now().nanoseconds * 1e-9

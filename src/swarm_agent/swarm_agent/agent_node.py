@@ -3,10 +3,11 @@
 Lockstep: reads one packed ``/lockstep/step`` message per step (states of all agents, λ,
 leader flags, s_k, target, barrier of that step), computes u with the core law, integrates,
 publishes its next state on ``/swarm/states``.
-Realtime: a timer at the control rate (1/dt in sim time) uses the newest states on
-``/swarm/states`` of agents within w (all agents when the law couples globally), the newest
-``/swarm/lambda``, ``/swarm/leaders``, its ``steering`` topic, ``/world/target`` and
-``/world/barrier``.
+Realtime: a timer at the control rate (1/dt in sim time) uses the newest states of agents
+within w (all agents when the law couples globally), read from the agent processes' batches
+on ``/swarm/agent_states``, the newest ``/swarm/lambda``, ``/swarm/leaders``, its ``steering``
+topic, ``/world/target`` and ``/world/barrier``; it publishes its state on ``/swarm/states``
+and, alone, in its own batch.
 Bad inputs are rejected with one log line naming them; no NaN ever enters the state.
 
 An agent with a robot (parameter ``robot``: external, mujoco) reads its pose from the robot's
@@ -21,7 +22,7 @@ parameters, takes the mode's own input (`on_input`), and says how a radio change
 In an agent container (``swarm_agents``, `swarm_agent.container_node`) the node is built with
 ``contained=True``: it keeps its name, parameters, logger, ``steering`` subscription and
 ``/swarm/states`` publisher, and the container feeds it the inputs its agents share (the step
-relay, ``/swarm/states``, λ, leaders, target, barrier, events) from one subscription each.
+relay, ``/swarm/agent_states``, λ, leaders, target, barrier, events) from one subscription each.
 
 Communication model (parameter ``comms``: the scenario's ``comms`` section as JSON, '' = a
 perfect radio; see swarm_core.comms): the agent applies it on its receive side.  Lockstep: from
@@ -57,7 +58,7 @@ from swarm_ros.runinfo import declare_run_id
 
 from .agent_core import AgentCore, known_table, roster_index
 from .container_core import ContainerCore
-from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_state, hear_state, own_echo, realtime_tick,
+from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_batch, hear_state, own_echo, realtime_tick,
                          shared_inputs, step_message, step_time)
 from .realtime_core import HeardStates
 
@@ -353,10 +354,12 @@ class LockstepDriver:
 
 
 class RealtimeDriver:
-    """Realtime: a timer at the control rate; neighbour states from ``/swarm/states``
-    (through the radio model if there is one), λ and the rest as they arrive.  Alone the agent
-    is a container of one (`process_io.realtime_tick`); contained, the container's one timer
-    drives it and the states it heard perfectly are the container's (`HeardStates`)."""
+    """Realtime: a timer at the control rate; neighbour states from the agent processes'
+    batches on ``/swarm/agent_states`` (through the radio model if there is one), λ and the
+    rest as they arrive.  Alone the agent is a container of one (`process_io.realtime_tick`,
+    its own batch of one state per tick); contained, the container's one timer drives it, the
+    container sends the batch and the states it heard perfectly are the container's
+    (`HeardStates`)."""
 
     @staticmethod
     def declare(node):
@@ -383,15 +386,22 @@ class RealtimeDriver:
         self.stream = StreamRadio(node.radio, node.index)
         self.timer = None
         self.lock = None
+        self.batch = None            # alone: its process's /swarm/agent_states writer
+        self.process_tag = None      # the sender tag of its process's batches (contained: set by the container)
 
     def start(self):
         node = self.node
         if not node.contained:
             self.lock = ContainerCore([node.core])
+            self.batch = AgentStatesWriter(node, realtime=True)
+            self.process_tag = self.batch.tag
             leaders = LeaderMask(node.roster)
-            self.timer = node.create_timer(node.dt, lambda: realtime_tick([node], self.lock, self.heard, leaders))
+            self.timer = node.create_timer(
+                node.dt, lambda: realtime_tick([node], self.lock, self.heard, leaders, self.batch))
         node.publish_state()
         self.heard.hear(node.agent_name, (node.t, *node.own[2:]))
+        if self.batch is not None:
+            self.batch.publish([node])
 
     def radio_step(self):
         """The step from which a radio change applies: that of the sim time now."""
@@ -401,22 +411,20 @@ class RealtimeDriver:
         """Nothing to switch: `on_input` routes states through the radio from now on."""
 
     def on_input(self, raw):
-        """A state on ``/swarm/states`` (serialized)."""
-        state = decode_state(raw, self.node.reject)
-        if state is None:
-            return
+        """One agent process's states on ``/swarm/agent_states`` (serialized)."""
         node = self.node
-        if node.radio_on:
-            self.hear_radio(state)
-        else:
-            hear_state(state, self.heard, self.senders, {node.agent_name: node.sender_tag}, node._now(),
-                       self.future_tolerance, node.reject)
+        own = {node.agent_name: self.process_tag}
+        for state in decode_batch(raw, node.run_id, node.roster, self.process_tag, node.reject):
+            if node.radio_on:
+                self.hear_radio(state)
+            else:
+                hear_state(state, self.heard, self.senders, own, node._now(), self.future_tolerance, node.reject)
 
     def hear_radio(self, state):
-        """A decoded state (`decode_state`) through this agent's radio model."""
+        """A decoded state (`decode_batch`) through this agent's radio model."""
         node = self.node
         name, t, pose, wz, tag = state
-        if own_echo(name, tag, {node.agent_name: node.sender_tag}, node.reject):
+        if own_echo(name, tag, {node.agent_name: self.process_tag}, node.reject):
             return
         if refused(node.reject, check_values(name, t, pose, wz, node.row, self.radio_heard, node._now(),
                                              self.future_tolerance) or self.senders.check(name, tag)):

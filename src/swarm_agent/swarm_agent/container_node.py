@@ -8,11 +8,13 @@ publisher), as an agent process would be. What the agents share is done once per
 a host node ``/agent_container_<first index>``: one subscription each to the step relay
 (lockstep: decoded once, the controls of all agents from one law call, see
 `swarm_agent.container_core`; the agents' new states go to the world in ONE
-``/lockstep/agent_states`` message), ``/swarm/states`` (realtime: one table of the states
-heard, checked once), λ, leaders, target, barrier and ``/swarm/events``, and one sim clock.
+``/lockstep/agent_states`` message), ``/swarm/agent_states`` (realtime: the other processes'
+batches of states, one table of the states heard, checked once), λ, leaders, target, barrier
+and ``/swarm/events``, and one sim clock.
 Realtime: ONE timer at the control rate drives all the agents (`process_io.realtime_tick`: one
-law call for the agents that hear perfectly, one batched move, each agent publishing its state);
-an agent with a radio model hears through its own radio and computes its own u.
+law call for the agents that hear perfectly, one batched move, each agent publishing its state,
+and their new states in ONE ``/swarm/agent_states`` message); an agent with a radio model hears
+through its own radio and computes its own u.
 
 Sim time: in lockstep the agents' clocks are set from each step message (parameter
 ``lockstep_clock`` = step, default; no ``/clock`` reader) or follow ``/clock`` (topic); in
@@ -35,7 +37,7 @@ from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node
 
 from .agent_node import AgentNode
 from .container_core import ContainerCore
-from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_state, hear_state, realtime_tick, shared_inputs,
+from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_batch, hear_state, realtime_tick, shared_inputs,
                          step_message, step_time)
 from .realtime_core import HeardStates
 
@@ -119,32 +121,35 @@ class AgentContainer(Node):
     del _fan
 
     def _start_realtime(self):
-        """One table of the states heard and one timer for all the agents."""
+        """One table of the states heard, one timer and one batch of states for all the agents."""
         first = self.agents[0]
         self.heard = HeardStates(first.roster)
         self.senders = Senders()
-        self.own_tags = {a.agent_name: a.sender_tag for a in self.agents}
+        self.batch = AgentStatesWriter(self, realtime=True)
+        self.own_tags = {a.agent_name: self.batch.tag for a in self.agents}
         for a in self.agents:          # each published its first state when it was built
             a.driver.heard = self.heard
+            a.driver.process_tag = self.batch.tag
             self.heard.hear(a.agent_name, (a.t, *a.own[2:]))
+        self.batch.publish(self.agents)
         leaders = LeaderMask(first.roster)
-        self.rt_timer = first.create_timer(first.dt, lambda: realtime_tick(self.agents, self.lock, self.heard, leaders))
+        self.rt_timer = first.create_timer(
+            first.dt, lambda: realtime_tick(self.agents, self.lock, self.heard, leaders, self.batch))
 
     def _on_state(self, raw):
-        """A state on /swarm/states (serialized): decoded and checked once into the shared
-        table, and heard by each agent with a radio model through its own radio."""
-        state = decode_state(raw, self.reject)
-        if state is None:
-            return
-        perfect = False
-        for a in self.agents:
-            if a.radio_on:
+        """Another process's states on /swarm/agent_states (serialized): decoded once, each
+        checked once into the shared table, and heard by each agent with a radio model through
+        its own radio."""
+        first = self.agents[0]
+        radio = [a for a in self.agents if a.radio_on]
+        perfect = len(radio) < len(self.agents)
+        now = first._now()
+        for state in decode_batch(raw, first.run_id, first.roster, self.batch.tag, self.reject):
+            for a in radio:
                 a.driver.hear_radio(state)
-            else:
-                perfect = True
-        if perfect:
-            hear_state(state, self.heard, self.senders, self.own_tags, self.agents[0]._now(),
-                       self.agents[0].driver.future_tolerance, self.reject)
+            if perfect:
+                hear_state(state, self.heard, self.senders, self.own_tags, now, first.driver.future_tolerance,
+                           self.reject)
 
     def destroy_node(self):
         for a in self.agents:

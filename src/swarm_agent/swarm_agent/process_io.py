@@ -1,20 +1,20 @@
 """What the agents of one process share, whether it holds one agent (`agent_node`) or several
 (`container_node`): the subscriptions every agent reads alike, the step relay decoded once and
-decided for all (lockstep), the sim time from the step messages, and the one
-``/lockstep/agent_states`` message per step that carries the agents' new states to the world."""
+decided for all (lockstep), the sim time from the step messages, and the one message per step
+(``/lockstep/agent_states``) or tick (realtime: ``/swarm/agent_states``) that carries the agents'
+new states to the world and, in realtime, to the other agent processes and the commander."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 from geometry_msgs.msg import PointStamped, PolygonStamped
-from nav_msgs.msg import Odometry
 from rclpy.time import Time
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_ros import protocol as P
-from swarm_ros.layouts import AgentStates, Step
-from swarm_ros.msg_checks import check_values, decoded, new_sender_tag, refused
+from swarm_ros.layouts import AgentStates, ProcessStates, Step
+from swarm_ros.msg_checks import batch_states, check_values, decoded, new_sender_tag, refused
 
 from .realtime_core import advance_periods, due_periods, shared_controls
 
@@ -26,7 +26,7 @@ def shared_inputs(node, on_input):
     """(type, topic, callback, QoS, raw) of the subscriptions whose messages every agent of a
     process reads alike (a container makes each once and hands the messages to its agents;
     `node` is the agent or the container); ``on_input`` takes the mode's own input (lockstep:
-    the step relay; realtime: /swarm/states)."""
+    the step relay; realtime: the processes' batches of states, /swarm/agent_states)."""
     subs = [(Float64, P.LAMBDA, node._on_lambda, P.qos_latched(10), False),      # the λ in force
             (String, P.LEADERS, node._on_leaders, P.qos_latched(), False),
             (PointStamped, P.TARGET, node._on_target, P.qos_latched(), False),
@@ -35,23 +35,34 @@ def shared_inputs(node, on_input):
     if node.mode == 'lockstep':
         subs.append((Float64MultiArray, P.LOCK_STEP, on_input, P.qos_latched(), True))
     else:
-        subs.append((Odometry, P.STATES, on_input, P.qos_latched(max(50, 4 * node.n)), True))   # `decode_state`
+        subs.append((Float64MultiArray, P.AGENT_STATES, on_input, P.qos_latched(max(50, 4 * node.n)), True))  # `decode_batch`
     return subs
 
 
 class AgentStatesWriter:
-    """``/lockstep/agent_states`` of one agent process (`node`: the lone agent or the
-    container's host node): its agents' states in one message for the world."""
+    """The states of one agent process's agents in one message (`node`: the lone agent or the
+    container's host node), under the process's sender tag: lockstep ``/lockstep/agent_states``
+    per step for the world; realtime ``/swarm/agent_states`` per tick for every reader of
+    states (world, commander, the other agent processes)."""
 
-    def __init__(self, node):
+    def __init__(self, node, realtime=False):
         self.tag = new_sender_tag()
-        self.pub = node.create_publisher(Float64MultiArray, P.LOCK_AGENT_STATES, P.qos_latched())
+        self.realtime = realtime
+        topic, qos = (P.AGENT_STATES, P.qos_latched(P.AGENT_STATES_DEPTH)) if realtime else \
+            (P.LOCK_AGENT_STATES, P.qos_latched())
+        self.pub = node.create_publisher(Float64MultiArray, topic, qos)
 
     def publish(self, agents):
-        """The state each of ``agents`` last published on /swarm/states."""
-        if agents:
+        """The state each of ``agents`` last published on /swarm/states (realtime: with its stamp)."""
+        if not agents:
+            return
+        if self.realtime:
+            rows = list(zip(*[(a.index, a.own[0] + a.own[1] * 1e-9, *a.own[2:]) for a in agents]))
+            msg = ProcessStates(self.tag, rows[0], rows[1], rows[2:6], rows[6])
+        else:
             rows = list(zip(*[(a.index, a.step, *a.own[2:]) for a in agents]))
-            self.pub.publish(AgentStates(self.tag, rows[0], rows[1], rows[2:6], rows[6]).to_cdr(agents[0].run_id))
+            msg = AgentStates(self.tag, rows[0], rows[1], rows[2:6], rows[6])
+        self.pub.publish(msg.to_cdr(agents[0].run_id))
 
 
 def step_time(agents, s):
@@ -79,15 +90,12 @@ def step_message(raw, lock, agents, reject, batch):
     return s
 
 
-def decode_state(raw, reject):
-    """(name, t, pose (x, y, qx, qy, qz, qw), angular.z, sender tag) of a serialized
-    ``/swarm/states`` message (decoded without building an Odometry), or None (rejected)."""
-    try:
-        name, sec, nsec, pose, wz, tag = P.cdr_to_odometry_tagged(raw)
-    except Exception as err:            # noqa: BLE001 - any malformed message is one rejection
-        reject('state-decode', f'{P.STATES} message that does not decode: {str(err)[:120]}')
-        return None
-    return name, sec + nsec * 1e-9, pose, wz, tag
+def decode_batch(raw, run_id, roster, own_tag, reject):
+    """The states in a serialized ``/swarm/agent_states`` message, each (name, t, pose (x, y, qx, qy,
+    qz, qw), u, process tag) as one /swarm/states message would give it (`msg_checks.batch_states`; [] for this process's own
+    batch, ``own_tag``, or a refused one)."""
+    m = decoded(ProcessStates, raw, run_id, reject, 'state-decode')
+    return [] if m is None else batch_states(m, roster, own_tag, reject)
 
 
 def own_echo(name, tag, own, reject) -> bool:
@@ -101,7 +109,7 @@ def own_echo(name, tag, own, reject) -> bool:
 
 
 def hear_state(state, heard, senders, own, now, tolerance, reject):
-    """A decoded state (`decode_state`) for the agents of a process that hear perfectly:
+    """A decoded state (`decode_batch`) for the agents of a process that hear perfectly:
     checked once (`check_values`, one publisher per name) and kept in ``heard`` (a
     `HeardStates`).  ``own``: the process's agents, name -> sender tag; their own states are
     heard in-process when they publish, so their echo is dropped (from another publisher: a
@@ -129,15 +137,16 @@ class LeaderMask:
         return self.mask
 
 
-def realtime_tick(agents, lock, heard, leader_mask):
+def realtime_tick(agents, lock, heard, leader_mask, batch):
     """One realtime tick of the agents of a process (`realtime_core`): each agent not halted
     moves by the sim time that passed since its state, in whole periods dt with u held (ZOH;
     `catch_up`), not by one dt per call: a /clock jump may cover two periods and fire the timer
     once (it catches up), or fire it again at the same time (nothing moves, so no two states
     share a stamp).  The agents that hear perfectly and are fresh in ``heard`` get their u from
-    one law call; the others (a radio model) one each.  Then one batched move and one state
-    published by each agent that moved.  ``lock``: the agents' `ContainerCore`; ``leader_mask``: a
-    `LeaderMask` of the roster."""
+    one law call; the others (a radio model) one each.  Then one batched move, one state
+    published by each agent that moved, and their states in one message (``batch``, an
+    `AgentStatesWriter`).  ``lock``: the agents' `ContainerCore`; ``leader_mask``: a `LeaderMask`
+    of the roster."""
     a0 = agents[0]
     now = a0._now()
     moving = due_periods(now, [a.t for a in agents], a0.dt, [a.driver.catch_up_limit for a in agents],
@@ -170,3 +179,4 @@ def realtime_tick(agents, lock, heard, leader_mask):
         a.t = t_new
         a.publish_state()
         heard.hear(a.agent_name, (a.t, *a.own[2:]))
+    batch.publish([agents[j] for j in go])

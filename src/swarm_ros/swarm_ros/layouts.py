@@ -28,7 +28,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .protocol import LOCK_AGENT_STATES, LOCK_DECISION, LOCK_STATES, LOCK_STEP, cdr_to_float64_array, float64_array_header
+from .protocol import AGENT_STATES, LOCK_AGENT_STATES, LOCK_DECISION, LOCK_STATES, LOCK_STEP, cdr_to_float64_array, float64_array_header
 
 #: bytes of the run id field (swarm_ros.runinfo: 1-32 letters, digits, _ or -)
 RUN_ID_BYTES = 32
@@ -296,6 +296,20 @@ class AgentStates(Packed):
     u: np.ndarray            # (K,) the u the state carries (u_{step−1})
 
 
+@declare(AGENT_STATES, Field('K', kind='count'), Field('tag', kind='finite'),
+         Field('index', 'K', 'whole'), Field('t', 'K', 'finite'), Field('pose', (4, 'K'), 'finite'),
+         Field('u', 'K', 'finite'))
+@dataclasses.dataclass(eq=False)
+class ProcessStates(Packed):
+    """Realtime: what one agent process sends per tick, the states its agents just published
+    on /swarm/states, each with its own stamp (a realtime state's time is not a step count)."""
+    tag: float               # the process's sender tag (bound per agent by the readers)
+    index: np.ndarray        # (K,) the agents' rows in the roster
+    t: np.ndarray            # (K,) the sim time of each state (its /swarm/states stamp)
+    pose: np.ndarray         # (4, K) x, y, qz, qw
+    u: np.ndarray            # (K,) the u the state carries
+
+
 @declare(LOCK_STATES, Field('n', kind='whole'), Field('t'), Field('N', kind='count'),
          Field('x', 'N'), Field('y', 'N'), Field('qz', 'N'), Field('qw', 'N'), Field('alive', 'N', 'flag'))
 @dataclasses.dataclass(eq=False)
@@ -348,4 +362,4 @@ class Step(Packed):
     rendezvous: Any
 
 
-MESSAGES = (AgentStates, States, Decision, Step)
+MESSAGES = (AgentStates, ProcessStates, States, Decision, Step)

@@ -137,19 +137,33 @@ class ProcessSenders:
         self.tag[index[unbound]] = tag
 
 
-def check_agent_states(index, vals, n):
-    """Why a decoded ``/lockstep/agent_states`` (`layouts.AgentStates`, whose decoder checks
-    that every value is finite) must be rejected as a whole (a `Reason`), or None: an agent
-    index outside the roster or twice, an orientation that is not a planar unit quaternion."""
+def check_agent_states(index, vals, n, topic=P.LOCK_AGENT_STATES):
+    """Why a decoded ``/lockstep/agent_states`` (`layouts.AgentStates`) or, ``topic``,
+    ``/swarm/agent_states`` (`layouts.ProcessStates`), whose decoders check that every value is
+    finite, must be rejected as a whole (a `Reason`), or None: an agent index outside the roster
+    or twice, an orientation that is not a planar unit quaternion."""
     import numpy as np
     if index.size and index.max() >= n:
-        return reason('unknown-agent', f'/lockstep/agent_states with agent index {int(index.max())} '
-                      f'(the roster has {n})')
+        return reason('unknown-agent', f'{topic} with agent index {int(index.max())} (the roster has {n})')
     if index.size > 1 and np.unique(index).size != index.size:
-        return reason('duplicate', '/lockstep/agent_states names an agent twice')
+        return reason('duplicate', f'{topic} names an agent twice')
     if index.size and np.abs(vals[2] * vals[2] + vals[3] * vals[3] - 1.0).max() > 1e-6:
-        return reason('not-planar', '/lockstep/agent_states: an orientation is not a planar unit quaternion')
+        return reason('not-planar', f'{topic}: an orientation is not a planar unit quaternion')
     return None
+
+
+def batch_states(msg, roster, own_tag, reject):
+    """The states of a decoded ``/swarm/agent_states`` message (`layouts.ProcessStates`, whose
+    decoder checked the run id and that every value is finite), each as one /swarm/states
+    message gives it: [(name, t, pose (x, y, 0, 0, qz, qw), u, the process's tag)], to be
+    checked one by one as those are (`check_values`, one sender per name).  [] for
+    the reader's own process (``own_tag``) and, logged with ``reject``, for a message naming an
+    agent outside ``roster`` or twice, or with an orientation that is not planar."""
+    if msg.tag == own_tag or refused(reject, check_agent_states(msg.index, msg.pose, len(roster), P.AGENT_STATES)):
+        return []
+    x, y, qz, qw = msg.pose.tolist()
+    return [(roster[i], t, (x[j], y[j], 0.0, 0.0, qz[j], qw[j]), u, msg.tag)
+            for j, (i, t, u) in enumerate(zip(msg.index.tolist(), msg.t.tolist(), msg.u.tolist()))]
 
 
 def _show(sender):

@@ -14,6 +14,10 @@ Fixed, user-facing topics (docs/ros-graph.md)
     sender tag (`SENDER_TAG_INDEX`; all other covariances 0).  Agents publish it pre-serialised
     (`OdometryWriter`) and the world reads it raw (`cdr_to_odometry_tagged`): the same bytes as
     rclpy's serializer, without building message objects each step.
+``/swarm/agent_states``  std_msgs/Float64MultiArray, realtime, each agent process: the states
+    its agents published on /swarm/states in a tick, in one packed message
+    (`layouts.ProcessStates`); what the world, the commander and the other agent processes
+    read.  QoS: reliable, transient-local, depth `AGENT_STATES_DEPTH`.
 ``/swarm/lambda``  std_msgs/Float64, commander (or a user): λ ∈ [0, 1].
 ``/<agent>/steering``  std_msgs/Float64, commander (or a user): leader steering value s_k.
 ``/swarm/leaders``  std_msgs/String, transient-local: comma-separated leader names ('' = none).
@@ -112,6 +116,11 @@ LOCK_STATES = '/lockstep/states'
 LOCK_DECISION = '/lockstep/decision'
 LOCK_STEP = '/lockstep/step'
 LOCK_AGENT_STATES = '/lockstep/agent_states'
+#: realtime: one message per agent process and tick with its agents' new states (`layouts.ProcessStates`)
+AGENT_STATES = '/swarm/agent_states'
+#: publisher depth of /swarm/agent_states (transient-local): a late reader gets each process's
+#: newest states (the first ones included while the run starts)
+AGENT_STATES_DEPTH = 10
 EVENTS = '/swarm/events'
 FAULT_REQUEST = '/swarm/fault_request'
 RUN = '/swarm/run'

@@ -1,7 +1,7 @@
 """The world in realtime mode: its inputs and its timer tick, as a part of `WorldNode`.
 
-Realtime agents publish on their own clocks; the world records each state as it comes
-(``/swarm/states``), publishes the clock at the real-time factor, and checks, views and
+Realtime agents publish on their own clocks; the world records each state as it comes, from
+the one message per agent process and tick (``/swarm/agent_states``), publishes the clock at the real-time factor, and checks, views and
 applies faults on its tick.  The schedule itself is pure (`swarm_world.realtime`)."""
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ from swarm_core import metrics as M
 from swarm_core.atomic import write_atomic
 from swarm_core.inputs import LAMBDA_BOUND
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import check_values, refused
+from swarm_ros.layouts import ProcessStates
+from swarm_ros.msg_checks import batch_states, check_values, decoded, refused
 
 from .inputs import leader_flags
 from .lateness import TIMING_FILE, behind_line, timing_line
@@ -27,13 +28,19 @@ class RealtimeWorld:
     """`WorldNode`'s realtime methods (a mixin: they use the node's attributes)."""
 
     def _on_state(self, raw):
-        """Realtime: a serialized /swarm/states message (decoded without building an Odometry)."""
-        try:
-            name, sec, nsec, pose, wz, tag = P.cdr_to_odometry_tagged(raw)
-        except Exception as err:
-            self.reject('state-decode', f'{P.STATES} message that does not decode: {err}')
+        """Realtime: the states of one agent process (a serialized /swarm/agent_states
+        message), each checked as a /swarm/states message would be."""
+        m = decoded(ProcessStates, raw, self.run_id, self.reject, 'state-decode')
+        if m is None:
             return
-        t = sec + nsec * 1e-9
+        wall = (time.monotonic() - self.run_wall) * self.rtf if self.started else None
+        for state in batch_states(m, self.names, None, self.reject):
+            self._hear(state, wall)
+
+    def _hear(self, state, wall):
+        """One agent's state (`msg_checks.batch_states`): kept as its newest and recorded, with
+        its lateness (``wall``: the sim time the wall clock says, None before the start)."""
+        name, t, pose, wz, tag = state
         if refused(self.reject, check_values(name, t, pose, wz, self.row, self.newest, self.sim_t,
                                              self.future_tolerance) or self.senders.check(name, tag)):
             return
@@ -42,8 +49,8 @@ class RealtimeWorld:
         self.senders.accept(name, tag)
         self.newest[name] = (t, *vals)
         k = P.step_of(t, self.dt)
-        if self.started:
-            self.lateness.arrive(i, k, t, (time.monotonic() - self.run_wall) * self.rtf)
+        if wall is not None:
+            self.lateness.arrive(i, k, t, wall)
         self.rec.record_realtime(i, k, vals, wz, self.lam_now, self.leaders_now)
 
     def _on_lambda(self, msg):

@@ -21,7 +21,6 @@ from pathlib import Path
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PolygonStamped
-from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -131,7 +130,8 @@ class WorldNode(RealtimeWorld, Node):
         self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
         self.create_subscription(String, P.FAULT_REQUEST, self._on_fault_request, P.qos_latched(10))
         if self.mode == 'realtime':
-            self.sub_states = self.create_subscription(Odometry, P.STATES, self._on_state,
+            # one message per agent process and tick; not /swarm/states (docs/ros-graph.md)
+            self.sub_states = self.create_subscription(Float64MultiArray, P.AGENT_STATES, self._on_state,
                                                        P.qos_latched(max(100, 4 * self.n)), raw=True)
         else:       # one message per agent process and step (protocol: /lockstep/agent_states)
             self.sub_states = self.create_subscription(Float64MultiArray, P.LOCK_AGENT_STATES, self._on_agent_states,
