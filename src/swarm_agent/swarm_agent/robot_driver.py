@@ -40,7 +40,7 @@ from swarm_ros import protocol as P
 from swarm_ros.rosutil import ParameterError, declare
 
 from .agent_node import LockstepDriver, RealtimeDriver
-from .process_io import step_message, step_time
+from .process_io import AgentStatesWriter, step_message, step_time
 
 #: the robot's clock: the swarm's sim clock (a simulator on /clock, lockstep) or the system
 #: clock (real robots; their controllers stamp and time out in wall time)
@@ -267,6 +267,22 @@ class RealtimeRobotDriver(RealtimeDriver):
         super().__init__(node, stale_after, catch_up_limit, future_tolerance)
         self.link = RobotLink(node, **robot)
 
+    def start(self):
+        """A process of its own (robot agents are never contained): its own timer (`on_tick`)
+        and its own batch of one state per tick on /swarm/agent_states, as a lone agent."""
+        node = self.node
+        self.batch = AgentStatesWriter(node, realtime=True)
+        self.process_tag = self.batch.tag
+        self.timer = node.create_timer(node.dt, self.on_tick)
+        node.publish_state()
+        self._said()
+
+    def _said(self):
+        """Its newest state into its own table and to the other processes."""
+        node = self.node
+        self.heard.hear(node.agent_name, (node.t, *node.own[2:]))
+        self.batch.publish([node])
+
     def on_tick(self):
         """One control period: the robot's pose, the guard, u (or zero velocity), the state."""
         node, link = self.node, self.link
@@ -292,6 +308,7 @@ class RealtimeRobotDriver(RealtimeDriver):
         node.step = P.step_of(now, node.dt)
         node.t = now
         node.publish_state()
+        self._said()
 
 
 #: the drivers of a robot agent, by mode (`agent_node.driver_class`)
