@@ -69,7 +69,8 @@ def test_each_command_takes_effect_in_the_runs_record(swarm, mode):
     assert run.agents == [f'agent_{i}' for i in range(6)]
     first = run.wait_until(lambda m: m['t'] >= 2, timeout=10)
     assert first['lambda'] == 0.0 and first['clusters'] == 1
-    assert run.states().names == run.agents
+    # every agent's state heard (the API's reader discovers the agents' writers one by one)
+    assert run.wait_until(lambda st: st is not None and st.names == run.agents, timeout=10, on='states')
     run.set_lambda(1.0, ramp=1)
     run.steer('agent_0', 0.05)
     run.pause('agent_1', 2.0)
@@ -159,7 +160,7 @@ def test_attach_to_swarm_run_and_a_second_run_on_another_domain(ros_domain, proc
     from swarm_tools.api import NoSwarm, Swarm
     from swarm_tools.pytest_plugin import claim_domain
     from swarm_core.trajectory import Trajectory
-    cli = processes.start([swarm_cmd, 'run', SCENARIO, '--in-process', '--duration', '400', '--out',
+    cli = processes.start([swarm_cmd, 'run', SCENARIO, '--in-process', '--duration', '4000', '--out',
                            tmp_path / 'cli', '--no-figure'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = Lines(cli)
     assert lines.wait_for('swarm run: run ', 60), ''.join(lines.lines)
@@ -169,7 +170,7 @@ def test_attach_to_swarm_run_and_a_second_run_on_another_domain(ros_domain, proc
         with pytest.raises(NoSwarm, match='no run'):
             Swarm.attach(domain=other, wait=1.0)
         with Swarm.attach(out=tmp_path / 'cli', wait=60) as a, \
-                Swarm.start(SCENARIO, domain=other, duration=400, out=tmp_path / 'api', in_process=True,
+                Swarm.start(SCENARIO, domain=other, duration=4000, out=tmp_path / 'api', in_process=True,
                             no_figure=True) as b:
             assert a.run_id == run_id and b.run_id != run_id
             a.set_lambda(1.0, ramp=0)
