@@ -52,6 +52,11 @@ from .wallclock import StallWatch, StartWatch
 SIGNALS = {'kill': signal.SIGKILL, 'stop': signal.SIGSTOP, 'cont': signal.SIGCONT}
 
 
+#: before its first step the world listens this long (wall s) for another run on the domain:
+#: its own agents may be discovered in 0.2 s, an older run's announcement can come later
+ANNOUNCE_SETTLE = 2.0
+
+
 class WorldNode(RealtimeWorld, Node):
     def __init__(self, node_name='world', *, namespace=None, context=None, parameter_overrides=None,
                  cli_args=None, log=print):
@@ -237,6 +242,8 @@ class WorldNode(RealtimeWorld, Node):
         (runinfo.give_way); once started, go on whatever is announced."""
         worlds = 1 if self.started else sum(
             1 for nm, ns in self.get_node_names_and_namespaces() if nm == 'world' and ns == '/')
+        if not self.started and time.monotonic() - self.wall_start < ANNOUNCE_SETTLE:
+            return True     # give discovery a moment to bring an older run's announcement
         if worlds > 1 and not older_runs(self.runs.runs, self.run_id, self.since):
             # a second world seen before its /swarm/run: hold the start a moment to hear which run
             now = time.monotonic()
