@@ -153,7 +153,8 @@ def test_ctrl_c_on_the_cli_keeps_finished_runs_and_resumes(tmp_path, processes, 
     import subprocess
     out = tmp_path / 'out'
     cmd = [swarm_cmd, 'sweep', 'homotopy_global', '--set', 'law.leader_gain=10,30', '--seeds', '5',
-           '--duration', '200', '--jobs', '2', '--out', out, '--quiet']
+           '--duration', '200', '--jobs', '2', '--out', out, '--quiet', '--engine', 'reference']
+    # (the reference engine: the fast one finishes all ten runs before the signal can come)
     p = processes.start(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     cache = out / 'cache'
     end = time.monotonic() + 300
