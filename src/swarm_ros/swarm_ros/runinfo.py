@@ -9,7 +9,6 @@ import math
 import numbers
 import re
 import secrets
-import time
 
 from swarm_core.inputs import json_value
 
@@ -186,14 +185,12 @@ class RunWatch:
         if self.log is not None:
             self.log(f'{P.RUN}: ignored an announcement {msg.data[:80]!r}: {why}')
 
-    def decide(self, ex, prog: str, agent=None, limit: float = ANNOUNCE_WAIT):
-        """Spin ``ex`` until every writer of ``/swarm/run`` in the graph has been heard (at
-        most ``limit`` s), so that a live verb sees a second run however late it is
-        discovered, then `verb_refusal`: every verb decides after this same wait, alike."""
-        end = time.monotonic() + limit
-        while time.monotonic() < end:
-            ex.spin_once(timeout_sec=0.05)
-            writers = self.node.count_publishers(P.RUN)
-            if heard_every_writer(self.runs, self.ignored, writers) and (writers or not has_world(self.node)):
-                break
-        return verb_refusal(self.runs, self.ignored, self.node.count_publishers(P.RUN), prog, agent)
+    def heard_all(self) -> bool:
+        """Every writer of ``/swarm/run`` in the graph has been heard (and one is there if a
+        world is): a live verb waits for this, at most `ANNOUNCE_WAIT` s, then decides."""
+        writers = self.node.count_publishers(P.RUN)
+        return heard_every_writer(self.runs, self.ignored, writers) and bool(writers or not has_world(self.node))
+
+    def refusal(self, prog: str, agent=None):
+        """`verb_refusal` on what has been heard: (the run, None) or (None, the error line)."""
+        return verb_refusal(dict(self.runs), self.ignored, self.node.count_publishers(P.RUN), prog, agent)

@@ -158,14 +158,8 @@ class Client:
         writer of ``/swarm/run`` in the graph has been heard (at most `runinfo.ANNOUNCE_WAIT`
         s: every verb decides after this same wait); `TwoRuns` for two runs or a writer that
         cannot be heard, `UnknownAgent` (the line says why)."""
-        node, watch = self.node, self.watch
-
-        def heard():
-            writers = node.count_publishers(P.RUN)
-            return runinfo.heard_every_writer(watch.runs, watch.ignored, writers) and (
-                writers or not runinfo.has_world(node))
-        self.until(heard, runinfo.ANNOUNCE_WAIT)
-        run, err = runinfo.verb_refusal(self.runs, watch.ignored, node.count_publishers(P.RUN), prog)
+        self.until(self.watch.heard_all, runinfo.ANNOUNCE_WAIT)
+        run, err = self.watch.refusal(prog)
         if err:
             raise TwoRuns(err)
         err = runinfo.unknown_agent(run, agent, prog) if agent else None
