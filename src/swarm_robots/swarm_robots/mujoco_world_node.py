@@ -84,7 +84,7 @@ class RobotsNode(Node):
             self.pub_truth.append(self.create_publisher(Odometry, ground_truth_topic(nm), P.qos_reliable(10)))
             stamped = self.sec.cmd_type == 'TwistStamped'
             self.create_subscription(TwistStamped if stamped else Twist, cmd_vel_topic(nm),
-                                     self._command_callback(k, stamped), P.qos_reliable(10))
+                                     self._command_callback(k, stamped), P.qos_reliable(10), raw=True)
         self.pub_metrics = self.create_publisher(DiagnosticArray, METRICS_TOPIC, 10)
         self.create_timer(1.0, self.publish_metrics, clock=steady_clock())
         if self.mode == 'lockstep':
@@ -138,15 +138,14 @@ class RobotsNode(Node):
 
     # ------------------------------------------------------------ inputs
     def _command_callback(self, k, stamped):
-        def on_command(msg):
-            tw = msg.twist if stamped else msg
-            v, omega = tw.linear.x, tw.angular.z
+        def on_command(raw):          # serialized (`protocol.cdr_to_twist`): no message object per command
+            sec, nsec, v, omega = P.cdr_to_twist(raw, stamped)
             if not (math.isfinite(v) and math.isfinite(omega)):
                 self.reject('cmd-non-finite', f'{cmd_vel_topic(self.agents[k])}: non-finite command')
                 return
             if self.mode == 'realtime':
                 self.world.command(k, v, omega)
-            elif not self.hold.on_command(k, P.stamp_to_time(msg.header.stamp), v, omega):
+            elif not self.hold.on_command(k, P.stamp_seconds(sec, nsec), v, omega):
                 self.reject('cmd-stale', f'{cmd_vel_topic(self.agents[k])}: command stamped for no step '
                             f'awaited (held step {self.hold.n})')
             else:
