@@ -48,7 +48,7 @@ from swarm_robots.run_setup import SUMMARY_FILE
 
 from . import dds
 from .node_params import load_scenario, node_parameters, write_params_file
-from .robot_plan import agent_groups, apply_robots, parse_robots
+from .robot_plan import apply_robots, parse_robots
 from .bag import bag_complete
 from .processes import read_events, run_processes
 from .robot_world import ROBOTS_NODE, add_robot_world, read_summary
@@ -190,7 +190,7 @@ def _parser():
         'external (a robot, Gazebo or a simulator of your own; nothing else starts) for every agent, '
         'or external:agent_0-agent_2 (a range or a comma list) for some; mujoco: robots of a MuJoCo '
         'world the run starts (node robots; mujoco:agent_0-agent_2 likewise); the scenario needs a '
-        'robots: section. Robot agents run as processes of their own. Realtime: the sim clock runs '
+        'robots: section. Robot agents share agent containers as kinematic ones do. Realtime: the sim clock runs '
         'at v0/L model s per wall s (robots live in wall time; --rtf does not apply)'))
     return p
 
@@ -333,7 +333,7 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     """The run that ``a`` (the parsed options) asks for with scenario ``scn`` (loaded from
     ``ref``), on a host of ``cores`` cores: ValueError naming the first bad option.  Pure: it
     starts, writes and checks on disk nothing."""
-    from swarm_agent.container_core import agent_services
+    from swarm_agent.container_core import agent_services, split_agents
     n = len(scn.names)
     robots = parse_robots(a.robots, scn.names)
     remote = parse_agents(a.remote_agents, n) if a.remote_agents else []
@@ -351,7 +351,7 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     local = [nm for i, nm in enumerate(scn.names) if i not in set(remote)]
     run = RunPlan(scn=scn, mode=a.mode, in_process=a.in_process, out=out, run_id=run_id,
                   params=run_parameters(a, scn, ref, out, run_id), local=local, remote=remote,
-                  groups=agent_groups(local, per, robots), per=per,
+                  groups=split_agents(local, per), per=per,
                   services=agent_services(n, per, a.agent_services), interface=interface,
                   server_port=a.server_port, dds=a.dds, figure=not a.no_figure, robots=robots)
     run.robots_line = apply_robots(run.params, scn, robots, a.mode)

@@ -65,14 +65,6 @@ def robot_parameters(spec, kind: str, mode: str) -> dict:
                 robot_frame=spec.frame, cmd_type=spec.cmd_type)
 
 
-def agent_groups(local, per: int, robots: dict) -> list:
-    """The agents of each agent process: the kinematic ones ``per`` to a container (as
-    `swarm_agent.container_core.split_agents`), each robot agent in a process of its own (agent
-    containers drive kinematic agents only)."""
-    from swarm_agent.container_core import split_agents
-    return split_agents([nm for nm in local if nm not in robots], per) + [[nm] for nm in local if nm in robots]
-
-
 def apply_robots(params: dict, scn, robots: dict, mode: str) -> str | None:
     """Set the robot parameters of the agents in ``robots`` ({name: kind}) in ``params`` (every
     node's parameters); the line that says the scale (None without robots).  Realtime with
