@@ -45,6 +45,7 @@ from pathlib import Path
 
 from swarm_core.analysis import check_output_dir, write_atomic, write_failed
 from swarm_robots.run_setup import SUMMARY_FILE
+from swarm_ros.runinfo import robots_text
 
 from . import dds
 from .node_params import load_scenario, node_parameters, write_params_file
@@ -363,8 +364,10 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     run.record, run.foxglove = a.record or None, a.foxglove
     run.use_server = a.discovery == 'server' or (a.discovery == 'auto' and (
         run.processes > dds.SIMPLE_LIMIT or bool(remote)))
-    if remote:          # announced on /swarm/run: `swarm join` refuses any other agent
-        run.params['/world'].update(remote_agents=','.join(scn.names[i] for i in remote))
+    if remote:          # announced on /swarm/run: `swarm join` refuses any other agent, starts robot agents so
+        names = [scn.names[i] for i in remote]
+        run.params['/world'].update(remote_agents=','.join(names),
+                                    remote_robots=robots_text({nm: robots[nm] for nm in names if nm in robots}))
     if per > 1:
         # the world waits for the step relay's readers: one per agent process
         run.params['/world'].update(step_readers=len(run.groups) + len(remote))
