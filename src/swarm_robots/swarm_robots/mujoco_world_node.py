@@ -190,14 +190,17 @@ class RobotsNode(Node):
 
     def publish_odometry(self, t: float):
         """Each robot's odometry (its own ``odom`` frame, or the common ``world`` frame) and
-        ground truth, stamped sim time ``t``."""
+        ground truth, stamped sim time ``t``.  Ground truth only while someone reads it (a
+        recorder, a view; the agents never do): it is volatile, so a reader that matches later
+        has missed nothing it could have had, and each publish costs as much as the odometry's."""
         self.t_odom, self.last_progress = t, time.monotonic()
         sec, nsec = P.time_to_stamp(t)
         truth = self.world.ground_truth()
         odom = self.world.odometry() if self.sec.frame == 'odom' else truth
         for k in range(len(self.agents)):
             self.pub_odom[k].publish(serialized_odometry(self.odom_writers[k], sec, nsec, odom[k]))
-            self.pub_truth[k].publish(serialized_odometry(self.truth_writers[k], sec, nsec, truth[k]))
+            if self.pub_truth[k].get_subscription_count():
+                self.pub_truth[k].publish(serialized_odometry(self.truth_writers[k], sec, nsec, truth[k]))
 
     def summary(self) -> dict:
         w = self.world
