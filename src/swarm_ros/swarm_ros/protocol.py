@@ -31,9 +31,10 @@ Fixed, user-facing topics (docs/ros-graph.md)
     ``lost`` (the world gave up waiting for an agent), ``fault_skipped`` (world);
     ``leaders_chosen``, ``failover``, ``leader_lost``, ``rendezvous_on``/``_off`` (commander).
 ``/swarm/run``  std_msgs/String, reliable + transient-local depth 1, world: JSON ``{"run_id",
-    "scenario", "mode", "agents": [names]}`` of the run (`swarm_ros.runinfo`); the live verbs
-    (``swarm lambda``, ``swarm kill``, ...) read it to say which run they reached, check agent
-    names, and refuse when two runs share the domain.
+    "scenario", "mode", "agents": [names], "since", "scenario_hash", "remote": [names], "robots":
+    {name: kind}}`` of the run (`swarm_ros.runinfo.run_json`); the live verbs (``swarm lambda``,
+    ``swarm kill``, ...) read it to say which run they reached, check agent names, and refuse
+    when two runs share the domain; ``swarm join`` checks it and starts the remote robot agents.
 ``/swarm/fault_request``  std_msgs/String, reliable + transient-local depth 10: JSON ``{"kind": "kill"|"freeze",
     "agent": NAME, "for": SECONDS}`` (``swarm kill`` / ``swarm pause``); the world applies it
     at its next step (see swarm_core.faults for the semantics) and signals the agent process.
