@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Benchmark: lockstep steps/s of `swarm run` with 6 agents on MuJoCo robots against the same 6
-agents kinematic, side by side (and 3 + 3 mixed, and the six in one agent container), interleaved case by case so that the cases
-share the machine's load.
+agents kinematic, side by side (and 3 + 3 mixed, and the six in one agent container),
+interleaved case by case so that the cases share the machine's load.
 
 Every case is a real ``swarm run`` (agents, world, commander and, with robots, the robot world
 as OS processes) of `homotopy_global`'s law and λ window on six agents in a grid, with a

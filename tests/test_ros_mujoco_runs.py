@@ -87,8 +87,10 @@ def test_robot_agents_in_one_container_equal_lone_processes(tmp_path, ros_domain
     path = short_homotopy(tmp_path / 'contained.yaml', robots=ROBOTS, duration=8,
                           lam='{kind: tanh_window, rise_at: 3, fall_at: 1000, tau: 1}', at=2, curvature=0.05)
     robots = ('--robots', 'mujoco:agent_0-agent_3')
-    one, _, lines = run(processes, swarm_cmd, path, tmp_path / 'one', *robots, '--agents-per-process', '6', timeout=300)
-    assert any('4 processes' in ln for ln in lines.lines), ''.join(lines.lines)   # 1 container, world, commander, robots
+    one, _, lines = run(processes, swarm_cmd, path, tmp_path / 'one', *robots, '--agents-per-process', '6',
+                        timeout=300)
+    # one container, the world, the commander, the robot world
+    assert any('4 processes' in ln for ln in lines.lines), ''.join(lines.lines)
     lone, _, _ = run(processes, swarm_cmd, path, tmp_path / 'lone', *robots, '--agents-per-process', '1', timeout=300)
     np.testing.assert_array_equal(one.r, lone.r)
     np.testing.assert_array_equal(one.theta, lone.theta)
