@@ -69,23 +69,67 @@ def two_hosts(tag):
         _ip('link', 'del', veth[0], check=False)         # if the pair never moved into a namespace
 
 
-def test_one_run_over_two_hosts(tmp_path, ros_domain, processes, swarm_cmd):
-    """Agents split over both hosts; lockstep equals `swarm simulate`; the bag recorded on A holds
-    every agent's states; nothing left running, and no namespace or veth left behind."""
+def _on_two_hosts(test, *args):
+    """Run ``test(hosts, *args)`` on two fresh network namespaces; then nothing is left running,
+    and no namespace or veth is left behind."""
     if os.geteuid() != 0:
         pytest.skip('needs root to create network namespaces (ip netns add)')
     if IP is None:
         pytest.skip('needs the ip command (iproute2)')
+    processes = args[-1]
     tag = str(os.getpid() % 100000)
     with two_hosts(tag) as hosts:
         try:
-            run_over(hosts, tmp_path, swarm_cmd, processes)
+            test(hosts, *args)
         finally:
             processes.stop_all()
     namespaces, veth = names_for(tag)
     listed = _ip('netns', 'list').stdout.split()
     assert not [ns for ns in namespaces if ns in listed], listed
     assert all(_ip('link', 'show', dev, check=False).returncode != 0 for dev in veth)
+
+
+def test_one_run_over_two_hosts(tmp_path, ros_domain, processes, swarm_cmd):
+    """Agents split over both hosts; lockstep equals `swarm simulate`; the bag recorded on A holds
+    every agent's states."""
+    _on_two_hosts(run_over, tmp_path, swarm_cmd, processes)
+
+
+def test_robot_agents_join_from_another_host(tmp_path, ros_domain, processes, swarm_cmd):
+    """``swarm run --remote-agents 3-5 --robots mujoco:agent_2-agent_4`` on A, ``swarm join
+    --agents 3-5`` on B: B starts agent_3 and agent_4 as robot agents (the run announced them),
+    whose robots are in A's MuJoCo world, and the run equals the same run on one host, bit for bit."""
+    _on_two_hosts(robots_over, tmp_path, swarm_cmd, processes)
+
+
+def robots_over(hosts, tmp_path, swarm_cmd, processes):
+    (ns_a, addr_a), (ns_b, addr_b) = hosts['A'], hosts['B']
+    path = short_homotopy(tmp_path / 'robots.yaml', duration=6, lam='{kind: constant, value: 0.0}', at=2,
+                          curvature=0.05, robots={'length_scale': 0.3, 'cruise_speed': 0.15})
+    robots = ('--robots', 'mujoco:agent_2-agent_4')
+    run = processes.start([IP, 'netns', 'exec', ns_a, swarm_cmd, 'run', path, '--interface', addr_a,
+                           '--server-port', '11811', '--remote-agents', '3-5', *robots, '--out', tmp_path / 'two',
+                           '--no-figure'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    run_lines = Lines(run)
+    assert run_lines.wait_for(f'discovery server on {addr_a}:11811', 120), ''.join(run_lines.lines)
+    join = processes.start([IP, 'netns', 'exec', ns_b, swarm_cmd, 'join', path, '--agents', '3-5',
+                            '--server', f'{addr_a}:11811', '--interface', addr_b],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    join_lines = Lines(join)
+    assert run_lines.wait(run, 300) == 0, ''.join(run_lines.lines[-40:])
+    assert join_lines.wait(join, 60) == 0, ''.join(join_lines.lines)
+    assert any('swarm join: 2 of 6 agents on robots (mujoco)' in ln for ln in join_lines.lines), \
+        ''.join(join_lines.lines)
+    one = processes.start([IP, 'netns', 'exec', ns_a, swarm_cmd, 'run', path, '--interface', addr_a, *robots,
+                           '--out', tmp_path / 'one', '--no-figure'],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    one_lines = Lines(one)
+    assert one_lines.wait(one, 300) == 0, ''.join(one_lines.lines[-40:])
+    two, ref = (Trajectory.load(tmp_path / d / 'trajectory.npz') for d in ('two', 'one'))
+    np.testing.assert_array_equal(two.r, ref.r)
+    np.testing.assert_array_equal(two.u, ref.u)
+    speed = np.linalg.norm(np.diff(two.r, axis=0), axis=2) / (two.t[1] - two.t[0])
+    assert speed[0, 2:5].max() < 0.5 and np.abs(speed[:, [0, 1, 5]] - 1.0).max() < 1e-5    # robots, points
 
 
 def run_over(hosts, tmp_path, swarm_cmd, processes):

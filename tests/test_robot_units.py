@@ -121,12 +121,10 @@ def test_parse_robots_kinds_and_selections():
             parse_robots(bad, NAMES)
 
 
-def test_robot_agents_run_alone_and_get_their_parameters():
+def test_robot_agents_get_their_parameters():
     from swarm_core.scenario import parse
     from swarm_tools.node_params import node_parameters
-    from swarm_tools.robot_plan import agent_groups, apply_robots
-    assert agent_groups(NAMES, 4, {'agent_1': 'external'}) == [
-        ['agent_0', 'agent_2', 'agent_3', 'agent_4'], ['agent_5'], ['agent_1']]
+    from swarm_tools.robot_plan import apply_robots
     scn = parse({'name': 'r', 'agents': {'positions': [[i, 0] for i in range(6)]}, 'duration': 1.0,
                  'robots': {'length_scale': 0.5, 'cruise_speed': 0.25, 'cmd_type': 'Twist'}})
     params = node_parameters(scn, 'r.yaml', 'realtime')

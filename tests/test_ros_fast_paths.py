@@ -34,6 +34,24 @@ def test_odometry_bytes_round_trip_through_rclpy(name):
         name, 12, 345_000_000, (1.5, -2.25, 0.5, 0.0, math.sin(0.3), math.cos(0.3)), -0.01, 0.0)
 
 
+@pytest.mark.parametrize('frame', ['', 'a', 'agent_0/base_link', 'agent_12/base_link'])
+def test_twist_bytes_round_trip_through_rclpy(frame):
+    """A robot agent's cmd_vel bytes are the message rclpy would send (padding aside), and the
+    robot world's raw reader decodes what rclpy serialises, stamped or not."""
+    from geometry_msgs.msg import Twist, TwistStamped
+    from rclpy.serialization import deserialize_message, serialize_message
+    m = deserialize_message(P.TwistWriter(frame)(12, 345, 0.15, -1.25), TwistStamped)
+    assert (m.header.stamp.sec, m.header.stamp.nanosec, m.header.frame_id) == (12, 345, frame)
+    t = m.twist
+    assert (t.linear.x, t.linear.y, t.linear.z, t.angular.x, t.angular.y, t.angular.z) == (0.15, 0, 0, 0, 0, -1.25)
+    m.twist.linear.y = 7.0                      # a field the reader must skip, not read
+    assert P.cdr_to_twist(serialize_message(m)) == (12, 345, 0.15, -1.25)
+    plain = deserialize_message(P.TwistWriter(frame, stamped=False)(12, 345, 0.2, 0.3), Twist)
+    assert (plain.linear.x, plain.angular.z) == (0.2, 0.3)
+    plain.angular.x = 5.0
+    assert P.cdr_to_twist(serialize_message(plain), stamped=False) == (0, 0, 0.2, 0.3)
+
+
 @pytest.mark.ros
 def test_lockstep_over_the_udp_profile_equals_simulate(tmp_path, ros_domain, processes, swarm_cmd):
     """Also with /clock only every 7 steps: lockstep inputs carry their own step and time."""

@@ -78,3 +78,23 @@ def test_mixed_run_three_robots_three_kinematic_one_swarm(tmp_path, ros_domain, 
     heading = np.exp(1j * traj.theta[-1])
     assert abs(heading.mean()) > 0.9                       # one swarm, aligned
     assert metrics['summary']['robots']['contacts'] == 0
+
+
+def test_robot_agents_in_one_container_equal_lone_processes(tmp_path, ros_domain, processes, swarm_cmd):
+    """``--agents-per-process 6``: four robot agents and two kinematic ones in ONE agent
+    container (its answer to the world waits for the robots' odometry) give the same run, bit
+    for bit, as each agent a process of its own."""
+    path = short_homotopy(tmp_path / 'contained.yaml', robots=ROBOTS, duration=8,
+                          lam='{kind: tanh_window, rise_at: 3, fall_at: 1000, tau: 1}', at=2, curvature=0.05)
+    robots = ('--robots', 'mujoco:agent_0-agent_3')
+    one, _, lines = run(processes, swarm_cmd, path, tmp_path / 'one', *robots, '--agents-per-process', '6',
+                        timeout=300)
+    # one container, the world, the commander, the robot world
+    assert any('4 processes' in ln for ln in lines.lines), ''.join(lines.lines)
+    lone, _, _ = run(processes, swarm_cmd, path, tmp_path / 'lone', *robots, '--agents-per-process', '1', timeout=300)
+    np.testing.assert_array_equal(one.r, lone.r)
+    np.testing.assert_array_equal(one.theta, lone.theta)
+    np.testing.assert_array_equal(one.u, lone.u)
+    speed = np.linalg.norm(np.diff(one.r, axis=0), axis=2) / (one.t[1] - one.t[0])
+    assert speed[0, :4].max() < 0.5 and np.abs(speed[:, 4:] - 1.0).max() < 1e-5   # robots and points
+    assert np.abs(one.u).max() > 0.01                                              # the law steered

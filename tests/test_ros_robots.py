@@ -207,7 +207,7 @@ def test_lockstep_mixed_swarm_with_perfect_robots_follows_the_kinematic_run(tmp_
         nd.destroy_node()
 
 
-def test_a_robot_agent_refuses_a_container_and_needs_its_scale(rclpy_context):
+def test_a_robot_agent_needs_its_scale(rclpy_context):
     from conftest import overrides
     from swarm_agent.agent_node import AgentNode
     from swarm_core.scenario import load
@@ -216,31 +216,31 @@ def test_a_robot_agent_refuses_a_container_and_needs_its_scale(rclpy_context):
     prm = dict(agent_parameters(load('homotopy_global'), 0, 'lockstep'), robot='external')
     with pytest.raises(ParameterError, match='length_scale and cruise_speed'):
         AgentNode('agent', namespace='agent_0', context=rclpy_context, parameter_overrides=overrides(prm))
-    prm.update(length_scale=0.3, cruise_speed=0.15)
-    with pytest.raises(ParameterError, match='agent containers drive kinematic agents only'):
-        AgentNode('agent', namespace='agent_0', context=rclpy_context, contained=True,
-                  parameter_overrides=overrides(prm))
 
 
-def test_swarm_run_robots_external_drives_standins(tmp_path, processes, ros_domain, swarm_cmd):
+@pytest.mark.parametrize('per, robots', [(1, NAMES), (3, NAMES[:2])])
+def test_swarm_run_robots_external_drives_standins(per, robots, tmp_path, processes, ros_domain, swarm_cmd):
     """``swarm run --mode realtime --robots external``: the launcher starts no physics; the
     agents drive whatever serves their cmd_vel and odom (here the stand-ins), the sim clock
-    runs at v0/L, and the run ends as one swarm with the robots' events in metrics.json."""
+    runs at v0/L, and the run ends as one swarm with the robots' events in metrics.json.
+    Also two robot agents and a kinematic one in one agent container (``per`` 3)."""
     import subprocess
 
     from swarm_core.trajectory import Trajectory
     path, _ = _scenario_file(tmp_path / 'robots3.yaml', 0.1, 8.0, 0.3, 0.15)
     processes.start([sys.executable, HERE / 'diff_drive_standin.py', *NAMES], stdout=subprocess.DEVNULL)
     out = tmp_path / 'run'
-    run = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--robots', 'external', '--out', out,
-                           '--no-figure'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    run = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--robots', 'external:' + ','.join(robots),
+                           '--agents-per-process', str(per), '--out', out, '--no-figure'],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     text = processes.communicate(run, 150)
     assert run.returncode == 0, text[-3000:]
     assert 'sim clock at 0.5 model s per wall s' in text and 'r0 = 0.45 m, w = 1.2 m' in text
     metrics = json.loads((out / 'metrics.json').read_text())['summary']
     assert metrics['final_clusters'] == 1
     resumed = {e['agent'] for e in metrics['events'] if e['kind'] == 'robot_resumed'}
-    assert resumed == set(NAMES)
+    assert resumed == set(robots)
+    assert f'{len(robots)} of 3 agents on robots' in text and (per == 1 or '3 agents per process' in text)
     r = Trajectory.load(out / 'trajectory.npz').r
     length = np.nansum(np.hypot(*np.diff(r, axis=0).transpose(2, 0, 1)), axis=0)
     assert np.all(length > 0.6 * 8.0) and np.all(length < 1.1 * 8.0), length    # about unit speed

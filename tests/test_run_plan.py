@@ -144,6 +144,32 @@ def test_join_plans_the_agents_it_starts(scenario_of):
         join.plan(a, scn, ref)
 
 
+def test_join_starts_the_robot_agents_the_run_announces(tmp_path):
+    """``swarm run --remote-agents 3-5 --robots mujoco:agent_4``: the world announces agent_4's
+    robot; ``swarm join`` starts it as a robot agent with the run's own parameters for it (the
+    robot world, on the run's host, drives its robot), the others kinematic."""
+    from swarm_ros.runinfo import parse_robots_text, parse_run, run_json
+    path = tmp_path / 'robots6.yaml'
+    path.write_text('name: robots6\nagents: {count: 6}\nduration: 5\n'
+                    'robots: {length_scale: 0.3, cruise_speed: 0.15}\n')
+    scn, ref = load(str(path)), str(path)
+    run = run_plan((scn, ref), '--remote-agents', '3-5', '--robots', 'mujoco:agent_1,agent_4')
+    world = run.params['/world']
+    assert world['remote_robots'] == 'agent_4=mujoco'
+    assert run.params['/robots']['robots'] == 'agent_1,agent_4'       # the robot world is the run's
+    robots = parse_robots_text(world['remote_robots'], world['remote_agents'].split(','), ('external', 'mujoco'))
+    said = parse_run(run_json('r1', scn.name, 'lockstep', scn.names, 1.0, scn.content_hash,
+                              world['remote_agents'].split(','), robots))
+    a = join._parser().parse_args([ref, '--agents', '3-5', '--server', '127.0.0.1:11811'])
+    plan = join.plan(a, scn, ref)
+    assert 'robot' not in plan.params['/agent_4/agent']          # known only once the run is heard
+    assert '1 of 6 agents on robots (mujoco)' in plan.for_run(said)
+    assert all(p == run.params[fqn] for fqn, p in plan.params.items())
+    assert plan.params['/agent_4/agent']['robot'] == 'mujoco' and 'robot' not in plan.params['/agent_3/agent']
+    with pytest.raises(ValueError, match='NAME a remote agent'):
+        parse_robots_text('agent_1=mujoco', ['agent_4'], ('external', 'mujoco'))
+
+
 def test_plan_module_has_no_ros_import():
     import subprocess
     code = ('import sys; from swarm_core.scenario import load; from swarm_tools import launch; '
@@ -154,18 +180,18 @@ def test_plan_module_has_no_ros_import():
     assert r.returncode == 0 and r.stdout.strip() == '[]', r.stderr
 
 
-def test_robots_external_sets_the_robot_agents_and_runs_each_alone(tmp_path):
+def test_robots_external_sets_the_robot_agents_and_shares_containers(tmp_path):
     path = tmp_path / 'robots.yaml'
     path.write_text('name: robots\nagents: {count: 6}\nduration: 5\n'
                     'robots: {length_scale: 0.3, cruise_speed: 0.15}\n')
     scn_ref = load(str(path)), str(path)
     run = run_plan(scn_ref, '--agents-per-process', '3', '--robots', 'external:agent_1-agent_2')
     assert run.robots == {'agent_1': 'external', 'agent_2': 'external'}
-    assert run.groups == [['agent_0', 'agent_3', 'agent_4'], ['agent_5'], ['agent_1'], ['agent_2']]
+    assert run.groups == [['agent_0', 'agent_1', 'agent_2'], ['agent_3', 'agent_4', 'agent_5']]
     params = agents(run)
     assert params['/agent_1/agent']['robot'] == 'external' and params['/agent_1/agent']['robot_clock'] == 'sim'
     assert 'robot' not in params['/agent_0/agent']
-    assert run.params['/world']['step_readers'] == 4
+    assert run.params['/world']['step_readers'] == 2
     assert 'r0 = 0.45 m, w = 1.2 m' in run.robots_line
     rt = run_plan(scn_ref, '--mode', 'realtime', '--robots', 'external')
     assert rt.params['/world']['rtf'] == pytest.approx(0.5) and agents(rt)['/agent_0/agent']['robot_clock'] == 'wall'

@@ -20,6 +20,13 @@ Sim time: in lockstep the agents' clocks are set from each step message (paramet
 ``lockstep_clock`` = step, default; no ``/clock`` reader) or follow ``/clock`` (topic); in
 realtime they follow ``/clock`` through one subscription of the host node.
 
+Robot agents (parameter ``robot``, `swarm_agent.robot_driver`) share a container as kinematic
+ones do, each with its own cmd_vel, odom and events on its own node.  Lockstep: the container's
+answer to a step waits until every robot agent that moved has its odometry of the next state
+(`robot_driver.OdometryHold`), so it stays one message per step.  Realtime: the kinematic agents
+tick on the one timer; each robot agent on a timer of its own (on the same clock), its state in
+the container's batches.
+
 Faults: the world does not signal a process that holds several agents; the container obeys
 the fault events on ``/swarm/events`` for its own agents (kill: the agent stops for good;
 freeze ... resume), and the others go on. Killing the process kills all its agents.
@@ -91,6 +98,12 @@ class AgentContainer(Node):
             self._start_realtime()
         else:
             self.batch = AgentStatesWriter(self)     # the agents' states for the world, in one message
+            self.answers = self.batch
+            if any(a.robot != 'none' for a in self.agents):     # held until their robots' odometry came
+                from .robot_driver import OdometryHold
+                self.answers = OdometryHold(self.batch, self.agents)
+                for a in self.agents:
+                    a.driver.hold = self.answers
             for a in self.agents:
                 a.driver.start_lockstep(self._first_state)
         self.get_logger().info(f'{len(self.agents)} agents: {", ".join(a.agent_name for a in self.agents)}')
@@ -102,7 +115,7 @@ class AgentContainer(Node):
 
     # the shared inputs, handed to every agent
     def _on_step(self, raw):
-        s = step_message(raw, self.lock, self.agents, self.reject, self.batch)
+        s = step_message(raw, self.lock, self.agents, self.reject, self.answers)
         if s is not None and self.lockstep_clock == 'step':
             step_time(self.agents, s)
 
@@ -121,7 +134,9 @@ class AgentContainer(Node):
     del _fan
 
     def _start_realtime(self):
-        """One table of the states heard, one timer and one batch of states for all the agents."""
+        """One table of the states heard and one batch writer for all the agents; one timer for
+        the kinematic ones and one for each robot agent (`robot_driver.RealtimeRobotDriver`: its
+        robot's pose, not a move), all on the first agent's clock."""
         first = self.agents[0]
         self.heard = HeardStates(first.roster)
         self.senders = Senders()
@@ -132,9 +147,16 @@ class AgentContainer(Node):
             a.driver.process_tag = self.batch.tag
             self.heard.hear(a.agent_name, (a.t, *a.own[2:]))
         self.batch.publish(self.agents)
-        leaders = LeaderMask(first.roster)
-        self.rt_timer = first.create_timer(
-            first.dt, lambda: realtime_tick(self.agents, self.lock, self.heard, leaders, self.batch))
+        kinematic = [a for a in self.agents if a.robot == 'none']
+        self.rt_timers = []
+        for a in self.agents:
+            if a.robot != 'none':
+                a.driver.batch = self.batch
+                self.rt_timers.append(first.create_timer(first.dt, a.driver.on_tick))
+        if kinematic:
+            lock, leaders = ContainerCore([a.core for a in kinematic]), LeaderMask(first.roster)
+            self.rt_timers.append(first.create_timer(
+                first.dt, lambda: realtime_tick(kinematic, lock, self.heard, leaders, self.batch)))
 
     def _on_state(self, raw):
         """Another process's states on /swarm/agent_states (serialized): decoded once, each

@@ -20,7 +20,10 @@ TwistStamped as Jazzy's diff_drive_controller takes it, or Twist) out, the units
 Faults: a kill or pause event for this agent on ``/swarm/events`` (a run in one process) makes
 the driver send zero velocity from then on (until resume); a signalled agent process (SIGSTOP,
 SIGKILL) sends nothing, and the robot's controller stops it after its ``cmd_vel_timeout``.
-Agent containers drive kinematic agents only: a robot agent is a process (or node) of its own.
+In an agent container (`container_node`) a robot agent keeps its own link (its cmd_vel, odom and
+events on its own node); lockstep: the container's answer to the world waits for every robot
+agent's odometry (`OdometryHold`); realtime: each robot agent ticks on its own timer (on the
+container's clock) and sends its state in the container's batches.
 """
 from __future__ import annotations
 
@@ -29,7 +32,6 @@ import math
 import time
 
 import numpy as np
-from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -81,9 +83,9 @@ def declare_robot(node) -> dict:
     return p
 
 
-def yaw_of(q) -> float:
+def yaw_of(qx: float, qy: float, qz: float, qw: float) -> float:
     """Yaw of a quaternion (x, y, z, w) (NaN in, NaN out)."""
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    return math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
 
 
 class RobotLink:
@@ -92,9 +94,6 @@ class RobotLink:
 
     def __init__(self, node, length_scale, cruise_speed, max_angular, odom_timeout, neighbour_timeout, max_jump,
                  robot_frame, cmd_type, robot_clock, odom_reliability):
-        if node.contained:
-            raise ParameterError('robot: agent containers drive kinematic agents only; '
-                                 'start a robot agent as a process of its own')
         self.node = node
         self.units = RobotUnits(length_scale, cruise_speed, max_angular)
         x0, y0 = node.core.pos[0]
@@ -104,7 +103,7 @@ class RobotLink:
                                  needs_neighbours=node.n > 1, start=self.robot_now())
         self.say = RateLimit()
         self.stamped = cmd_type == 'TwistStamped'
-        self.frame_id = f'{node.agent_name}/base_link'
+        self.serialize_cmd = P.TwistWriter(f'{node.agent_name}/base_link', self.stamped)
         self.pose = None           # newest accepted odometry: (stamp s, x, y, θ unwrapped), model units
         self.on_pose = None        # the driver's hook for a new pose
         reliable = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -113,7 +112,7 @@ class RobotLink:
         self.events = node.create_publisher(String, P.EVENTS, P.qos_latched(100))
         odom_qos = reliable if odom_reliability == 'reliable' else QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
-        node.create_subscription(Odometry, 'odom', self._on_odom, odom_qos)
+        node.create_subscription(Odometry, 'odom', self._on_odom, odom_qos, raw=True)
         node.get_logger().info(f'robot on {node.get_namespace().rstrip("/")}/cmd_vel ({cmd_type}) and '
                                f'/odom ({robot_frame} frame, {robot_clock} clock); '
                                + self.units.describe(node.law.cutoff_radius, node.law.gains.r0))
@@ -123,24 +122,23 @@ class RobotLink:
         """Robot seconds now: the system's steady clock (wall), else the sim clock × L/v0."""
         return time.monotonic() if self.wall else self.units.robot_time(self.node._now())
 
-    def stamp_now(self):
-        """A cmd_vel stamp of now on the robot's clock."""
-        if self.wall:
-            ns = time.time_ns()
-            return TimeMsg(sec=ns // 10**9, nanosec=ns % 10**9)
-        return self.node.get_clock().now().to_msg()
+    def stamp_now(self) -> tuple:
+        """A cmd_vel stamp (sec, nanosec) of now on the robot's clock."""
+        ns = time.time_ns() if self.wall else self.node.sim_clock.now().nanoseconds
+        return ns // 10**9, ns % 10**9
 
     # -- odometry in
-    def _on_odom(self, msg):
-        p = msg.pose.pose
-        x, y, yaw = p.position.x, p.position.y, yaw_of(p.orientation)
+    def _on_odom(self, raw):
+        """One serialized odometry message (read raw: no message object per step)."""
+        _, _, sec, nsec, (x, y, qx, qy, qz, qw), _, _, _ = P.cdr_to_odometry_full(raw)
+        yaw = yaw_of(qx, qy, qz, qw)
         why = self.guard.odometry(self.robot_now(), x, y, yaw)
         if why is not None:
             self.log('odom', f'{self.node.agent_name}/odom rejected (not fed to the law): {why}')
             return
         x, y, yaw = self.units.to_model(x, y, yaw, self.start)
         near = self.pose[3] if self.pose is not None else float(self.node.core.theta[0])
-        self.pose = (P.stamp_to_time(msg.header.stamp), x, y, wrap_near(yaw, near))
+        self.pose = (P.stamp_seconds(sec, nsec), x, y, wrap_near(yaw, near))
         if self.on_pose is not None:
             self.on_pose(self.pose)
 
@@ -157,14 +155,8 @@ class RobotLink:
 
     # -- commands out
     def publish_cmd(self, v: float, w: float, stamp):
-        if self.stamped:
-            m = TwistStamped()
-            m.header.stamp, m.header.frame_id = stamp, self.frame_id
-            m.twist.linear.x, m.twist.angular.z = float(v), float(w)
-        else:
-            m = Twist()
-            m.linear.x, m.angular.z = float(v), float(w)
-        self.cmd_pub.publish(m)
+        """One cmd_vel stamped ``stamp`` (sec, nanosec), pre-serialised (`protocol.TwistWriter`)."""
+        self.cmd_pub.publish(self.serialize_cmd(*stamp, float(v), float(w)))
 
     def drive(self, u: float, stamp):
         """Command curvature u (model units) as v0 and a clipped ω (counted)."""
@@ -201,16 +193,25 @@ class RobotLink:
         (self.node.get_logger().warning if warn else self.node.get_logger().info)(text)
 
 
-class _HoldUntilOdometry:
-    """The lone process's ``/lockstep/agent_states`` writer while a robot agent waits for the
-    odometry of its next state: it says nothing then (`LockstepRobotDriver.on_pose` does)."""
+class OdometryHold:
+    """The ``/lockstep/agent_states`` writer of a process with robot agents (alone, or in a
+    container among kinematic ones): it holds the answers of a step while any of its robot
+    agents waits for the odometry of its next state (`LockstepRobotDriver.pending`), then sends
+    them all in one message, as a process always answers (the world's reader binds each agent to
+    one process; the writer keeps one message).  ``batch``: the process's `AgentStatesWriter`."""
 
-    def __init__(self, driver):
-        self.driver = driver
+    def __init__(self, batch, agents):
+        self.batch = batch
+        self.robots = [a for a in agents if a.robot != 'none']
+        self.said = []
 
     def publish(self, agents):
-        if self.driver.pending is None:
-            self.driver.batch.publish(agents)
+        """The agents that answered (`process_io.step_message`; [] when a robot's odometry came)."""
+        self.said += [a for a in agents if a not in self.said]
+        if any(a.driver.pending is not None for a in self.robots):
+            return
+        said, self.said = self.said, []
+        self.batch.publish(said)
 
 
 class LockstepRobotDriver(LockstepDriver):
@@ -221,7 +222,12 @@ class LockstepRobotDriver(LockstepDriver):
         self.link = RobotLink(node, **robot)
         self.link.on_pose = self.on_pose
         self.pending = None          # the step whose odometry the agent waits for
-        self.hold = _HoldUntilOdometry(self)
+        self.hold = None             # its process's `OdometryHold` (alone: its own; contained: the container's)
+
+    def start(self):
+        super().start()
+        if not self.node.contained:
+            self.hold = OdometryHold(self.batch, [self.node])
 
     def on_input(self, raw):
         s = step_message(raw, self.lock, [self.node], self.node.reject, self.hold)
@@ -230,7 +236,7 @@ class LockstepRobotDriver(LockstepDriver):
 
     def lockstep_outcome(self, kind, detail, s):
         node, link = self.node, self.link
-        stamp = TimeMsg(**dict(zip(('sec', 'nanosec'), P.time_to_stamp(s.t))))
+        stamp = P.time_to_stamp(s.t)
         if kind == 'moved':          # u_n as one cmd_vel stamped t_n; the state when the robot moved
             node.lam = s.lam
             node.step = s.n
@@ -244,8 +250,9 @@ class LockstepRobotDriver(LockstepDriver):
             if self.pending is None:  # else the command is out (reliable): still waiting for the robot
                 node.publish_state()
         else:
-            if kind == 'silent':
+            if kind == 'silent':     # out of the table: the robot stands, and no answer is awaited
                 link.publish_cmd(0.0, 0.0, stamp)
+                self.pending = None
             super().lockstep_outcome(kind, detail, s)
 
     def on_pose(self, pose):
@@ -257,7 +264,7 @@ class LockstepRobotDriver(LockstepDriver):
         node.step, self.pending = self.pending, None
         node.t = node.step * node.dt
         node.publish_state()
-        self.batch.publish([node])
+        self.hold.publish([])
 
 
 class RealtimeRobotDriver(RealtimeDriver):
@@ -268,20 +275,23 @@ class RealtimeRobotDriver(RealtimeDriver):
         self.link = RobotLink(node, **robot)
 
     def start(self):
-        """A process of its own (robot agents are never contained): its own timer (`on_tick`)
-        and its own batch of one state per tick on /swarm/agent_states, as a lone agent."""
+        """Alone: its own timer (`on_tick`) and its own batch of one state per tick on
+        /swarm/agent_states, as a lone agent.  Contained: the container gives it its table of
+        states heard, its batch writer and a timer on the container's clock (`container_node`)."""
         node = self.node
-        self.batch = AgentStatesWriter(node, realtime=True)
-        self.process_tag = self.batch.tag
-        self.timer = node.create_timer(node.dt, self.on_tick)
+        if not node.contained:
+            self.batch = AgentStatesWriter(node, realtime=True)
+            self.process_tag = self.batch.tag
+            self.timer = node.create_timer(node.dt, self.on_tick)
         node.publish_state()
         self._said()
 
     def _said(self):
-        """Its newest state into its own table and to the other processes."""
+        """Its newest state into its table and to the other processes."""
         node = self.node
         self.heard.hear(node.agent_name, (node.t, *node.own[2:]))
-        self.batch.publish([node])
+        if self.batch is not None:
+            self.batch.publish([node])
 
     def on_tick(self):
         """One control period: the robot's pose, the guard, u (or zero velocity), the state."""

@@ -84,7 +84,7 @@ class RobotsNode(Node):
             self.pub_truth.append(self.create_publisher(Odometry, ground_truth_topic(nm), P.qos_reliable(10)))
             stamped = self.sec.cmd_type == 'TwistStamped'
             self.create_subscription(TwistStamped if stamped else Twist, cmd_vel_topic(nm),
-                                     self._command_callback(k, stamped), P.qos_reliable(10))
+                                     self._command_callback(k, stamped), P.qos_reliable(10), raw=True)
         self.pub_metrics = self.create_publisher(DiagnosticArray, METRICS_TOPIC, 10)
         self.create_timer(1.0, self.publish_metrics, clock=steady_clock())
         if self.mode == 'lockstep':
@@ -138,15 +138,14 @@ class RobotsNode(Node):
 
     # ------------------------------------------------------------ inputs
     def _command_callback(self, k, stamped):
-        def on_command(msg):
-            tw = msg.twist if stamped else msg
-            v, omega = tw.linear.x, tw.angular.z
+        def on_command(raw):          # serialized (`protocol.cdr_to_twist`): no message object per command
+            sec, nsec, v, omega = P.cdr_to_twist(raw, stamped)
             if not (math.isfinite(v) and math.isfinite(omega)):
                 self.reject('cmd-non-finite', f'{cmd_vel_topic(self.agents[k])}: non-finite command')
                 return
             if self.mode == 'realtime':
                 self.world.command(k, v, omega)
-            elif not self.hold.on_command(k, P.stamp_to_time(msg.header.stamp), v, omega):
+            elif not self.hold.on_command(k, P.stamp_seconds(sec, nsec), v, omega):
                 self.reject('cmd-stale', f'{cmd_vel_topic(self.agents[k])}: command stamped for no step '
                             f'awaited (held step {self.hold.n})')
             else:
@@ -191,14 +190,17 @@ class RobotsNode(Node):
 
     def publish_odometry(self, t: float):
         """Each robot's odometry (its own ``odom`` frame, or the common ``world`` frame) and
-        ground truth, stamped sim time ``t``."""
+        ground truth, stamped sim time ``t``.  Ground truth only while someone reads it (a
+        recorder, a view; the agents never do): it is volatile, so a reader that matches later
+        has missed nothing it could have had, and each publish costs as much as the odometry's."""
         self.t_odom, self.last_progress = t, time.monotonic()
         sec, nsec = P.time_to_stamp(t)
         truth = self.world.ground_truth()
         odom = self.world.odometry() if self.sec.frame == 'odom' else truth
         for k in range(len(self.agents)):
             self.pub_odom[k].publish(serialized_odometry(self.odom_writers[k], sec, nsec, odom[k]))
-            self.pub_truth[k].publish(serialized_odometry(self.truth_writers[k], sec, nsec, truth[k]))
+            if self.pub_truth[k].get_subscription_count():
+                self.pub_truth[k].publish(serialized_odometry(self.truth_writers[k], sec, nsec, truth[k]))
 
     def summary(self) -> dict:
         w = self.world

@@ -31,9 +31,10 @@ Fixed, user-facing topics (docs/ros-graph.md)
     ``lost`` (the world gave up waiting for an agent), ``fault_skipped`` (world);
     ``leaders_chosen``, ``failover``, ``leader_lost``, ``rendezvous_on``/``_off`` (commander).
 ``/swarm/run``  std_msgs/String, reliable + transient-local depth 1, world: JSON ``{"run_id",
-    "scenario", "mode", "agents": [names]}`` of the run (`swarm_ros.runinfo`); the live verbs
-    (``swarm lambda``, ``swarm kill``, ...) read it to say which run they reached, check agent
-    names, and refuse when two runs share the domain.
+    "scenario", "mode", "agents": [names], "since", "scenario_hash", "remote": [names], "robots":
+    {name: kind}}`` of the run (`swarm_ros.runinfo.run_json`); the live verbs (``swarm lambda``,
+    ``swarm kill``, ...) read it to say which run they reached, check agent names, and refuse
+    when two runs share the domain; ``swarm join`` checks it and starts the remote robot agents.
 ``/swarm/fault_request``  std_msgs/String, reliable + transient-local depth 10: JSON ``{"kind": "kill"|"freeze",
     "agent": NAME, "for": SECONDS}`` (``swarm kill`` / ``swarm pause``); the world applies it
     at its next step (see swarm_core.faults for the semantics) and signals the agent process.
@@ -169,7 +170,12 @@ def time_to_stamp(t: float):
 
 
 def stamp_to_time(stamp) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
+    return stamp_seconds(stamp.sec, stamp.nanosec)
+
+
+def stamp_seconds(sec: int, nanosec: int) -> float:
+    """Sim time of a stamp (sec, nanosec), as a raw decoder gives it."""
+    return sec + nanosec * 1e-9
 
 
 def event_json(kind: str, t, **fields) -> str:
@@ -301,6 +307,43 @@ def cdr_to_odometry_tagged(raw: bytes):
     byte order, any frame_id)."""
     _, name, sec, nsec, pose, _, wz, tag = cdr_to_odometry_full(raw)
     return name, sec, nsec, pose, wz, tag
+
+
+# ------------------------------------------------------------------ raw CDR of geometry_msgs/Twist(Stamped)
+#
+# TwistStamped: header.stamp (int32 sec, uint32 nanosec), header.frame_id (uint32 length incl.
+# NUL, bytes), then aligned to 8 the 6 float64 of twist (linear x, y, z, angular x, y, z).
+# Twist: the 6 float64 alone.  A robot agent sends linear.x and angular.z; the others are 0.
+
+
+class TwistWriter:
+    """Serialized ``geometry_msgs/TwistStamped`` with a fixed frame_id (``stamped``; else
+    ``geometry_msgs/Twist``) of one robot's command (linear.x = ``v``, angular.z = ``omega``):
+    what ``publish()`` accepts as bytes, without a message object per command."""
+
+    def __init__(self, frame_id: str = '', stamped: bool = True):
+        self.stamped = stamped
+        frame, off = _cdr_string(frame_id, 8)
+        self._frame = frame + b'\0' * ((-off) % 8)
+
+    def __call__(self, sec: int, nanosec: int, v: float, omega: float) -> bytes:
+        twist = struct.pack('<6d', v, 0.0, 0.0, 0.0, 0.0, omega)
+        if not self.stamped:
+            return _HEADER + twist
+        return _HEADER + struct.pack('<iI', sec, nanosec) + self._frame + twist
+
+
+def cdr_to_twist(raw: bytes, stamped: bool = True):
+    """The one decoder of a serialized ``geometry_msgs/TwistStamped`` (``stamped``; else
+    ``Twist``, stamp 0) in either byte order: (sec, nanosec, linear.x, angular.z)."""
+    end = cdr_byte_order(raw)
+    o, sec, nsec = 4, 0, 0
+    if stamped:
+        sec, nsec, n = struct.unpack_from(end + 'iII', raw, 4)
+        o = 16 + n
+        o = (o - 4 + 7) // 8 * 8 + 4
+    v, _, _, _, _, omega = struct.unpack_from(end + '6d', raw, o)
+    return sec, nsec, v, omega
 
 
 def clock_to_cdr(t: float) -> bytes:

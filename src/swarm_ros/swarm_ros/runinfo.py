@@ -42,13 +42,40 @@ def declare_run_id(node, what: str) -> str:
 
 
 def run_json(run_id: str, scenario: str, mode: str, agents, since: float, scenario_hash: str = '',
-             remote=()) -> str:
+             remote=(), robots=None) -> str:
     """The text of a ``/swarm/run`` message; ``since``: when its world started (wall s, epoch),
     so that of two runs on one domain the younger one gives way; ``scenario_hash``: the
-    content hash of its scenario (`swarm_core.scenario.Scenario.content_hash`) and ``remote``:
-    the agents other hosts start, which ``swarm join`` checks (`join_error`)."""
+    content hash of its scenario (`swarm_core.scenario.Scenario.content_hash`), ``remote``:
+    the agents other hosts start, which ``swarm join`` checks (`join_error`), and ``robots``:
+    {agent: robot kind} of those that drive a robot (``swarm join`` starts them so)."""
     return json.dumps(dict(run_id=run_id, scenario=scenario, mode=mode, agents=list(agents), since=since,
-                           scenario_hash=scenario_hash, remote=list(remote)))
+                           scenario_hash=scenario_hash, remote=list(remote), robots=dict(robots or {})))
+
+
+def robots_text(robots: dict) -> str:
+    """{agent: robot kind} as the world's parameter ``remote_robots`` takes it: NAME=KIND,..."""
+    return ','.join(f'{nm}={kind}' for nm, kind in robots.items())
+
+
+def parse_robots_text(text: str, remote, kinds) -> dict:
+    """{agent: kind} of a `robots_text`; ValueError for an agent not in ``remote`` or a kind
+    not in ``kinds``."""
+    out = {}
+    for item in (s.strip() for s in text.split(',')):
+        if not item:
+            continue
+        nm, _, kind = item.partition('=')
+        if nm not in remote or kind not in kinds:
+            raise ValueError(f'{item!r}: want NAME=KIND with NAME a remote agent and KIND one of {", ".join(kinds)}')
+        out[nm] = kind
+    return out
+
+
+def run_robots(run: dict, names) -> dict:
+    """{agent: robot kind} the announcement ``run`` gives for the agents ``names`` (those on no
+    robot left out; a malformed entry counts as none)."""
+    robots = run.get('robots') if isinstance(run.get('robots'), dict) else {}
+    return {nm: robots[nm] for nm in names if isinstance(robots.get(nm), str)}
 
 
 def join_error(run: dict, names, scenario_hash: str, prog: str = 'swarm join'):

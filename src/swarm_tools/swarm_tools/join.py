@@ -10,6 +10,12 @@ is over), on Ctrl-C, or if the run does not appear within ``--wait`` seconds.  I
 agents once it has heard the run's announcement (``/swarm/run``): they get its run id, so they
 take part in that run only.
 
+Robot agents: the run's announcement names the robot of each remote agent (``swarm run
+--remote-agents LIST --robots KIND:AGENTS``); ``swarm join`` starts those agents as robot agents
+with the scenario's ``robots:`` section (`robot_plan.apply_robots`), driving ``/AGENT/cmd_vel``
+from ``/AGENT/odom`` over the network (a MuJoCo robot world runs on the run's host; an external
+robot is whatever serves those topics).
+
 Faults: the world signals agents by pid on its own host only; ``swarm kill`` of an agent that
 runs here leaves it out of the table (it stops moving and speaking) but does not end its process.
 """
@@ -28,6 +34,7 @@ from . import dds
 from .launch import add_network_options, check_interface, parse_agents, set_state_readers
 from .node_params import load_scenario, node_parameters, write_params_file
 from .processes import agent_commands, supervised
+from .robot_plan import apply_robots
 
 #: wall seconds the world may stay out of the graph before ``swarm join`` takes the run as over
 GONE_AFTER = 3.0
@@ -64,7 +71,17 @@ class JoinPlan:
     params: dict                # their parameters; the run id is set once the run is heard
     server: str                 # the run's discovery server, ADDR:PORT
     wait: float                 # s to wait for the run
+    scn: object = None          # the scenario (its robots: section)
+    mode: str = 'lockstep'
     scenario_hash: str = ''     # Scenario.content_hash: the run's must be the same
+
+    def for_run(self, run: dict) -> str | None:
+        """Take the run's id and its robots (the announcement ``run``) into the parameters; the
+        line that says the robots (None: none here)."""
+        from swarm_ros.runinfo import run_robots
+        for p in self.params.values():
+            p['run_id'] = run['run_id']
+        return apply_robots(self.params, self.scn, run_robots(run, self.names), self.mode)
 
 
 def plan(a, scn, ref: str) -> JoinPlan:
@@ -79,7 +96,7 @@ def plan(a, scn, ref: str) -> JoinPlan:
     params = {f'/{nm}/agent': params[f'/{nm}/agent'] for nm in names}
     set_state_readers(params, 1 if a.recorded else 0, a.mode)
     return JoinPlan(scenario=a.scenario, roster=list(scn.names), agents=a.agents, names=names, params=params,
-                    server=f'{addr}:{port}', wait=a.wait, scenario_hash=scn.content_hash)
+                    server=f'{addr}:{port}', wait=a.wait, scn=scn, mode=a.mode, scenario_hash=scn.content_hash)
 
 
 def main(argv=None) -> int:
@@ -103,8 +120,9 @@ def main(argv=None) -> int:
         os.environ.update(env)
 
         def start(run):
-            for p in join.params.values():
-                p['run_id'] = run['run_id']
+            line = join.for_run(run)
+            if line:
+                print(f'swarm join: {line}', flush=True)
             ros = ['--ros-args', '--params-file', str(write_params_file(join.params, Path(tmp) / 'params.yaml'))]
             for label, _, cmd in agent_commands([[nm] for nm in join.names], ros):
                 sup.start(label, cmd, env)

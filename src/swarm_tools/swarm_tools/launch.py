@@ -45,10 +45,11 @@ from pathlib import Path
 
 from swarm_core.analysis import check_output_dir, write_atomic, write_failed
 from swarm_robots.run_setup import SUMMARY_FILE
+from swarm_ros.runinfo import robots_text
 
 from . import dds
 from .node_params import load_scenario, node_parameters, write_params_file
-from .robot_plan import agent_groups, apply_robots, parse_robots
+from .robot_plan import apply_robots, parse_robots
 from .bag import bag_complete
 from .processes import read_events, run_processes
 from .robot_world import ROBOTS_NODE, add_robot_world, read_summary
@@ -190,7 +191,7 @@ def _parser():
         'external (a robot, Gazebo or a simulator of your own; nothing else starts) for every agent, '
         'or external:agent_0-agent_2 (a range or a comma list) for some; mujoco: robots of a MuJoCo '
         'world the run starts (node robots; mujoco:agent_0-agent_2 likewise); the scenario needs a '
-        'robots: section. Robot agents run as processes of their own. Realtime: the sim clock runs '
+        'robots: section. Robot agents share agent containers as kinematic ones do. Realtime: the sim clock runs '
         'at v0/L model s per wall s (robots live in wall time; --rtf does not apply)'))
     return p
 
@@ -333,7 +334,7 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     """The run that ``a`` (the parsed options) asks for with scenario ``scn`` (loaded from
     ``ref``), on a host of ``cores`` cores: ValueError naming the first bad option.  Pure: it
     starts, writes and checks on disk nothing."""
-    from swarm_agent.container_core import agent_services
+    from swarm_agent.container_core import agent_services, split_agents
     n = len(scn.names)
     robots = parse_robots(a.robots, scn.names)
     remote = parse_agents(a.remote_agents, n) if a.remote_agents else []
@@ -351,7 +352,7 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     local = [nm for i, nm in enumerate(scn.names) if i not in set(remote)]
     run = RunPlan(scn=scn, mode=a.mode, in_process=a.in_process, out=out, run_id=run_id,
                   params=run_parameters(a, scn, ref, out, run_id), local=local, remote=remote,
-                  groups=agent_groups(local, per, robots), per=per,
+                  groups=split_agents(local, per), per=per,
                   services=agent_services(n, per, a.agent_services), interface=interface,
                   server_port=a.server_port, dds=a.dds, figure=not a.no_figure, robots=robots)
     run.robots_line = apply_robots(run.params, scn, robots, a.mode)
@@ -363,8 +364,10 @@ def plan(a, scn, ref: str, *, interface: str = '127.0.0.1', cores=1, run_id: str
     run.record, run.foxglove = a.record or None, a.foxglove
     run.use_server = a.discovery == 'server' or (a.discovery == 'auto' and (
         run.processes > dds.SIMPLE_LIMIT or bool(remote)))
-    if remote:          # announced on /swarm/run: `swarm join` refuses any other agent
-        run.params['/world'].update(remote_agents=','.join(scn.names[i] for i in remote))
+    if remote:          # announced on /swarm/run: `swarm join` refuses any other agent, starts robot agents so
+        names = [scn.names[i] for i in remote]
+        run.params['/world'].update(remote_agents=','.join(names),
+                                    remote_robots=robots_text({nm: robots[nm] for nm in names if nm in robots}))
     if per > 1:
         # the world waits for the step relay's readers: one per agent process
         run.params['/world'].update(step_readers=len(run.groups) + len(remote))

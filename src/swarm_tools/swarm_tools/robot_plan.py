@@ -65,19 +65,12 @@ def robot_parameters(spec, kind: str, mode: str) -> dict:
                 robot_frame=spec.frame, cmd_type=spec.cmd_type)
 
 
-def agent_groups(local, per: int, robots: dict) -> list:
-    """The agents of each agent process: the kinematic ones ``per`` to a container (as
-    `swarm_agent.container_core.split_agents`), each robot agent in a process of its own (agent
-    containers drive kinematic agents only)."""
-    from swarm_agent.container_core import split_agents
-    return split_agents([nm for nm in local if nm not in robots], per) + [[nm] for nm in local if nm in robots]
-
-
 def apply_robots(params: dict, scn, robots: dict, mode: str) -> str | None:
     """Set the robot parameters of the agents in ``robots`` ({name: kind}) in ``params`` (every
     node's parameters); the line that says the scale (None without robots).  Realtime with
     external robots: the world's clock runs at v0/L model s per wall s, since a robot lives in
-    wall time.  ValueError when the scenario has no ``robots:`` section."""
+    wall time (``swarm join``: the run's world does that).  ValueError when the scenario has no
+    ``robots:`` section."""
     if not robots:
         return None
     spec = scn.spec.robots
@@ -88,7 +81,7 @@ def apply_robots(params: dict, scn, robots: dict, mode: str) -> str | None:
         params[f'/{nm}/agent'].update(robot_parameters(spec, kind, mode))
     units = spec.units()
     head = f'{len(robots)} of {len(scn.names)} agents on robots ({", ".join(sorted(set(robots.values())))})'
-    if mode == 'realtime' and 'external' in robots.values():
+    if mode == 'realtime' and 'external' in robots.values() and '/world' in params:     # not on swarm join
         params['/world']['rtf'] = units.model_time(1.0)
         head += f', sim clock at {units.model_time(1.0):.3g} model s per wall s'
     return head + '; ' + units.describe(scn.law.cutoff_radius, scn.law.gains.r0)

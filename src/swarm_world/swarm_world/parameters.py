@@ -31,6 +31,8 @@ WORLD = {
                       'lockstep agents take their time from the step messages)', dict(lo=0, hi=100000)),
     'remote_agents': ('', 'the agents other hosts start (swarm join), comma-separated; announced on /swarm/run',
                       {}),
+    'remote_robots': ('', 'the robots of remote agents, NAME=KIND comma-separated (KIND external or mujoco); '
+                      'announced on /swarm/run, where swarm join reads them', {}),
     'pid_file': ('', 'JSON {agent: pid} of the agent processes, for kill/pause ("": none)', {}),
     'events_file': ('', 'append every event here as JSON lines ("": output_dir/events.jsonl)', {}),
     'trail_length': (200, 'trail points per agent in the markers', dict(lo=0, hi=100000)),

@@ -29,13 +29,14 @@ from visualization_msgs.msg import MarkerArray
 
 from swarm_core import metrics as M
 from swarm_core.atomic import open_regular
+from swarm_core.robot_units import ROBOT_KINDS
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
 from swarm_ros import protocol as P
 from swarm_ros.layouts import AgentStates, Decision
 from swarm_ros.msg_checks import ProcessSenders, RejectLog, Senders, check_agent_states, decoded, may_signal, reason
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
-from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, older_runs, run_json
+from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, older_runs, parse_robots_text, run_json
 from swarm_ros.scenario_params import declare_scenario
 
 from .inputs import fault_request, format_points, parse_geometry, parse_point, parse_points
@@ -146,8 +147,12 @@ class WorldNode(RealtimeWorld, Node):
         self.pub_run = self.create_publisher(String, P.RUN, P.qos_latched())
         self.since = time.time()
         remote = [nm for nm in self.remote_agents.split(',') if nm]
+        try:
+            robots = parse_robots_text(self.remote_robots, remote, ROBOT_KINDS[1:])
+        except ValueError as err:
+            raise ParameterError(f'parameter remote_robots: {err}') from None
         self.pub_run.publish(String(data=run_json(self.run_id, self.scn.name, self.mode, self.names, self.since,
-                                                  self.scn.content_hash, remote)))
+                                                  self.scn.content_hash, remote, robots)))
         self.runs = RunWatch(self, log=self.get_logger().warning)
         self.second_world_at = None     # when a second /world node was first seen (no announcement yet)
         if self.mode == 'realtime':
