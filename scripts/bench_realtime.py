@@ -81,22 +81,42 @@ def scenario_dt() -> float:
 
 def speeds(path) -> dict | None:
     """Each agent's path length over the time to its last move (the world holds an agent's
-    last state to the end of the run): min / median / max."""
+    last state to the end of the run): min / median / max.  The path between two recorded
+    states is the arc the agent flew (`flown_periods`), not the chord: a state that caught up
+    several periods turned on the way."""
     try:
         with np.load(path) as z:
-            t, r = z['t'], z['r']
+            t, r, theta, u = z['t'], z['r'], z['theta'], z['u']
     except (OSError, ValueError, KeyError):
         return None
+    dt = float(t[1] - t[0])
     v = []
     for i in range(r.shape[1]):
-        step = np.linalg.norm(np.diff(r[:, i], axis=0), axis=1)
-        moved = np.flatnonzero(step > 0)
-        if moved.size < 2 or not np.isfinite(step).all():
+        new = np.flatnonzero((np.diff(r[:, i], axis=0) != 0).any(axis=1)) + 1     # rows of a new state
+        if new.size < 2 or not np.isfinite(r[:, i]).all():
             continue
-        v.append(step.sum() / (t[moved[-1] + 1] - t[0]))
+        rows = np.r_[0, new]
+        p = flown_periods(r[rows, i], theta[rows, i], u[rows[1:] - 1, i], np.diff(rows), dt)
+        v.append(p.sum() * dt / (t[new[-1]] - t[0]))
     if not v:
         return None
     return dict(min=round(float(np.min(v)), 4), median=round(float(np.median(v)), 4), max=round(float(np.max(v)), 4))
+
+
+def flown_periods(r, theta, u, gaps, dt):
+    """(m,) the control periods an agent flew between its m+1 recorded states (r (m+1, 2),
+    θ (m+1,)), each reached with u (m,) held after ``gaps`` (m,) periods of clock: the p in
+    1..gap whose ZOH arc (chord p·dt·sinc(u·p·dt/2), turn u·p·dt) best fits the recorded
+    chord and turn.  At unit speed the path is p·dt; p < gap is sim time not flown."""
+    top = int(min(gaps.max(), 200))
+    p = np.arange(1, top + 1)[None, :]                                 # (1, P) candidates
+    half = u[:, None] * p * dt / 2
+    chord = np.abs(p * dt * np.sinc(half / np.pi))
+    d = np.diff(r, axis=0)
+    miss = np.abs(chord - np.hypot(d[:, 0], d[:, 1])[:, None])
+    turn = np.angle(np.exp(1j * (theta[:-1, None] + 2 * half - theta[1:, None])))
+    score = np.where(p <= gaps[:, None], miss + np.abs(turn), np.inf)
+    return np.argmin(score, axis=1) + 1
 
 
 def line(r) -> str:
@@ -149,6 +169,7 @@ def main(argv=None) -> int:
     ap.add_argument('--timeout', type=float, default=900.0, help='give up on one run after this many s')
     ap.add_argument('--plot', metavar='PNG', help='log-log plot of the sweep')
     ap.add_argument('--out', default='bench/realtime.json', help='results JSON (default bench/realtime.json)')
+    ap.add_argument('--keep', metavar='DIR', help="keep each run's output (trajectory, metrics, bag) in DIR")
     a = ap.parse_args(argv)
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, B.on_signal)
@@ -161,7 +182,8 @@ def main(argv=None) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     try:
         with tempfile.TemporaryDirectory(prefix='bench_rt_') as tmp:
-            tmp = Path(tmp)
+            tmp = Path(a.keep or tmp)
+            tmp.mkdir(parents=True, exist_ok=True)
             if 'record' not in skip:
                 res['record'] = case(a.swarm, env, tmp, *a.record_case, a.duration, record=True, timeout=a.timeout)
             if 'big' not in skip:

@@ -60,7 +60,7 @@ from .agent_core import AgentCore, known_table, roster_index
 from .container_core import ContainerCore
 from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_batch, hear_state, own_echo, realtime_tick,
                          shared_inputs, step_message, step_time)
-from .realtime_core import HeardStates
+from .realtime_core import Continued, HeardStates
 
 
 class AgentNode(Node):
@@ -368,9 +368,9 @@ class RealtimeDriver:
             stale_after=declare(node, 'stale_after', 2.0, 'realtime: ignore neighbour states older than this '
                                 '(sim s)', lo=0.0, hi=1e9),
             catch_up_limit=declare(
-                node, 'catch_up_limit', 4, 'realtime: most control periods one timer call integrates when the '
-                'sim clock jumped (u held); a longer gap (a stopped or starved process) moves the agent this '
-                'many', lo=1, hi=10**6),
+                node, 'catch_up_limit', 4, 'realtime: most control periods the agent integrates (u held) after '
+                'its process was stopped (SIGSTOP ... SIGCONT); a late tick of a running process integrates '
+                'every period that passed', lo=1, hi=10**6),
             future_tolerance=declare(
                 node, 'future_tolerance', FUTURE_TOLERANCE, 'realtime: reject neighbour states stamped more '
                 'than this many sim s ahead of this clock', lo=0.0, hi=1e9))
@@ -395,9 +395,9 @@ class RealtimeDriver:
             self.lock = ContainerCore([node.core])
             self.batch = AgentStatesWriter(node, realtime=True)
             self.process_tag = self.batch.tag
-            leaders = LeaderMask(node.roster)
+            leaders, continued = LeaderMask(node.roster), Continued()
             self.timer = node.create_timer(
-                node.dt, lambda: realtime_tick([node], self.lock, self.heard, leaders, self.batch))
+                node.dt, lambda: realtime_tick([node], self.lock, self.heard, leaders, self.batch, continued))
         node.publish_state()
         self.heard.hear(node.agent_name, (node.t, *node.own[2:]))
         if self.batch is not None:

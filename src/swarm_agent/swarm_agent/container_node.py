@@ -39,7 +39,7 @@ from .agent_node import AgentNode
 from .container_core import ContainerCore
 from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_batch, hear_state, realtime_tick, shared_inputs,
                          step_message, step_time)
-from .realtime_core import HeardStates
+from .realtime_core import Continued, HeardStates
 
 
 class AgentContainer(Node):
@@ -132,9 +132,9 @@ class AgentContainer(Node):
             a.driver.process_tag = self.batch.tag
             self.heard.hear(a.agent_name, (a.t, *a.own[2:]))
         self.batch.publish(self.agents)
-        leaders = LeaderMask(first.roster)
+        leaders, continued = LeaderMask(first.roster), Continued()
         self.rt_timer = first.create_timer(
-            first.dt, lambda: realtime_tick(self.agents, self.lock, self.heard, leaders, self.batch))
+            first.dt, lambda: realtime_tick(self.agents, self.lock, self.heard, leaders, self.batch, continued))
 
     def _on_state(self, raw):
         """Another process's states on /swarm/agent_states (serialized): decoded once, each

@@ -137,20 +137,23 @@ class LeaderMask:
         return self.mask
 
 
-def realtime_tick(agents, lock, heard, leader_mask, batch):
+def realtime_tick(agents, lock, heard, leader_mask, batch, continued):
     """One realtime tick of the agents of a process (`realtime_core`): each agent not halted
     moves by the sim time that passed since its state, in whole periods dt with u held (ZOH;
-    `catch_up`), not by one dt per call: a /clock jump may cover two periods and fire the timer
+    `due_periods`), not by one dt per call: a /clock jump may cover two periods and fire the timer
     once (it catches up), or fire it again at the same time (nothing moves, so no two states
-    share a stamp).  The agents that hear perfectly and are fresh in ``heard`` get their u from
+    share a stamp); after the process was stopped (``continued``, a `Continued`) by at most
+    each agent's ``catch_up_limit`` periods.  The agents that hear perfectly and are fresh in ``heard`` get their u from
     one law call; the others (a radio model) one each.  Then one batched move, one state
     published by each agent that moved, and their states in one message (``batch``, an
     `AgentStatesWriter`).  ``lock``: the agents' `ContainerCore`; ``leader_mask``: a `LeaderMask`
     of the roster."""
     a0 = agents[0]
     now = a0._now()
-    moving = due_periods(now, [a.t for a in agents], a0.dt, [a.driver.catch_up_limit for a in agents],
-                         [a.halted is not None for a in agents])
+    limits = [a.driver.catch_up_limit for a in agents] if continued() else None
+    moving, follow = due_periods(now, [a.t for a in agents], a0.dt, [a.halted is not None for a in agents], limits)
+    for j, t_new in follow:
+        agents[j].t = t_new
     if not moving:
         return
     stale = a0.driver.stale_after

@@ -1,8 +1,8 @@
 """The realtime tick of the agents of one process (an agent container, or a lone agent as a
 container of one), without ROS.
 
-Per tick at sim time ``now`` each agent that is not halted moves by the control periods that
-passed since its state (`agent_core.catch_up`).  The agents that move and hear perfectly (no
+Per tick at sim time ``now`` each agent that is not halted moves by every control period that
+passed since its state (`agent_core.catch_up`, `due_periods`): a late tick never loses sim time.  The agents that move and hear perfectly (no
 radio model) read ONE table, `HeardStates`: the newest state of every agent heard within
 ``stale_after`` of now, the agents of the process among them with their own states (they are
 heard in-process, the moment they publish).  Their controls come from ONE call of the core law
@@ -12,6 +12,10 @@ own, so every u is bit for bit the one that agent computes alone from the same h
 delivered) and a law call of its own.  The agents then move together, one batched ZOH step per
 period (`ContainerCore.advance`)."""
 from __future__ import annotations
+
+import math
+import signal
+import threading
 
 import numpy as np
 
@@ -66,17 +70,50 @@ def shared_controls(cores, heard: HeardStates, now, stale_after, lam, leader_mas
     return u
 
 
-def due_periods(now, times, dt, limits, halted):
-    """[(j, periods, t_new)] of the agents (positions j) that move at ``now``: not halted and at
-    least one period since their state of time ``times[j]`` (`catch_up` with ``limits[j]``)."""
-    out = []
+def due_periods(now, times, dt, halted, limits=None):
+    """([(j, periods, t_new)], [(j, t_new)]): the agents (positions j) that move at ``now`` (at
+    least one period since their state of time ``times[j]``, `catch_up`), and the ``halted``
+    ones (a fault froze or killed them) whose time follows the clock without a move, so that a
+    frozen agent resumes with one period, not with its whole pause.
+
+    Every period that passed is flown (u held): a late tick of a starved process never loses
+    sim time, so the agents fly at unit speed however late their process ticks.  Only after
+    the process itself was stopped (SIGSTOP ... SIGCONT, `Continued`) does each agent move at
+    most ``limits[j]`` periods (its ``catch_up_limit``) and restart its time at ``now``."""
+    moving, follow = [], []
     for j, t in enumerate(times):
+        periods, t_new = catch_up(now, t, dt, math.inf if limits is None else limits[j])
         if halted[j]:
-            continue
-        periods, t_new = catch_up(now, t, dt, limits[j])
-        if periods:
-            out.append((j, periods, t_new))
-    return out
+            if periods:
+                follow.append((j, t_new))
+        elif periods:
+            moving.append((j, periods, t_new))
+    return moving, follow
+
+
+#: SIGCONT deliveries to this process (`Continued`)
+_CONTINUED = [0]
+
+
+def _on_sigcont(_signum, _frame):
+    _CONTINUED[0] += 1
+
+
+class Continued:
+    """Was this process stopped and continued (SIGCONT: the world's freeze fault on a lone
+    agent process, or a shell's Ctrl-Z ... fg) since the last call?  A starved process is
+    late but never continued, so its agents fly every period it missed (`due_periods`).
+    Installs the process's SIGCONT handler (from the main thread; elsewhere none is seen)."""
+
+    def __init__(self):
+        main = threading.current_thread() is threading.main_thread()
+        if main and signal.getsignal(signal.SIGCONT) is not _on_sigcont:
+            signal.signal(signal.SIGCONT, _on_sigcont)
+        self.seen = _CONTINUED[0]
+
+    def __call__(self) -> bool:
+        was, self.seen = self.seen != _CONTINUED[0], _CONTINUED[0]
+        return was
 
 
 def advance_periods(lock, go, periods, us):
