@@ -32,12 +32,12 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time_source import TimeSource
 
-from swarm_ros.msg_checks import Senders
+from swarm_ros.msg_checks import batch_states
 from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node
 
 from .agent_node import AgentNode
 from .container_core import ContainerCore
-from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_batch, hear_state, realtime_tick, shared_inputs,
+from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_batch, realtime_tick, shared_inputs,
                          step_message, step_time)
 from .realtime_core import Continued, HeardStates
 
@@ -124,11 +124,10 @@ class AgentContainer(Node):
         """One table of the states heard, one timer and one batch of states for all the agents."""
         first = self.agents[0]
         self.heard = HeardStates(first.roster)
-        self.senders = Senders()
         self.batch = AgentStatesWriter(self, realtime=True)
-        self.own_tags = {a.agent_name: self.batch.tag for a in self.agents}
         for a in self.agents:          # each published its first state when it was built
             a.driver.heard = self.heard
+            self.heard.own[a.index] = True
             a.driver.process_tag = self.batch.tag
             self.heard.hear(a.agent_name, (a.t, *a.own[2:]))
         self.batch.publish(self.agents)
@@ -137,19 +136,19 @@ class AgentContainer(Node):
             first.dt, lambda: realtime_tick(self.agents, self.lock, self.heard, leaders, self.batch, continued))
 
     def _on_state(self, raw):
-        """Another process's states on /swarm/agent_states (serialized): decoded once, each
-        checked once into the shared table, and heard by each agent with a radio model through
-        its own radio."""
+        """Another process's states on /swarm/agent_states (serialized): decoded once, checked
+        and taken at once into the shared table, and heard by each agent with a radio model
+        through its own radio."""
         first = self.agents[0]
+        m = decode_batch(raw, first.run_id, first.roster, self.batch.tag, self.reject)
+        if m is None:
+            return
         radio = [a for a in self.agents if a.radio_on]
-        perfect = len(radio) < len(self.agents)
-        now = first._now()
-        for state in decode_batch(raw, first.run_id, first.roster, self.batch.tag, self.reject):
+        for state in batch_states(m, first.roster) if radio else ():
             for a in radio:
                 a.driver.hear_radio(state)
-            if perfect:
-                hear_state(state, self.heard, self.senders, self.own_tags, now, first.driver.future_tolerance,
-                           self.reject)
+        if len(radio) < len(self.agents):
+            self.heard.take(m, first.roster, first._now(), first.driver.future_tolerance, self.reject)
 
     def destroy_node(self):
         for a in self.agents:

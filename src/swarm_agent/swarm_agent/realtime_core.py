@@ -20,28 +20,30 @@ import threading
 import numpy as np
 
 from swarm_core.faults import alive_control
+from swarm_ros.msg_checks import NewestStates
 
 from .agent_core import catch_up, received_table
 
 
-class HeardStates:
-    """The newest state heard of every agent of the roster: ``newest`` name -> (t, x, y, qz,
-    qw, u) (what `msg_checks.check_values` compares a new state with) and the same as arrays
-    in roster order, so that a tick's table is one mask, not a loop over the roster."""
+class HeardStates(NewestStates):
+    """The newest state heard of every agent of the roster (`msg_checks.NewestStates`: t, x, y,
+    qz, qw, u as arrays in roster order, so that a tick's table is one mask, not a loop over
+    the roster; a batch of states is checked and taken at once, `take`)."""
 
     def __init__(self, roster):
         self.roster = list(roster)
         self.row = {nm: i for i, nm in enumerate(self.roster)}
-        self.newest = {}
-        self.t = np.full(len(self.roster), -np.inf)
-        self.state = np.zeros((len(self.roster), 4))        # x, y, qz, qw
+        super().__init__(len(self.roster))
 
     def hear(self, name, state):
-        """State (t, x, y, qz, qw, u) of agent ``name``, newer than the one held."""
-        self.newest[name] = state
-        i = self.row[name]
-        self.t[i] = state[0]
-        self.state[i] = state[1:5]
+        """State (t, x, y, qz, qw, u) of agent ``name`` (one of the reader's own, just published)."""
+        self.put(self.row[name], state[0], state[1:5], state[5])
+
+    @property
+    def newest(self):
+        """name -> (t, x, y, qz, qw, u) of the agents heard (`agent_core.known_table`)."""
+        return {self.roster[i]: (float(self.t[i]), *map(float, self.state[i]), float(self.u[i]))
+                for i in np.flatnonzero(np.isfinite(self.t))}
 
     def table(self, now, stale_after, receivers):
         """(rows, states (m, 4)): the agents heard within ``stale_after`` of ``now`` and the

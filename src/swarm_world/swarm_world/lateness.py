@@ -30,18 +30,20 @@ TIMING_FILE = 'timing.json'
 ON_TIME_TARGET = 0.99
 
 
-def bin_of(late) -> int:
-    """The histogram bin of lateness ``late`` (wall s)."""
-    return min(LAST_BIN, math.ceil(math.log(max(late, FIRST_EDGE) / FIRST_EDGE) / _LOG_GROWTH - 1e-9))
-
-
 def bins_of(late):
-    """`bin_of` of an array of lateness (wall s)."""
+    """The histogram bins of lateness ``late`` (wall s, an array)."""
     late = np.maximum(np.asarray(late, float), FIRST_EDGE)
     return np.minimum(np.ceil(np.log(late / FIRST_EDGE) / _LOG_GROWTH - 1e-9), LAST_BIN).astype(np.intp)
 
 
 _LOG_GROWTH = math.log(GROWTH)
+
+
+def ramp(gaps):
+    """0, 1, .., g-1 for each g of ``gaps`` (ints), one after the other."""
+    gaps = np.asarray(gaps, np.int64)
+    ends = np.cumsum(gaps)
+    return np.arange(ends[-1] if len(ends) else 0) - np.repeat(ends - gaps, gaps)
 
 
 class Lateness:
@@ -62,28 +64,27 @@ class Lateness:
         self.excused[i] = True
 
     def arrive(self, i, step, stamp, clock):
-        """Agent i's state of ``step`` (time ``stamp``) arrived with the clock at ``clock`` (sim s);
-        the steps it skipped since its last state are as late as this one, from their own periods."""
-        late = max(0.0, clock - stamp)
-        if self.last[i] >= 0 and not self.excused[i] and step - self.last[i] > 1:
-            gap = int(step - self.last[i] - 1)
-            self.skipped += gap
-            np.add.at(self.hist, bins_of((late + self.dt * np.arange(1, gap + 1)) / self.rtf), 1)
-        self.last[i] = max(self.last[i], step)
-        self.arrived += 1
-        self.on_time += late <= self.dt
-        self.hist[bin_of(late / self.rtf)] += 1
+        """The states of agents ``i`` (distinct) of steps ``step`` (times ``stamp``) arrived with
+        the clock at ``clock`` (sim s); arrays or one each.  The steps an agent skipped since its
+        last state are as late as the state that came, from their own periods."""
+        i, step = np.atleast_1d(i), np.atleast_1d(step)
+        late = np.maximum(0.0, clock - np.atleast_1d(stamp))
+        last = self.last[i]
+        gap = np.where((last >= 0) & ~self.excused[i], np.maximum(0, step - last - 1), 0)
+        if gap.any():
+            self.skipped += int(gap.sum())
+            skipped = np.repeat(late, gap) + self.dt * (ramp(gap) + 1)
+            np.add.at(self.hist, bins_of(skipped / self.rtf), 1)
+        self.last[i] = np.maximum(last, step)
+        self.arrived += len(i)
+        self.on_time += int(np.count_nonzero(late <= self.dt))
+        np.add.at(self.hist, bins_of(late / self.rtf), 1)
 
     def owed(self, step_now):
         """(m,) lateness (sim s, at least) of the states owed by now and not come: each agent not
         excused, from its newest step to ``step_now`` less one period in flight."""
         seen = (self.last >= 0) & ~self.excused
-        gaps = np.maximum(0, step_now - self.last[seen] - 1)
-        if not gaps.sum():
-            return np.zeros(0)
-        ends = np.cumsum(gaps)
-        j = np.arange(ends[-1]) - np.repeat(ends - gaps, gaps)        # 0 .. gap-1 within each agent
-        return self.dt * (j + 1)
+        return self.dt * (ramp(np.maximum(0, step_now - self.last[seen] - 1)) + 1)
 
     def summary(self, step_now=None) -> dict:
         """on_time_share, lateness_p50_ms, lateness_p99_ms, achieved_rtf, states (owed), late,
