@@ -32,6 +32,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time_source import TimeSource
 
+from swarm_core.inputs import LAMBDA_BOUND
 from swarm_ros.msg_checks import batch_states
 from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node
 
@@ -113,7 +114,16 @@ class AgentContainer(Node):
         handler.__name__ = name
         return handler
 
-    _on_lambda = _fan('_on_lambda')
+    def _on_lambda(self, msg):
+        """λ comes every control period: checked once and set on every agent (one that must
+        be refused goes to each agent, which logs it as it would alone)."""
+        if LAMBDA_BOUND.ok(msg.data):
+            for a in self.agents:
+                a.lam = msg.data
+        else:
+            for a in self.agents:
+                a._on_lambda(msg)
+
     _on_leaders = _fan('_on_leaders')
     _on_target = _fan('_on_target')
     _on_barrier = _fan('_on_barrier')
