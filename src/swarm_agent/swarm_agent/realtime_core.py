@@ -2,10 +2,11 @@
 container of one), without ROS.
 
 Per tick at sim time ``now`` each agent that is not halted moves by every control period that
-passed since its state (`agent_core.catch_up`, `due_periods`): a late tick never loses sim time.  The agents that move and hear perfectly (no
-radio model) read ONE table, `HeardStates`: the newest state of every agent heard within
-``stale_after`` of now, the agents of the process among them with their own states (they are
-heard in-process, the moment they publish).  Their controls come from ONE call of the core law
+passed since its state (`agent_core.catch_up`, `due_periods`): a late tick never loses sim
+time.  The agents that move and hear perfectly (no radio model) read ONE table,
+`HeardStates`: the newest state of every agent heard within ``stale_after`` of now, the agents
+of the process among them with their own states (they are heard in-process, the moment they
+publish).  Their controls come from ONE call of the core law
 for those receivers (`shared_controls`; `faults.alive_control` sums each receiver's row on its
 own, so every u is bit for bit the one that agent computes alone from the same heard states,
 `agent_core.known_table`).  An agent with a radio model has a table of its own (what its radio
