@@ -169,18 +169,10 @@ class AgentNode(Node):
     # ------------------------------------------------------------ output
     def publish_state(self):
         """Publish the own state of t (pre-serialised: no message object per step)."""
-        self.note_state()
-        self.send_state()
-
-    def note_state(self):
-        """Take the own state of t as the one published (``own``; `send_state` sends it)."""
         sec, nsec = P.time_to_stamp(self.t)
         qz, qw = self.core.quaternion
         self.own = (sec, nsec, float(self.core.pos[0, 0]), float(self.core.pos[0, 1]), qz, qw,
                     float(self.core.u_last))
-
-    def send_state(self):
-        """Publish ``own`` on /swarm/states."""
         self.pub.publish(self.serialize_state(*self.own))
 
     def applied(self, u):

@@ -128,12 +128,11 @@ def realtime_tick(agents, lock, heard, leader_mask, batch, continued):
     `due_periods`), not by one dt per call: a /clock jump may cover two periods and fire the timer
     once (it catches up), or fire it again at the same time (nothing moves, so no two states
     share a stamp); after the process was stopped (``continued``, a `Continued`) by at most
-    each agent's ``catch_up_limit`` periods.  The agents that hear perfectly and are fresh in
-    ``heard`` get their u from one law call; the others (a radio model) one each.  Then one
-    batched move, the agents' new states in one message (``batch``, an `AgentStatesWriter`),
-    and then each agent's own state on /swarm/states: the readers of states (the world, the
-    other processes) wait for the one batch, not for K publishes before it.  ``lock``: the
-    agents' `ContainerCore`; ``leader_mask``: a `LeaderMask` of the roster."""
+    each agent's ``catch_up_limit`` periods.  The agents that hear perfectly and are fresh in ``heard`` get their u from
+    one law call; the others (a radio model) one each.  Then one batched move, one state
+    published by each agent that moved, and their states in one message (``batch``, an
+    `AgentStatesWriter`).  ``lock``: the agents' `ContainerCore`; ``leader_mask``: a `LeaderMask`
+    of the roster."""
     a0 = agents[0]
     now = a0._now()
     limits = [a.driver.catch_up_limit for a in agents] if continued() else None
@@ -166,8 +165,6 @@ def realtime_tick(agents, lock, heard, leader_mask, batch, continued):
             a.applied(float(us[j]))
         a.step += periods
         a.t = t_new
-        a.note_state()
+        a.publish_state()
         heard.hear(a.agent_name, (a.t, *a.own[2:]))
-    batch.publish([agents[j] for j in go])        # first: what the world and the other processes read
-    for j in go:
-        agents[j].send_state()
+    batch.publish([agents[j] for j in go])
