@@ -16,7 +16,9 @@ a grid (`bench_ros.scenario_file`):
   against n on log-log axes.
 
 The machine's load changes every number here but the CPU per period; the script prints the
-load average next to each run.  Processes, the domain id and Ctrl-C are handled as in
+load average next to each run.  ``--compare REV --rounds R`` runs git revision REV (its src/ first on
+PYTHONPATH, with this venv and this script, so the same measures) and this checkout in turn, R
+pairs, for numbers side by side on a loaded machine.  ``--keep DIR`` keeps every run's output.  Processes, the domain id and Ctrl-C are handled as in
 `bench_ros` (it reuses its `Run`).
 """
 from __future__ import annotations
@@ -81,22 +83,42 @@ def scenario_dt() -> float:
 
 def speeds(path) -> dict | None:
     """Each agent's path length over the time to its last move (the world holds an agent's
-    last state to the end of the run): min / median / max."""
+    last state to the end of the run): min / median / max.  The path between two recorded
+    states is the arc the agent flew (`flown_periods`), not the chord: a state that caught up
+    several periods turned on the way."""
     try:
         with np.load(path) as z:
-            t, r = z['t'], z['r']
+            t, r, theta, u = z['t'], z['r'], z['theta'], z['u']
     except (OSError, ValueError, KeyError):
         return None
+    dt = float(t[1] - t[0])
     v = []
     for i in range(r.shape[1]):
-        step = np.linalg.norm(np.diff(r[:, i], axis=0), axis=1)
-        moved = np.flatnonzero(step > 0)
-        if moved.size < 2 or not np.isfinite(step).all():
+        new = np.flatnonzero((np.diff(r[:, i], axis=0) != 0).any(axis=1)) + 1     # rows of a new state
+        if new.size < 2 or not np.isfinite(r[:, i]).all():
             continue
-        v.append(step.sum() / (t[moved[-1] + 1] - t[0]))
+        rows = np.r_[0, new]
+        p = flown_periods(r[rows, i], theta[rows, i], u[rows[1:] - 1, i], np.diff(rows), dt)
+        v.append(p.sum() * dt / (t[new[-1]] - t[0]))
     if not v:
         return None
     return dict(min=round(float(np.min(v)), 4), median=round(float(np.median(v)), 4), max=round(float(np.max(v)), 4))
+
+
+def flown_periods(r, theta, u, gaps, dt):
+    """(m,) the control periods an agent flew between its m+1 recorded states (r (m+1, 2),
+    θ (m+1,)), each reached with u (m,) held after ``gaps`` (m,) periods of clock: the p in
+    1..gap whose ZOH arc (chord p·dt·sinc(u·p·dt/2), turn u·p·dt) best fits the recorded
+    chord and turn.  At unit speed the path is p·dt; p < gap is sim time not flown."""
+    top = int(min(gaps.max(), 200))
+    p = np.arange(1, top + 1)[None, :]                                 # (1, P) candidates
+    half = u[:, None] * p * dt / 2
+    chord = np.abs(p * dt * np.sinc(half / np.pi))
+    d = np.diff(r, axis=0)
+    miss = np.abs(chord - np.hypot(d[:, 0], d[:, 1])[:, None])
+    turn = np.angle(np.exp(1j * (theta[:-1, None] + 2 * half - theta[1:, None])))
+    score = np.where(p <= gaps[:, None], miss + np.abs(turn), np.inf)
+    return np.argmin(score, axis=1) + 1
 
 
 def line(r) -> str:
@@ -149,39 +171,72 @@ def main(argv=None) -> int:
     ap.add_argument('--timeout', type=float, default=900.0, help='give up on one run after this many s')
     ap.add_argument('--plot', metavar='PNG', help='log-log plot of the sweep')
     ap.add_argument('--out', default='bench/realtime.json', help='results JSON (default bench/realtime.json)')
+    ap.add_argument('--keep', metavar='DIR', help="keep each run's output (trajectory, metrics, bag) in DIR")
+    ap.add_argument('--compare', metavar='REV', help='also run git revision REV (its src/ on PYTHONPATH, this '
+                    'venv and script), interleaved with this checkout: REV, current, REV, current, ...')
+    ap.add_argument('--rounds', type=int, default=1, help='with --compare: pairs of runs (default 1)')
     a = ap.parse_args(argv)
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, B.on_signal)
     dom, lock = B.claim_domain()
     env = dict(os.environ, ROS_DOMAIN_ID=str(dom), PYTHONUNBUFFERED='1')
-    skip = set(a.skip.split(','))
     res = dict(command=' '.join([Path(sys.argv[0]).name] + (sys.argv[1:] if argv is None else argv)),
                date=time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime()), cpus=os.cpu_count(), load_start=B.loadavg())
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     try:
         with tempfile.TemporaryDirectory(prefix='bench_rt_') as tmp:
-            tmp = Path(tmp)
-            if 'record' not in skip:
-                res['record'] = case(a.swarm, env, tmp, *a.record_case, a.duration, record=True, timeout=a.timeout)
-            if 'big' not in skip:
-                res['big'] = case(a.swarm, env, tmp, *a.big_case, a.duration, timeout=a.timeout)
-            res['sweep'] = []
-            for n in B.parse_ints(a.sweep):
-                res['sweep'].append(case(a.swarm, env, tmp, n, 1.0, a.duration, timeout=a.timeout))
-                out.write_text(json.dumps(res, indent=1))
-            ok = [r['agents'] for r in res['sweep'] if on_time(r) >= TARGET]
-            res['largest_n_on_time'] = max(ok) if ok else None
+            tmp = Path(a.keep or tmp)
+            tmp.mkdir(parents=True, exist_ok=True)
+            if a.compare:
+                before = dict(env, PYTHONPATH=extract(a.compare, tmp / 'rev'))
+                res['compare'] = a.compare
+                for k in range(a.rounds):
+                    for side, e in ((a.compare, before), ('current', env)):
+                        print(f'bench_realtime: {side}, round {k + 1}', flush=True)
+                        res.setdefault(side, []).append(
+                            parts(a, e, tmp / f'{k}-{side}', lambda: out.write_text(json.dumps(res, indent=1))))
+            else:
+                res.update(parts(a, env, tmp, lambda: out.write_text(json.dumps(res, indent=1))))
     finally:
         res['load_end'] = B.loadavg()
         out.write_text(json.dumps(res, indent=1))
         lock.close()
-    print(f"bench_realtime: largest n at rtf 1 with ≥ {TARGET:.0%} on time: {res.get('largest_n_on_time')}")
+    if not a.compare:
+        print(f"bench_realtime: largest n at rtf 1 with ≥ {TARGET:.0%} on time: {res.get('largest_n_on_time')}")
     if a.plot and res.get('sweep'):
         plot(res['sweep'], a.plot)
         print(f'bench_realtime: wrote {a.plot}')
     print(f'bench_realtime: wrote {out}')
     return 0
+
+
+def parts(a, env, tmp, save) -> dict:
+    """The record case, the big case and the sweep (those not skipped) in directory ``tmp``."""
+    tmp.mkdir(parents=True, exist_ok=True)
+    skip, res = set(a.skip.split(',')), {}
+    if 'record' not in skip:
+        res['record'] = case(a.swarm, env, tmp, *a.record_case, a.duration, record=True, timeout=a.timeout)
+    if 'big' not in skip:
+        res['big'] = case(a.swarm, env, tmp, *a.big_case, a.duration, timeout=a.timeout)
+    res['sweep'] = []
+    for n in B.parse_ints(a.sweep):
+        res['sweep'].append(case(a.swarm, env, tmp, n, 1.0, a.duration, timeout=a.timeout))
+        save()
+    ok = [r['agents'] for r in res['sweep'] if on_time(r) >= TARGET]
+    res['largest_n_on_time'] = max(ok) if ok else None
+    return res
+
+
+def extract(rev, into) -> str:
+    """src/ of git revision ``rev`` into ``into``: the PYTHONPATH that puts its packages before
+    this venv's editable installs of this checkout."""
+    import subprocess
+    root = Path(__file__).resolve().parent.parent
+    tar = subprocess.run(['git', '-C', str(root), 'archive', rev, 'src'], capture_output=True, check=True).stdout
+    into.mkdir(parents=True, exist_ok=True)
+    subprocess.run(['tar', '-x', '-C', str(into)], input=tar, check=True)
+    return os.pathsep.join(str(d) for d in sorted((into / 'src').iterdir()) if d.is_dir())
 
 
 if __name__ == '__main__':

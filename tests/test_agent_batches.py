@@ -9,12 +9,12 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from swarm_agent.process_io import AgentStatesWriter, decode_batch, hear_state
+from swarm_agent.process_io import AgentStatesWriter, decode_batch, own_echo
 from swarm_agent.realtime_core import HeardStates
 from swarm_core.frenet import quaternion_from_heading
 from swarm_ros import protocol as P
 from swarm_ros.layouts import ProcessStates
-from swarm_ros.msg_checks import FUTURE_TOLERANCE, Senders
+from swarm_ros.msg_checks import FUTURE_TOLERANCE, Senders, check_values, refused
 
 N, RUN = 10, 'run42'
 ROSTER = [f'agent_{i}' for i in range(N)]
@@ -67,11 +67,17 @@ def _batch(agents, tag=None):
 
 
 def _one_by_one(agents, tag, heard, senders, own, now, log):
-    """The same states as /swarm/states messages, decoded and heard as they were."""
+    """The same states as /swarm/states messages, decoded and each checked as it was
+    (`check_values`, one sender per name, the reader's own agents only from itself)."""
     for a in agents:
         raw = P.OdometryWriter(a.agent_name, tag=tag)(*a.own)
         name, sec, nsec, pose, wz, sender = P.cdr_to_odometry_tagged(raw)
-        hear_state((name, sec + nsec * 1e-9, pose, wz, sender), heard, senders, own, now, FUTURE_TOLERANCE, log)
+        t = sec + nsec * 1e-9
+        if own_echo(name, sender, own, log) or refused(log, check_values(
+                name, t, pose, wz, heard.row, heard.newest, now, FUTURE_TOLERANCE) or senders.check(name, sender)):
+            continue
+        senders.accept(name, sender)
+        heard.hear(name, (t, pose[0], pose[1], pose[4], pose[5], wz))
 
 
 def test_a_batch_gives_the_table_the_states_one_by_one_give():
@@ -80,15 +86,15 @@ def test_a_batch_gives_the_table_the_states_one_by_one_give():
     ticks = [(_agents(rng, [0, 2, 3, 7], [0.1, 0.1, 0.15, 0.1]), _agents(rng, [5, 6, 8, 9], [0.1] * 4)),
              (_agents(rng, [0, 2, 3, 7], [0.2, 0.25, 0.2, 0.2]), _agents(rng, [5, 8], [0.2, 0.3]))]
     a, b = HeardStates(ROSTER), HeardStates(ROSTER)
-    sa, sb, log_a, log_b = Senders(), Senders(), _Log(), _Log()
+    a.own[mine] = True
+    sb, log_a, log_b = Senders(), _Log(), _Log()
     own_tag = 5.0
     for tick in ticks:
         for p, agents in enumerate(tick):
             raw, tag = _batch(agents, tag=100.0 + p)
-            states = decode_batch(raw, RUN, ROSTER, own_tag, log_a)
-            assert len(states) == len(agents)
-            for s in states:
-                hear_state(s, a, sa, {ROSTER[i]: own_tag for i in mine}, 0.3, FUTURE_TOLERANCE, log_a)
+            m = decode_batch(raw, RUN, ROSTER, own_tag, log_a)
+            assert len(m.index) == len(agents)
+            a.take(m, ROSTER, 0.3, FUTURE_TOLERANCE, log_a)
             _one_by_one(agents, 100.0 + p, b, sb, {ROSTER[i]: own_tag for i in mine}, 0.3, log_b)
     assert not log_a and not log_b
     assert a.newest == b.newest and len(a.newest) == 8
@@ -102,12 +108,14 @@ def test_a_batch_gives_the_table_the_states_one_by_one_give():
 
 def test_each_state_of_a_batch_is_checked():
     rng = np.random.default_rng(5)
-    heard, senders, log = HeardStates(ROSTER), Senders(), _Log()
-    own_tag, own = 5.0, {'agent_1': 5.0}
+    heard, log = HeardStates(ROSTER), _Log()
+    own_tag = 5.0
+    heard.own[1] = True
 
     def hear(raw):
-        for s in decode_batch(raw, RUN, ROSTER, own_tag, log):
-            hear_state(s, heard, senders, own, 1.0, FUTURE_TOLERANCE, log)
+        m = decode_batch(raw, RUN, ROSTER, own_tag, log)
+        if m is not None:
+            heard.take(m, ROSTER, 1.0, FUTURE_TOLERANCE, log)
 
     first = _agents(rng, [0, 2], [0.5, 0.5])
     hear(_batch(first, tag=7.0)[0])
@@ -133,3 +141,29 @@ def test_each_state_of_a_batch_is_checked():
     data[-2] = np.nan                                                                # a non-finite pose
     hear(P.float64_array_to_cdr(data))
     assert log == ['unknown-agent', 'duplicate', 'not-planar', 'non-finite'] and 'agent_3' not in heard.newest
+
+
+def test_a_mixed_batch_is_taken_as_its_states_one_by_one():
+    """Batches mixing good states with repeats, duplicates, past and future stamps, a second
+    process and claims on the reader's agent: taken at once, the table and the kinds refused
+    are those of the same states checked one by one."""
+    rng = np.random.default_rng(11)
+    a, b, sb, log_a, log_b = HeardStates(ROSTER), HeardStates(ROSTER), Senders(), _Log(), _Log()
+    a.own[1] = True
+    own = {'agent_1': 5.0}
+    sent = {}
+    for tick in range(60):
+        tag = float(rng.choice([7.0, 8.0, 9.0]))
+        rows = sorted(rng.choice(N, size=rng.integers(1, 6), replace=False).tolist())
+        t = np.round(rng.uniform(0, 4.0, len(rows)), 1)
+        agents = _agents(rng, rows, t)
+        for ag in agents:                                 # some exact repeats of a state sent before
+            if ag.index in sent and rng.random() < 0.3:
+                ag.own = sent[ag.index]
+            sent[ag.index] = ag.own
+        m = decode_batch(_batch(agents, tag=tag)[0], RUN, ROSTER, 5.0, log_a)
+        a.take(m, ROSTER, 1.0 + tick * 0.05, FUTURE_TOLERANCE, log_a)
+        _one_by_one(agents, tag, b, sb, own, 1.0 + tick * 0.05, log_b)
+        assert sorted(set(log_a)) == sorted(set(log_b)), tick
+        del log_a[:], log_b[:]
+    assert a.newest == b.newest and np.array_equal(a.state, b.state)

@@ -8,7 +8,7 @@ import pytest
 
 from swarm_agent.agent_core import AgentCore, known_table
 from swarm_agent.container_core import ContainerCore
-from swarm_agent.realtime_core import HeardStates, advance_periods, due_periods, shared_controls
+from swarm_agent.realtime_core import Continued, HeardStates, advance_periods, due_periods, shared_controls
 from swarm_core.frenet import quaternion_from_heading
 from swarm_core.laws import LawConfig
 
@@ -46,7 +46,8 @@ def test_container_tick_equals_lone_agents(law):
         for i in others:
             heard.hear(roster[i], (now - rng.uniform(0, 2 * DT), *p[i], qz[i], qw[i], 0.0))
         lam, steering = rng.uniform(0, 1), rng.uniform(-0.1, 0.1, len(MINE))
-        moving = due_periods(now, times, DT, [4] * len(MINE), [False] * len(MINE))
+        moving, follow = due_periods(now, times, DT, [False] * len(MINE))
+        assert follow == []
         assert [j for j, _, _ in moving] == list(range(len(MINE)))
         u = shared_controls(cores, heard, now, STALE, lam, mask, steering, target, barrier)
         for j, c in enumerate(lone):
@@ -82,5 +83,38 @@ def test_stale_states_leave_the_table_and_halted_agents_stay():
     rows, states = heard.table(1.5, 1.0, [3])
     assert list(rows) == [0, 3]                        # c is 1.3 s old; d is a receiver, always in
     assert states[0].tolist() == [0, 0, 0, 1]
-    moving = due_periods(1.0, [0.95, 0.95, 0.0, 0.9], 0.05, [4, 4, 4, 4], [False, True, False, False])
-    assert moving == [(0, 1, 1.0), (2, 4, 1.0), (3, 2, 1.0)]       # b halted; c starved: 4 periods, time reset
+    moving, follow = due_periods(1.0, [0.95, 0.95, 0.0, 0.9], 0.05, [False, True, False, False], [4, 4, 4, 4])
+    assert moving == [(0, 1, 1.0), (2, 4, 1.0), (3, 2, 1.0)]       # after a stop: c moves 4 periods, time reset
+    assert follow == [(1, 1.0)]                                      # b halted: its time follows the clock
+
+
+def test_a_late_tick_flies_every_period_it_missed():
+    """A starved process ticks late (here 2 s of clock in one tick): its agents fly every period
+    that passed, so they keep unit speed (path = periods flown · dt over the sim time); a frozen
+    agent's time follows the clock, so it resumes with one period, not with its whole pause."""
+    dt, t, flown = 0.1, [0.0, 0.0, 0.0], [0, 0, 0]
+    halted = [False, False, False]
+    for k, now in enumerate(np.r_[np.arange(1, 51), np.arange(70, 101)] * dt):   # no tick in 5..7 s
+        halted[2] = 20 <= k < 40                                                    # frozen 2..4 s
+        moving, follow = due_periods(float(now), t, dt, halted)
+        for j, periods, t_new in moving:
+            flown[j] += periods
+            t[j] = t_new
+        for j, t_new in follow:
+            t[j] = t_new
+    assert flown[:2] == [100, 100] and t[:2] == pytest.approx([10.0, 10.0])       # unit speed: 10 s flown
+    assert flown[2] == 100 - 20 and t[2] == pytest.approx(10.0)                   # held still for 20 periods only
+
+
+def test_continued_sees_a_sigcont_once_per_reader():
+    import os
+    import signal
+    a, b = Continued(), Continued()
+    assert not a() and not b()
+    os.kill(os.getpid(), signal.SIGCONT)          # as after SIGSTOP: the process was continued
+    for _ in range(1000):                         # the handler runs between bytecodes
+        if a():
+            break
+    else:
+        pytest.fail('SIGCONT not seen')
+    assert b() and not a() and not b()

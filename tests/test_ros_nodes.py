@@ -1,6 +1,8 @@
 """Node tests with rclpy executors: several nodes in one executor, each test on its own
 ROS_DOMAIN_ID and rclpy Context (fixtures in conftest.py)."""
 import math
+import os
+import signal
 
 import numpy as np
 import pytest
@@ -178,7 +180,8 @@ def test_realtime_agent_moves_with_the_sim_clock(rclpy_context):
     """The realtime agent's timer against a hand-driven /clock: a jump of two periods moves it
     two periods (it moved one per timer call, so agents flew at 0.55-0.7 of unit speed in
     `swarm run --mode realtime`), the same time again publishes no second state with that
-    stamp, and a long gap (a stopped process) moves it `catch_up_limit` periods."""
+    stamp, a late tick flies every period that passed, and a long gap after the process was
+    stopped (SIGCONT) moves it `catch_up_limit` periods."""
     scn = load('homotopy_global')
     ctx = rclpy_context
     ex = make_executor(ctx)
@@ -206,9 +209,11 @@ def test_realtime_agent_moves_with_the_sim_clock(rclpy_context):
     moved = float(np.hypot(*(agent.core.pos - start)[0]))
     assert moved == pytest.approx(2 * scn.dt, rel=1e-3)        # unit speed: an arc of 2 dt
     assert at(2 * scn.dt, 2) == 2                                 # the same time: nothing
-    assert at(2 * scn.dt + 100 * scn.dt, 2 + limit) == 2 + limit
+    assert at(12 * scn.dt, 12) == 12                              # a late tick (starved): every period
+    os.kill(os.getpid(), signal.SIGCONT)                          # as after SIGSTOP ... SIGCONT
+    assert at(112 * scn.dt, 12 + limit) == 12 + limit
     stamps = [(m.header.stamp.sec, m.header.stamp.nanosec) for m in states]
-    assert len(stamps) == len(set(stamps)) == 3, stamps         # t = 0, 2 dt, 102 dt
+    assert len(stamps) == len(set(stamps)) == 4, stamps         # t = 0, 2 dt, 12 dt, 112 dt
     probe.destroy_node()
 
 def test_target_and_barrier_updates_reach_agents(rclpy_context):

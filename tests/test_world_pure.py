@@ -15,6 +15,7 @@ from swarm_world.inputs import fault_request, format_points, leader_flags, parse
 from swarm_world.lockstep import decision_valid
 from swarm_world.markers import markers_every
 from swarm_world.observe import Observer
+from swarm_ros.msg_checks import NewestStates
 from swarm_world.realtime import RealtimeSchedule, newest_view
 from swarm_world.wallclock import StallWatch, StartWatch
 
@@ -105,8 +106,10 @@ def test_realtime_view_is_due_once_per_period_and_never_with_zero():
 
 def test_newest_view_samples_in_roster_order():
     qz, qw = quaternion_from_heading(0.5)
-    newest = {'c': (1.0, 5.0, 6.0, qz, qw), 'a': (0.9, 1.0, 2.0, 0.0, 1.0)}
-    pos, theta = newest_view(newest, NAMES)
+    heard = NewestStates(len(NAMES))
+    heard.put(NAMES.index('c'), 1.0, (5.0, 6.0, qz, qw), 0.0)
+    heard.put(NAMES.index('a'), 0.9, (1.0, 2.0, 0.0, 1.0), 0.0)
+    pos, theta = newest_view(heard)
     assert pos.tolist() == [[1.0, 2.0], [5.0, 6.0]]
     assert theta == pytest.approx([0.0, 0.5])
 

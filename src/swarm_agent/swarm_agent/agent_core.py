@@ -41,8 +41,8 @@ def catch_up(now: float, t_state: float, dt: float, limit: int) -> tuple[int, fl
     periods = round((now − t_state)/dt): a /clock jump may cover two periods (one timer call)
     or none (a second call at the same time: 0 periods, no new state).  The new state's time is
     t_state + periods·dt, so rounding never accumulates.  A gap of more than ``limit`` periods
-    (the process was stopped, e.g. a freeze fault, or starved) moves the agent ``limit``
-    periods and restarts its time at ``now``."""
+    moves the agent ``limit`` periods and restarts its time at ``now`` (the limit applies
+    after the process was stopped, `realtime_core.due_periods`; a late tick flies every period)."""
     periods = math.floor((now - t_state) / dt + 0.5)
     if periods < 1:
         return 0, t_state

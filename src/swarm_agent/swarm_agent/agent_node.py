@@ -51,16 +51,16 @@ from swarm_core.laws import LAW_PARAMETERS, LawConfig
 from swarm_core.robot_units import ROBOT_KINDS
 from swarm_core.scenario import noise_rng
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import (FUTURE_TOLERANCE, RejectLog, Senders, check_barrier, check_values, new_sender_tag,
-                                  refused)
+from swarm_ros.msg_checks import (FUTURE_TOLERANCE, RejectLog, Senders, batch_states, check_barrier, check_values,
+                                  new_sender_tag, refused)
 from swarm_ros.rosutil import ParameterError, declare, run_node, when_matched
 from swarm_ros.runinfo import declare_run_id
 
 from .agent_core import AgentCore, known_table, roster_index
 from .container_core import ContainerCore
-from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_batch, hear_state, own_echo, realtime_tick,
+from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_batch, own_echo, realtime_tick,
                          shared_inputs, step_message, step_time)
-from .realtime_core import HeardStates
+from .realtime_core import Continued, HeardStates
 
 
 class AgentNode(Node):
@@ -368,9 +368,9 @@ class RealtimeDriver:
             stale_after=declare(node, 'stale_after', 2.0, 'realtime: ignore neighbour states older than this '
                                 '(sim s)', lo=0.0, hi=1e9),
             catch_up_limit=declare(
-                node, 'catch_up_limit', 4, 'realtime: most control periods one timer call integrates when the '
-                'sim clock jumped (u held); a longer gap (a stopped or starved process) moves the agent this '
-                'many', lo=1, hi=10**6),
+                node, 'catch_up_limit', 4, 'realtime: most control periods the agent integrates (u held) after '
+                'its process was stopped (SIGSTOP ... SIGCONT); a late tick of a running process integrates '
+                'every period that passed', lo=1, hi=10**6),
             future_tolerance=declare(
                 node, 'future_tolerance', FUTURE_TOLERANCE, 'realtime: reject neighbour states stamped more '
                 'than this many sim s ahead of this clock', lo=0.0, hi=1e9))
@@ -380,8 +380,9 @@ class RealtimeDriver:
         self.stale_after = stale_after
         self.catch_up_limit = catch_up_limit
         self.future_tolerance = future_tolerance
-        self.senders = Senders()     # each neighbour name bound to its first publisher
+        self.senders = Senders()     # radio model: each neighbour name bound to its first publisher
         self.heard = HeardStates(node.roster)   # alone, perfect radio: newest states (contained: the container's)
+        self.heard.own[node.index] = True
         self.radio_heard = {}        # radio model: name -> newest state heard (before the radio)
         self.stream = StreamRadio(node.radio, node.index)
         self.timer = None
@@ -395,9 +396,9 @@ class RealtimeDriver:
             self.lock = ContainerCore([node.core])
             self.batch = AgentStatesWriter(node, realtime=True)
             self.process_tag = self.batch.tag
-            leaders = LeaderMask(node.roster)
+            leaders, continued = LeaderMask(node.roster), Continued()
             self.timer = node.create_timer(
-                node.dt, lambda: realtime_tick([node], self.lock, self.heard, leaders, self.batch))
+                node.dt, lambda: realtime_tick([node], self.lock, self.heard, leaders, self.batch, continued))
         node.publish_state()
         self.heard.hear(node.agent_name, (node.t, *node.own[2:]))
         if self.batch is not None:
@@ -413,12 +414,14 @@ class RealtimeDriver:
     def on_input(self, raw):
         """One agent process's states on ``/swarm/agent_states`` (serialized)."""
         node = self.node
-        own = {node.agent_name: self.process_tag}
-        for state in decode_batch(raw, node.run_id, node.roster, self.process_tag, node.reject):
-            if node.radio_on:
+        m = decode_batch(raw, node.run_id, node.roster, self.process_tag, node.reject)
+        if m is None:
+            return
+        if node.radio_on:
+            for state in batch_states(m, node.roster):
                 self.hear_radio(state)
-            else:
-                hear_state(state, self.heard, self.senders, own, node._now(), self.future_tolerance, node.reject)
+        else:
+            self.heard.take(m, node.roster, node._now(), self.future_tolerance, node.reject)
 
     def hear_radio(self, state):
         """A decoded state (`decode_batch`) through this agent's radio model."""

@@ -39,14 +39,15 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time_source import TimeSource
 
-from swarm_ros.msg_checks import Senders
+from swarm_core.inputs import LAMBDA_BOUND
+from swarm_ros.msg_checks import batch_states
 from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node
 
 from .agent_node import AgentNode
 from .container_core import ContainerCore
-from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_batch, hear_state, realtime_tick, shared_inputs,
+from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_batch, realtime_tick, shared_inputs,
                          step_message, step_time)
-from .realtime_core import HeardStates
+from .realtime_core import Continued, HeardStates
 
 
 class AgentContainer(Node):
@@ -126,7 +127,16 @@ class AgentContainer(Node):
         handler.__name__ = name
         return handler
 
-    _on_lambda = _fan('_on_lambda')
+    def _on_lambda(self, msg):
+        """λ comes every control period: checked once and set on every agent (one that must
+        be refused goes to each agent, which logs it as it would alone)."""
+        if LAMBDA_BOUND.ok(msg.data):
+            for a in self.agents:
+                a.lam = msg.data
+        else:
+            for a in self.agents:
+                a._on_lambda(msg)
+
     _on_leaders = _fan('_on_leaders')
     _on_target = _fan('_on_target')
     _on_barrier = _fan('_on_barrier')
@@ -139,11 +149,10 @@ class AgentContainer(Node):
         robot's pose, not a move), all on the first agent's clock."""
         first = self.agents[0]
         self.heard = HeardStates(first.roster)
-        self.senders = Senders()
         self.batch = AgentStatesWriter(self, realtime=True)
-        self.own_tags = {a.agent_name: self.batch.tag for a in self.agents}
         for a in self.agents:          # each published its first state when it was built
             a.driver.heard = self.heard
+            self.heard.own[a.index] = True
             a.driver.process_tag = self.batch.tag
             self.heard.hear(a.agent_name, (a.t, *a.own[2:]))
         self.batch.publish(self.agents)
@@ -154,24 +163,24 @@ class AgentContainer(Node):
                 a.driver.batch = self.batch
                 self.rt_timers.append(first.create_timer(first.dt, a.driver.on_tick))
         if kinematic:
-            lock, leaders = ContainerCore([a.core for a in kinematic]), LeaderMask(first.roster)
+            lock, leaders, continued = ContainerCore([a.core for a in kinematic]), LeaderMask(first.roster), Continued()
             self.rt_timers.append(first.create_timer(
-                first.dt, lambda: realtime_tick(kinematic, lock, self.heard, leaders, self.batch)))
+                first.dt, lambda: realtime_tick(kinematic, lock, self.heard, leaders, self.batch, continued)))
 
     def _on_state(self, raw):
-        """Another process's states on /swarm/agent_states (serialized): decoded once, each
-        checked once into the shared table, and heard by each agent with a radio model through
-        its own radio."""
+        """Another process's states on /swarm/agent_states (serialized): decoded once, checked
+        and taken at once into the shared table, and heard by each agent with a radio model
+        through its own radio."""
         first = self.agents[0]
+        m = decode_batch(raw, first.run_id, first.roster, self.batch.tag, self.reject)
+        if m is None:
+            return
         radio = [a for a in self.agents if a.radio_on]
-        perfect = len(radio) < len(self.agents)
-        now = first._now()
-        for state in decode_batch(raw, first.run_id, first.roster, self.batch.tag, self.reject):
+        for state in batch_states(m, first.roster) if radio else ():
             for a in radio:
                 a.driver.hear_radio(state)
-            if perfect:
-                hear_state(state, self.heard, self.senders, self.own_tags, now, first.driver.future_tolerance,
-                           self.reject)
+        if len(radio) < len(self.agents):
+            self.heard.take(m, first.roster, first._now(), first.driver.future_tolerance, self.reject)
 
     def destroy_node(self):
         for a in self.agents:

@@ -14,7 +14,7 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_ros import protocol as P
 from swarm_ros.layouts import AgentStates, ProcessStates, Step
-from swarm_ros.msg_checks import batch_states, check_values, decoded, new_sender_tag, refused
+from swarm_ros.msg_checks import batch_ok, decoded, new_sender_tag
 
 from .realtime_core import advance_periods, due_periods, shared_controls
 
@@ -91,11 +91,12 @@ def step_message(raw, lock, agents, reject, batch):
 
 
 def decode_batch(raw, run_id, roster, own_tag, reject):
-    """The states in a serialized ``/swarm/agent_states`` message, each (name, t, pose (x, y, qx, qy,
-    qz, qw), u, process tag) as one /swarm/states message would give it (`msg_checks.batch_states`; [] for this process's own
-    batch, ``own_tag``, or a refused one)."""
+    """The serialized ``/swarm/agent_states`` message ``raw`` decoded (`layouts.ProcessStates`),
+    or None for this process's own batch (``own_tag``) or a refused one (`msg_checks.batch_ok`).
+    Its states are then checked and heard at once (`HeardStates.take`), or one by one through a
+    radio model (`msg_checks.batch_states`)."""
     m = decoded(ProcessStates, raw, run_id, reject, 'state-decode')
-    return [] if m is None else batch_states(m, roster, own_tag, reject)
+    return m if m is not None and batch_ok(m, roster, own_tag, reject) else None
 
 
 def own_echo(name, tag, own, reject) -> bool:
@@ -106,22 +107,6 @@ def own_echo(name, tag, own, reject) -> bool:
     if tag != own[name]:
         reject('dup-self', f'state claiming to be {name!r} (this agent) from another publisher: duplicate agent name')
     return True
-
-
-def hear_state(state, heard, senders, own, now, tolerance, reject):
-    """A decoded state (`decode_batch`) for the agents of a process that hear perfectly:
-    checked once (`check_values`, one publisher per name) and kept in ``heard`` (a
-    `HeardStates`).  ``own``: the process's agents, name -> sender tag; their own states are
-    heard in-process when they publish, so their echo is dropped (from another publisher: a
-    duplicate name)."""
-    name, t, pose, wz, tag = state
-    if own_echo(name, tag, own, reject):
-        return
-    if refused(reject, check_values(name, t, pose, wz, heard.row, heard.newest, now, tolerance)
-               or senders.check(name, tag)):
-        return
-    senders.accept(name, tag)
-    heard.hear(name, (t, pose[0], pose[1], pose[4], pose[5], wz))
 
 
 class LeaderMask:
@@ -137,20 +122,23 @@ class LeaderMask:
         return self.mask
 
 
-def realtime_tick(agents, lock, heard, leader_mask, batch):
+def realtime_tick(agents, lock, heard, leader_mask, batch, continued):
     """One realtime tick of the agents of a process (`realtime_core`): each agent not halted
     moves by the sim time that passed since its state, in whole periods dt with u held (ZOH;
-    `catch_up`), not by one dt per call: a /clock jump may cover two periods and fire the timer
+    `due_periods`), not by one dt per call: a /clock jump may cover two periods and fire the timer
     once (it catches up), or fire it again at the same time (nothing moves, so no two states
-    share a stamp).  The agents that hear perfectly and are fresh in ``heard`` get their u from
+    share a stamp); after the process was stopped (``continued``, a `Continued`) by at most
+    each agent's ``catch_up_limit`` periods.  The agents that hear perfectly and are fresh in ``heard`` get their u from
     one law call; the others (a radio model) one each.  Then one batched move, one state
     published by each agent that moved, and their states in one message (``batch``, an
     `AgentStatesWriter`).  ``lock``: the agents' `ContainerCore`; ``leader_mask``: a `LeaderMask`
     of the roster."""
     a0 = agents[0]
     now = a0._now()
-    moving = due_periods(now, [a.t for a in agents], a0.dt, [a.driver.catch_up_limit for a in agents],
-                         [a.halted is not None for a in agents])
+    limits = [a.driver.catch_up_limit for a in agents] if continued() else None
+    moving, follow = due_periods(now, [a.t for a in agents], a0.dt, [a.halted is not None for a in agents], limits)
+    for j, t_new in follow:
+        agents[j].t = t_new
     if not moving:
         return
     stale = a0.driver.stale_after

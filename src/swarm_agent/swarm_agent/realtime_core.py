@@ -1,11 +1,12 @@
 """The realtime tick of the agents of one process (an agent container, or a lone agent as a
 container of one), without ROS.
 
-Per tick at sim time ``now`` each agent that is not halted moves by the control periods that
-passed since its state (`agent_core.catch_up`).  The agents that move and hear perfectly (no
-radio model) read ONE table, `HeardStates`: the newest state of every agent heard within
-``stale_after`` of now, the agents of the process among them with their own states (they are
-heard in-process, the moment they publish).  Their controls come from ONE call of the core law
+Per tick at sim time ``now`` each agent that is not halted moves by every control period that
+passed since its state (`agent_core.catch_up`, `due_periods`): a late tick never loses sim
+time.  The agents that move and hear perfectly (no radio model) read ONE table,
+`HeardStates`: the newest state of every agent heard within ``stale_after`` of now, the agents
+of the process among them with their own states (they are heard in-process, the moment they
+publish).  Their controls come from ONE call of the core law
 for those receivers (`shared_controls`; `faults.alive_control` sums each receiver's row on its
 own, so every u is bit for bit the one that agent computes alone from the same heard states,
 `agent_core.known_table`).  An agent with a radio model has a table of its own (what its radio
@@ -13,31 +14,37 @@ delivered) and a law call of its own.  The agents then move together, one batche
 period (`ContainerCore.advance`)."""
 from __future__ import annotations
 
+import math
+import signal
+import threading
+
 import numpy as np
 
 from swarm_core.faults import alive_control
+from swarm_ros.msg_checks import NewestStates
 
 from .agent_core import catch_up, received_table
 
 
-class HeardStates:
-    """The newest state heard of every agent of the roster: ``newest`` name -> (t, x, y, qz,
-    qw, u) (what `msg_checks.check_values` compares a new state with) and the same as arrays
-    in roster order, so that a tick's table is one mask, not a loop over the roster."""
+class HeardStates(NewestStates):
+    """The newest state heard of every agent of the roster (`msg_checks.NewestStates`: t, x, y,
+    qz, qw, u as arrays in roster order, so that a tick's table is one mask, not a loop over
+    the roster; a batch of states is checked and taken at once, `take`)."""
 
     def __init__(self, roster):
         self.roster = list(roster)
         self.row = {nm: i for i, nm in enumerate(self.roster)}
-        self.newest = {}
-        self.t = np.full(len(self.roster), -np.inf)
-        self.state = np.zeros((len(self.roster), 4))        # x, y, qz, qw
+        super().__init__(len(self.roster))
 
     def hear(self, name, state):
-        """State (t, x, y, qz, qw, u) of agent ``name``, newer than the one held."""
-        self.newest[name] = state
-        i = self.row[name]
-        self.t[i] = state[0]
-        self.state[i] = state[1:5]
+        """State (t, x, y, qz, qw, u) of agent ``name`` (one of the reader's own, just published)."""
+        self.put(self.row[name], state[0], state[1:5], state[5])
+
+    @property
+    def newest(self):
+        """name -> (t, x, y, qz, qw, u) of the agents heard (`agent_core.known_table`)."""
+        return {self.roster[i]: (float(self.t[i]), *map(float, self.state[i]), float(self.u[i]))
+                for i in np.flatnonzero(np.isfinite(self.t))}
 
     def table(self, now, stale_after, receivers):
         """(rows, states (m, 4)): the agents heard within ``stale_after`` of ``now`` and the
@@ -66,17 +73,50 @@ def shared_controls(cores, heard: HeardStates, now, stale_after, lam, leader_mas
     return u
 
 
-def due_periods(now, times, dt, limits, halted):
-    """[(j, periods, t_new)] of the agents (positions j) that move at ``now``: not halted and at
-    least one period since their state of time ``times[j]`` (`catch_up` with ``limits[j]``)."""
-    out = []
+def due_periods(now, times, dt, halted, limits=None):
+    """([(j, periods, t_new)], [(j, t_new)]): the agents (positions j) that move at ``now`` (at
+    least one period since their state of time ``times[j]``, `catch_up`), and the ``halted``
+    ones (a fault froze or killed them) whose time follows the clock without a move, so that a
+    frozen agent resumes with one period, not with its whole pause.
+
+    Every period that passed is flown (u held): a late tick of a starved process never loses
+    sim time, so the agents fly at unit speed however late their process ticks.  Only after
+    the process itself was stopped (SIGSTOP ... SIGCONT, `Continued`) does each agent move at
+    most ``limits[j]`` periods (its ``catch_up_limit``) and restart its time at ``now``."""
+    moving, follow = [], []
     for j, t in enumerate(times):
+        periods, t_new = catch_up(now, t, dt, math.inf if limits is None else limits[j])
         if halted[j]:
-            continue
-        periods, t_new = catch_up(now, t, dt, limits[j])
-        if periods:
-            out.append((j, periods, t_new))
-    return out
+            if periods:
+                follow.append((j, t_new))
+        elif periods:
+            moving.append((j, periods, t_new))
+    return moving, follow
+
+
+#: SIGCONT deliveries to this process (`Continued`)
+_CONTINUED = [0]
+
+
+def _on_sigcont(_signum, _frame):
+    _CONTINUED[0] += 1
+
+
+class Continued:
+    """Was this process stopped and continued (SIGCONT: the world's freeze fault on a lone
+    agent process, or a shell's Ctrl-Z ... fg) since the last call?  A starved process is
+    late but never continued, so its agents fly every period it missed (`due_periods`).
+    Installs the process's SIGCONT handler (from the main thread; elsewhere none is seen)."""
+
+    def __init__(self):
+        main = threading.current_thread() is threading.main_thread()
+        if main and signal.getsignal(signal.SIGCONT) is not _on_sigcont:
+            signal.signal(signal.SIGCONT, _on_sigcont)
+        self.seen = _CONTINUED[0]
+
+    def __call__(self) -> bool:
+        was, self.seen = self.seen != _CONTINUED[0], _CONTINUED[0]
+        return was
 
 
 def advance_periods(lock, go, periods, us):

@@ -91,14 +91,18 @@ class TrajectoryRecorder:
 
     # ------------------------------------------------------------------ realtime rows
     def record_realtime(self, i, k, vals, u, lam, leaders):
-        """One agent's state (x, y, qz, qw) stamped at step k, with the λ and leaders seen then."""
-        if 0 <= k <= self.steps:
-            self.lam[k] = lam
-            self.leader[k] = leaders
-            self.r[k, i] = vals[:2]
-            self.theta[k, i] = yaw_from_quaternion(vals[2], vals[3])
-            if k > 0:
-                self.u[k - 1, i] = u
+        """The states (x, y, qz, qw) of agents ``i`` (distinct) stamped at steps ``k``, with the
+        u they carry and the λ and leaders seen then (arrays, or one of each)."""
+        i, k, u = np.atleast_1d(i), np.atleast_1d(k), np.atleast_1d(u)
+        vals = np.atleast_2d(np.asarray(vals, float))
+        keep = (k >= 0) & (k <= self.steps)
+        i, k, vals, u = i[keep], k[keep], vals[keep], u[keep]
+        self.lam[k] = lam
+        self.leader[k] = leaders
+        self.r[k, i] = vals[:, :2]
+        self.theta[k, i] = yaw_from_quaternion(vals[:, 2], vals[:, 3])
+        after = k > 0
+        self.u[k[after] - 1, i[after]] = u[after]
 
     # ------------------------------------------------------------------ faults
     def freeze(self, i, k0, k1):

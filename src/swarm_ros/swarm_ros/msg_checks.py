@@ -152,15 +152,20 @@ def check_agent_states(index, vals, n, topic=P.LOCK_AGENT_STATES):
     return None
 
 
-def batch_states(msg, roster, own_tag, reject):
-    """The states of a decoded ``/swarm/agent_states`` message (`layouts.ProcessStates`, whose
-    decoder checked the run id and that every value is finite), each as one /swarm/states
-    message gives it: [(name, t, pose (x, y, 0, 0, qz, qw), u, the process's tag)], to be
-    checked one by one as those are (`check_values`, one sender per name).  [] for
-    the reader's own process (``own_tag``) and, logged with ``reject``, for a message naming an
-    agent outside ``roster`` or twice, or with an orientation that is not planar."""
-    if msg.tag == own_tag or refused(reject, check_agent_states(msg.index, msg.pose, len(roster), P.AGENT_STATES)):
-        return []
+def batch_ok(msg, roster, own_tag, reject) -> bool:
+    """Is a decoded ``/swarm/agent_states`` message (`layouts.ProcessStates`, whose decoder
+    checked the run id and that every value is finite) one to read?  Not the reader's own
+    process's (``own_tag``), nor, logged with ``reject``, one naming an agent outside
+    ``roster`` or twice, or with an orientation that is not planar.  Its states are then
+    checked each as one /swarm/states message is (`NewestStates.take`, or one by one:
+    `batch_states`, `check_values`, one sender per name)."""
+    return msg.tag != own_tag and not refused(reject, check_agent_states(msg.index, msg.pose, len(roster),
+                                                                         P.AGENT_STATES))
+
+
+def batch_states(msg, roster):
+    """The states of a message `batch_ok` passed, each as one /swarm/states message gives it:
+    [(name, t, pose (x, y, 0, 0, qz, qw), u, the process's tag)]."""
     x, y, qz, qw = msg.pose.tolist()
     return [(roster[i], t, (x[j], y[j], 0.0, 0.0, qz[j], qw[j]), u, msg.tag)
             for j, (i, t, u) in enumerate(zip(msg.index.tolist(), msg.t.tolist(), msg.u.tolist()))]
@@ -279,3 +284,60 @@ def may_signal(pid, agent: str, launcher: int, proc='/proc'):
     if not exe or f'__ns:=/{agent}' not in argv:
         return f'pid {pid} is not the agent process of {agent} (command line {" ".join(argv)[:120]!r})'
     return None
+
+
+class NewestStates:
+    """The newest accepted state of each agent of a roster of ``n`` as arrays: ``t`` (n,) (−inf:
+    none yet), ``state`` (n, 4) x, y, qz, qw, ``u`` (n,) and the process each agent is bound
+    to (``tag``, NaN: none).  `take` checks a whole decoded ``/swarm/agent_states`` message at
+    once, each state as `check_values` and `Senders` check one ``/swarm/states`` message (its
+    decoder and `check_agent_states` did the rest); ``own`` (n,) marks the reader's own agents,
+    whose states only it may send."""
+
+    def __init__(self, n):
+        import numpy as np
+        self.t = np.full(int(n), -np.inf)
+        self.state = np.zeros((int(n), 4))
+        self.u = np.zeros(int(n))
+        self.tag = np.full(int(n), np.nan)
+        self.own = np.zeros(int(n), bool)
+
+    def put(self, i, t, state, u):
+        """Agent i's state, taken (the reader's own, or checked)."""
+        self.t[i] = t
+        self.state[i] = state
+        self.u[i] = u
+
+    def take(self, msg, roster, now, tolerance, reject):
+        """(K,) bool: the states of ``msg`` (`layouts.ProcessStates`) taken as the agents' newest;
+        each refused one logged with ``reject`` by kind, as `check_values` words it (an exact
+        repeat of the newest state is dropped silently)."""
+        import numpy as np
+        i, t, pose = msg.index, msg.t, msg.pose.T
+        t0 = self.t[i]
+        same = t == t0
+        repeat = same & (pose == self.state[i]).all(axis=1)
+        bound = self.tag[i]
+        why = [('dup-self', self.own[i], lambda j: f'state claiming to be {roster[i[j]]!r} (this agent) from '
+                'another publisher: duplicate agent name'),
+               ('future-stamp', t > now + tolerance, lambda j: f'state of {roster[i[j]]!r} stamped t={t[j]:.3f}, '
+                f'ahead of this clock t={now:.3f} by more than {tolerance:g} s (a stamp from the future)'),
+               ('past-stamp', t < t0, lambda j: f'state of {roster[i[j]]!r} stamped t={t[j]:.3f}, older than '
+                f'its newest t={t0[j]:.3f} (a stamp from the past)'),
+               (None, repeat, None),
+               ('duplicate', same, lambda j: f'second, different state of {roster[i[j]]!r} for '
+                f't={t[j]:.3f}: duplicate agent name (two publishers?)'),
+               ('second-publisher', (bound == bound) & (bound != msg.tag), lambda j: f'state of '
+                f'{roster[i[j]]!r} from a second publisher (sender {_show(msg.tag)}; the name is bound to '
+                f'{_show(float(bound[j]))}, its first)')]
+        ok = np.ones(len(i), bool)
+        for kind, bad, text in why:
+            bad = bad & ok
+            if bad.any():
+                if kind is not None:
+                    reject(kind, reason(kind, text(int(np.flatnonzero(bad)[0]))))
+                ok &= ~bad
+        take = i[ok]
+        self.t[take], self.state[take], self.u[take] = t[ok], pose[ok], msg.u[ok]
+        self.tag[take[self.tag[take] != self.tag[take]]] = msg.tag
+        return ok

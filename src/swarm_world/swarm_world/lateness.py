@@ -7,20 +7,43 @@ world (the clock runs at ``rtf`` sim s per wall s), and the periods an agent ski
 process catches up several periods in one state, `agent_core.catch_up`): those states never
 come and count as late.  An agent that a fault killed or froze is excused its gaps.
 
-Reported (`summary`): the share of states on time, the p50 / p99 lateness (wall ms, skipped
-states counted as later than any: None where a quantile falls among them), and the achieved
-real-time factor: ``rtf`` times the share of owed periods that were computed."""
+Reported (`summary`): the share of states on time, the p50 / p99 lateness (wall ms) and the
+achieved real-time factor: ``rtf`` times the share of owed periods that were computed.  A
+state that never came has a lateness too, so every quantile is a number: a skipped one (an
+agent caught up over it) is as late as the state that came in its place, counted from its own
+period; one still owed when the summary is made is at least as late as the clock then."""
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
-#: the histogram of lateness: bins of this many wall seconds, up to LAST_BIN bins (beyond: the last)
-BIN = 0.0005
-LAST_BIN = 20000
+#: the lateness histogram: bin b holds lateness up to FIRST_EDGE · GROWTH^b wall s (bin 0: up to
+#: FIRST_EDGE), so a quantile is its bin's upper edge, within 1 % above the true value
+FIRST_EDGE = 1e-4
+GROWTH = 1.01
+#: bins up to FIRST_EDGE · GROWTH^LAST_BIN (about 12 days; beyond: the last)
+LAST_BIN = 2500
 #: what the world writes into its output_dir at the end of a realtime run (`summary` and rtf)
 TIMING_FILE = 'timing.json'
 #: the run fell behind when fewer states than this share came on time
 ON_TIME_TARGET = 0.99
+
+
+def bins_of(late):
+    """The histogram bins of lateness ``late`` (wall s, an array)."""
+    late = np.maximum(np.asarray(late, float), FIRST_EDGE)
+    return np.minimum(np.ceil(np.log(late / FIRST_EDGE) / _LOG_GROWTH - 1e-9), LAST_BIN).astype(np.intp)
+
+
+_LOG_GROWTH = math.log(GROWTH)
+
+
+def ramp(gaps):
+    """0, 1, .., g-1 for each g of ``gaps`` (ints), one after the other."""
+    gaps = np.asarray(gaps, np.int64)
+    ends = np.cumsum(gaps)
+    return np.arange(ends[-1] if len(ends) else 0) - np.repeat(ends - gaps, gaps)
 
 
 class Lateness:
@@ -41,42 +64,48 @@ class Lateness:
         self.excused[i] = True
 
     def arrive(self, i, step, stamp, clock):
-        """Agent i's state of ``step`` (time ``stamp``) arrived with the clock at ``clock`` (sim s)."""
-        if self.last[i] >= 0 and not self.excused[i]:
-            self.skipped += max(0, int(step - self.last[i] - 1))
-        self.last[i] = max(self.last[i], step)
-        late = max(0.0, clock - stamp)
-        self.arrived += 1
-        self.on_time += late <= self.dt
-        self.hist[min(int(late / self.rtf / BIN), LAST_BIN)] += 1
+        """The states of agents ``i`` (distinct) of steps ``step`` (times ``stamp``) arrived with
+        the clock at ``clock`` (sim s); arrays or one each.  The steps an agent skipped since its
+        last state are as late as the state that came, from their own periods."""
+        i, step = np.atleast_1d(i), np.atleast_1d(step)
+        late = np.maximum(0.0, clock - np.atleast_1d(stamp))
+        last = self.last[i]
+        gap = np.where((last >= 0) & ~self.excused[i], np.maximum(0, step - last - 1), 0)
+        if gap.any():
+            self.skipped += int(gap.sum())
+            skipped = np.repeat(late, gap) + self.dt * (ramp(gap) + 1)
+            np.add.at(self.hist, bins_of(skipped / self.rtf), 1)
+        self.last[i] = np.maximum(last, step)
+        self.arrived += len(i)
+        self.on_time += int(np.count_nonzero(late <= self.dt))
+        np.add.at(self.hist, bins_of(late / self.rtf), 1)
 
     def owed(self, step_now):
-        """States owed by now and not come: each agent not excused, from its newest step to
-        ``step_now`` less one period in flight."""
+        """(m,) lateness (sim s, at least) of the states owed by now and not come: each agent not
+        excused, from its newest step to ``step_now`` less one period in flight."""
         seen = (self.last >= 0) & ~self.excused
-        return int(np.maximum(0, step_now - self.last[seen] - 1).sum())
+        return self.dt * (ramp(np.maximum(0, step_now - self.last[seen] - 1)) + 1)
 
     def summary(self, step_now=None) -> dict:
         """on_time_share, lateness_p50_ms, lateness_p99_ms, achieved_rtf, states (owed), late,
         arrived."""
-        missed = self.skipped + (self.owed(step_now) if step_now is not None else 0)
+        owed = self.owed(step_now) if step_now is not None else np.zeros(0)
+        missed = self.skipped + len(owed)
         total = self.arrived + missed
         if total == 0:
             return dict(on_time_share=None, lateness_p50_ms=None, lateness_p99_ms=None, achieved_rtf=None,
                         states=0, late=0, arrived=0)
-        return dict(on_time_share=self.on_time / total, lateness_p50_ms=self._quantile(0.5, missed),
-                    lateness_p99_ms=self._quantile(0.99, missed),
+        hist = self.hist + np.bincount(bins_of(owed / self.rtf), minlength=LAST_BIN + 1)
+        return dict(on_time_share=self.on_time / total, lateness_p50_ms=quantile_ms(hist, 0.5),
+                    lateness_p99_ms=quantile_ms(hist, 0.99),
                     achieved_rtf=self.rtf * self.arrived / total, states=total, late=total - self.on_time,
                     arrived=self.arrived)
 
-    def _quantile(self, q, missed):
-        """Wall ms at quantile q of the arrived states' lateness (the upper edge of its bin);
-        None where it falls among the missed states or beyond the histogram."""
-        rank = q * (self.arrived + missed)
-        if rank > self.arrived:
-            return None
-        k = int(np.searchsorted(np.cumsum(self.hist), max(rank, 1)))
-        return round((k + 1) * BIN * 1000.0, 3) if k < LAST_BIN else None
+
+def quantile_ms(hist, q):
+    """Wall ms at quantile q of the lateness histogram ``hist`` (the upper edge of its bin)."""
+    k = int(np.searchsorted(np.cumsum(hist), max(q * hist.sum(), 1)))
+    return round(FIRST_EDGE * GROWTH ** k * 1000.0, 3)
 
 
 def behind_line(s: dict, rtf: float) -> str | None:
@@ -91,6 +120,5 @@ def timing_line(s: dict) -> str:
     """The realtime timing in one line."""
     if s.get('on_time_share') is None:
         return 'timing: no states'
-    ms = lambda v: 'beyond measure' if v is None else f'{v:.1f} ms'  # noqa: E731
     return (f'timing: {s["on_time_share"]:.1%} of {s["states"]} states on time, lateness p50 '
-            f'{ms(s["lateness_p50_ms"])} p99 {ms(s["lateness_p99_ms"])}, achieved rtf {s["achieved_rtf"]:.2f}')
+            f'{s["lateness_p50_ms"]:.1f} ms p99 {s["lateness_p99_ms"]:.1f} ms, achieved rtf {s["achieved_rtf"]:.2f}')

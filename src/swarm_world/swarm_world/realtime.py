@@ -62,10 +62,8 @@ class RealtimeSchedule:
         track_slots(self.slots, ev, self.row)
 
 
-def newest_view(newest, names):
-    """Positions (m, 2) and headings (m,) of the agents in ``newest`` (name → (t, x, y, qz,
-    qw)), in roster order."""
-    have = [nm for nm in names if nm in newest]
-    pos = np.array([newest[nm][1:3] for nm in have])
-    theta = np.array([yaw_from_quaternion(*newest[nm][3:5]) for nm in have])
-    return pos, theta
+def newest_view(heard):
+    """Positions (m, 2) and headings (m,) of the agents heard (``heard``: a
+    `msg_checks.NewestStates`), in roster order."""
+    have = np.isfinite(heard.t)
+    return heard.state[have, :2], yaw_from_quaternion(heard.state[have, 2], heard.state[have, 3])

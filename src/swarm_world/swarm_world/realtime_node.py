@@ -9,6 +9,7 @@ import json
 import time
 from pathlib import Path
 
+import numpy as np
 from rosgraph_msgs.msg import Clock
 
 from swarm_core import metrics as M
@@ -16,7 +17,7 @@ from swarm_core.atomic import write_atomic
 from swarm_core.inputs import LAMBDA_BOUND
 from swarm_ros import protocol as P
 from swarm_ros.layouts import ProcessStates
-from swarm_ros.msg_checks import batch_states, check_values, decoded, refused
+from swarm_ros.msg_checks import batch_ok, decoded
 
 from .inputs import leader_flags
 from .lateness import TIMING_FILE, behind_line, timing_line
@@ -29,29 +30,26 @@ class RealtimeWorld:
 
     def _on_state(self, raw):
         """Realtime: the states of one agent process (a serialized /swarm/agent_states
-        message), each checked as a /swarm/states message would be."""
+        message), checked at once as /swarm/states messages would be one by one
+        (`msg_checks.NewestStates.take`), kept as the agents' newest and recorded, with their
+        lateness (against the sim time the wall clock says, from the start on)."""
         m = decoded(ProcessStates, raw, self.run_id, self.reject, 'state-decode')
-        if m is None:
+        if m is None or not batch_ok(m, self.names, None, self.reject):
             return
-        wall = (time.monotonic() - self.run_wall) * self.rtf if self.started else None
-        for state in batch_states(m, self.names, None, self.reject):
-            self._hear(state, wall)
+        ok = self.heard.take(m, self.names, self.sim_t, self.future_tolerance, self.reject)
+        if not ok.any():
+            return
+        i, t = m.index[ok], m.t[ok]
+        k = np.rint(t / self.dt).astype(np.int64)                 # protocol.step_of
+        if self.started:
+            self.lateness.arrive(i, k, t, (time.monotonic() - self.run_wall) * self.rtf)
+        self.rec.record_realtime(i, k, m.pose[:, ok].T, m.u[ok], self.lam_now, self.leaders_now)
 
-    def _hear(self, state, wall):
-        """One agent's state (`msg_checks.batch_states`): kept as its newest and recorded, with
-        its lateness (``wall``: the sim time the wall clock says, None before the start)."""
-        name, t, pose, wz, tag = state
-        if refused(self.reject, check_values(name, t, pose, wz, self.row, self.newest, self.sim_t,
-                                             self.future_tolerance) or self.senders.check(name, tag)):
-            return
-        i = self.row[name]
-        vals = (pose[0], pose[1], pose[4], pose[5])
-        self.senders.accept(name, tag)
-        self.newest[name] = (t, *vals)
-        k = P.step_of(t, self.dt)
-        if wall is not None:
-            self.lateness.arrive(i, k, t, wall)
-        self.rec.record_realtime(i, k, vals, wz, self.lam_now, self.leaders_now)
+    @property
+    def newest(self):
+        """name -> (t, x, y, qz, qw) of the agents heard (for inspection)."""
+        h = self.heard
+        return {self.names[i]: (float(h.t[i]), *map(float, h.state[i])) for i in np.flatnonzero(np.isfinite(h.t))}
 
     def _on_lambda(self, msg):
         if LAMBDA_BOUND.ok(msg.data):
@@ -68,7 +66,7 @@ class RealtimeWorld:
         if self.other_run():
             return
         if not self.started:
-            if len(self.newest) < self.n:
+            if not np.isfinite(self.heard.t).all():
                 return
             self.started, self.run_wall = True, now
             self.log(f'[world] realtime: {self.n} agents discovered in {now - self.wall_start:.1f} s; '
@@ -78,7 +76,7 @@ class RealtimeWorld:
         k = P.step_of(self.sim_t, self.dt)
         self.act(self.rt.comms_due(k))
         if self.rt.view_due(k):
-            pos, theta = newest_view(self.newest, self.names)
+            pos, theta = newest_view(self.heard)
             t = k * self.dt
             md = M.min_distance(pos)
             line = self.obs.progress(t, pos, md, self.lam_now)

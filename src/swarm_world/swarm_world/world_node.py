@@ -34,7 +34,8 @@ from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
 from swarm_ros import protocol as P
 from swarm_ros.layouts import AgentStates, Decision
-from swarm_ros.msg_checks import ProcessSenders, RejectLog, Senders, check_agent_states, decoded, may_signal, reason
+from swarm_ros.msg_checks import (NewestStates, ProcessSenders, RejectLog, check_agent_states, decoded, may_signal,
+                                  reason)
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, older_runs, parse_robots_text, run_json
 from swarm_ros.scenario_params import declare_scenario
@@ -72,7 +73,6 @@ class WorldNode(RealtimeWorld, Node):
         self._open_events_file()
         self.add_on_set_parameters_callback(self._on_params)
         self.reject = RejectLog(self.get_logger())
-        self.senders = Senders()            # each agent name bound to its first publisher
         self._create_endpoints()
         self._create_logic()
         self.last_msg = None
@@ -179,7 +179,7 @@ class WorldNode(RealtimeWorld, Node):
                                    self.view_every)
         self.obs = Observer(self.collision_distance, self.w, self.progress_every)
         self.lateness = Lateness(self.n, self.dt, self.rtf)     # realtime: states on time (`lateness`)
-        self.newest = {}         # name -> (t, x, y, qz, qw) newest accepted
+        self.heard = NewestStates(self.n)     # realtime: each agent's newest accepted state
         self.start_watch = StartWatch(time.monotonic(), self.n, start_timeout=self.start_timeout,
                                       relay_want=self.step_readers, clock_want=self.clock_readers,
                                       wait_for_recorder=self.wait_for_recorder,
