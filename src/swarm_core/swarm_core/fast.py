@@ -27,6 +27,7 @@ from numba import njit
 
 from .command_plan import CHOOSE_RISE
 from .faults import event_names
+from .fast_radio import radio_arguments, radio_control, radio_receive, radio_state, radio_stats
 from .pair_sums import DENSE_LIMIT
 from .schedules import ConstantLambda, ConstantSteering, SinusoidSteering, TanhWindow
 from .trajectory import Trajectory
@@ -45,7 +46,7 @@ def fallback_reason(scn, integrator=None, commands=None) -> str | None:
         (len(scn.names) > DENSE_LIMIT, f'more than {DENSE_LIMIT} agents'),
         (bool(spec.faults) or spec.failover is not None, 'faults or failover'),
         (bool(spec.reunion), 'reunion'),
-        (spec.comms is not None and scn.comm_model() is not None, 'radio model'),
+        (spec.comms is not None and _has_radio_events(scn), 'radio events'),
     )
     for bad, why in checks:
         if bad:
@@ -55,6 +56,12 @@ def fallback_reason(scn, integrator=None, commands=None) -> str | None:
     if any(not isinstance(p, (ConstantSteering, SinusoidSteering)) for p in progs):
         return 'steering program other than constant or sinusoid'
     return None
+
+
+def _has_radio_events(scn) -> bool:
+    """Whether the scenario's radio changes in time (scheduled ``comms.events``: not covered)."""
+    model = scn.comm_model()
+    return model is not None and bool(model.events)
 
 
 # ------------------------------------------------------------------ kernels
@@ -260,14 +267,16 @@ def _steering(prog, t):
 
 @njit(cache=True)
 def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choose_at, choose_rise,
-         world, barrier, noise, every, r_rec, th_rec, u_rec, lead_rec):
-    """Every step of a run (the commander's plan, the law, the zoh step, the noise) with the
-    records of every ``every``-th step filled in place; returns the step at which the rule
-    chose the leaders (−1: none)."""
+         world, barrier, noise, radio, every, r_rec, th_rec, u_rec, lead_rec):
+    """Every step of a run (the commander's plan, the radio, the law, the zoh step, the noise)
+    with the records of every ``every``-th step filled in place; returns the step at which
+    the rule chose the leaders (−1: none).  radio: `fast_radio.radio_arguments`."""
     n = x.size
     steps = lams.size - 1
     alpha, eta, mu, r0, w, leader_gain = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5]
-    c, s, u, steer = np.empty(n), np.empty(n), np.empty(n), np.zeros(n)
+    c, s, u, steer = np.empty(n), np.empty(n), np.zeros(n), np.zeros(n)   # u: the last step's, sent
+    on = radio[0][0] != 0.0
+    state = radio_state(n if on else 0, max(1, radio[4].size - 2), int(radio[0][4]))
     mom = np.empty((6, n))
     is_leader = leader_prog >= 0
     pending = rule and not is_leader.any()
@@ -290,7 +299,11 @@ def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choos
         eff_lam, eff_q0 = (0.0, 1.0) if code == 0 else (0.0, 0.0) if code == 1 else \
             (1.0, 0.0) if code == 2 else (lam, q0)
         lead = is_leader if code == 2 or code == 3 else np.zeros(n, np.bool_)
-        if code == 4:
+        if on:
+            radio_receive(i, x, y, theta, u, radio, state)
+            radio_control(i, x, y, c, s, eff_lam, eff_q0, lead, steer, code, gains, world[4] != 0.0,
+                          radio[0], state, u)
+        elif code == 4:
             _target_control(x, y, c, s, alpha, r0, w, world[4] != 0.0, u)
         else:
             _control(x, y, c, s, eff_lam, eff_q0, lead, steer, alpha, eta, mu, r0, w, leader_gain, mom, u)
@@ -402,10 +415,12 @@ def simulate(scn, *, integrator=None, record_every: int = 1, neighbour_search: s
     r, th, u = np.empty((rows, n, 2)), np.empty((rows, n)), np.empty((rows, n))
     lead = np.empty((rows, n), dtype=bool)
     lams = _lambdas(plan.schedule, steps, scn.dt)
+    model = scn.comm_model()
+    radio = radio_arguments(model, n)
     chosen = _run(scn.pos0[:, 0].copy(), scn.pos0[:, 1].copy(), scn.theta0.astype(float),
                   float(scn.dt), lams, LAW_CODES[law.kind], float(law.q0), gains, leader_prog,
                   _program_rows(progs), rule, float(plan.choose_at), CHOOSE_RISE, *_world(scn), _noise(scn, steps),
-                  int(record_every), r, th, u, lead)
+                  radio, int(record_every), r, th, u, lead)
     events = []
     if chosen >= 0:
         slots = [int(k) for k in sorted(np.flatnonzero(leader_prog >= 0), key=lambda k: leader_prog[k])]
@@ -418,6 +433,8 @@ def simulate(scn, *, integrator=None, record_every: int = 1, neighbour_search: s
                 integrator='zoh', steps=steps, record_every=record_every,
                 wall_seconds=time.perf_counter() - wall, neighbour_search=neighbour_search,
                 interrupted=False, events=events, engine='fast')
+    if model is not None:
+        meta['comms'] = radio_stats(radio[4], scn.dt)
     return Trajectory(scn.names, (np.arange(steps + 1) * scn.dt)[every], r, th, u, lams[every], lead, meta)
 
 
@@ -430,5 +447,5 @@ def warm_up() -> float:
     _run(np.array([0.0, 1.0]), np.zeros(n), np.zeros(n), 0.1, _tanh_window(np.arange(steps + 1) * 0.1,
          400.0, 600.0, 30.0, 0.0, 1.0), 3, 1.0, np.array([0.02, 0.02, 0.02, 1.5, 4.0, 30.0]),
          np.full(n, -1, dtype=np.int64), _program_rows([ConstantSteering(0.01)]), True, 0.0, CHOOSE_RISE,
-         np.zeros(8), np.zeros((0, 2)), np.zeros((0, n, 3)), 1, r, th, u, np.empty((steps + 1, n), dtype=bool))
+         np.zeros(8), np.zeros((0, 2)), np.zeros((0, n, 3)), radio_arguments(None, n), 1, r, th, u, np.empty((steps + 1, n), dtype=bool))
     return time.perf_counter() - t0
