@@ -349,21 +349,20 @@ def _decide(i, x, y, seed, rf, link, labels, keys, harr, stats):
                 harr[k, j] = i
                 continue
             h = _mix(h_k ^ keys[j])
-            ok = labels[k] == labels[j] and (link[0, k, j] <= 0.0 or _uniform(_mix(h ^ _KEY_LOSS)) >= link[0, k, j])
+            ok = labels[k] == labels[j]                 # & rather than branches: fates are random
+            if link[0, k, j] > 0.0:
+                ok = ok & (_uniform(_mix(h ^ _KEY_LOSS)) >= link[0, k, j])
             if rf[1] != 0.0:
                 dx, dy = x[k] - x[j], y[k] - y[j]
-                ok = ok and dx * dx + dy * dy <= rf[2]
-            if not ok:
-                harr[k, j] = -1
-                continue
+                ok = ok & (dx * dx + dy * dy <= rf[2])
             if link[2, k, j] > 0.0:
                 delay_t = link[1, k, j] + link[2, k, j] * _uniform(_mix(h ^ _KEY_DELAY))
                 delay = max(math.ceil(delay_t / dt - 1e-9), 0)
             else:
                 delay = int(link[3, k, j])
-            harr[k, j] = i + delay
-            stats[2 + delay] += 1
-            got += 1
+            harr[k, j] = i + delay if ok else -1
+            stats[2 + delay] += ok
+            got += ok
     stats[0] += n * (n - 1)
     stats[1] += got
 
@@ -405,14 +404,15 @@ def radio_receive(i, x, y, q, u_prev, radio, state):
         for j in range(n):
             if j == k:
                 continue
-            for d in range(back + 1):                # the newest message due now
+            newest, at = -1, slot                    # the newest message due now
+            for d in range(back, -1, -1):
                 sl = slot - d if d <= slot else slot - d + ring
-                if harr[sl, k, j] == i:
-                    if i - d > stamp[k, j]:
-                        stamp[k, j] = i - d
-                        for f in range(6):
-                            belief[f, k, j] = hist[sl, f, j]
-                    break
+                hit = harr[sl, k, j] == i
+                newest, at = (i - d, sl) if hit else (newest, at)
+            fresh = newest > stamp[k, j]             # selects, not branches: fates are random
+            stamp[k, j] = newest if fresh else stamp[k, j]
+            for f in range(6):
+                belief[f, k, j] = hist[at, f, j] if fresh else belief[f, k, j]
 
 
 # ------------------------------------------------------------------ beliefs and the law
