@@ -53,7 +53,8 @@ def test_fast_radio_equals_reference_to_t50_on_every_shipped_radio_scenario(name
     dict(partition=[SIX[:2], SIX[2:4]], timeout=0.5, dead_reckoning=False),
     dict(loss=0.3, links=[{'sender': 'agent_0', 'receiver': 'agent_3', 'loss': 0.9},
                           {'receiver': 'agent_5', 'latency': 1.0, 'jitter': 0.2}]),
-], ids=['loss', 'latency', 'jitter', 'range', 'partition', 'partitions-timeout-no-dr', 'links'])
+    dict(loss=0.99, timeout=20.0),                                # beliefs up to 200 steps old
+], ids=['loss', 'latency', 'jitter', 'range', 'partition', 'partitions-timeout-no-dr', 'links', 'old-beliefs'])
 def test_fast_radio_equals_reference_to_t50_on_radio_variants(name, radio):
     _same_run(scenario.load(name, duration=50.0, comms=radio))
 

@@ -33,6 +33,8 @@ from .comms import _GOLDEN, _M1, _M2, STREAM_DELAY, STREAM_LOSS, _mix as _mix_ar
 _S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
 _UNIT = 1.0 / 9007199254740992.0            # 2⁻⁵³, as `comms.link_uniforms`
 #: mix(stream + G) of the two streams (`comms.link_uniforms`' last key)
+#: dead-reckoned messages kept per sender and step: those up to this many steps old
+PREDICTED_AGES = 64
 _KEY_LOSS, _KEY_DELAY = _mix_array(np.array([STREAM_LOSS, STREAM_DELAY], dtype=np.uint64) + _GOLDEN)
 
 
@@ -376,11 +378,12 @@ def radio_state(n, ring, max_age):
     the hash keys mix(k + G) of the rows."""
     stamp = np.full((n, n), -1, np.int64)
     sent_at = np.full((ring, n, n), -2, np.int64)
-    predicted_at = np.full((n, max_age + 1), -1, np.int64)
+    ages = min(max_age, PREDICTED_AGES - 1) + 1
+    predicted_at = np.full((n, ages), -1, np.int64)
     keys = np.empty(n, np.uint64)
     for k in range(n):
         keys[k] = _mix(np.uint64(k) + _GOLDEN)
-    return (stamp, np.zeros((6, n, n)), np.zeros((ring, 6, n)), sent_at, np.zeros((n, max_age + 1, 4)),
+    return (stamp, np.zeros((6, n, n)), np.zeros((ring, 6, n)), sent_at, np.zeros((n, ages, 4)),
             predicted_at, np.zeros((4, n)), np.zeros(n, np.int64), keys)
 
 
@@ -429,11 +432,14 @@ def _believed(i, k, rf, state):
         if j == k or stamp[k, j] < 0 or age > rf[4]:
             continue
         if rf[5] != 0.0 and age > 0:
-            if pred_at[j, age] != i:                 # each message (j, age) once per step
-                _dead_reckon(belief[:, k, j], age * rf[3], pred[j, age])
-                pred_at[j, age] = i
-            for f in range(4):
-                table[f, m] = pred[j, age, f]
+            if age >= pred_at.shape[1]:              # an old message: not kept
+                _dead_reckon(belief[:, k, j], age * rf[3], table[:, m])
+            else:
+                if pred_at[j, age] != i:             # each message (j, age) once per step
+                    _dead_reckon(belief[:, k, j], age * rf[3], pred[j, age])
+                    pred_at[j, age] = i
+                for f in range(4):
+                    table[f, m] = pred[j, age, f]
         else:
             qz, qw = belief[2, k, j], belief[3, k, j]
             table[0, m], table[1, m] = belief[0, k, j], belief[1, k, j]
