@@ -221,6 +221,9 @@ def main(argv=None):
                    help='also measure the reference numpy path (KD-tree / all pairs) at the sizes '
                         'where the engine takes compiled kernels')
     p.add_argument('--duration', type=float, help='length of the full runs (default: the scenario\'s, t = 1000)')
+    p.add_argument('--radio-breakdown', action='store_true',
+                   help='also the fast engine over radios that leave out one cost at a time (what bounds '
+                        'the lossy radio against the perfect one)')
     p.add_argument('--worker', help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.worker:
@@ -251,6 +254,9 @@ def main(argv=None):
                   for dt in (0.05, 0.1) for eng in ('reference', 'fast')]
         specs += [dict(what='run', name='homotopy_global', dt=0.1, duration=a.duration, comms=dict(loss=0.5),
                        engine=eng) for eng in ('reference', 'fast')]
+        if a.radio_breakdown:         # the radio's machinery with nothing lost, loss without dead reckoning, latency
+            specs += [dict(what='run', name='homotopy_global', dt=0.1, duration=a.duration, comms=c, engine='fast')
+                      for c in RADIO_BREAKDOWN]
         specs += [dict(what='start', cold=cold) for cold in (True, False)]
     res = dict(command='scripts/bench_core.py ' + ' '.join(sys.argv[1:] if argv is None else argv),
                load_before=loadavg(), cpus=os.cpu_count(), repeats=repeats, compare=a.compare,
@@ -286,6 +292,11 @@ def main(argv=None):
     plot(res, out.with_suffix('.png'))
     print(table(res))
     return 0
+
+
+#: radios of ``--radio-breakdown``: every message delivered at once (fates, beliefs and the law on
+#: them), loss without dead reckoning, and loss with latency (messages in flight)
+RADIO_BREAKDOWN = (dict(radio_range=1e9), dict(loss=0.5, dead_reckoning=False), dict(loss=0.5, latency=0.3))
 
 
 def spec_key(spec):
@@ -348,20 +359,21 @@ def table(res):
 
 
 def radio_ratios(res):
-    """Lines of the CPU ratios of the runs with a radio against the same runs without one."""
+    """Lines of the CPU ratios of the runs over the lossy radio (``comms.loss`` 0.5) against the
+    same runs over the perfect one and on the other engine."""
     runs = {(r['dt'], r.get('engine', 'reference'), bool(r.get('comms'))): r['cpu']
-            for r in res['current'].values() if r['what'] == 'run'}
+            for r in res['current'].values() if r['what'] == 'run' and r.get('comms') in (None, dict(loss=0.5))}
     out = []
     for dt in sorted({k[0] for k in runs}):
         got = {k[1:]: v for k, v in runs.items() if k[0] == dt}
-        if ('fast', True) in got and ('fast', False) in got and ('reference', True) in got:
-            radio = ', '.join(f'{k} {v:g}' for k, v in next(r['comms'] for r in res['current'].values()
-                                                           if r['what'] == 'run' and r.get('comms')).items())
-            out += ['', f'radio ({radio}) at dt = {dt:g}, CPU ratios: fast radio / fast perfect radio '
-                        f'{got["fast", True] / got["fast", False]:.2f}; fast radio / reference radio '
-                        f'{got["fast", True] / got["reference", True]:.4f}' +
-                    (f'; reference radio / reference perfect radio {got["reference", True] / got["reference", False]:.2f}'
-                     if ('reference', False) in got else '')]
+        if not {('fast', True), ('fast', False), ('reference', True)} <= set(got):
+            continue
+        line = (f'loss 0.5 at dt = {dt:g}, CPU ratios: fast radio / fast perfect radio '
+                f'{got["fast", True] / got["fast", False]:.2f}; fast radio / reference radio '
+                f'{got["fast", True] / got["reference", True]:.4f}')
+        if ('reference', False) in got:
+            line += f'; reference radio / reference perfect radio {got["reference", True] / got["reference", False]:.2f}'
+        out += ['', line]
     return out
 
 
