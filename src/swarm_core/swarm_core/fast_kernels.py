@@ -245,7 +245,7 @@ def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choos
          world, barrier, noise, radio, every, r_rec, th_rec, u_rec, lead_rec):
     """Every step of a run (the commander's plan, the radio, the law, the zoh step, the noise)
     with the records of every ``every``-th step filled in place; returns the step at which
-    the rule chose the leaders (−1: none).  radio: `fast_radio.radio_arguments`."""
+    the rule chose the leaders (−1: none).  radio: `fast.radio_arguments`."""
     n = x.size
     steps = lams.size - 1
     alpha, eta, mu, r0, w, leader_gain = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5]
