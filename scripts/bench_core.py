@@ -63,7 +63,8 @@ def steps_per_second(n, kind, min_seconds=1.0, search='auto'):
 def full_run(name, dt, comms=None, duration=None, engine_name='reference'):
     """(wall s, CPU s) of one simulate() of a shipped scenario to its duration at dt, with the
     radio ``comms`` (a scenario ``comms`` mapping) or its own, on the reference engine or the
-    fast one (`swarm_core.fast`, compiled or loaded first)."""
+    fast one (`swarm_core.fast`, compiled or loaded first; the median of as many runs as fill
+    0.3 s of CPU)."""
     from swarm_core import engine, scenario
     simulate = engine.simulate
     if engine_name == 'fast':
@@ -71,9 +72,13 @@ def full_run(name, dt, comms=None, duration=None, engine_name='reference'):
         fast.warm_up()
         simulate = fast.simulate
     scn = scenario.load(name, dt=dt, comms=comms, duration=duration)
-    t0, c0 = time.perf_counter(), time.process_time()
-    simulate(scn)
-    return time.perf_counter() - t0, time.process_time() - c0
+    walls, cpus = [], []
+    while not cpus or (engine_name == 'fast' and sum(cpus) < 0.3):   # short runs: the median of many
+        t0, c0 = time.perf_counter(), time.process_time()
+        simulate(scn)
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    return statistics.median(walls), statistics.median(cpus)
 
 
 def fast_start(cold):
@@ -216,6 +221,9 @@ def main(argv=None):
                    help='also measure the reference numpy path (KD-tree / all pairs) at the sizes '
                         'where the engine takes compiled kernels')
     p.add_argument('--duration', type=float, help='length of the full runs (default: the scenario\'s, t = 1000)')
+    p.add_argument('--radio-breakdown', action='store_true',
+                   help='also the fast engine over radios that leave out one cost at a time (what bounds '
+                        'the lossy radio against the perfect one)')
     p.add_argument('--worker', help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.worker:
@@ -244,36 +252,38 @@ def main(argv=None):
     if not a.no_runs:
         specs += [dict(what='run', name='homotopy_global', dt=dt, duration=a.duration, engine=eng)
                   for dt in (0.05, 0.1) for eng in ('reference', 'fast')]
-        specs += [dict(what='run', name='homotopy_global', dt=0.1, duration=a.duration, comms=dict(loss=0.5))]
+        specs += [dict(what='run', name='homotopy_global', dt=0.1, duration=a.duration, comms=dict(loss=0.5),
+                       engine=eng) for eng in ('reference', 'fast')]
+        if a.radio_breakdown:         # the radio's machinery with nothing lost, loss without dead reckoning, latency
+            specs += [dict(what='run', name='homotopy_global', dt=0.1, duration=a.duration, comms=c, engine='fast')
+                      for c in RADIO_BREAKDOWN]
         specs += [dict(what='start', cold=cold) for cold in (True, False)]
     res = dict(command='scripts/bench_core.py ' + ' '.join(sys.argv[1:] if argv is None else argv),
                load_before=loadavg(), cpus=os.cpu_count(), repeats=repeats, compare=a.compare,
                current={}, baseline={})
     with tempfile.TemporaryDirectory() as tmp:
         base_src = extract(a.compare, tmp) if a.compare else None
+        runs = {spec_key(spec): {'current': [], 'baseline': []} for spec in specs}
         try:
-            for spec in specs:
-                key = spec_key(spec)
-                runs = {'current': [], 'baseline': []}
-                for _ in range(repeats):      # a baseline has no fast engine to measure
+            for _ in range(repeats):          # interleaved: every measurement once per round
+                for spec in specs:            # a baseline has no fast engine to measure
+                    key = spec_key(spec)
                     if base_src and spec['what'] != 'start' and spec.get('engine') != 'fast':
-                        runs['baseline'].append(run_worker(spec, base_src))
-                    runs['current'].append(run_worker(spec))
-                for side, rr in runs.items():
-                    if not rr:
-                        continue
-                    row = dict(spec, wall=statistics.median(r['wall'] for r in rr),
-                               cpu=statistics.median(r['cpu'] for r in rr), runs=rr)
-                    if 'search' in rr[0]:
-                        row['search'] = rr[0]['search']
-                    res[side][key] = row
-                unit = {'sps': 'steps/s', 'run': 's', 'law': 'µs/call', 'agent': 'µs/call', 'start': 's'}[spec['what']]
-                line = f'{key:28s} current {res["current"][key]["wall"]:9.2f} {unit} (cpu {res["current"][key]["cpu"]:.2f})'
-                if key in res['baseline']:
-                    line += f'   baseline {res["baseline"][key]["wall"]:9.2f} (cpu {res["baseline"][key]["cpu"]:.2f})'
-                print(line, file=sys.stderr, flush=True)
+                        runs[key]['baseline'].append(run_worker(spec, base_src))
+                    runs[key]['current'].append(run_worker(spec))
+                    print(f'{key:28s} {json.dumps(runs[key]["current"][-1])}', file=sys.stderr, flush=True)
         except KeyboardInterrupt:
             print('interrupted: writing what was measured', file=sys.stderr)
+        for spec in specs:
+            key = spec_key(spec)
+            for side, rr in runs[key].items():
+                if not rr:
+                    continue
+                row = dict(spec, wall=statistics.median(r['wall'] for r in rr),
+                           cpu=statistics.median(r['cpu'] for r in rr), runs=rr)
+                if 'search' in rr[0]:
+                    row['search'] = rr[0]['search']
+                res[side][key] = row
     res['load_after'] = loadavg()
 
     out = Path(a.out)
@@ -282,6 +292,11 @@ def main(argv=None):
     plot(res, out.with_suffix('.png'))
     print(table(res))
     return 0
+
+
+#: radios of ``--radio-breakdown``: every message delivered at once (fates, beliefs and the law on
+#: them), loss without dead reckoning, and loss with latency (messages in flight)
+RADIO_BREAKDOWN = (dict(radio_range=1e9), dict(loss=0.5, dead_reckoning=False), dict(loss=0.5, latency=0.3))
 
 
 def spec_key(spec):
@@ -331,8 +346,9 @@ def table(res):
     section(('run',), '| run (engine) | steps | wall (s) | CPU (s) |',
             ' before: wall (s) | before: CPU (s) | speed-up (CPU) |',
             lambda key, row: f'| {key} to t = {row.get("duration") or 1000:g} | '
-                             f'{int(round((row.get("duration") or 1000) / row["dt"]))} |', 3,
+                             f'{int(round((row.get("duration") or 1000) / row["dt"]))} |', 4,
             lambda row, b: f'{b["cpu"] / row["cpu"]:.2f}×')
+    lines.extend(radio_ratios(res))
     section(('start',), '| fast engine start-up (per process) | wall (s) | CPU (s) |',
             ' before: wall (s) | before: CPU (s) | speed-up (CPU) |',
             lambda key, row: f'| {key} |', 2, lambda row, b: f'{b["cpu"] / row["cpu"]:.2f}×')
@@ -340,6 +356,25 @@ def table(res):
             ' before: µs/call | before: µs CPU/call | speed-up (CPU) |', call_label, 1,
             lambda row, b: f'{b["cpu"] / row["cpu"]:.2f}×')
     return '\n'.join(lines)
+
+
+def radio_ratios(res):
+    """Lines of the CPU ratios of the runs over the lossy radio (``comms.loss`` 0.5) against the
+    same runs over the perfect one and on the other engine."""
+    runs = {(r['dt'], r.get('engine', 'reference'), bool(r.get('comms'))): r['cpu']
+            for r in res['current'].values() if r['what'] == 'run' and r.get('comms') in (None, dict(loss=0.5))}
+    out = []
+    for dt in sorted({k[0] for k in runs}):
+        got = {k[1:]: v for k, v in runs.items() if k[0] == dt}
+        if not {('fast', True), ('fast', False), ('reference', True)} <= set(got):
+            continue
+        line = (f'loss 0.5 at dt = {dt:g}, CPU ratios: fast radio / fast perfect radio '
+                f'{got["fast", True] / got["fast", False]:.2f}; fast radio / reference radio '
+                f'{got["fast", True] / got["reference", True]:.4f}')
+        if ('reference', False) in got:
+            line += f'; reference radio / reference perfect radio {got["reference", True] / got["reference", False]:.2f}'
+        out += ['', line]
+    return out
 
 
 def fmt_load(la):

@@ -18,11 +18,14 @@ pool's forked workers start with the engine imported.
 ``--engines``: instead, the fast engine against the reference, side by side in one run (local
 processes, the study's seeds unless --seeds is given): wall time and CPU seconds per run (this
 process and its workers, `resource.getrusage`), the kernel's compile/load time, and whether the
-per-run outcomes (every check) are the same.
+per-run outcomes (every check) are the same.  ``--radio LOSS`` adds the same study with
+``comms.loss LOSS`` on both engines, interleaved with the perfect radio, and the ratios
+(fast radio ÷ fast perfect radio, fast radio ÷ reference radio).
 """
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import operator
 import statistics
@@ -85,24 +88,37 @@ def engines_main(a, s) -> int:
     compile_s = fast.warm_up()          # in this process: the forked workers inherit the kernels
     res = {'study': s.name, 'runs': n, 'workers': a.workers, 'import_s': round(t0 - _T_START, 2),
            'warm_up_s': round(compile_s, 2)}
+    studies = {'': s}
+    if a.radio is not None:             # the same study over a lossy radio
+        studies['_radio'] = copy.deepcopy(s)
+        studies['_radio'].fixed['comms.loss'] = a.radio
+        res['radio'] = {'comms.loss': a.radio}
     tables = {}
     with tempfile.TemporaryDirectory() as tmp:
         for r in range(a.rounds):
-            for eng in ('reference', 'fast'):
-                w0, c0 = time.perf_counter(), cpu_seconds()
-                rows, counts = st.run_study(s, Path(tmp) / f'{eng}{r}', jobs=a.workers, engine=eng)
-                wall, cpu = time.perf_counter() - w0, cpu_seconds() - c0
-                res.setdefault(f'{eng}_wall_s', []).append(round(wall, 2))
-                res.setdefault(f'{eng}_cpu_ms_per_run', []).append(round(1000 * cpu / n, 1))
-                tables[eng] = rows
-                print(f'round {r}: {eng:9s} {n} runs in {wall:.1f} s wall, {1000 * cpu / n:.1f} ms CPU per run',
-                      flush=True)
-    diff = [i for i, (x, y) in enumerate(zip(outcomes(tables['fast']), outcomes(tables['reference']))) if x != y]
-    res['outcomes_differ'] = [{**tables['fast'][i], 'reference': outcomes(tables['reference'])[i]} for i in diff]
-    for eng in ('reference', 'fast'):
-        res[f'{eng}_cpu_ms_per_run_median'] = statistics.median(res[f'{eng}_cpu_ms_per_run'])
-        res[f'{eng}_wall_s_median'] = statistics.median(res[f'{eng}_wall_s'])
-    res['speed_up_cpu'] = round(res['reference_cpu_ms_per_run_median'] / res['fast_cpu_ms_per_run_median'], 1)
+            for radio, study in studies.items():
+                for eng in ('reference', 'fast'):
+                    key = eng + radio
+                    w0, c0 = time.perf_counter(), cpu_seconds()
+                    rows, counts = st.run_study(study, Path(tmp) / f'{key}{r}', jobs=a.workers, engine=eng)
+                    wall, cpu = time.perf_counter() - w0, cpu_seconds() - c0
+                    res.setdefault(f'{key}_wall_s', []).append(round(wall, 2))
+                    res.setdefault(f'{key}_cpu_ms_per_run', []).append(round(1000 * cpu / n, 1))
+                    tables[key] = rows
+                    print(f'round {r}: {key:15s} {n} runs in {wall:.1f} s wall, {1000 * cpu / n:.1f} ms CPU per run',
+                          flush=True)
+    for radio in studies:
+        fast_t, ref_t = outcomes(tables['fast' + radio]), outcomes(tables['reference' + radio])
+        diff = [i for i, (x, y) in enumerate(zip(fast_t, ref_t)) if x != y]
+        res['outcomes_differ' + radio] = [{**tables['fast' + radio][i], 'reference': ref_t[i]} for i in diff]
+        for eng in ('reference', 'fast'):
+            res[f'{eng}{radio}_cpu_ms_per_run_median'] = statistics.median(res[f'{eng}{radio}_cpu_ms_per_run'])
+            res[f'{eng}{radio}_wall_s_median'] = statistics.median(res[f'{eng}{radio}_wall_s'])
+    med = {key: res[f'{key}_cpu_ms_per_run_median'] for key in tables}
+    res['speed_up_cpu'] = round(med['reference'] / med['fast'], 1)
+    if a.radio is not None:
+        res['fast_radio_over_fast_perfect_cpu'] = round(med['fast_radio'] / med['fast'], 2)
+        res['fast_radio_over_reference_radio_cpu'] = round(med['fast_radio'] / med['reference_radio'], 4)
     print(json.dumps(res, indent=1))
     if a.json:
         Path(a.json).write_text(json.dumps(res, indent=1) + '\n')
@@ -121,6 +137,8 @@ def main(argv=None) -> int:
     p.add_argument('--duration', type=float, help="override the runs' duration (shorter runs: a larger share of overhead)")
     p.add_argument('--json', help='also write the numbers here')
     p.add_argument('--engines', action='store_true', help='the fast engine against the reference (local processes)')
+    p.add_argument('--radio', type=float, metavar='LOSS',
+                   help='--engines: also the study with comms.loss LOSS on both engines, and the ratios')
     a = p.parse_args(argv)
     if a.engines:
         from swarm_core import simulate_cli  # noqa: F401
