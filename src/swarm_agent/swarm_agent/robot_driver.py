@@ -35,7 +35,8 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
-from swarm_core.robot_units import CMD_TYPES, ROBOT_FRAMES, RateLimit, RobotsSpec, RobotUnits, SafetyGuard, wrap_near
+from swarm_core.robot_units import (CMD_TYPES, ROBOT_FRAMES, RateLimit, RobotsSpec, RobotUnits, SafetyGuard, wrap_near,
+                                    yaw_of_quaternion)
 from swarm_ros import protocol as P
 from swarm_ros.rosutil import ParameterError, declare
 
@@ -82,8 +83,8 @@ def declare_robot(node) -> dict:
 
 
 def yaw_of(q) -> float:
-    """Yaw of a quaternion (x, y, z, w) (NaN in, NaN out)."""
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    """Yaw of a quaternion message (NaN in, NaN out)."""
+    return yaw_of_quaternion(q.x, q.y, q.z, q.w)
 
 
 class RobotLink:

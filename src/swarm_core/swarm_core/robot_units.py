@@ -129,6 +129,17 @@ class RobotUnits:
                 f'(|u| ≤ {u_max:.3g} before it clips)')
 
 
+def odometry_quaternion(yaw: float) -> tuple[float, float]:
+    """(z, w) of a ``nav_msgs/Odometry`` pose's orientation at planar yaw (x = y = 0), as the
+    robot world writes it."""
+    return math.sin(yaw / 2), math.cos(yaw / 2)
+
+
+def yaw_of_quaternion(x: float, y: float, z: float, w: float) -> float:
+    """Yaw of a quaternion (x, y, z, w), as a robot agent reads its odometry (NaN in, NaN out)."""
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
 def wrap_near(yaw: float, theta: float) -> float:
     """The angle equal to ``yaw`` (mod 2π) nearest the unwrapped heading ``theta``."""
     return theta + math.remainder(yaw - theta, 2 * math.pi)
