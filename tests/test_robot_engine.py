@@ -4,6 +4,7 @@ lockstep run of `swarm run --robots mujoco` bit for bit (the one ROS test here).
 import copy
 import json
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from swarm_robots.engine import RobotStepper, collisions, robot_rows, simulate
 
 from conftest import SIX_AGENTS, Lines, short_homotopy
 
+STUDIES = Path(__file__).resolve().parents[1] / 'studies'
 ROBOTS = {'length_scale': 0.3, 'cruise_speed': 0.15, 'frame': 'odom'}
 
 
@@ -100,3 +102,45 @@ def test_equals_the_ros_lockstep_run(tmp_path, ros_domain, processes, swarm_cmd)
     robots = json.loads((tmp_path / 'r' / 'metrics.json').read_text())['summary']['robots']
     for k in ('robots', 'contacts', 'turn_limit_seconds', 'limit_seconds'):
         assert robots[k] == ours.meta['robots'][k]
+
+
+# ------------------------------------------------------------------ the study on robots
+
+@pytest.mark.parametrize('name', ['robots_fig3', 'robots_fig5', 'robots_scale'])
+def test_shipped_robot_studies_parse(name):
+    from swarm_core import study as st
+    s = st.load_study(STUDIES / f'{name}.yaml')
+    st.validate(s)
+    tasks = st.tasks(s)
+    assert {t.engine for t in tasks} == {'robots'} and len(s.seeds) >= 5
+    assert len(tasks) == len(s.cells()) * len(s.seeds)
+
+
+def test_a_two_run_robot_study_runs_and_is_cached(tmp_path):
+    from swarm_core import study as st
+    s = st.load_study(STUDIES / 'robots_fig3.yaml')
+    s.grid = {'robot_set': ['none', 'all']}
+    s.fixed['duration'] = 10
+    s.seeds = [0]
+    st.validate(s)
+    rows, counts = st.run_study(s, tmp_path / 'cache')
+    assert counts == {'total': 2, 'cached': 0, 'ran': 2}
+    kin, rob = rows
+    assert kin['robot_set'] == 'none' and kin['iae_mean'] == 0.0 and kin['contacts'] == 0
+    assert rob['robot_set'] == 'all' and rob['iae_mean'] > 0 and 0 <= rob['turn_limit_fraction'] <= 1
+    from swarm_core.study_tables import check_names
+    assert check_names(rows, s.params) == ['ok', 'one_cluster_at', 'split_between', 'one_cluster_at_end']
+    assert 'IAE of u' in st.robot_metrics_markdown(s, rows)
+    assert st.run_study(s, tmp_path / 'cache')[1]['cached'] == 2
+
+
+def test_a_robot_set_is_checked():
+    from swarm_core import study as st
+    s = st.load_study(STUDIES / 'robots_fig3.yaml')
+    s.grid = {'robot_set': ['some']}
+    with pytest.raises(st.StudyError, match='robot_set .some.: one of none, half, all'):
+        st.validate(s)
+    s.grid = {'robot_set': ['all']}
+    del s.fixed['robots.length_scale'], s.fixed['robots.cruise_speed']
+    with pytest.raises(st.StudyError, match="needs the scenario's robots: section"):
+        st.validate(s)

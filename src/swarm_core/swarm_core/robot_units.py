@@ -29,6 +29,9 @@ DEFAULT_MAX_ANGULAR = 2.84
 #: what an agent's ``robot`` parameter may be: its own kinematic point, or a robot behind
 #: ``/<agent>/cmd_vel`` and ``/<agent>/odom`` (``mujoco``: the same on the agent's side)
 ROBOT_KINDS = ('none', 'external', 'mujoco')
+#: which agents a study's run puts on robots (a study's ``robot_set``; `swarm_robots.engine`):
+#: none, the first half of the roster (rounded up), or all
+ROBOT_SETS = ('none', 'half', 'all')
 #: where the odometry's pose is: each robot's own ``odom`` frame from (0, 0, 0), or one common frame
 ROBOT_FRAMES = ('odom', 'world')
 #: the command message: Jazzy's diff_drive_controller takes TwistStamped, some drivers Twist

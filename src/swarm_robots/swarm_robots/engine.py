@@ -37,16 +37,12 @@ from __future__ import annotations
 import numpy as np
 
 from swarm_core import engine
-from swarm_core.robot_units import odometry_quaternion, wrap_near, yaw_of_quaternion
+from swarm_core.robot_units import ROBOT_SETS, odometry_quaternion, wrap_near, yaw_of_quaternion
 from swarm_core.scenario import Scenario
 
 from .physics import RobotWorld
 from .run_setup import robot_description, robots_section, start_poses, turn_limit_clock
 from .timing import RobotsLockstep, robot_summary
-
-#: which agents a study puts on robots (`robot_rows`)
-ROBOT_SETS = ('none', 'half', 'all')
-
 
 def robot_rows(n: int, robot_set: str) -> list:
     """Roster rows on robots: none, the first half (rounded up), or all of ``n`` agents."""
