@@ -68,9 +68,10 @@ class RobotStepper(engine.SwarmStepper):
         self.starts = [self.units.start_pose(*self.pos[i], self.theta[i]) if self.sec.frame == 'odom' else None
                        for i in self.rows]
         self.everyone = np.ones(self.n, dtype=bool)
-        # the newest accepted pose's heading: the odometry the world publishes at t = 0 first
+        # each agent unwraps its odometry's yaw near the newest accepted pose's heading: first
+        # near its θ0, the odometry the world publishes at t = 0 (which then sets that heading)
         self.heading = [float(self.theta[i]) for i in self.rows]
-        self.heading = [p[2] for p in self._poses()]
+        self.heading = [pose[2] for pose in self._poses()]
         self.yaw = self.world.ground_truth()[:, 2].copy()
         self.iae = np.zeros(len(self.rows))
 
