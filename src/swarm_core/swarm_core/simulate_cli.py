@@ -84,7 +84,8 @@ def _replay_or_exit(path, scn) -> dict:
 def _engine_option(p):
     p.add_argument('--engine', choices=['fast', 'reference'], default='fast', help=(
         'fast (default): the compiled kernel (swarm_core.fast) where it covers the run, else the '
-        'reference; reference: the numpy engine the ROS nodes are checked against'))
+        'reference; reference: the numpy engine the ROS nodes are checked against (a study with '
+        'robot_set runs on the robot engine, swarm_robots.engine)'))
 
 
 def _simulator(name):
