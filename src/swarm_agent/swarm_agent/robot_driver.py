@@ -37,7 +37,8 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
-from swarm_core.robot_units import CMD_TYPES, ROBOT_FRAMES, RateLimit, RobotsSpec, RobotUnits, SafetyGuard, wrap_near
+from swarm_core.robot_units import (CMD_TYPES, ROBOT_FRAMES, RateLimit, RobotsSpec, RobotUnits, SafetyGuard, wrap_near,
+                                    yaw_of_quaternion)
 from swarm_ros import protocol as P
 from swarm_ros.rosutil import ParameterError, declare
 
@@ -83,11 +84,6 @@ def declare_robot(node) -> dict:
     return p
 
 
-def yaw_of(qx: float, qy: float, qz: float, qw: float) -> float:
-    """Yaw of a quaternion (x, y, z, w) (NaN in, NaN out)."""
-    return math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-
-
 class RobotLink:
     """The robot of one agent node: odometry in (checked by the guard, in model units),
     cmd_vel out (in the robot's units), the guard's events on ``/swarm/events``."""
@@ -131,7 +127,7 @@ class RobotLink:
     def _on_odom(self, raw):
         """One serialized odometry message (read raw: no message object per step)."""
         _, _, sec, nsec, (x, y, qx, qy, qz, qw), _, _, _ = P.cdr_to_odometry_full(raw)
-        yaw = yaw_of(qx, qy, qz, qw)
+        yaw = yaw_of_quaternion(qx, qy, qz, qw)
         why = self.guard.odometry(self.robot_now(), x, y, yaw)
         if why is not None:
             self.log('odom', f'{self.node.agent_name}/odom rejected (not fed to the law): {why}')

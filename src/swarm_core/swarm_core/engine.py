@@ -205,10 +205,12 @@ class SwarmStepper:
 
 
 def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int = 1,
-             neighbour_search: str = 'auto', progress=None, commands=None) -> Trajectory:
+             neighbour_search: str = 'auto', progress=None, commands=None, stepper=None) -> Trajectory:
     """Run a scenario to its duration; ``progress(step, steps)`` is called now and then.
-    ``commands``: live commands to replay, {step: [command, ...]} (`read_commands`)."""
-    stepper = SwarmStepper(scn, integrator, neighbour_search, commands)
+    ``commands``: live commands to replay, {step: [command, ...]} (`read_commands`).
+    ``stepper``: a prepared `SwarmStepper` of ``scn`` (one that moves some agents otherwise:
+    `swarm_robots.engine`); the other arguments are then its own."""
+    stepper = stepper or SwarmStepper(scn, integrator, neighbour_search, commands)
     steps = scn.steps
     n = stepper.n
     n_rec = steps // record_every + 1

@@ -29,6 +29,9 @@ DEFAULT_MAX_ANGULAR = 2.84
 #: what an agent's ``robot`` parameter may be: its own kinematic point, or a robot behind
 #: ``/<agent>/cmd_vel`` and ``/<agent>/odom`` (``mujoco``: the same on the agent's side)
 ROBOT_KINDS = ('none', 'external', 'mujoco')
+#: which agents a study's run puts on robots (a study's ``robot_set``; `swarm_robots.engine`):
+#: none, the first half of the roster (rounded up), or all
+ROBOT_SETS = ('none', 'half', 'all')
 #: where the odometry's pose is: each robot's own ``odom`` frame from (0, 0, 0), or one common frame
 ROBOT_FRAMES = ('odom', 'world')
 #: the command message: Jazzy's diff_drive_controller takes TwistStamped, some drivers Twist
@@ -127,6 +130,17 @@ class RobotUnits:
         return (f'robots: L = {L:g} m per unit, v0 = {self.cruise_speed:g} m/s: {r}w = {cutoff_radius * L:.3g} m, '
                 f'1 model s = {self.seconds_per_model_unit:.3g} robot s, ω_max = {self.max_angular:g} rad/s '
                 f'(|u| ≤ {u_max:.3g} before it clips)')
+
+
+def odometry_quaternion(yaw: float) -> tuple[float, float]:
+    """(z, w) of a ``nav_msgs/Odometry`` pose's orientation at planar yaw (x = y = 0), as the
+    robot world writes it."""
+    return math.sin(yaw / 2), math.cos(yaw / 2)
+
+
+def yaw_of_quaternion(x: float, y: float, z: float, w: float) -> float:
+    """Yaw of a quaternion (x, y, z, w), as a robot agent reads its odometry (NaN in, NaN out)."""
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def wrap_near(yaw: float, theta: float) -> float:

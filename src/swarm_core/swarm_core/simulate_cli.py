@@ -84,7 +84,8 @@ def _replay_or_exit(path, scn) -> dict:
 def _engine_option(p):
     p.add_argument('--engine', choices=['fast', 'reference'], default='fast', help=(
         'fast (default): the compiled kernel (swarm_core.fast) where it covers the run, else the '
-        'reference; reference: the numpy engine the ROS nodes are checked against'))
+        'reference; reference: the numpy engine the ROS nodes are checked against (a study with '
+        'robot_set runs on the robot engine, swarm_robots.engine)'))
 
 
 def _simulator(name):
@@ -420,6 +421,8 @@ def _write_study(out, study, rows, a) -> list:
     rr = st.rates(study, rows)
     write_atomic(out / 'rates.csv', st.rates_csv(study, rr))
     md = st.rates_markdown(study, rr)
+    robots = st.robot_metrics_markdown(study, rows)
+    md += f'\n\nOn the robot engine, means over the seeds:\n\n{robots}' if robots else ''
     write_atomic(out / 'rates.md', f'### {study.name} ({len(study.seeds)} seeds per cell)\n\n{md}\n')
     print(md)
     checks = [a.check] if a.check else (study.figure.get('checks') or [study.figure.get('check', 'all')])

@@ -22,15 +22,21 @@ from pathlib import Path
 import numpy as np
 
 from . import placement, scenario
-from .study_cache import ROW_METRICS, Cache, row_error
+from .robot_units import ROBOT_SETS
+from .study_cache import ROBOT_METRICS, ROW_METRICS, Cache, row_error
 # the tables are part of the study API (study.to_csv, study.rates, ...)
-from .study_tables import plot_rates, rates, rates_csv, rates_markdown, to_csv, to_parquet, wilson  # noqa: F401
+from .study_tables import (plot_rates, rates, rates_csv, rates_markdown, robot_metrics_markdown, to_csv,  # noqa: F401
+                           to_parquet, wilson)
 from .study_grid import (MAX_CELLS, MAX_RUNS, StudyError, check_size, parse_set, parse_values,  # noqa: F401
                          set_field)
 
 
 
 # ------------------------------------------------------------------ the study
+
+#: a study field that is no scenario field: which agents run on MuJoCo robots
+#: (`robot_units.ROBOT_SETS`); a study with it runs on the robot engine (`swarm_robots.engine`)
+ROBOT_SET = 'robot_set'
 
 @dataclass
 class Study:
@@ -56,8 +62,13 @@ class Study:
         """The scenario mapping of one cell (a deep copy with the fixed and cell values set)."""
         d = json.loads(json.dumps(self.data))
         for k, v in {**self.fixed, **cell}.items():
-            set_field(d, k, v)
+            if k != ROBOT_SET:
+                set_field(d, k, v)
         return d
+
+    def robot_set(self, cell: dict) -> str | None:
+        """The cell's robot set (`ROBOT_SET`), None when it runs no robot engine."""
+        return {**self.fixed, **cell}.get(ROBOT_SET)
 
 
 def _scenario_text(name_or_path):
@@ -143,7 +154,7 @@ def validate(study: Study) -> None:
         if not vals:
             raise StudyError(f'--set {k}: empty list of values')
     for k, v in study.fixed.items():
-        _check_cell(study, {}, f'set {k}={v}')
+        _check_cell(study, {}, f'set {k}={v}', cell_of_grid=False)
     for cell in study.cells():
         _check_cell(study, cell, ', '.join(f'{k}={v}' for k, v in cell.items()))
 
@@ -183,15 +194,20 @@ def _model_in(ann):
     return models[0] if len(models) == 1 else None
 
 
-def _check_cell(study, cell, label):
+def _check_cell(study, cell, label, cell_of_grid=True):
     for k in list(study.fixed) + list(cell):
-        if not _known(study.data, k):
+        if k != ROBOT_SET and not _known(study.data, k):
             raise StudyError(f'--set {k}: unknown scenario field')
     try:
         data = study.cell_data(cell)
-        scenario.parse(data, study.source, seed=study.seeds[0])
+        scn = scenario.parse(data, study.source, seed=study.seeds[0])
     except (StudyError, scenario.ScenarioError) as err:
         raise StudyError(f'{label}: {err}') from None
+    robots = study.robot_set(cell)
+    if robots is not None and robots not in ROBOT_SETS:
+        raise StudyError(f'{label}: {ROBOT_SET} {robots!r}: one of {", ".join(ROBOT_SETS)}')
+    if robots is not None and scn.spec.robots is None and cell_of_grid:
+        raise StudyError(f'{label}: {ROBOT_SET} needs the scenario\'s robots: section (length_scale, cruise_speed)')
 
 
 # ------------------------------------------------------------------ runs and the cache
@@ -201,10 +217,13 @@ def _canon(x) -> str:
 
 
 @functools.lru_cache(maxsize=None)
-def code_version() -> str:
-    """A hash of swarm_core's sources (a change to the law or the checks invalidates the cache)."""
+def code_version(package: str = 'swarm_core') -> str:
+    """A hash of a package's sources (swarm_core: a change to the law or the checks invalidates
+    the cache; swarm_robots too for runs on the robot engine)."""
+    import importlib.util
     h = hashlib.sha256()
-    root = Path(__file__).resolve().parent
+    root = Path(__file__).resolve().parent if package == 'swarm_core' else \
+        Path(importlib.util.find_spec(package).origin).parent       # found, not imported
     for p in sorted(root.rglob('*')):
         if p.suffix in ('.py', '.yaml') and '__pycache__' not in p.parts:
             h.update(p.relative_to(root).as_posix().encode())
@@ -228,10 +247,12 @@ class Task:
     source: str
     version: str = ''
     engine: str = 'fast'
+    robot_set: str | None = None      # engine 'robots': which agents are robots
 
 
 #: the engines a study runs on: 'fast' (`fast.simulate`: the compiled kernel where it covers
-#: the run, else the reference) and 'reference' (`engine.simulate`)
+#: the run, else the reference) and 'reference' (`engine.simulate`); a cell with a `ROBOT_SET`
+#: runs on 'robots' (`swarm_robots.engine.simulate`) whatever the engine asked for
 ENGINES = ('fast', 'reference')
 
 
@@ -243,9 +264,12 @@ def tasks(study: Study, version: str | None = None, engine: str = 'fast') -> lis
     out = []
     for ci, cell in enumerate(study.cells()):
         data = study.cell_data(cell)
+        on = 'robots' if study.robot_set(cell) is not None else engine
+        tag = {'fast': version, 'reference': f'{version}-reference'}.get(on) or \
+            f'{version}-robots-{code_version("swarm_robots")}-{study.robot_set(cell)}'
         for seed in study.seeds:
-            key = run_key(base, cell, seed, version if engine == 'fast' else f'{version}-{engine}')
-            out.append(Task(key, ci, cell, seed, data, study.source, version, engine))
+            out.append(Task(run_key(base, cell, seed, tag), ci, cell, seed, data, study.source, version, on,
+                            study.robot_set(cell)))
     return out
 
 
@@ -266,11 +290,14 @@ def run_task(task: Task) -> dict:
         raise RuntimeError(f'this worker runs swarm_core {code_version()}, the study needs {task.version}: '
                            'install the same project version on every worker')
     scn = scenario.parse(task.data, task.source, seed=task.seed)
-    if task.engine == 'fast':
-        from .fast import simulate
+    if task.engine == 'robots':
+        from swarm_robots.engine import simulate as on_robots
+        traj = on_robots(scn, task.robot_set)
     else:
         from .engine import simulate
-    traj = simulate(scn)
+        if task.engine == 'fast':
+            from .fast import simulate
+        traj = simulate(scn)
     series, checks = analyse(traj, scenario=scn)
     s = summary_of(scn, traj, series, checks)
     row = {'ok': s['behaviour_ok']}
@@ -282,6 +309,8 @@ def run_task(task: Task) -> dict:
     for k in ROW_METRICS:
         if k in s:
             row[k] = _num(s[k])
+    for k in ROBOT_METRICS if 'robots' in s else ():
+        row[k] = _num(s['robots'][k])
     # the first time the swarm has two clusters and the last time it becomes one again
     ch = s['cluster_changes']
     row['t_first_split'] = next((t for t, c in ch if c >= 2), None)

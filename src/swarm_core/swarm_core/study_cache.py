@@ -19,6 +19,8 @@ from .inputs import json_value
 #: metrics taken from `analysis.summary_of` into every row
 ROW_METRICS = ('final_clusters', 'max_clusters', 'min_distance', 'final_polarisation',
                'intrusions_total', 'closest_centroid_target_distance')
+#: metrics of a run on the robot engine (`swarm_robots.engine`, ``meta['robots']``) in its row
+ROBOT_METRICS = ('contacts', 'collisions', 'turn_limit_fraction', 'iae_mean')
 #: the times of a row (`study.run_task`)
 ROW_TIMES = ('t_first_split', 't_last_one')
 #: longest cache file (a row is a few kB)
@@ -27,7 +29,7 @@ MAX_ROW_CHARS = 1 << 20
 CLUSTER_COUNTS = ('final_clusters', 'max_clusters')
 #: row values that are never negative (distances, counts, times), and polarisation in [0, 1]
 NON_NEGATIVE = ('min_distance', 'intrusions_total', 'closest_centroid_target_distance', 't_first_split',
-                't_last_one')
+                't_last_one') + ROBOT_METRICS
 
 
 def _scalar(v) -> bool:
@@ -52,7 +54,7 @@ def row_error(doc, cell: dict, seed: int, agents: int):
     bad = next((k for k, v in res.items() if not isinstance(k, str) or not _scalar(v)), None)
     if bad is not None:
         return f'{bad}: {res[bad]!r} is not a finite number, a bool or null'
-    checks = {k: v for k, v in res.items() if '.' not in k and k not in ('ok',) + ROW_METRICS + ROW_TIMES}
+    checks = {k: v for k, v in res.items() if '.' not in k and k not in ('ok',) + ROW_METRICS + ROW_TIMES + ROBOT_METRICS}
     if any(not (v is None or isinstance(v, bool)) for v in checks.values()):
         return 'a check whose verdict is not true, false or null'
     if 'ok' not in res or res['ok'] != _verdict(checks) or not (res['ok'] is None or isinstance(res['ok'], bool)):

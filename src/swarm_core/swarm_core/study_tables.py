@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .atomic import atomic_path
-from .study_cache import ROW_METRICS
+from .study_cache import ROBOT_METRICS, ROW_METRICS
 
 if TYPE_CHECKING:
     from .study import Study
@@ -80,7 +80,7 @@ def check_names(rows, params=()) -> list:
     for r in rows:
         for k, v in r.items():
             if '.' not in k and k not in names and k not in params and k != 'seed' and (isinstance(v, bool) or v is None) \
-                    and k not in ('t_first_split', 't_last_one') and k not in ROW_METRICS:
+                    and k not in ('t_first_split', 't_last_one') and k not in ROW_METRICS + ROBOT_METRICS:
                 names.append(k)
     return names
 
@@ -124,6 +124,25 @@ def rates_markdown(study: Study, rates_rows, checks=None) -> str:
         for c in names:
             r = sel[c]
             vals.append(f'{r["passed"]}/{r["n"]} ({r["ci_low"]:.2f}–{r["ci_high"]:.2f})' if r['n'] else 'n/a')
+        lines.append('| ' + ' | '.join(vals) + ' |')
+    return '\n'.join(lines)
+
+
+def robot_metrics_markdown(study: Study, rows) -> str:
+    """Per cell, the robot engine's metrics over its seeds (`study_cache.ROBOT_METRICS`): the
+    mean of each, and the smallest min_distance; '' when no row has them."""
+    if not any('iae_mean' in r for r in rows):
+        return ''
+    head = study.params + ['runs', 'min distance (least, mean)', 'collisions', 'contacts', 'time at ω limit',
+                           'IAE of u']
+    lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
+    for cell in study.cells():
+        sel = [r for r in rows if all(r.get(k) == v for k, v in cell.items())]
+        mean = {k: np.mean([r[k] for r in sel if r.get(k) is not None] or [np.nan]) for k in ROBOT_METRICS}
+        dist = [r['min_distance'] for r in sel if r.get('min_distance') is not None] or [np.nan]
+        vals = [f'{v:g}' if isinstance(v, float) else str(v) for v in cell.values()]
+        vals += [str(len(sel)), f'{min(dist):.3g}, {np.mean(dist):.3g}', f'{mean["collisions"]:.2g}',
+                 f'{mean["contacts"]:.2g}', f'{100 * mean["turn_limit_fraction"]:.2g} %', f'{mean["iae_mean"]:.3g}']
         lines.append('| ' + ' | '.join(vals) + ' |')
     return '\n'.join(lines)
 

@@ -42,9 +42,15 @@ class DiffDriveControllers:
         self.n = n
         self._msg = np.zeros((2, n))                  # the last cmd_vel (linear.x, angular.z)
         self._stamp = np.full(n, -np.inf)             # its header.stamp (none yet: timed out)
+        self._finite = np.ones(n, dtype=bool)         # which robots' last cmd_vel is finite
         self._reference = np.zeros((2, n))            # the reference interfaces
         self._previous = np.zeros((2, n))             # the last limited command (reset_buffers: 0)
         self._max_velocity = np.array([[description.max_linear], [description.max_angular]])
+        self._min_velocity = -self._max_velocity
+        self._never = np.zeros(n, dtype=bool)         # no cmd_vel_timeout: never timed out
+        self._timed_out = self._never
+        self._settled = False                         # `update` may repeat its last answer
+        self._wheels = None
         self._max_acceleration = np.array([[description.max_linear_accel],
                                            [description.max_angular_accel]])
 
@@ -53,21 +59,33 @@ class DiffDriveControllers:
         self._msg[0, i] = v
         self._msg[1, i] = omega
         self._stamp[i] = now
+        self._finite = np.isfinite(self._msg).all(axis=0)
+        self._settled = False
 
     def update(self, now: float, dt: float):
         """One controller update at `now` over `dt`: returns (left, right) wheel velocities
-        (rad/s, arrays over robots) and whether a limit changed each robot's command."""
+        (rad/s, arrays over robots) and whether a limit changed each robot's command.
+
+        Settled (every robot's limited command equal to its reference), with no cmd_vel since
+        and no robot's timeout passing, the update gives what it gave last time: that is
+        returned without the arithmetic (the lockstep world holds one command for many updates)."""
         timeout = self.description.cmd_vel_timeout
-        timed_out = (now - self._stamp > timeout) if timeout > 0 else np.zeros(self.n, bool)
-        finite = np.isfinite(self._msg).all(axis=0)
-        self._reference = np.where(timed_out, 0.0,
-                                   np.where(finite, self._msg, self._reference))
+        timed_out = now - self._stamp > timeout if timeout > 0 else self._never
+        if self._settled and not (timed_out != self._timed_out).any():
+            return self._wheels, np.zeros(self.n, dtype=bool)
+        self._timed_out = timed_out
+        reference = np.where(timed_out, 0.0, np.where(self._finite, self._msg, self._reference))
+        self._reference = reference
         step = self._max_acceleration * dt
-        limited = self._previous + np.clip(self._reference - self._previous, -step, step)
-        limited = np.clip(limited, -self._max_velocity, self._max_velocity)
-        saturated = (limited != self._reference).any(axis=0)
+        limited = np.subtract(reference, self._previous)
+        np.minimum(np.maximum(limited, -step, out=limited), step, out=limited)     # np.clip, fewer calls
+        limited += self._previous
+        np.minimum(np.maximum(limited, self._min_velocity, out=limited), self._max_velocity, out=limited)
+        saturated = np.logical_or(limited[0] != reference[0], limited[1] != reference[1])
         self._previous = limited
-        return wheel_velocities(self.description, limited[0], limited[1]), saturated
+        self._wheels = wheel_velocities(self.description, limited[0], limited[1])
+        self._settled = not saturated.any()
+        return self._wheels, saturated
 
     @property
     def limited_command(self) -> np.ndarray:
@@ -108,34 +126,48 @@ class WheelOdometry:
 
     def update(self, left_position, right_position, now: float) -> bool:
         """Odometry::update: wheel joint positions (rad) at `now`."""
-        dt = now - self._timestamp
-        if dt < MIN_ODOM_INTERVAL:
-            return False
-        left = left_position * self.wheel_radius
-        right = right_position * self.wheel_radius
-        moved_left, moved_right = left - self._old[0], right - self._old[1]
-        self._old[0], self._old[1] = left, right
+        return self.update_many(np.asarray(left_position)[None], np.asarray(right_position)[None], [now])
+
+    def update_many(self, left_positions, right_positions, times) -> bool:
+        """`update` at each of ``times`` (K,) in turn, the wheel positions (K, N) of each, in
+        whole-array operations: the same numbers as K calls (sums in the same order)."""
+        times = np.asarray(times, dtype=float)
+        dt = np.diff(times, prepend=self._timestamp)
+        if (dt < MIN_ODOM_INTERVAL).any():
+            if len(times) == 1:
+                return False
+            done = [self.update_many(left_positions[k:k + 1], right_positions[k:k + 1], times[k:k + 1])
+                    for k in range(len(times))]
+            return any(done)
+        left = np.concatenate([self._old[:1], left_positions * self.wheel_radius])
+        right = np.concatenate([self._old[1:], right_positions * self.wheel_radius])
+        moved_left, moved_right = np.diff(left, axis=0), np.diff(right, axis=0)
+        self._old[0], self._old[1] = left[-1], right[-1]
         linear = (moved_left + moved_right) * 0.5
         angular = (moved_right - moved_left) / self.wheel_separation
         self._integrate_exact(linear, angular)
-        self._timestamp = now
-        slot = self._window[self._count % VELOCITY_ROLLING_WINDOW]
-        slot[0], slot[1] = linear / dt, angular / dt
-        self._count += 1
+        self._timestamp = times[-1]
+        last = min(len(times), VELOCITY_ROLLING_WINDOW)
+        slots = (self._count + np.arange(len(times) - last, len(times))) % VELOCITY_ROLLING_WINDOW
+        self._window[slots, 0] = linear[-last:] / dt[-last:, None]
+        self._window[slots, 1] = angular[-last:] / dt[-last:, None]
+        self._count += len(times)
         return True
 
     def _integrate_exact(self, linear, angular):
-        """Odometry::integrateExact: the exact arc, or RK2 where |angular| < 1e-6."""
-        heading = self.pose[2]
-        new_heading = heading + angular
+        """Odometry::integrateExact over K updates ((K, N) arrays): the exact arc, or RK2
+        where |angular| < 1e-6.  The headings and positions are running sums (np.cumsum adds
+        in order: the same numbers as one update after another)."""
+        heading = np.cumsum(np.concatenate([self.pose[2:], angular]), axis=0)
+        old, new = heading[:-1], heading[1:]
         small = np.abs(angular) < 1e-6
         r = linear / (np.where(small, 1.0, angular) if small.any() else angular)
-        dx = r * (np.sin(new_heading) - np.sin(heading))
-        dy = -r * (np.cos(new_heading) - np.cos(heading))
+        dx = r * (np.sin(new) - np.sin(old))
+        dy = -r * (np.cos(new) - np.cos(old))
         if small.any():
-            direction = heading + angular * 0.5
+            direction = old + angular * 0.5
             dx = np.where(small, linear * np.cos(direction), dx)
             dy = np.where(small, linear * np.sin(direction), dy)
-        self.pose[0] += dx
-        self.pose[1] += dy
-        self.pose[2] = new_heading
+        self.pose[0] = np.cumsum(np.concatenate([self.pose[:1], dx]), axis=0)[-1]
+        self.pose[1] = np.cumsum(np.concatenate([self.pose[1:2], dy]), axis=0)[-1]
+        self.pose[2] = heading[-1]

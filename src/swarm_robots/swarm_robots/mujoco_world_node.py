@@ -24,6 +24,7 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
 from swarm_core.atomic import write_atomic
+from swarm_core.robot_units import odometry_quaternion
 from swarm_ros import protocol as P
 from swarm_ros.layouts import Step
 from swarm_ros.msg_checks import RejectLog, decoded
@@ -31,8 +32,8 @@ from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
 
-from .run_setup import SUMMARY_FILE, chosen_rows, robots_section, start_poses
-from .timing import RealtimePacer, RobotsLockstep, TurnLimitClock, advance_to, robot_summary
+from .run_setup import SUMMARY_FILE, chosen_rows, robot_description, robots_section, start_poses, turn_limit_clock
+from .timing import RealtimePacer, RobotsLockstep, advance_to, robot_summary
 
 METRICS_TOPIC = '/robots/metrics'
 #: lockstep: wall s without progress after which the newest odometry is published again (an
@@ -59,7 +60,7 @@ def serialized_odometry(writer, sec: int, nanosec: int, row) -> bytes:
     yaw, v, omega (m, rad, body twist): rclpy's conversion of an Odometry message object costs
     ten times more, and the robot world publishes two per robot and step."""
     x, y, yaw, v, omega = (float(c) for c in row)
-    return writer(sec, nanosec, x, y, math.sin(yaw / 2), math.cos(yaw / 2), omega, v)
+    return writer(sec, nanosec, x, y, *odometry_quaternion(yaw), omega, v)
 
 
 class RobotsNode(Node):
@@ -70,8 +71,7 @@ class RobotsNode(Node):
         self._declare_parameters()
         self.reject = RejectLog(self.get_logger())
         desc = self._description()
-        self.world = TurnLimitClock(self._make_world(desc), min(self.sec.max_angular, desc.max_angular),
-                                    desc.cmd_vel_timeout)
+        self.world = turn_limit_clock(self._make_world(desc), self.sec, desc)
         self.t_odom = 0.0                       # sim time of the newest odometry published
         self.last_progress = time.monotonic()
         self.pub_odom, self.pub_truth = [], []
@@ -126,9 +126,8 @@ class RobotsNode(Node):
 
     def _description(self):
         """The robot description the scenario names (default: TurtleBot3 Burger)."""
-        from .description import TURTLEBOT3_BURGER, RobotDescription
         try:
-            return RobotDescription.from_yaml(self.sec.description) if self.sec.description else TURTLEBOT3_BURGER
+            return robot_description(self.sec)
         except (OSError, ValueError) as err:
             raise ParameterError(f'scenario robots.description {self.sec.description}: {err}') from None
 

@@ -123,7 +123,10 @@ class RobotWorld:
         bumpers = [self.model.geom(f'r{i}_bumper').id for i in range(self.n)]
         self._robot_of_geom = np.full(self.model.ngeom, -1)
         self._robot_of_geom[bumpers] = np.arange(self.n)
-        self._touching = np.zeros(0, dtype=np.int64)               # pairs i*n + j, i < j
+        self._no_pairs = np.zeros(0, dtype=np.int64)
+        self._floor = self.model.geom('floor').id
+        self._touching = self._no_pairs                            # pairs i*n + j, i < j
+        self._ctrl = self.data.ctrl.reshape(self.n, 2)             # left, right per robot (a view)
         self._steps = 0
         self._target = 0.0
         self.contacts = 0
@@ -149,36 +152,46 @@ class RobotWorld:
             raise ValueError(f'seconds: must be >= 0 (got {seconds!r})')
         self._target += seconds
         steps = int(round(self._target / self.control_dt)) - self._steps
-        for _ in range(steps):
-            self._control_step()
+        if steps <= 0:
+            return
+        wheels = np.empty((steps, 2, self.n))       # wheel positions at each period's end
+        times = np.empty(steps)
+        for k in range(steps):
+            self._control_step(wheels[k])
+            times[k] = self.time
+        if any(self.data.warning[w].number for w in _DIVERGED):     # not a silent reset
+            raise RuntimeError(f'the physics diverged before t = {self.time:.3f} s')
+        self.wheel_odometry.update_many(wheels[:, 0], wheels[:, 1], times)
 
-    def _control_step(self):
+    def _control_step(self, wheels):
         """One controller period: the controllers' update, physics_dt substeps, then the
-        wheel odometry and the contacts at the period's end."""
+        contacts at the period's end; its wheel positions into ``wheels`` (2, N) (`advance`
+        gives them to the wheel odometry, one update per period)."""
         (left, right), saturated = self.controllers.update(self.time, self.control_dt)
         top = self.description.max_wheel_speed          # the motors' limit, not the controller's
         saturated |= (np.abs(left) > top) | (np.abs(right) > top)
-        self.data.ctrl[0::2] = np.clip(left, -top, top)
-        self.data.ctrl[1::2] = np.clip(right, -top, top)
+        ctrl = self._ctrl
+        ctrl[:, 0], ctrl[:, 1] = left, right
+        np.clip(ctrl, -top, top, out=ctrl)
         mujoco.mj_step(self.model, self.data, nstep=self.substeps)
-        if any(self.data.warning[w].number for w in _DIVERGED):     # not a silent reset
-            raise RuntimeError(f'the physics diverged at t = {self.time:.3f} s')
         self._steps += 1
-        self.saturated_time += np.where(saturated, self.control_dt, 0.0)
-        self.wheel_odometry.update(self._qpos[:, LEFT], self._qpos[:, RIGHT], self.time)
+        np.add(self.saturated_time, self.control_dt, out=self.saturated_time, where=saturated)
+        wheels[0], wheels[1] = self._qpos[:, LEFT], self._qpos[:, RIGHT]
         self._count_contacts()
 
     def _count_contacts(self):
         """Robot-robot contact events: a pair of robots touching now that did not before."""
         ncon = self.data.ncon
+        pairs = self._no_pairs
         if ncon:
-            a = self._robot_of_geom[self.data.contact.geom1[:ncon]]
-            b = self._robot_of_geom[self.data.contact.geom2[:ncon]]
-            both = (a >= 0) & (b >= 0)
-            pairs = np.unique(np.minimum(a, b)[both] * self.n + np.maximum(a, b)[both])
-        else:
-            pairs = np.zeros(0, dtype=np.int64)
-        self.contacts += int(np.setdiff1d(pairs, self._touching, assume_unique=True).size)
+            contact = self.data.contact
+            g1, g2 = contact.geom1[:ncon], contact.geom2[:ncon]
+            if ((g1 != self._floor) & (g2 != self._floor)).any():     # not only wheels on the floor
+                a, b = self._robot_of_geom[g1], self._robot_of_geom[g2]
+                both = (a >= 0) & (b >= 0)
+                pairs = np.unique(np.minimum(a, b)[both] * self.n + np.maximum(a, b)[both])
+        if pairs.size:
+            self.contacts += int(np.setdiff1d(pairs, self._touching, assume_unique=True).size)
         self._touching = pairs
 
     @property

@@ -33,3 +33,17 @@ def start_poses(scn, rows, units) -> np.ndarray:
     initial conditions in metres (``units``: `swarm_core.robot_units.RobotUnits`)."""
     return np.array([units.start_pose(float(scn.pos0[i, 0]), float(scn.pos0[i, 1]), float(scn.theta0[i]))
                      for i in rows], dtype=float).reshape(-1, 3)
+
+
+def robot_description(sec):
+    """The robot description ``sec`` (the ``robots:`` section) names, default a TurtleBot3
+    Burger; OSError or ValueError if its file cannot be read."""
+    from .description import TURTLEBOT3_BURGER, RobotDescription
+    return RobotDescription.from_yaml(sec.description) if sec.description else TURTLEBOT3_BURGER
+
+
+def turn_limit_clock(world, sec, description):
+    """``world`` (a `physics.RobotWorld`) counting the time each robot is commanded at the
+    turn-rate limit: the smaller of the scenario's and the description's."""
+    from .timing import TurnLimitClock
+    return TurnLimitClock(world, min(sec.max_angular, description.max_angular), description.cmd_vel_timeout)
