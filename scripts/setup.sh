@@ -16,13 +16,10 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
     | grep -v "^WARNING: Location" || true
   pkgs=()
   for d in src/*/; do [ -f "$d/setup.py" ] && pkgs+=(-e "$d"); done
-  # built by the venv's setuptools (requirements.txt): an isolated build environment would
-  # fetch setuptools from the index again for each package (about 10 s each)
-  .venv/bin/python -m pip install --disable-pip-version-check -q --no-deps --no-build-isolation "${pkgs[@]}" 2>&1 \
+  .venv/bin/python -m pip install --disable-pip-version-check -q --no-deps "${pkgs[@]}" 2>&1 \
     | grep -v "^WARNING: Location" || true
   # a package that used to own a console script may remove it when reinstalled after its new owner
-  [ -x .venv/bin/swarm ] || .venv/bin/python -m pip install --disable-pip-version-check -q --no-deps \
-    --no-build-isolation -e src/swarm_tools
+  [ -x .venv/bin/swarm ] || .venv/bin/python -m pip install --disable-pip-version-check -q --no-deps -e src/swarm_tools
   .venv/bin/python -c "import rclpy, numpy, swarm_core" 
   echo "$want" > "$stamp"
 fi
