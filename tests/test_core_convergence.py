@@ -23,8 +23,9 @@ def _agree(name, seed, keep=None):
     assert _outcomes(name, seed, dt, 'rk4', keep) == ref              # the continuous system
 
 
-@pytest.mark.parametrize('name,seed', [('homotopy_global', 1), ('homotopy_global', 2),
-                                       ('homotopy_local', 4)])
+# one seed of each law (a second seed of homotopy_global, which splits and reforms the same
+# way, ran the same check on the same outcomes)
+@pytest.mark.parametrize('name,seed', [('homotopy_global', 1), ('homotopy_local', 4)])
 def test_homotopy_outcomes_agree_across_dt_and_integrator(name, seed):
     assert scenario.load(name).dt == 0.1
     _agree(name, seed)
