@@ -154,9 +154,12 @@ class Lines:
             self.lines.append(line)
 
     def wait_for(self, text, timeout):
+        """Whether a line holds ``text`` (or, ``text`` a function, a line makes it true) within
+        ``timeout`` s."""
+        hit = text if callable(text) else (lambda ln: text in ln)
         end = time.monotonic() + timeout
         while time.monotonic() < end:
-            if any(text in ln for ln in self.lines):
+            if any(hit(ln) for ln in list(self.lines)):
                 return True
             time.sleep(0.1)
         return False

@@ -29,8 +29,9 @@ def _pub_once_in_own_context(topic, value):
 
 def test_topic_pub_once_and_param_set_take_effect_every_time(tmp_path, ros_domain, processes, swarm_cmd, rclpy_context):
     """20 tries of the emulated ``ros2 topic pub --once`` (10 on /swarm/lambda, 10 on
-    /agent_0/steering, each a new value) against a realtime ``swarm run --record``: after each
-    one the commander publishes the new value (its ``ramp`` parameter is set to 0 first, with
+    /agent_0/steering, each a new value; after the first, two at a time side by side) against
+    a realtime ``swarm run --record``: after each one the commander publishes the new value
+    (its ``ramp`` parameter is set to 0 first, with
     the SetParameters service as ``ros2 param set`` uses), and ``/swarm/events`` holds exactly
     one ``command`` event per try.  ``ros2 param set /commander lambda 0.77`` is applied the
     same way; ``lambda 1.5`` is refused."""
@@ -69,15 +70,20 @@ def test_topic_pub_once_and_param_set_take_effect_every_time(tmp_path, ros_domai
 
     assert set_param('ramp', 0.0).successful
     taken = []
-    for k in range(20):
-        topic, key, value = (('/swarm/lambda', 'lambda', 0.3 + 0.02 * k) if k % 2 == 0 else
-                             ('/agent_0/steering', 'steer', 0.001 * (k + 1)))
-        t = threading.Thread(target=_pub_once_in_own_context, args=(topic, value))
+    tries = [('/swarm/lambda', 'lambda', 0.3 + 0.02 * k) if k % 2 == 0 else
+             ('/agent_0/steering', 'steer', 0.001 * (k + 1)) for k in range(20)]
+    # λ first on its own (it fires the leader rule; steering first would make agent_0 a leader
+    # by hand), then a steering and a λ try side by side: two tools, each its own participant
+    for k in range(-1, 20, 2):
+        pair = tries[max(k, 0):k + 2]
+        ts = [threading.Thread(target=_pub_once_in_own_context, args=(topic, value)) for topic, _, value in pair]
         t0 = time.monotonic()
-        t.start()
-        spin_for(ex, lambda: not t.is_alive(), 120)
-        hit = spin_for(ex, lambda: value in seen[key], 30)
-        taken.append((topic, value, hit, round(time.monotonic() - t0, 2)))
+        for t in ts:
+            t.start()
+        spin_for(ex, lambda: not any(t.is_alive() for t in ts), 120)
+        for topic, key, value in pair:
+            hit = spin_for(ex, lambda: value in seen[key], 30)
+            taken.append((topic, value, hit, round(time.monotonic() - t0, 2)))
     assert all(h for _, _, h, _ in taken), '\n'.join([str(x) for x in taken] + [
         ln.rstrip() for ln in lines.lines if 'commander' in ln][-40:])
     assert not set_param('lambda', 1.5).successful

@@ -1,5 +1,6 @@
 """End-to-end: `swarm run` with every agent, the world and the commander as OS processes."""
 import os
+import re
 import signal
 import subprocess
 import time
@@ -16,9 +17,10 @@ from conftest import Lines, short_homotopy
 
 pytestmark = pytest.mark.ros
 
-# homotopy_global's law, agents and start, with the λ window brought forward so that the split
-# and the reform fit in t = 420 (8400 steps) instead of t = 1000 (20000 steps): measured with
-# the batch engine, seeds 0-5 are one swarm until t ≈ 150, two until t ≈ 390-410, then one.
+# homotopy_global's law, agents and start at dt = 0.1, with the λ window brought forward (rise at
+# t = 30, fall at 90, leaders chosen at 10) so that the split and the reform fit in t = 180
+# (1800 steps) instead of t = 1000 (10000 steps): measured with the batch engine, seeds 0-5 are
+# one swarm until t ≈ 50-65, two at t = 70-110, one again by t = 160.
 
 
 def children_of(pid):
@@ -36,10 +38,10 @@ def alive(pid):
 
 
 def test_processes_lockstep_split_reform_equals_simulate(tmp_path, ros_domain, processes, swarm_cmd):
-    path = short_homotopy(tmp_path / 'homotopy_short.yaml', duration=420,
-                          lam='{kind: tanh_window, rise_at: 120, fall_at: 240, tau: 15}', at=75)
+    path = short_homotopy(tmp_path / 'homotopy_short.yaml', duration=180, dt=0.1,
+                          lam='{kind: tanh_window, rise_at: 30, fall_at: 90, tau: 15}', at=10)
     out = tmp_path / 'run'
-    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--progress-every', '100'],
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--progress-every', '50'],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = Lines(p)
     assert p.wait(timeout=400) == 0, ''.join(lines.lines[-30:])
@@ -54,12 +56,12 @@ def test_processes_lockstep_split_reform_equals_simulate(tmp_path, ros_domain, p
     def clusters(t):
         return cluster_labels(got.r[int(round(t / scn.dt))], 4.0)
 
-    assert clusters(100)[0] == 1
-    c, labels = clusters(200)
+    assert clusters(40)[0] == 1
+    c, labels = clusters(85)
     assert c == 2
-    leaders = np.flatnonzero(got.leader[int(round(200 / scn.dt))])
+    leaders = np.flatnonzero(got.leader[int(round(85 / scn.dt))])
     assert len(leaders) == 2 and labels[leaders[0]] != labels[leaders[1]]
-    assert clusters(420)[0] == 1
+    assert clusters(180)[0] == 1
     assert any('[world] finished' in ln for ln in lines.lines)
 
 
@@ -128,30 +130,44 @@ def test_sigterm_stops_every_process(tmp_path, ros_domain, processes, swarm_cmd)
 
 def test_realtime_lambda_from_the_cli_splits_the_swarm(tmp_path, ros_domain, processes, swarm_cmd):
     """λ = 0 throughout in the scenario; leaders chosen at t = 5; `swarm lambda 1.0` mid-run
-    must change the published λ and split the swarm."""
+    must change the published λ and split the swarm.  The run is stopped (Ctrl-C: the steps
+    done are saved) once the world reports two clusters at λ = 1."""
     path = tmp_path / 'homotopy_rt.yaml'
     short_homotopy(path, duration=260, lam='{kind: constant, value: 0.0}', at=5)
     out = tmp_path / 'run'
     p = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--rtf', '5', '--dt', '0.1',
-                         '--out', out, '--no-figure', '--progress-every', '10'],
+                         '--out', out, '--no-figure', '--progress-every', '5'],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = Lines(p)
-    assert lines.wait_for('[world] t=   20', 120), ''.join(lines.lines)
+    progress = re.compile(r'\[world\] t= *([\d.]+)  clusters=(\d+)  λ=([\d.]+)')
+
+    def reported(ln, t=0.0, clusters=1, lam=0.0):
+        """A progress line at sim time >= t with >= clusters clusters at λ >= lam."""
+        m = progress.search(ln)
+        return bool(m) and float(m[1]) >= t and int(m[2]) >= clusters and float(m[3]) >= lam
+
+    assert lines.wait_for(lambda ln: reported(ln, t=20), 120), ''.join(lines.lines)
     cli = subprocess.run([swarm_cmd, 'lambda', '1.0', '--ramp', '5'], capture_output=True, text=True, timeout=60)
     assert cli.returncode == 0, cli.stderr
-    assert lines.wait(p, 180) == 0, ''.join(lines.lines[-30:])
+    # the split takes ~30-60 sim s once λ = 1 (a run that ends first, at t = 260, fails here)
+    assert lines.wait_for(lambda ln: reported(ln, clusters=2, lam=1.0), 180), ''.join(lines.lines[-30:])
+    p.send_signal(signal.SIGINT)
+    assert lines.wait(p, 60) == 130, ''.join(lines.lines[-30:])
     got = Trajectory.load(out / 'trajectory.npz')
     t_cli = got.t[np.argmax(got.lam > 0.0)]
     assert got.lam[got.t < 19].max() == 0.0
     assert t_cli >= 19 and got.lam[-1] == 1.0
     # the leaders chosen at t = 5 are in the world's trajectory (they were all False in realtime)
     assert not got.leader[got.t < 4].any() and got.leader[-1].sum() == 2, got.leader.sum(axis=1)[::100]
-    # the split takes ~30-60 sim s once λ = 1; a CLI that found the swarm late leaves no time
-    assert t_cli <= 260 - 120, f'λ arrived at t = {t_cli}: too late in this run to judge the split'
     assert np.all(np.isfinite(got.r)) and np.all(np.isfinite(got.theta))
-    # unit speed in realtime too (agents that moved one dt per timer call flew at 0.55-0.7)
-    speed = np.linalg.norm(np.diff(got.r, axis=0), axis=2).sum(axis=0) / (got.t[-1] - got.t[0])
-    assert np.all((speed > 0.9) & (speed < 1.01)), speed
+    # unit speed in realtime too (agents that moved one dt per timer call flew at 0.55-0.7): the
+    # median over 5 sim s windows, as a loaded machine can starve every agent for a few seconds
+    # (the periods beyond catch_up_limit are lost), which a run this short does not average out
+    w = int(round(5.0 / (got.t[1] - got.t[0])))
+    n = (len(got.t) - 1) // w
+    steps = np.linalg.norm(np.diff(got.r, axis=0), axis=2)[:n * w].reshape(n, w, -1)
+    speed = np.median(steps.sum(axis=1) / (got.t[w] - got.t[0]), axis=0)
+    assert n >= 8 and np.all((speed > 0.9) & (speed < 1.01)), speed
     c_before = cluster_labels(got.r[np.searchsorted(got.t, t_cli) - 1], 4.0)[0]
     c_end = cluster_labels(got.r[-1], 4.0)[0]
     assert c_before == 1 and c_end >= 2, (c_before, c_end)

@@ -142,7 +142,9 @@ def agent_pid(out, name):
 
 
 def test_live_kill_pause_and_lost_agent(tmp_path, ros_domain, processes, swarm_cmd):
-    path, out, bag, p = run(processes, swarm_cmd, tmp_path, '--missing-timeout', '3', name='live', duration=300)
+    # 3000 steps (dt = 0.1): time for the live verbs to land while the run goes on
+    path, out, bag, p = run(processes, swarm_cmd, tmp_path, '--missing-timeout', '3', name='live', duration=300,
+                            dt=0.1)
     lines = Lines(p)
     assert lines.wait_for('discovered in', 120), ''.join(lines.lines)
     cli = [processes.start([swarm_cmd, 'kill', 'agent_4'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True),
