@@ -36,7 +36,12 @@ def clusters(traj, t, w=4.0):
 
 
 def test_lockstep_six_robots_repeatable_and_split_by_lambda(tmp_path, ros_domain, processes, swarm_cmd):
-    path = short_homotopy(tmp_path / 'robots.yaml', robots=ROBOTS, **SPLIT)
+    """Two short ROS runs (12 s) are equal, and equal the robot engine of studies
+    (`swarm_robots.engine`) bit for bit; the split by λ is then checked on the engine's run of
+    the same scenario to t = 60 (600 robot steps, a few CPU seconds instead of two ROS runs)."""
+    from swarm_core import scenario
+    from swarm_robots.engine import simulate as robot_simulate
+    path = short_homotopy(tmp_path / 'robots.yaml', robots=ROBOTS, **dict(SPLIT, duration=12))
     a, metrics, lines = run(processes, swarm_cmd, path, tmp_path / 'a', '--robots', 'mujoco')
     assert any('6 of 6 agents on robots (mujoco)' in ln for ln in lines.lines)
     b, _, _ = run(processes, swarm_cmd, path, tmp_path / 'b', '--robots', 'mujoco')
@@ -44,12 +49,16 @@ def test_lockstep_six_robots_repeatable_and_split_by_lambda(tmp_path, ros_domain
     np.testing.assert_array_equal(a.r, b.r)
     np.testing.assert_array_equal(a.theta, b.theta)
     np.testing.assert_array_equal(a.u, b.u)
+    ours = robot_simulate(scenario.load(str(path)), 'all')
+    np.testing.assert_array_equal(a.r, ours.r)
+    np.testing.assert_array_equal(a.u, ours.u)
     # robots, not kinematic points: they start from rest and accelerate to v0
     speed = np.linalg.norm(np.diff(a.r, axis=0), axis=2) / (a.t[1] - a.t[0])
     assert speed[0].max() < 0.5 and np.abs(speed[20:] - 1.0).max() < 0.05
-    assert clusters(a, 10) == 1 and clusters(a, 60) >= 2
     robots = metrics['summary']['robots']
     assert sorted(robots['limit_seconds']) == sorted(robots['turn_limit_seconds']) == [f'agent_{i}' for i in range(6)]
+    full = robot_simulate(scenario.load(str(short_homotopy(tmp_path / 'long.yaml', robots=ROBOTS, **SPLIT))), 'all')
+    assert clusters(full, 10) == 1 and clusters(full, 60) >= 2
 
 
 def test_swarm_run_starts_the_robot_world_and_keeps_its_summary(tmp_path, ros_domain, processes, swarm_cmd):
