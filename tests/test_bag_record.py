@@ -458,3 +458,47 @@ def test_state_gap_count():
     rec.states = {'agent_0': {k * dt for k in range(10)},
                   'agent_1': {k * dt for k in range(10) if k not in (3, 7)}}
     assert rec.state_gaps() == {'agent_0': (10, 0), 'agent_1': (8, 2)}
+
+
+def test_recorder_that_falls_behind_loses_no_state(rclpy_context, tmp_path):
+    """A recorder starved of CPU while many agents publish (a realtime run at a high rtf):
+    its reader holds every state the agents' publishers still hold (their depth,
+    protocol.STATES_DEPTH), so none is lost when it catches up.  Here its callbacks do not run
+    while 30 agents publish 100 states each (3000, more than a depth of 1000 held)."""
+    import rclpy
+    from nav_msgs.msg import Odometry
+    from rclpy.executors import SingleThreadedExecutor
+
+    from swarm_ros import protocol as P
+    from swarm_tools.bag import BagWriter
+    from swarm_tools.record import SWARM_TOPICS, Recorder, TopicFilter
+
+    agents, states = 30, P.STATES_DEPTH
+    rec_node = rclpy.create_node('swarm_recorder', context=rclpy_context)
+    writer = BagWriter(tmp_path / 'behind.mcap')
+    rec = Recorder(rec_node, writer, TopicFilter(['/swarm/states']), presubscribe=SWARM_TOPICS)
+    rec_ex = SingleThreadedExecutor(context=rclpy_context)
+    rec_ex.add_node(rec_node)
+    node = rclpy.create_node('agents', context=rclpy_context)
+    pubs = [node.create_publisher(Odometry, P.STATES, P.qos_latched(P.STATES_DEPTH)) for _ in range(agents)]
+    try:
+        assert _wait(lambda: all(p.get_subscription_count() >= 1 for p in pubs), 30)
+        m = Odometry()
+        m.pose.pose.orientation.w = 1.0
+        for k in range(states):
+            m.header.stamp.nanosec = k
+            for i, p in enumerate(pubs):
+                m.child_frame_id = f'agent_{i}'
+                p.publish(m)
+        time.sleep(1.0)             # delivered to the recorder's reader, not yet taken
+        total = agents * states
+        _wait(lambda: rec.received.get('/swarm/states', 0) >= total, 20,
+              lambda: rec_ex.spin_once(timeout_sec=0.05))
+        _wait(lambda: False, 0.5, lambda: rec_ex.spin_once(timeout_sec=0.05))
+        assert rec.received['/swarm/states'] == total
+        assert sum(m for _, m in rec.state_gaps().values()) == 0
+    finally:
+        rec_ex.shutdown()
+        node.destroy_node()
+        rec_node.destroy_node()
+        writer.close()

@@ -26,8 +26,12 @@ from .msgdefs import DefinitionNotFound, _msg_file
 
 #: the graph is polled this often for new topics and publishers (seconds)
 POLL_PERIOD = 0.2
-#: subscription depth: deep enough that a lockstep burst of many agents is never dropped
-SUB_DEPTH = 1000
+#: subscription depth: the reader holds every message that waits for the recorder's thread, as
+#: many as the publishers still hold (1000 agents' states at protocol.STATES_DEPTH each), so a
+#: recorder starved of CPU for a while (a realtime run at a high rtf on a busy machine) loses
+#: nothing when it catches up; a lockstep burst of many agents neither.  Memory is taken only
+#: for the messages that wait.
+SUB_DEPTH = 100_000
 
 
 #: a message type name as it may come from the graph or a bag: ``pkg/msg/Type`` only
