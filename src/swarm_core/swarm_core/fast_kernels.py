@@ -28,13 +28,12 @@ import math
 import numpy as np
 from numba import njit
 
-from .comms import _GOLDEN, _M1, _M2, STREAM_DELAY, STREAM_LOSS, _mix as _mix_array
+from .comms import _GOLDEN, _M1, _M2, _S11, _S27, _S30, _S31, STREAM_DELAY, STREAM_LOSS, _mix as _mix_array
 
-_S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
 _UNIT = 1.0 / 9007199254740992.0            # 2⁻⁵³, as `comms.link_uniforms`
-#: mix(stream + G) of the two streams (`comms.link_uniforms`' last key)
 #: dead-reckoned messages kept per sender and step: those up to this many steps old
 PREDICTED_AGES = 64
+#: mix(stream + G) of the two streams (`comms.link_uniforms`' last key)
 _KEY_LOSS, _KEY_DELAY = _mix_array(np.array([STREAM_LOSS, STREAM_DELAY], dtype=np.uint64) + _GOLDEN)
 
 
@@ -315,7 +314,7 @@ def _tanh_window(t, rise_at, fall_at, tau, low, high):
     return out
 
 
-# ------------------------------------------------------------------ the radio: 
+# ------------------------------------------------------------------ the radio
 @njit(cache=True, inline='always')
 def _mix(z):
     """splitmix64 finaliser (`comms._mix`), wrapping uint64 arithmetic."""

@@ -44,6 +44,7 @@ from .physics import RobotWorld
 from .run_setup import robot_description, robots_section, start_poses, turn_limit_clock
 from .timing import RobotsLockstep, robot_summary
 
+
 def robot_rows(n: int, robot_set: str) -> list:
     """Roster rows on robots: none, the first half (rounded up), or all of ``n`` agents."""
     if robot_set not in ROBOT_SETS:

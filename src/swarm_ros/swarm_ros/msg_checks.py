@@ -43,6 +43,19 @@ def check_state(msg, row, newest, now=None, tolerance=FUTURE_TOLERANCE):
                         row, newest, now, tolerance)
 
 
+def _future_text(name, t, now, tolerance):
+    return (f'state of {name!r} stamped t={t:.3f}, ahead of this clock t={now:.3f} by more than '
+            f'{tolerance:g} s (a stamp from the future)')
+
+
+def _past_text(name, t, t0):
+    return f'state of {name!r} stamped t={t:.3f}, older than its newest t={t0:.3f} (a stamp from the past)'
+
+
+def _duplicate_text(name, t):
+    return f'second, different state of {name!r} for t={t:.3f}: duplicate agent name (two publishers?)'
+
+
 def check_values(name, t, pose, wz, row, newest, now=None, tolerance=FUTURE_TOLERANCE):
     """`check_state` on decoded values: pose = (x, y, qx, qy, qz, qw), wz = twist.angular.z."""
     if name not in row:
@@ -55,18 +68,15 @@ def check_values(name, t, pose, wz, row, newest, now=None, tolerance=FUTURE_TOLE
     if abs(qz ** 2 + qw ** 2 - 1.0) > 1e-6 or qx or qy:
         return reason('not-planar', f'state of {name!r}: orientation is not a planar unit quaternion')
     if now is not None and t > now + tolerance:
-        return reason('future-stamp', f'state of {name!r} stamped t={t:.3f}, ahead of this clock '
-                      f't={now:.3f} by more than {tolerance:g} s (a stamp from the future)')
+        return reason('future-stamp', _future_text(name, t, now, tolerance))
     if name in newest:
         t0 = newest[name][0]
         if t < t0:
-            return reason('past-stamp', f'state of {name!r} stamped t={t:.3f}, older than its newest '
-                          f't={t0:.3f} (a stamp from the past)')
+            return reason('past-stamp', _past_text(name, t, t0))
         if t == t0:
             if tuple(newest[name][1:5]) == vals:
                 return 'repeat'
-            return reason('duplicate', f'second, different state of {name!r} for t={t:.3f}: duplicate '
-                          'agent name (two publishers?)')
+            return reason('duplicate', _duplicate_text(name, t))
     return None
 
 
@@ -320,13 +330,10 @@ class NewestStates:
         bound = self.tag[i]
         why = [('dup-self', self.own[i], lambda j: f'state claiming to be {roster[i[j]]!r} (this agent) from '
                 'another publisher: duplicate agent name'),
-               ('future-stamp', t > now + tolerance, lambda j: f'state of {roster[i[j]]!r} stamped t={t[j]:.3f}, '
-                f'ahead of this clock t={now:.3f} by more than {tolerance:g} s (a stamp from the future)'),
-               ('past-stamp', t < t0, lambda j: f'state of {roster[i[j]]!r} stamped t={t[j]:.3f}, older than '
-                f'its newest t={t0[j]:.3f} (a stamp from the past)'),
+               ('future-stamp', t > now + tolerance, lambda j: _future_text(roster[i[j]], t[j], now, tolerance)),
+               ('past-stamp', t < t0, lambda j: _past_text(roster[i[j]], t[j], t0[j])),
                (None, repeat, None),
-               ('duplicate', same, lambda j: f'second, different state of {roster[i[j]]!r} for '
-                f't={t[j]:.3f}: duplicate agent name (two publishers?)'),
+               ('duplicate', same, lambda j: _duplicate_text(roster[i[j]], t[j])),
                ('second-publisher', (bound == bound) & (bound != msg.tag), lambda j: f'state of '
                 f'{roster[i[j]]!r} from a second publisher (sender {_show(msg.tag)}; the name is bound to '
                 f'{_show(float(bound[j]))}, its first)')]
