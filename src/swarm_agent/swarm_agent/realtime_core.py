@@ -43,8 +43,7 @@ class HeardStates(NewestStates):
     @property
     def newest(self):
         """name -> (t, x, y, qz, qw, u) of the agents heard (`agent_core.known_table`)."""
-        return {self.roster[i]: (float(self.t[i]), *map(float, self.state[i]), float(self.u[i]))
-                for i in np.flatnonzero(np.isfinite(self.t))}
+        return self.by_name(self.roster)
 
     def table(self, now, stale_after, receivers):
         """(rows, states (m, 4)): the agents heard within ``stale_after`` of ``now`` and the

@@ -318,6 +318,12 @@ class NewestStates:
         self.state[i] = state
         self.u[i] = u
 
+    def by_name(self, roster) -> dict:
+        """name -> (t, x, y, qz, qw, u) of the agents heard, in roster order."""
+        import numpy as np
+        return {roster[i]: (float(self.t[i]), *map(float, self.state[i]), float(self.u[i]))
+                for i in np.flatnonzero(np.isfinite(self.t))}
+
     def take(self, msg, roster, now, tolerance, reject):
         """(K,) bool: the states of ``msg`` (`layouts.ProcessStates`) taken as the agents' newest;
         each refused one logged with ``reject`` by kind, as `check_values` words it (an exact

@@ -47,9 +47,8 @@ class RealtimeWorld:
 
     @property
     def newest(self):
-        """name -> (t, x, y, qz, qw) of the agents heard (for inspection)."""
-        h = self.heard
-        return {self.names[i]: (float(h.t[i]), *map(float, h.state[i])) for i in np.flatnonzero(np.isfinite(h.t))}
+        """name -> (t, x, y, qz, qw, u) of the agents heard (for inspection)."""
+        return self.heard.by_name(self.names)
 
     def _on_lambda(self, msg):
         if LAMBDA_BOUND.ok(msg.data):
