@@ -16,7 +16,7 @@ from swarm_world.lockstep import decision_valid
 from swarm_world.markers import markers_every
 from swarm_world.observe import Observer
 from swarm_ros.msg_checks import NewestStates
-from swarm_world.realtime import RealtimeSchedule, newest_view
+from swarm_world.realtime import CLOCK_TICK_MAX, RealtimeSchedule, clock_tick, newest_view
 from swarm_world.wallclock import StallWatch, StartWatch
 
 NAMES = ['a', 'b', 'c']
@@ -102,6 +102,21 @@ def test_realtime_view_is_due_once_per_period_and_never_with_zero():
     s = schedule(view_every=10)
     assert [k for k in [0, 3, 9, 10, 15, 31, 32] if s.view_due(k)] == [0, 10, 31]
     assert not any(schedule(view_every=0).view_due(k) for k in range(30))
+
+
+@pytest.mark.parametrize('dt, rtf', [(0.1, 5), (0.1, 1), (0.1, 3), (0.1, 20), (0.05, 0.5), (0.1, 10)])
+def test_realtime_clock_ticks_divide_the_control_period(dt, rtf):
+    """Counted from the run's start, the world's ticks fall on every period boundary: a whole
+    number of ticks per period's wall time, as few as keep them at most CLOCK_TICK_MAX apart."""
+    tick, period = clock_tick(dt, rtf), dt / rtf
+    m = period / tick
+    assert abs(m - round(m)) < 1e-9 and tick <= CLOCK_TICK_MAX + 1e-12
+    assert round(m) == 1 or period / (round(m) - 1) > CLOCK_TICK_MAX
+
+
+def test_realtime_clock_tick_of_the_record_case():
+    assert clock_tick(0.1, 5) == pytest.approx(0.01)        # two ticks a 20 ms period
+    assert clock_tick(0.1, 20) == pytest.approx(0.005)      # one a period, not one every two
 
 
 def test_newest_view_samples_in_roster_order():

@@ -2,8 +2,11 @@
 radio events and faults that are due, and when to refresh the view.
 
 Returns actions in the lockstep barrier's vocabulary (`swarm_world.lockstep`):
-``('comms', k, event)``, ``('event', ev)`` and ``('signal', i, what)``."""
+``('comms', k, event)``, ``('event', ev)`` and ``('signal', i, what)``.  Also the wall period of
+the world's tick (`clock_tick`)."""
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -11,6 +14,18 @@ from swarm_core.faults import track_slots
 from swarm_core.frenet import yaw_from_quaternion
 
 SIGNAL_OF = {'kill': 'kill', 'freeze': 'stop', 'resume': 'cont'}   # fault event → signal
+#: the realtime world ticks (and publishes /clock) at least this often, wall s
+CLOCK_TICK_MAX = 0.01
+
+
+def clock_tick(dt, rtf, most=CLOCK_TICK_MAX):
+    """Wall s between the realtime world's ticks: a whole fraction of a control period's wall
+    time dt/rtf, at most ``most``.  Counted from the run's start (the world restarts its timer
+    there), a tick, and so a /clock message, comes just after each period boundary k·dt: the
+    agents' timers (on that clock) fire as the period starts, not up to a tick later, and
+    never half a period late, where `agent_core.catch_up` would round up to the next period."""
+    period = dt / rtf
+    return period / max(1, math.ceil(period / most - 1e-9))
 
 
 class RealtimeSchedule:

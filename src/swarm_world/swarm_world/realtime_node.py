@@ -67,9 +67,11 @@ class RealtimeWorld:
         if not self.started:
             if not np.isfinite(self.heard.t).all():
                 return
-            self.started, self.run_wall = True, now
+            self.started = True
             self.log(f'[world] realtime: {self.n} agents discovered in {now - self.wall_start:.1f} s; '
                      f'clock at rtf {self.rtf}', flush=True)
+            now = self.run_wall = time.monotonic()
+            self.timer.reset()          # the ticks from the start on: one just after each period boundary
         self.sim_t = (now - self.run_wall) * self.rtf
         self.pub_clock.publish(Clock(clock=stamp(self.sim_t)))
         k = P.step_of(self.sim_t, self.dt)

@@ -46,7 +46,7 @@ from .lateness import TIMING_FILE, Lateness
 from .markers import Trails, geometry_messages, markers_every, markers_message, metrics_message, view_values
 from .observe import Observer
 from .parameters import WORLD
-from .realtime import RealtimeSchedule
+from .realtime import RealtimeSchedule, clock_tick
 from .realtime_node import RealtimeWorld
 from .wallclock import StallWatch, StartWatch
 
@@ -88,8 +88,8 @@ class WorldNode(RealtimeWorld, Node):
         self.leaders_now = np.zeros(self.n, bool)
         self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
         self.publish_geometry()
-        self.timer = self.create_timer(0.05 if self.mode == 'lockstep' else 0.01, self._on_timer,
-                                       clock=steady_clock())
+        self.timer = self.create_timer(0.05 if self.mode == 'lockstep' else clock_tick(self.dt, self.rtf),
+                                       self._on_timer, clock=steady_clock())
 
     def _declare_parameters(self):
         """The world's parameters (`parameters.WORLD`, kept as attributes), the run id, the
