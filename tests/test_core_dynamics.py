@@ -157,21 +157,25 @@ def test_agent_by_agent_equals_batch_exactly(name, extra):
 
 
 def test_realtime_catch_up_moves_by_the_elapsed_periods():
-    """A realtime agent integrates round((now − t)/dt) periods (u held), none when no period
-    has passed (a second timer call for the same /clock time), and at most `limit` after a
-    long gap (a stopped process), restarting its time at now; no rounding drift."""
+    """A realtime agent integrates floor((now − t)/dt) periods (u held), the periods begun,
+    none when no period has passed (a second timer call for the same /clock time), and at
+    most `limit` after a long gap (a stopped process), restarting its time at now; no
+    rounding drift, and never a state stamped ahead of the clock."""
     from swarm_agent.agent_core import catch_up
     dt = 0.05
     assert catch_up(0.1, 0.0, dt, 4) == (2, 0.1)
     assert catch_up(0.1, 0.1, dt, 4) == (0, 0.1)            # same time again: nothing moves
     assert catch_up(0.12, 0.1, dt, 4) == (0, 0.1)           # less than half a period
-    assert catch_up(0.13, 0.1, dt, 4)[0] == 1               # more than half a period
+    assert catch_up(0.14, 0.1, dt, 4) == (0, 0.1)           # more than half, less than one
+    assert catch_up(0.17, 0.1, dt, 4) == (1, pytest.approx(0.15))   # late in its period: that period's state
+    assert catch_up(0.3, 0.1 + 0.05 + 0.05, dt, 4)[0] == 2     # on the boundary, dt summed in floats
     assert catch_up(5.1, 0.1, dt, 4) == (4, 5.1)            # a freeze: limit periods, time reset
     t, periods = 0.0, 0
     for now in np.cumsum(np.random.default_rng(0).uniform(0.02, 0.11, 2000)):   # clock jitter
         k, t = catch_up(float(now), t, dt, 4)
         periods += k
-    assert abs(periods * dt - now) <= dt / 2 + 1e-9         # the agent kept up with the clock
+        assert t <= now + 1e-9                              # never ahead of the clock
+    assert 0 <= now - periods * dt < dt                     # the agent kept up with the clock
 
 
 def test_realtime_table_holds_the_fresh_neighbours_and_self_in_roster_order():

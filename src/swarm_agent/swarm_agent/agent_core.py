@@ -34,16 +34,24 @@ from swarm_core.laws import LawConfig
 from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
 
 
+#: a tick this few periods short of a boundary is on it (t_state sums dt in floats; the clock
+#: comes in whole ns)
+ON_BOUNDARY = 1e-6
+
+
 def catch_up(now: float, t_state: float, dt: float, limit: int) -> tuple[int, float]:
     """Realtime: how many control periods to integrate (u held, ZOH) at sim time ``now`` when
     the agent holds its state of time ``t_state``, and the time of the state that results.
 
-    periods = round((now − t_state)/dt): a /clock jump may cover two periods (one timer call)
-    or none (a second call at the same time: 0 periods, no new state).  The new state's time is
-    t_state + periods·dt, so rounding never accumulates.  A gap of more than ``limit`` periods
-    moves the agent ``limit`` periods and restarts its time at ``now`` (the limit applies
-    after the process was stopped, `realtime_core.due_periods`; a late tick flies every period)."""
-    periods = math.floor((now - t_state) / dt + 0.5)
+    periods = floor((now − t_state)/dt), the whole periods that have begun: a /clock jump may
+    cover two periods (one timer call) or none (a second call at the same time: 0 periods, no
+    new state).  A tick half a period late still makes the state of the period it is in, not
+    the next one's, stamped ahead of the clock (a period skipped, counted late).  The new
+    state's time is t_state + periods·dt, so rounding never accumulates.  A gap of more than
+    ``limit`` periods moves the agent ``limit`` periods and restarts its time at ``now`` (the
+    limit applies after the process was stopped, `realtime_core.due_periods`; a late tick
+    flies every period)."""
+    periods = math.floor((now - t_state) / dt + ON_BOUNDARY)
     if periods < 1:
         return 0, t_state
     if periods > limit:
