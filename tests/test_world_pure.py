@@ -211,3 +211,39 @@ def test_decision_valid_needs_lambda_in_range_finite_steering_and_one_flag_each(
 
 def test_markers_of_a_big_swarm_go_out_less_often():
     assert [markers_every(n) for n in (1, 6, 100, 101, 1000, 1500)] == [1, 1, 1, 2, 10, 15]
+
+
+def test_markers_bytes_decode_to_the_arrows_trails_target_and_barrier():
+    """The serialized /world/markers decode (rclpy) to what they say: an arrow per agent at
+    its pose (leaders gold), its trail of the last `trail_length` views, the target and the
+    barrier; rclpy writes the decoded message back to as many bytes (the same layout)."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    from visualization_msgs.msg import Marker, MarkerArray
+    from swarm_world.markers import LEADER_COLOUR, PALETTE, Trails, markers_message
+    trails = Trails(4, 2)
+    rng = np.random.default_rng(3)
+    leaders = np.array([False, True, False, False])
+    for view in range(3):
+        idx = np.array([0, 1, 3]) if view else np.arange(4)      # agent 2 gone after the first view
+        pos, theta = rng.normal(size=(len(idx), 2)), rng.normal(size=len(idx))
+        raw = markers_message(1.5 * view, pos, theta, np.arange(len(idx)), idx, leaders, trails, (1.0, -2.0),
+                              [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0)])
+        ma = deserialize_message(raw, MarkerArray)
+        assert len(serialize_message(ma)) == len(raw)
+        arrows, tr = ma.markers[0:-2:2], ma.markers[1:-2:2]
+        assert [(m.ns, m.id, m.type) for m in arrows] == [('agents', int(i), Marker.ARROW) for i in idx]
+        assert [(m.ns, m.id, m.type) for m in tr] == [('trails', int(i), Marker.LINE_STRIP) for i in idx]
+        for row, (a, t) in enumerate(zip(arrows, tr)):
+            assert (a.header.frame_id, a.header.stamp.sec, a.header.stamp.nanosec) == ('world', int(1.5 * view),
+                                                                                       (view % 2) * 500_000_000)
+            assert (a.pose.position.x, a.pose.position.y) == tuple(pos[row])
+            assert a.pose.orientation.z == pytest.approx(np.sin(theta[row] / 2))
+            assert a.pose.orientation.w == pytest.approx(np.cos(theta[row] / 2))
+            want = LEADER_COLOUR if leaders[idx[row]] else PALETTE[row]
+            assert (a.color.r, a.color.g, a.color.b, a.color.a) == pytest.approx((*want, 1.0))
+            assert (t.points[-1].x, t.points[-1].y, t.color.a) == (pos[row, 0], pos[row, 1], pytest.approx(0.6))
+            assert len(t.points) == min(view + 1, 2)          # the trail keeps the last 2
+        target, barrier = ma.markers[-2:]
+        assert (target.type, target.pose.position.x, target.pose.position.y) == (Marker.SPHERE, 1.0, -2.0)
+        assert [(p.x, p.y) for p in barrier.points] == [(0, 0), (1, 0), (0, 1), (0, 0)]
+    assert [(p.x, p.y) for p in tr[0].points] == [tuple(trails.of(0)[k, :2]) for k in range(2)]

@@ -186,7 +186,8 @@ def event_json(kind: str, t, **fields) -> str:
 
 # ------------------------------------------------------------------ raw CDR of Float64MultiArray
 
-_HEADER = b'\x00\x01\x00\x00'   # CDR little endian
+#: the encapsulation header of a serialized message: CDR, little endian
+CDR_LE = b'\x00\x01\x00\x00'
 
 
 def float64_array_to_cdr(data: np.ndarray) -> bytes:
@@ -198,7 +199,7 @@ def float64_array_to_cdr(data: np.ndarray) -> bytes:
 def float64_array_header(size: int) -> bytes:
     """The bytes of a serialized Float64MultiArray with an empty layout before its ``size``
     doubles (little-endian)."""
-    return _HEADER + struct.pack('<IIII', 0, 0, size, 0)
+    return CDR_LE + struct.pack('<IIII', 0, 0, size, 0)
 
 
 def cdr_to_float64_array(raw: bytes) -> np.ndarray:
@@ -267,7 +268,7 @@ class OdometryWriter:
                  vx: float = 1.0) -> bytes:
         b = self._body
         b[_I_X], b[_I_Y], b[_I_QZ], b[_I_QW], b[_I_WZ], b[_I_VX] = x, y, qz, qw, wz, vx
-        return _HEADER + struct.pack('<iI', sec, nanosec) + self._names + b.tobytes()
+        return CDR_LE + struct.pack('<iI', sec, nanosec) + self._names + b.tobytes()
 
 
 def cdr_string(raw: bytes, off: int, end: str) -> tuple[str, int]:
@@ -329,8 +330,8 @@ class TwistWriter:
     def __call__(self, sec: int, nanosec: int, v: float, omega: float) -> bytes:
         twist = struct.pack('<6d', v, 0.0, 0.0, 0.0, 0.0, omega)
         if not self.stamped:
-            return _HEADER + twist
-        return _HEADER + struct.pack('<iI', sec, nanosec) + self._frame + twist
+            return CDR_LE + twist
+        return CDR_LE + struct.pack('<iI', sec, nanosec) + self._frame + twist
 
 
 def cdr_to_twist(raw: bytes, stamped: bool = True):
@@ -348,4 +349,4 @@ def cdr_to_twist(raw: bytes, stamped: bool = True):
 
 def clock_to_cdr(t: float) -> bytes:
     """Serialized ``rosgraph_msgs/Clock`` of sim time t (what ``publish()`` accepts as bytes)."""
-    return _HEADER + struct.pack('<iI', *time_to_stamp(t))
+    return CDR_LE + struct.pack('<iI', *time_to_stamp(t))
