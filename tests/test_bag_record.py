@@ -502,3 +502,43 @@ def test_recorder_that_falls_behind_loses_no_state(rclpy_context, tmp_path):
         node.destroy_node()
         rec_node.destroy_node()
         writer.close()
+
+
+def test_recorder_recheck_asks_for_the_offers_only_when_a_publisher_is_unmatched(rclpy_context, tmp_path):
+    """Once a second the recorder rechecks its topics for a publisher that joined with an
+    offer its subscription cannot match.  While every publisher is matched it asks no
+    publisher infos (two counts); a best-effort publisher that joins is found and the topic
+    subscribed again."""
+    import rclpy
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import Float64
+
+    from swarm_tools.bag import BagWriter
+    from swarm_tools.record import Recorder, TopicFilter
+
+    rec_node = rclpy.create_node('swarm_recorder', context=rclpy_context)
+    writer = BagWriter(tmp_path / 'recheck.mcap')
+    rec = Recorder(rec_node, writer, TopicFilter(['/recheck']))
+    node = rclpy.create_node('pubs', context=rclpy_context)
+    node.create_publisher(Float64, '/recheck', QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE))
+    asked = []
+    infos = rec_node.get_publishers_info_by_topic
+    rec_node.get_publishers_info_by_topic = lambda topic: asked.append(topic) or infos(topic)
+    try:
+        assert _wait(lambda: '/recheck' in rec.subs and '/recheck' in writer.topics
+                     and rec.subs['/recheck'].get_publisher_count() == 1, 20, rec.poll)
+        first = rec.subs['/recheck']
+        asked.clear()
+        for _ in range(10):                     # two rechecks
+            rec.poll()
+        assert asked == [] and rec.subs['/recheck'] is first
+        node.create_publisher(Float64, '/recheck', QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT))
+        assert _wait(lambda: rec_node.count_publishers('/recheck') == 2, 20)
+        for _ in range(5):
+            rec.poll()
+        assert '/recheck' in asked and rec.subs['/recheck'] is not first
+        assert rec.subs['/recheck'].qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT
+    finally:
+        node.destroy_node()
+        rec_node.destroy_node()
+        writer.close()
