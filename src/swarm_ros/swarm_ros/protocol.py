@@ -241,7 +241,7 @@ SENDER_TAG_INDEX = 35
 _I_TAG = 7 + SENDER_TAG_INDEX
 
 
-def _cdr_string(s: str, off: int) -> tuple[bytes, int]:
+def string_to_cdr(s: str, off: int) -> tuple[bytes, int]:
     """Padding + length + bytes of a CDR string written at body offset `off`; new offset."""
     b = s.encode() + b'\0'
     pad = (-off) % 4
@@ -257,8 +257,8 @@ class OdometryWriter:
 
     def __init__(self, child_frame_id: str, frame_id: str = 'world', tag: float = 0.0):
         off = 8                                          # after the stamp
-        frame, off = _cdr_string(frame_id, off)
-        child, off = _cdr_string(child_frame_id, off)
+        frame, off = string_to_cdr(frame_id, off)
+        child, off = string_to_cdr(child_frame_id, off)
         pad = (-off) % 8
         self._names = frame + child + b'\0' * pad
         self._body = np.zeros(_ODOM_DOUBLES, dtype='<f8')
@@ -324,7 +324,7 @@ class TwistWriter:
 
     def __init__(self, frame_id: str = '', stamped: bool = True):
         self.stamped = stamped
-        frame, off = _cdr_string(frame_id, 8)
+        frame, off = string_to_cdr(frame_id, 8)
         self._frame = frame + b'\0' * ((-off) % 8)
 
     def __call__(self, sec: int, nanosec: int, v: float, omega: float) -> bytes:

@@ -113,8 +113,8 @@ class _Cdr:
         self.off += pad + len(data)
 
     def string(self, text):
-        b = text.encode() + b'\0'
-        self.put(4, struct.pack('<I', len(b)) + b)
+        b, self.off = P.string_to_cdr(text, self.off)
+        self.parts.append(b)
 
     def points(self, pts):
         """A sequence of geometry_msgs/Point: (k, 3) float64."""
