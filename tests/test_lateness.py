@@ -78,3 +78,17 @@ def test_silent_agent_owes_its_states_unless_a_fault_stopped_it():
     s = late.summary(9)
     assert s['states'] == 20 + 4                # agent 1 owes steps 5..8 (step 9 may be in flight)
     assert s['late'] == 4
+
+
+def test_periods_skipped_before_a_process_first_ticks_are_owed():
+    """The clock starts with every state of step 0 held: an agent whose first tick comes
+    five periods late owes the four periods it skipped, as it would later in the run."""
+    late = Lateness(2, 0.1, 1.0)
+    late.start()
+    for k in range(1, 10):
+        late.arrive(0, k, k * 0.1, k * 0.1)
+        if k >= 5:
+            late.arrive(1, k, k * 0.1, k * 0.1 + (0.45 if k == 5 else 0.0))
+    s = late.summary()
+    assert s['states'] == 18 and s['arrived'] == 14
+    assert s['late'] == 5                       # steps 1..4 skipped and step 5 itself late

@@ -59,6 +59,12 @@ class Lateness:
         self.arrived = 0
         self.skipped = 0
 
+    def start(self):
+        """The clock starts with every agent's state of step 0 held (the world waits for them):
+        from here on each agent owes every period, so the periods skipped by a process whose
+        first ticks came late are counted, as any others."""
+        self.last[:] = 0
+
     def excuse(self, i):
         """Agent i was killed or frozen by a fault: its gaps are not lateness."""
         self.excused[i] = True

@@ -72,6 +72,7 @@ class RealtimeWorld:
                      f'clock at rtf {self.rtf}', flush=True)
             now = self.run_wall = time.monotonic()
             self.timer.reset()          # the ticks from the start on: one just after each period boundary
+            self.lateness.start()
         self.sim_t = (now - self.run_wall) * self.rtf
         self.pub_clock.publish(Clock(clock=stamp(self.sim_t)))
         k = P.step_of(self.sim_t, self.dt)
