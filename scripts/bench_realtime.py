@@ -6,8 +6,9 @@ Three parts, each through the product's own launcher (``swarm run --mode realtim
 a grid (`bench_ros.scenario_file`):
 
 - ``--record-case N,RTF`` (default 96,5): N agents at --rtf RTF with ``--record``: the share of
-  states on time (the world's ``timing`` in metrics.json) and the states the bag lost
-  (owed n·(steps+1) less those recorded);
+  states on time (the world's ``timing`` in metrics.json), the states the bag lost
+  (owed n·(steps+1) less those recorded) and what the bag says of the timing (`bag_timing`:
+  the clock's phase, the periods skipped, the worst wall second);
 - ``--big-case N,RTF`` (default 1000,1): N agents: on-time share, speed (each agent's path
   length over the run's time, min / median / max; the law flies at unit speed) and start time
   (launching ``swarm run`` to the world's discovery line);
@@ -69,9 +70,44 @@ def case(exe, env, tmp, n, rtf, duration, *, record=False, timeout=900.0) -> dic
         # started) that the bag does not hold; the states a late agent never sent are in `timing`
         got = B.bag_states(bag)
         sent = n + ((r['timing'] or {}).get('arrived') or 0)
-        r.update(bag_states=got, bag_states_owed=n * (steps + 1), bag_lost=max(0, sent - got))
+        r.update(bag_states=got, bag_states_owed=n * (steps + 1), bag_lost=max(0, sent - got),
+                 bag_timing=bag_timing(bag, dt, rtf))
     print(f'    -> {line(r)}', flush=True)
     return r
+
+
+def bag_timing(bag, dt, rtf) -> dict:
+    """The run's timing per control period as the bag tells it (the recorder's receive times
+    standing in for the world's): ``clock_after_boundary``, the share of /clock messages in the
+    first quarter of a period (the agents' timers fire on the first one past a boundary);
+    ``skipped``, the periods the agents' states caught up over; ``worst_second``, the wall
+    second (from the clock's start) with the smallest share of states on time at the recorder,
+    and that share: bursts show there, spread lateness does not."""
+    import struct
+
+    from swarm_ros.protocol import cdr_byte_order, cdr_to_odometry_full
+    from swarm_tools.bag import iter_messages
+    clock, states = [], {}
+    for m in iter_messages(bag, topics=['/clock', '/swarm/states']):
+        if m.topic == '/clock':
+            sec, nsec = struct.unpack_from(cdr_byte_order(m.data) + 'iI', m.data, 4)
+            clock.append((m.log_time * 1e-9, sec + nsec * 1e-9))
+        else:
+            _, name, sec, nsec, *_ = cdr_to_odometry_full(m.data)
+            states.setdefault(name, []).append((m.log_time * 1e-9, sec + nsec * 1e-9))
+    if not clock or not states:
+        return {}
+    clock = np.array(clock)
+    wall0 = np.min(clock[:, 0] - clock[:, 1] / rtf)            # the clock's start (its fastest message)
+    got = np.concatenate([np.array(v) for v in states.values()])
+    second = np.floor(got[:, 1] / rtf).astype(int)
+    on_time = got[:, 0] - wall0 - got[:, 1] / rtf <= dt / rtf
+    share = np.bincount(second, on_time) / np.maximum(np.bincount(second), 1)
+    worst = int(np.argmin(np.where(np.bincount(second) > 0, share, np.inf)))
+    steps = [np.unique(np.rint(np.array(v)[:, 1] / dt).astype(int)) for v in states.values()]
+    return dict(clock_after_boundary=round(float(np.mean((clock[:, 1] / dt) % 1 < 0.25)), 3),
+                skipped=int(sum(np.sum(np.diff(k) - 1) for k in steps)),
+                worst_second=worst, worst_second_on_time=round(float(share[worst]), 4))
 
 
 def scenario_dt() -> float:
@@ -128,8 +164,8 @@ def line(r) -> str:
             f"p99 {tm.get('lateness_p99_ms', '—')} ms, achieved rtf {tm.get('achieved_rtf', '—')}, "
             f"start {r.get('start_s', '—')} s, speed {r.get('speed')}, "
             f"CPU ms/period {r.get('cpu_ms_per_period', '—')}"
-            + (f", bag {r['bag_states']}/{r['bag_states_owed']} states (lost {r['bag_lost']})"
-               if 'bag_lost' in r else ''))
+            + (f", bag {r['bag_states']}/{r['bag_states_owed']} states (lost {r['bag_lost']}), "
+               f"bag timing {r.get('bag_timing')}" if 'bag_lost' in r else ''))
 
 
 def on_time(r) -> float:
