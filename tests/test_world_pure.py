@@ -16,7 +16,7 @@ from swarm_world.lockstep import decision_valid
 from swarm_world.markers import markers_every
 from swarm_world.observe import Observer
 from swarm_ros.msg_checks import NewestStates
-from swarm_world.realtime import CLOCK_TICK_MAX, RealtimeSchedule, clock_tick, newest_view
+from swarm_world.realtime import CLOCK_TICK_MAX, CLOCK_TICK_MIN, RealtimeSchedule, clock_tick, newest_view
 from swarm_world.wallclock import StallWatch, StartWatch
 
 NAMES = ['a', 'b', 'c']
@@ -112,6 +112,14 @@ def test_realtime_clock_ticks_divide_the_control_period(dt, rtf):
     m = period / tick
     assert abs(m - round(m)) < 1e-9 and tick <= CLOCK_TICK_MAX + 1e-12
     assert round(m) == 1 or period / (round(m) - 1) > CLOCK_TICK_MAX
+
+
+@pytest.mark.parametrize('dt, rtf', [(0.1, 40), (0.1, 30), (0.1, 1000), (0.01, 5)])
+def test_realtime_clock_ticks_of_a_short_period_span_whole_periods(dt, rtf):
+    """A period shorter than CLOCK_TICK_MIN: a tick every few whole periods, on boundaries."""
+    tick, period = clock_tick(dt, rtf), dt / rtf
+    k = tick / period
+    assert abs(k - round(k)) < 1e-9 and CLOCK_TICK_MIN - 1e-12 <= tick < CLOCK_TICK_MIN + period
 
 
 def test_realtime_clock_tick_of_the_record_case():

@@ -14,17 +14,22 @@ from swarm_core.faults import track_slots
 from swarm_core.frenet import yaw_from_quaternion
 
 SIGNAL_OF = {'kill': 'kill', 'freeze': 'stop', 'resume': 'cont'}   # fault event → signal
-#: the realtime world ticks (and publishes /clock) at least this often, wall s
+#: the realtime world ticks (and publishes /clock) at least this often, wall s ...
 CLOCK_TICK_MAX = 0.01
+#: ... and at most this often (a clock at 10 kHz would cost every reader more than it serves)
+CLOCK_TICK_MIN = 0.005
 
 
-def clock_tick(dt, rtf, most=CLOCK_TICK_MAX):
+def clock_tick(dt, rtf, most=CLOCK_TICK_MAX, least=CLOCK_TICK_MIN):
     """Wall s between the realtime world's ticks: a whole fraction of a control period's wall
-    time dt/rtf, at most ``most``.  Counted from the run's start (the world restarts its timer
-    there), a tick, and so a /clock message, comes just after each period boundary k·dt: the
-    agents' timers (on that clock) fire as the period starts, not up to a tick later, and
-    never half a period late, where `agent_core.catch_up` would round up to the next period."""
+    time dt/rtf, at most ``most`` (a period shorter than ``least``: a whole number of periods,
+    at least ``least``).  Counted from the run's start (the world restarts its timer there), a
+    tick, and so a /clock message, comes just after each period boundary: the agents' timers
+    (on that clock) fire as the period starts, not up to a tick later, and never half a period
+    late, where `agent_core.catch_up` would round up to the next period."""
     period = dt / rtf
+    if period < least:
+        return period * math.ceil(least / period - 1e-9)
     return period / max(1, math.ceil(period / most - 1e-9))
 
 
