@@ -137,9 +137,9 @@ SWARM_TOPICS = {topic: (SWARM_TYPES[topic], durability) for topic, durability in
 
 def presubscribed(agents=()) -> dict:
     """`SWARM_TOPICS` and the steering topic of each of ``agents`` (latched, as the commander
-    offers it): subscribed at start-up, before the run's nodes exist.  Found in the graph mid-run,
-    a hundred steering topics cost the recorder one poll of 80-180 ms of CPU, once the clock of a
-    realtime run may already be running."""
+    offers it): subscribed at start-up, before the run's nodes exist.  Found in the graph later,
+    a hundred steering topics cost the recorder one poll of 80-180 ms of CPU, at a time when a
+    realtime run's clock may already be running."""
     steering = {P.steering_topic(nm): (swarm_type(P.steering_topic(nm)), 1) for nm in agents}
     return {**SWARM_TOPICS, **steering}
 
