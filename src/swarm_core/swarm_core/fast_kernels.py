@@ -371,8 +371,7 @@ def _decide(i, x, y, seed, rf, link, labels, keys, harr, stats):
 @njit(cache=True)
 def radio_state(n, ring, max_age):
     """The kernel's beliefs: stamp (n, n) of the newest state held (−1: none), its state
-    (6, n, n: x, y, qz, qw, u and the yaw 2·atan2(qz, qw) of dead reckoning), the last
-    ``ring`` sends (states (ring, 6, n), arrivals (ring, n, n)), the dead-reckoned messages
+    (5, n, n: x, y, qz, qw, u), the last ``ring`` sends (states (ring, 5, n), arrivals (ring, n, n)), the dead-reckoned messages
     of the step (sender, age), a receiver's believed table (x, y, cos θ, sin θ, sender) and
     the hash keys mix(k + G) of the rows."""
     stamp = np.full((n, n), -1, np.int64)
@@ -382,7 +381,7 @@ def radio_state(n, ring, max_age):
     keys = np.empty(n, np.uint64)
     for k in range(n):
         keys[k] = _mix(np.uint64(k) + _GOLDEN)
-    return (stamp, np.zeros((6, n, n)), np.zeros((ring, 6, n)), sent_at, np.zeros((n, ages, 4)),
+    return (stamp, np.zeros((5, n, n)), np.zeros((ring, 5, n)), sent_at, np.zeros((n, ages, 4)),
             predicted_at, np.zeros((4, n)), np.zeros(n, np.int64), keys)
 
 
@@ -399,8 +398,6 @@ def radio_receive(i, x, y, q, u_prev, radio, state):
     for j in range(n):
         hist[slot, 0, j], hist[slot, 1, j], hist[slot, 2, j], hist[slot, 3, j] = x[j], y[j], q[0, j], q[1, j]
         hist[slot, 4, j] = u_prev[j]
-        if rf[5] != 0.0:                             # the yaw of `comms.dead_reckon`, once per message
-            hist[slot, 5, j] = 2.0 * math.atan2(q[0, j], q[1, j])
     _decide(i, x, y, seed[0], rf, link, labels, state[8], harr[slot], stats)
     for k in range(n):
         for j in range(n):
@@ -413,7 +410,7 @@ def radio_receive(i, x, y, q, u_prev, radio, state):
                 newest, at = (i - d, sl) if hit else (newest, at)
             fresh = newest > stamp[k, j]             # selects, not branches: fates are random
             stamp[k, j] = newest if fresh else stamp[k, j]
-            for f in range(6):
+            for f in range(5):
                 belief[f, k, j] = hist[at, f, j] if fresh else belief[f, k, j]
 
 
@@ -450,16 +447,16 @@ def _believed(i, k, rf, state):
 
 @njit(cache=True)
 def _dead_reckon(st, horizon, out):
-    """(x, y, cos θ, sin θ) of a state (x, y, qz, qw, u, yaw) ``horizon`` sim s ahead on the
-    exact arc (`comms.dead_reckon`: `zoh_step` from the yaw, quaternion, frame)."""
-    theta = st[5]
+    """(x, y, cos θ, sin θ) of a state (x, y, qz, qw, u) ``horizon`` sim s ahead on the exact
+    arc, with the sums of `comms.dead_reckon` (sin and cos of uh/2 only)."""
+    qz, qw = st[2], st[3]
     half = st[4] * (0.5 * horizon)
-    mid = theta + half
-    chord = (math.sin(half) / half if half != 0.0 else 1.0) * horizon
-    out[0] = math.cos(mid) * chord + st[0]
-    out[1] = math.sin(mid) * chord + st[1]
-    h2 = 0.5 * (theta + 2.0 * half)
-    qz, qw = math.sin(h2), math.cos(h2)
+    sh, ch = math.sin(half), math.cos(half)
+    chord = (sh / half if half != 0.0 else 1.0) * horizon
+    c, s = qw * qw - qz * qz, 2.0 * qw * qz
+    out[0] = (c * ch - s * sh) * chord + st[0]
+    out[1] = (s * ch + c * sh) * chord + st[1]
+    qz, qw = qz * ch + qw * sh, qw * ch - qz * sh
     out[2], out[3] = qw * qw - qz * qz, 2.0 * qw * qz
 
 
