@@ -20,6 +20,9 @@ does it (`comms.CommModel.decide`, `Beliefs.receive`, `belief_controls`):
 - its u is the law over its believed senders, summed one after the other in sender order
   (the reference's ``np.bincount`` over the pair list), its nearest leader the believed
   leader nearest to its true position (ties to the lower row).
+
+The radio's kernels are inlined into `_run` (``inline='always'``): as calls, once per step
+and receiver with their tuples of arrays, they cost about as much as their work at n = 6.
 """
 from __future__ import annotations
 
@@ -392,7 +395,7 @@ def radio_state(n, ring, held):
             np.zeros((4, n)), np.zeros(n, np.int64), keys)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def radio_receive(i, x, y, q, c, s, u_prev, radio, state):
     """Send the states of step i (q, c, s: their quaternions and frames), decide their fates
     and fold what arrives at step i into the beliefs (`Beliefs.receive`, newest stamp
@@ -418,7 +421,7 @@ def radio_receive(i, x, y, q, c, s, u_prev, radio, state):
 
 # ------------------------------------------------------------------ beliefs and the law
 
-@njit(cache=True, inline='always')      # a call per receiver cost more than its table
+@njit(cache=True, inline='always')
 def _believed(i, k, rf, state):
     """The senders receiver k knows at step i (heard within the timeout), ascending, their
     (x, y, cos θ, sin θ) dead-reckoned to t_i if the model says so (`Beliefs.known_pairs`);
@@ -448,7 +451,7 @@ def _believed(i, k, rf, state):
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _dead_reckon(sent, at, j, horizon):
     """(x, y, cos θ, sin θ) of the state sent[at, :, j] (x, y, qz, qw, u, cos θ, sin θ)
     ``horizon`` sim s ahead on the exact arc, with the sums of `comms.dead_reckon` (sin and
@@ -462,7 +465,7 @@ def _dead_reckon(sent, at, j, horizon):
             qw * qw - qz * qz, 2.0 * qw * qz)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def radio_control(i, x, y, c, s, lam, q0, is_leader, steer, code, gains, normalised, rf, state, u):
     """u_k of every receiver from its true state and its beliefs (`comms.belief_controls`,
     the sparse pair sums of `pair_sums._pair_sums_sparse` and `_combine`): eq. 4-5, 8,
