@@ -23,9 +23,9 @@ very same fates.  All arithmetic is elementwise, so the results are bit-identica
 late older message never replaces a newer one).  Senders whose newest state is older than
 ``timeout`` are forgotten (left out of the table).  With ``dead_reckoning`` the state of t_m is
 predicted to t_n on the exact arc of unit speed with the sender's known heading and u
-(the arc of `integrate.zoh_step` with dt = t_n − t_m, by angle sums: `dead_reckon`).  `belief_controls` gives u_k of every receiver
-from its own state and its beliefs with THE law (`laws.swarm_control`), in one call over the
-believed (receiver, sender) pairs.
+(the arc of `integrate.zoh_step` with dt = t_n − t_m, by angle sums: `dead_reckon`).
+`belief_controls` gives u_k of every receiver from its own state and its beliefs with THE law
+(`laws.swarm_control`), in one call over the believed (receiver, sender) pairs.
 
 Changes in time: ``events`` at sim times (``loss``/``latency``/``jitter`` set the base values,
 ``drop`` + ``duration`` a burst loss, ``partition`` new groups, ``[]`` heals), applied from the
