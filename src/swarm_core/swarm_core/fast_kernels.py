@@ -258,7 +258,7 @@ def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choos
     while held < max(ring, min(int(radio[0][4]), steps) + 1):
         held *= 2
     state = radio_state(n if on else 0, ring, held)
-    mom, q = np.empty((6, n)), np.empty((2, n))
+    mom, q, no_leader = np.empty((6, n)), np.empty((2, n)), np.zeros(n, np.bool_)
     is_leader = leader_prog >= 0
     pending = rule and not is_leader.any()
     chosen = -1
@@ -279,7 +279,7 @@ def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choos
             steer[k] = _steering(progs[leader_prog[k]], t) if is_leader[k] else 0.0
         eff_lam, eff_q0 = (0.0, 1.0) if code == 0 else (0.0, 0.0) if code == 1 else \
             (1.0, 0.0) if code == 2 else (lam, q0)
-        lead = is_leader if code == 2 or code == 3 else np.zeros(n, np.bool_)
+        lead = is_leader if code == 2 or code == 3 else no_leader
         if on:
             radio_receive(i, x, y, q, c, s, u, radio, state)
             radio_control(i, x, y, c, s, eff_lam, eff_q0, lead, steer, code, gains, world[4] != 0.0,
