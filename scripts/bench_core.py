@@ -9,7 +9,9 @@ Also measures one call of the control law `swarm_control` on the paper's n = 6 t
 (homotopy_global at t = 450, λ ≈ 0.97, and at λ = 0), for the whole swarm and for ONE
 receiver (what every ROS agent computes per step), and `AgentCore.control`; each the median
 over batches of 200 calls.  ``--global-n`` / ``--local-n`` choose the swarm sizes (comma
-lists; empty: none), ``--no-runs`` skips the full homotopy_global runs.
+lists; empty: none), ``--no-runs`` skips the full homotopy_global runs.  ``--compare REV``
+measures revision REV's engine too, each measurement right before this checkout's; the fast
+engine's runs and start-up as well where REV has the fast engine.
 """
 from __future__ import annotations
 
@@ -263,12 +265,13 @@ def main(argv=None):
                current={}, baseline={})
     with tempfile.TemporaryDirectory() as tmp:
         base_src = extract(a.compare, tmp) if a.compare else None
+        base_fast = base_src is not None and (Path(base_src) / 'swarm_core' / 'fast.py').exists()
         runs = {spec_key(spec): {'current': [], 'baseline': []} for spec in specs}
         try:
             for _ in range(repeats):          # interleaved: every measurement once per round
-                for spec in specs:            # a baseline has no fast engine to measure
+                for spec in specs:            # the fast engine only where the baseline has one
                     key = spec_key(spec)
-                    if base_src and spec['what'] != 'start' and spec.get('engine') != 'fast':
+                    if base_src and (base_fast or (spec['what'] != 'start' and spec.get('engine') != 'fast')):
                         runs[key]['baseline'].append(run_worker(spec, base_src))
                     runs[key]['current'].append(run_worker(spec))
                     print(f'{key:28s} {json.dumps(runs[key]["current"][-1])}', file=sys.stderr, flush=True)
@@ -360,20 +363,22 @@ def table(res):
 
 def radio_ratios(res):
     """Lines of the CPU ratios of the runs over the lossy radio (``comms.loss`` 0.5) against the
-    same runs over the perfect one and on the other engine."""
-    runs = {(r['dt'], r.get('engine', 'reference'), bool(r.get('comms'))): r['cpu']
-            for r in res['current'].values() if r['what'] == 'run' and r.get('comms') in (None, dict(loss=0.5))}
+    same runs over the perfect one and on the other engine (of the baseline too where it has
+    the fast engine)."""
     out = []
-    for dt in sorted({k[0] for k in runs}):
-        got = {k[1:]: v for k, v in runs.items() if k[0] == dt}
-        if not {('fast', True), ('fast', False), ('reference', True)} <= set(got):
-            continue
-        line = (f'loss 0.5 at dt = {dt:g}, CPU ratios: fast radio / fast perfect radio '
-                f'{got["fast", True] / got["fast", False]:.2f}; fast radio / reference radio '
-                f'{got["fast", True] / got["reference", True]:.4f}')
-        if ('reference', False) in got:
-            line += f'; reference radio / reference perfect radio {got["reference", True] / got["reference", False]:.2f}'
-        out += ['', line]
+    for side, who in (('current', ''), ('baseline', f' (before, {res["compare"]})')):
+        runs = {(r['dt'], r.get('engine', 'reference'), bool(r.get('comms'))): r['cpu']
+                for r in res[side].values() if r['what'] == 'run' and r.get('comms') in (None, dict(loss=0.5))}
+        for dt in sorted({k[0] for k in runs}):
+            got = {k[1:]: v for k, v in runs.items() if k[0] == dt}
+            if not {('fast', True), ('fast', False), ('reference', True)} <= set(got):
+                continue
+            line = (f'loss 0.5 at dt = {dt:g}{who}, CPU ratios: fast radio / fast perfect radio '
+                    f'{got["fast", True] / got["fast", False]:.2f}; fast radio / reference radio '
+                    f'{got["fast", True] / got["reference", True]:.4f}')
+            if ('reference', False) in got:
+                line += f'; reference radio / reference perfect radio {got["reference", True] / got["reference", False]:.2f}'
+            out += ['', line]
     return out
 
 

@@ -183,17 +183,37 @@ def test_dead_reckoning_is_the_exact_arc():
     qz, qw = quaternion_from_heading(theta)
     age = np.arange(8) * 0.05
     p, z, w = dead_reckon(pos, qz, qw, u, age, moved=age > 0)
-    th = 2.0 * np.arctan2(qz, qw)
-    p_ref, th_ref = zoh_step(pos, th, u, age)
-    assert np.array_equal(p[1:], p_ref[1:]) and np.array_equal(p[0], pos[0]) and z[0] == qz[0]
-    assert np.array_equal((z[1:], w[1:]), quaternion_from_heading(th_ref[1:]))
+    assert np.array_equal(p[0], pos[0]) and (z[0], w[0]) == (qz[0], qw[0])     # not moved: the same bits
     # equal (to rounding) to stepping ZOH age/dt times with the same u
-    pp, tt = pos.copy(), th.copy()
+    pp, tt = pos.copy(), theta.copy()
     for _ in range(7):
         pp, tt = zoh_step(pp, tt, u, 0.05)
     assert np.allclose(p[7], pp[7], atol=1e-12, rtol=0)
     c, s = frame_from_quaternion(z[7], w[7])
     assert np.allclose((c, s), (np.cos(tt[7]), np.sin(tt[7])), atol=1e-12)
+
+
+def test_dead_reckoning_by_angle_sums_equals_the_arc_from_the_yaw():
+    # the angle-sum form against the straightforward one (yaw from the quaternion, `zoh_step`,
+    # quaternion of the new heading) over headings round the circle (±π included), horizons
+    # up to 20 s, turns of several radians and u = 0
+    rng = np.random.default_rng(7)
+    m = 4000
+    pos = rng.uniform(-50, 50, (m, 2))
+    theta = np.concatenate(([np.pi, -np.pi, 0.0, np.pi / 2], rng.uniform(-np.pi, np.pi, m - 4)))
+    u = np.where(np.arange(m) % 10 == 0, 0.0, rng.uniform(-1.5, 1.5, m))
+    horizon = rng.uniform(0.0, 20.0, m)
+    qz, qw = quaternion_from_heading(theta)
+    p, z, w = dead_reckon(pos, qz, qw, u, horizon)
+    p_arc, th_arc = zoh_step(pos, 2.0 * np.arctan2(qz, qw), u, horizon)
+    z_arc, w_arc = quaternion_from_heading(th_arc)
+    assert np.max(np.abs(p - p_arc)) < 1e-12
+    assert np.max(np.abs(frame_from_quaternion(z, w)[0] - frame_from_quaternion(z_arc, w_arc)[0])) < 1e-13
+    assert np.max(np.abs(frame_from_quaternion(z, w)[1] - frame_from_quaternion(z_arc, w_arc)[1])) < 1e-13
+    assert np.max(np.abs(np.hypot(z, w) - 1.0)) < 1e-14                     # still a unit quaternion
+    still = u == 0.0                                                       # straight on: the sent heading
+    assert np.allclose(p[still], pos[still] + horizon[still, None] * np.stack(frame_from_quaternion(qz, qw), 1)[still],
+                       atol=1e-12, rtol=0)
 
 
 @pytest.mark.parametrize('comms', [

@@ -10,6 +10,7 @@ import yaml
 
 from swarm_core import comms, engine, fast, fast_kernels, scenario
 from swarm_core import study as st
+from swarm_core.frenet import frame_from_quaternion
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -79,6 +80,21 @@ def test_radio_events_fall_back_to_the_reference():
     assert np.array_equal(got.u, ref.u)
 
 
+def test_compiled_dead_reckoning_is_the_reference_sums():
+    # `fast_kernels._dead_reckon` against `comms.dead_reckon` (the same angle sums) state by state
+    rng = np.random.default_rng(3)
+    m = 500
+    theta = rng.uniform(-np.pi, np.pi, m)
+    st = np.stack([*rng.uniform(-20, 20, (2, m)), np.sin(0.5 * theta), np.cos(0.5 * theta),
+                   np.where(np.arange(m) % 7 == 0, 0.0, rng.uniform(-1, 1, m))])
+    sent = np.concatenate([st, frame_from_quaternion(st[2], st[3])])[None]      # (1, 7, m): as sent
+    horizon = rng.uniform(0.0, 20.0, m)
+    pos, qz, qw = comms.dead_reckon(st[:2].T, st[2], st[3], st[4], horizon)
+    want = np.stack([pos[:, 0], pos[:, 1], *frame_from_quaternion(qz, qw)], axis=1)
+    got = np.array([fast_kernels._dead_reckon(sent, 0, r, horizon[r]) for r in range(m)])
+    assert np.max(np.abs(got - want)) < 1e-13
+
+
 def test_compiled_fates_are_the_reference_fates():
     # every link of a few steps: loss, jitter, per-link values, a partition and the range
     n = 7
@@ -88,7 +104,7 @@ def test_compiled_fates_are_the_reference_fates():
                                                                            {'receiver': 'a6', 'jitter': 1.0}]),
                                         names, 0.1)
     rf, seed, link, labels, stats = fast.radio_arguments(model, n)
-    keys = fast_kernels.radio_state(n, 1, 0)[8]
+    keys = fast_kernels.radio_state(n, 1, 1)[7]
     rng = np.random.default_rng(1)
     arrival = np.empty((n, n), np.int64)
     for step in (0, 1, 17, 123456):

@@ -23,9 +23,9 @@ very same fates.  All arithmetic is elementwise, so the results are bit-identica
 late older message never replaces a newer one).  Senders whose newest state is older than
 ``timeout`` are forgotten (left out of the table).  With ``dead_reckoning`` the state of t_m is
 predicted to t_n on the exact arc of unit speed with the sender's known heading and u
-(`integrate.zoh_step` with dt = t_n − t_m).  `belief_controls` gives u_k of every receiver
-from its own state and its beliefs with THE law (`laws.swarm_control`), in one call over the
-believed (receiver, sender) pairs.
+(the arc of `integrate.zoh_step` with dt = t_n − t_m, by angle sums: `dead_reckon`).
+`belief_controls` gives u_k of every receiver from its own state and its beliefs with THE law
+(`laws.swarm_control`), in one call over the believed (receiver, sender) pairs.
 
 Changes in time: ``events`` at sim times (``loss``/``latency``/``jitter`` set the base values,
 ``drop`` + ``duration`` a burst loss, ``partition`` new groups, ``[]`` heals), applied from the
@@ -42,9 +42,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .integrate import zoh_step
 from .laws import LawConfig, swarm_control
-from .frenet import frame_from_quaternion, heading_frame, quaternion_from_heading, yaw_from_quaternion
+from .frenet import frame_from_quaternion, heading_frame
 
 DEFAULTS = dict(seed=None, radio_range=None, loss=0.0, latency=0.0, jitter=0.0, timeout=2.0,
                 dead_reckoning=True, links=(), partition=(), events=())
@@ -362,12 +361,25 @@ class Beliefs:
 
 
 def dead_reckon(pos, qz, qw, u, horizon, moved=None):
-    """States (pos (R, 2), quaternion) predicted ``horizon`` (R,) sim seconds ahead at unit speed
-    with constant u on the exact arc (`zoh_step`); rows where ``moved`` is False are returned
-    unchanged (bit for bit).  Returns (pos, qz, qw)."""
-    theta = yaw_from_quaternion(qz, qw)
-    p2, th2 = zoh_step(np.asarray(pos, float), theta, np.asarray(u, float), np.asarray(horizon, float))
-    qz2, qw2 = quaternion_from_heading(th2)
+    """States (pos (R, 2), unit quaternion) predicted ``horizon`` (R,) sim seconds ahead at unit
+    speed with constant u on the exact arc (`zoh_step`: θ' = θ + uh, r' = r + h sinc(uh/2)
+    (cos, sin)(θ + uh/2)); rows where ``moved`` is False are returned unchanged (bit for bit).
+    Returns (pos, qz, qw).
+
+    θ enters only through the sent quaternion, by the angle-sum identities: (cos θ, sin θ) =
+    `frame_from_quaternion`, and the half angle θ'/2 = θ/2 + uh/2 is the quaternion turned by
+    uh/2, so sin and cos of uh/2 are the only ones evaluated (the compiled radio,
+    `fast_kernels._dead_reckon`, does the same sums)."""
+    pos, qz, qw, horizon = (np.asarray(v, float) for v in (pos, qz, qw, horizon))
+    half = np.multiply(u, 0.5 * horizon)                        # uh/2
+    sh, ch = np.sin(half), np.cos(half)
+    zero = half == 0.0
+    chord = (sh + zero) / (half + zero) * horizon               # h sinc(uh/2)
+    c, s = frame_from_quaternion(qz, qw)
+    p2 = np.empty((len(half), 2))
+    p2[:, 0] = (c * ch - s * sh) * chord + pos[:, 0]            # cos(θ + uh/2)
+    p2[:, 1] = (s * ch + c * sh) * chord + pos[:, 1]            # sin(θ + uh/2)
+    qz2, qw2 = qz * ch + qw * sh, qw * ch - qz * sh
     if moved is None:
         return p2, qz2, qw2
     m = np.asarray(moved, bool)

@@ -20,6 +20,9 @@ does it (`comms.CommModel.decide`, `Beliefs.receive`, `belief_controls`):
 - its u is the law over its believed senders, summed one after the other in sender order
   (the reference's ``np.bincount`` over the pair list), its nearest leader the believed
   leader nearest to its true position (ties to the lower row).
+
+The radio's kernels are inlined into `_run` (``inline='always'``): as calls, once per step
+and receiver with their tuples of arrays, they cost about as much as their work at n = 6.
 """
 from __future__ import annotations
 
@@ -250,8 +253,12 @@ def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choos
     alpha, eta, mu, r0, w, leader_gain = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5]
     c, s, u, steer = np.empty(n), np.empty(n), np.zeros(n), np.zeros(n)   # u: the last step's, sent
     on = radio[0][0] != 0.0
-    state = radio_state(n if on else 0, max(1, radio[4].size - 2), int(radio[0][4]))
-    mom, q = np.empty((6, n)), np.empty((2, n))
+    ring = max(1, radio[4].size - 2)
+    held = 1                                     # a power of two: slot = step & (held − 1)
+    while held < max(ring, min(int(radio[0][4]), steps) + 1):
+        held *= 2
+    state = radio_state(n if on else 0, ring, held)
+    mom, q, no_leader = np.empty((6, n)), np.empty((2, n)), np.zeros(n, np.bool_)
     is_leader = leader_prog >= 0
     pending = rule and not is_leader.any()
     chosen = -1
@@ -272,9 +279,9 @@ def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choos
             steer[k] = _steering(progs[leader_prog[k]], t) if is_leader[k] else 0.0
         eff_lam, eff_q0 = (0.0, 1.0) if code == 0 else (0.0, 0.0) if code == 1 else \
             (1.0, 0.0) if code == 2 else (lam, q0)
-        lead = is_leader if code == 2 or code == 3 else np.zeros(n, np.bool_)
+        lead = is_leader if code == 2 or code == 3 else no_leader
         if on:
-            radio_receive(i, x, y, q, u, radio, state)
+            radio_receive(i, x, y, q, c, s, u, radio, state)
             radio_control(i, x, y, c, s, eff_lam, eff_q0, lead, steer, code, gains, world[4] != 0.0,
                           radio[0], state, u)
         elif code == 4:
@@ -369,101 +376,96 @@ def _decide(i, x, y, seed, rf, link, labels, keys, harr, stats):
 
 
 @njit(cache=True)
-def radio_state(n, ring, max_age):
-    """The kernel's beliefs: stamp (n, n) of the newest state held (−1: none), its state
-    (6, n, n: x, y, qz, qw, u and the yaw 2·atan2(qz, qw) of dead reckoning), the last
-    ``ring`` sends (states (ring, 6, n), arrivals (ring, n, n)), the dead-reckoned messages
-    of the step (sender, age), a receiver's believed table (x, y, cos θ, sin θ, sender) and
-    the hash keys mix(k + G) of the rows."""
+def radio_state(n, ring, held):
+    """The kernel's beliefs: stamp (n, n), the step of the newest state receiver k holds of
+    sender j (−1: none), and no copy of it: the states of the last ``held`` sends (held a
+    power of two ≥ the ring and the oldest age a belief is used at, so a stamp s finds its
+    state in slot s & (held − 1): (held, 7, n) of x, y, qz, qw, u, cos θ, sin θ); the
+    arrival steps of the last ``ring`` sends (ring, n, n); the dead-reckoned messages of the
+    step (sender, age); a receiver's believed table (x, y, cos θ, sin θ, sender) and the
+    hash keys mix(k + G) of the rows."""
     stamp = np.full((n, n), -1, np.int64)
     sent_at = np.full((ring, n, n), -2, np.int64)
-    ages = min(max_age, PREDICTED_AGES - 1) + 1
+    ages = min(held, PREDICTED_AGES)
     predicted_at = np.full((n, ages), -1, np.int64)
     keys = np.empty(n, np.uint64)
     for k in range(n):
         keys[k] = _mix(np.uint64(k) + _GOLDEN)
-    return (stamp, np.zeros((6, n, n)), np.zeros((ring, 6, n)), sent_at, np.zeros((n, ages, 4)),
-            predicted_at, np.zeros((4, n)), np.zeros(n, np.int64), keys)
+    return (stamp, np.zeros((held, 7, n)), sent_at, np.zeros((n, ages, 4)), predicted_at,
+            np.zeros((4, n)), np.zeros(n, np.int64), keys)
 
 
-@njit(cache=True)
-def radio_receive(i, x, y, q, u_prev, radio, state):
-    """Send the states of step i (q: their quaternions), decide their fates and fold what
-    arrives at step i into the beliefs (`Beliefs.receive`, newest stamp winning), counting
-    what the radio did."""
+@njit(cache=True, inline='always')
+def radio_receive(i, x, y, q, c, s, u_prev, radio, state):
+    """Send the states of step i (q, c, s: their quaternions and frames), decide their fates
+    and fold what arrives at step i into the beliefs (`Beliefs.receive`, newest stamp
+    winning), counting what the radio did."""
     rf, seed, link, labels, stats = radio
-    stamp, belief, hist, harr = state[0], state[1], state[2], state[3]
-    n, ring = x.size, hist.shape[0]
+    stamp, sent, harr = state[0], state[1], state[2]
+    n, ring = x.size, harr.shape[0]
+    at = i & (sent.shape[0] - 1)
+    for j in range(n):
+        sent[at, 0, j], sent[at, 1, j], sent[at, 2, j], sent[at, 3, j] = x[j], y[j], q[0, j], q[1, j]
+        sent[at, 4, j], sent[at, 5, j], sent[at, 6, j] = u_prev[j], c[j], s[j]
     slot = i % ring
     back = min(i, ring - 1)                          # the sends still in the ring: slot − d
-    for j in range(n):
-        hist[slot, 0, j], hist[slot, 1, j], hist[slot, 2, j], hist[slot, 3, j] = x[j], y[j], q[0, j], q[1, j]
-        hist[slot, 4, j] = u_prev[j]
-        if rf[5] != 0.0:                             # the yaw of `comms.dead_reckon`, once per message
-            hist[slot, 5, j] = 2.0 * math.atan2(q[0, j], q[1, j])
-    _decide(i, x, y, seed[0], rf, link, labels, state[8], harr[slot], stats)
+    _decide(i, x, y, seed[0], rf, link, labels, state[7], harr[slot], stats)
     for k in range(n):
         for j in range(n):
-            if j == k:
-                continue
-            newest, at = -1, slot                    # the newest message due now
+            newest = -1                              # the newest message due now
             for d in range(back, -1, -1):
                 sl = slot - d if d <= slot else slot - d + ring
-                hit = harr[sl, k, j] == i
-                newest, at = (i - d, sl) if hit else (newest, at)
-            fresh = newest > stamp[k, j]             # selects, not branches: fates are random
-            stamp[k, j] = newest if fresh else stamp[k, j]
-            for f in range(6):
-                belief[f, k, j] = hist[at, f, j] if fresh else belief[f, k, j]
+                newest = i - d if harr[sl, k, j] == i else newest
+            stamp[k, j] = max(newest, stamp[k, j])   # a select, not a branch: fates are random
 
 
 # ------------------------------------------------------------------ beliefs and the law
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def _believed(i, k, rf, state):
     """The senders receiver k knows at step i (heard within the timeout), ascending, their
     (x, y, cos θ, sin θ) dead-reckoned to t_i if the model says so (`Beliefs.known_pairs`);
     returns how many (into state's table)."""
-    stamp, belief, pred, pred_at, table, rows = state[0], state[1], state[4], state[5], state[6], state[7]
+    stamp, sent, pred, pred_at, table, rows = state[0], state[1], state[3], state[4], state[5], state[6]
+    mask = sent.shape[0] - 1
     m = 0
     for j in range(stamp.shape[1]):
         age = i - stamp[k, j]
         if j == k or stamp[k, j] < 0 or age > rf[4]:
             continue
+        at = stamp[k, j] & mask                      # its state: sent[at, :, j]
         if rf[5] != 0.0 and age > 0:
             if age >= pred_at.shape[1]:              # an old message: not kept
-                _dead_reckon(belief[:, k, j], age * rf[3], table[:, m])
+                xp, yp, cp, sp = _dead_reckon(sent, at, j, age * rf[3])
             else:
                 if pred_at[j, age] != i:             # each message (j, age) once per step
-                    _dead_reckon(belief[:, k, j], age * rf[3], pred[j, age])
+                    pred[j, age, 0], pred[j, age, 1], pred[j, age, 2], pred[j, age, 3] = \
+                        _dead_reckon(sent, at, j, age * rf[3])
                     pred_at[j, age] = i
-                for f in range(4):
-                    table[f, m] = pred[j, age, f]
+                xp, yp, cp, sp = pred[j, age, 0], pred[j, age, 1], pred[j, age, 2], pred[j, age, 3]
         else:
-            qz, qw = belief[2, k, j], belief[3, k, j]
-            table[0, m], table[1, m] = belief[0, k, j], belief[1, k, j]
-            table[2, m], table[3, m] = qw * qw - qz * qz, 2.0 * qw * qz
+            xp, yp, cp, sp = sent[at, 0, j], sent[at, 1, j], sent[at, 5, j], sent[at, 6, j]
+        table[0, m], table[1, m], table[2, m], table[3, m] = xp, yp, cp, sp
         rows[m] = j
         m += 1
     return m
 
 
-@njit(cache=True)
-def _dead_reckon(st, horizon, out):
-    """(x, y, cos θ, sin θ) of a state (x, y, qz, qw, u, yaw) ``horizon`` sim s ahead on the
-    exact arc (`comms.dead_reckon`: `zoh_step` from the yaw, quaternion, frame)."""
-    theta = st[5]
-    half = st[4] * (0.5 * horizon)
-    mid = theta + half
-    chord = (math.sin(half) / half if half != 0.0 else 1.0) * horizon
-    out[0] = math.cos(mid) * chord + st[0]
-    out[1] = math.sin(mid) * chord + st[1]
-    h2 = 0.5 * (theta + 2.0 * half)
-    qz, qw = math.sin(h2), math.cos(h2)
-    out[2], out[3] = qw * qw - qz * qz, 2.0 * qw * qz
+@njit(cache=True, inline='always')
+def _dead_reckon(sent, at, j, horizon):
+    """(x, y, cos θ, sin θ) of the state sent[at, :, j] (x, y, qz, qw, u, cos θ, sin θ)
+    ``horizon`` sim s ahead on the exact arc, with the sums of `comms.dead_reckon` (sin and
+    cos of uh/2 only)."""
+    qz, qw, c, s = sent[at, 2, j], sent[at, 3, j], sent[at, 5, j], sent[at, 6, j]
+    half = sent[at, 4, j] * (0.5 * horizon)
+    sh, ch = math.sin(half), math.cos(half)
+    chord = (sh / half if half != 0.0 else 1.0) * horizon
+    qz, qw = qz * ch + qw * sh, qw * ch - qz * sh
+    return ((c * ch - s * sh) * chord + sent[at, 0, j], (s * ch + c * sh) * chord + sent[at, 1, j],
+            qw * qw - qz * qz, 2.0 * qw * qz)
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def radio_control(i, x, y, c, s, lam, q0, is_leader, steer, code, gains, normalised, rf, state, u):
     """u_k of every receiver from its true state and its beliefs (`comms.belief_controls`,
     the sparse pair sums of `pair_sums._pair_sums_sparse` and `_combine`): eq. 4-5, 8,
@@ -472,7 +474,7 @@ def radio_control(i, x, y, c, s, lam, q0, is_leader, steer, code, gains, normali
     alpha, eta, mu, r0, w, leader_gain = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5]
     ar2, w2 = alpha * r0 * r0, w * w
     far, gain_f = q0 * (1.0 - lam), (leader_gain - 1.0) * lam + 1.0
-    table, rows = state[6], state[7]
+    table, rows = state[5], state[6]
     for k in range(x.size):
         m = _believed(i, k, rf, state)
         xk, yk, ck, sk, lead_k = x[k], y[k], c[k], s[k], is_leader[k]
