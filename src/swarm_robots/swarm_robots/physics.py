@@ -10,8 +10,9 @@ caster is a frictionless sphere.  Robots touch each other through a sphere of th
 height, so two robots collide as two discs in the plane; a robot's own parts never collide.
 
 The controllers update every ``control_dt`` (100 Hz) and the physics steps ``physics_dt``
-(2 ms) in between; `advance` runs whole controller periods.  Single-threaded MuJoCo with the
-same model and the same commands gives bit-identical results.
+(10 ms by default: one explicit Euler step per period, see `MAX_PHYSICS_DT`); `advance` runs
+whole controller periods.  Single-threaded MuJoCo with the same model and the same commands
+gives bit-identical results.
 """
 from __future__ import annotations
 
@@ -25,11 +26,19 @@ from .diff_drive import DiffDriveControllers, WheelOdometry
 CONTROL_DT = 0.01
 #: each wheel's velocity servo: N·m per rad/s of velocity error (the torque limit caps it)
 WHEEL_GAIN = 0.5
-#: reflected motor inertia on a wheel joint, kg·m² (order of magnitude of a geared servo).  The
-#: servo is integrated explicitly (Euler), stable while WHEEL_GAIN·physics_dt/WHEEL_ARMATURE < 2
-WHEEL_ARMATURE = 1e-3
-#: the largest physics_dt: the servo's stability bound with a margin of 2
+#: reflected motor inertia on a wheel joint, kg·m²: the rotor's inertia times the gear ratio
+#: squared (258.5² for the Burger's Dynamixel XL430-W250).  ROBOTIS publishes no rotor inertia;
+#: 0.75 g·cm², of the order of a small cored DC motor's, reflects to 5e-3.  The servo's time
+#: constant is WHEEL_ARMATURE / WHEEL_GAIN = 10 ms.
+WHEEL_ARMATURE = 5e-3
+#: the largest physics_dt.  The servo is integrated explicitly (Euler), stable while
+#: WHEEL_GAIN·physics_dt/WHEEL_ARMATURE < 2: this is that bound with a margin of 2.  (MuJoCo's
+#: implicitfast would take kv implicitly and lift the bound, but it sizes the contact forces for
+#: the mass matrix M and integrates with M + h·kv: a wheel's grip no longer matches its turning.
+#: Measured: at 10 ms the chassis outruns its accelerating wheels by 0.04 m/s.)
 MAX_PHYSICS_DT = WHEEL_ARMATURE / WHEEL_GAIN
+#: the default physics_dt: one MuJoCo step per controller period
+PHYSICS_DT = CONTROL_DT
 CASTER_RADIUS = 0.01
 #: height of the contact sphere's centre above the wheel axle, m
 BUMPER_HEIGHT = 0.05
@@ -97,7 +106,7 @@ class RobotWorld:
     ``poses`` (N, 3): start x, y (m) and yaw (rad) in the world frame.  Times are robot
     seconds."""
 
-    def __init__(self, description: RobotDescription, poses, physics_dt: float = 0.002,
+    def __init__(self, description: RobotDescription, poses, physics_dt: float = PHYSICS_DT,
                  control_dt: float = CONTROL_DT):
         poses = np.asarray(poses, dtype=float).reshape(-1, 3)
         if not np.isfinite(poses).all():
