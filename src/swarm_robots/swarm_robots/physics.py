@@ -35,7 +35,7 @@ WHEEL_ARMATURE = 5e-3
 #: WHEEL_GAIN·physics_dt/WHEEL_ARMATURE < 2: this is that bound with a margin of 2.  (MuJoCo's
 #: implicitfast would take kv implicitly and lift the bound, but it sizes the contact forces for
 #: the mass matrix M and integrates with M + h·kv: a wheel's grip no longer matches its turning.
-#: Measured: at 10 ms the chassis outruns its accelerating wheels by 0.04 m/s.)
+#: Measured: at 10 ms the chassis outruns its accelerating wheels by 0.045 m/s.)
 MAX_PHYSICS_DT = WHEEL_ARMATURE / WHEEL_GAIN
 #: the default physics_dt: one MuJoCo step per controller period
 PHYSICS_DT = CONTROL_DT
