@@ -136,6 +136,8 @@ class RobotWorld:
         self._floor = self.model.geom('floor').id
         self._touching = self._no_pairs                            # pairs i*n + j, i < j
         self._ctrl = self.data.ctrl.reshape(self.n, 2)             # left, right per robot (a view)
+        self._targets = None                                       # the wheel targets in ctrl
+        self._at_top = np.zeros(self.n, dtype=bool)                # which are beyond the motors'
         self._steps = 0
         self._target = 0.0
         self.contacts = 0
@@ -176,15 +178,20 @@ class RobotWorld:
         """One controller period: the controllers' update, physics_dt substeps, then the
         contacts at the period's end; its wheel positions into ``wheels`` (2, N) (`advance`
         gives them to the wheel odometry, one update per period)."""
-        (left, right), saturated = self.controllers.update(self.time, self.control_dt)
-        top = self.description.max_wheel_speed          # the motors' limit, not the controller's
-        saturated |= (np.abs(left) > top) | (np.abs(right) > top)
-        ctrl = self._ctrl
-        ctrl[:, 0], ctrl[:, 1] = left, right
-        np.clip(ctrl, -top, top, out=ctrl)
+        targets, saturated = self.controllers.update(self.time, self.control_dt)
+        if targets is not self._targets:        # a settled controller repeats its answer: ctrl holds
+            self._targets = targets
+            left, right = targets
+            top = self.description.max_wheel_speed      # the motors' limit, not the controller's
+            self._at_top = (np.abs(left) > top) | (np.abs(right) > top)
+            ctrl = self._ctrl
+            ctrl[:, 0], ctrl[:, 1] = left, right
+            np.clip(ctrl, -top, top, out=ctrl)
         mujoco.mj_step(self.model, self.data, nstep=self.substeps)
         self._steps += 1
-        np.add(self.saturated_time, self.control_dt, out=self.saturated_time, where=saturated)
+        saturated |= self._at_top
+        if saturated.any():
+            np.add(self.saturated_time, self.control_dt, out=self.saturated_time, where=saturated)
         wheels[0], wheels[1] = self._qpos[:, LEFT], self._qpos[:, RIGHT]
         self._count_contacts()
 
@@ -194,9 +201,10 @@ class RobotWorld:
         pairs = self._no_pairs
         if ncon:
             contact = self.data.contact
-            g1, g2 = contact.geom1[:ncon], contact.geom2[:ncon]
-            if ((g1 != self._floor) & (g2 != self._floor)).any():     # not only wheels on the floor
-                a, b = self._robot_of_geom[g1], self._robot_of_geom[g2]
+            g1 = contact.geom1[:ncon]
+            # not only wheels on the floor (MuJoCo orders a pair's geoms by type: the plane first)
+            if (g1 != self._floor).any():
+                a, b = self._robot_of_geom[g1], self._robot_of_geom[contact.geom2[:ncon]]
                 both = (a >= 0) & (b >= 0)
                 pairs = np.unique(np.minimum(a, b)[both] * self.n + np.maximum(a, b)[both])
         if pairs.size:
