@@ -132,9 +132,8 @@ class RobotWorld:
         bumpers = [self.model.geom(f'r{i}_bumper').id for i in range(self.n)]
         self._robot_of_geom = np.full(self.model.ngeom, -1)
         self._robot_of_geom[bumpers] = np.arange(self.n)
-        self._no_pairs = np.zeros(0, dtype=np.int64)
         self._floor = self.model.geom('floor').id
-        self._touching = self._no_pairs                            # pairs i*n + j, i < j
+        self._touching = ()                                        # see `_count_contacts`
         self._ctrl = self.data.ctrl.reshape(self.n, 2)             # left, right per robot (a view)
         self._targets = None                                       # the wheel targets in ctrl
         self._at_top = np.zeros(self.n, dtype=bool)                # which are beyond the motors'
@@ -196,25 +195,29 @@ class RobotWorld:
         self._count_contacts()
 
     def _count_contacts(self):
-        """Robot-robot contact events: a pair of robots touching now that did not before."""
+        """Robot-robot contact events: a pair of robots touching now that did not before.  The
+        pairs (i·n + j, i < j) are a sorted tuple: robots that touch do so for many periods,
+        and a few Python ints compare faster than numpy's set routines."""
         ncon = self.data.ncon
-        pairs = self._no_pairs
+        pairs = ()
         if ncon:
             contact = self.data.contact
             g1 = contact.geom1[:ncon]
-            # not only wheels on the floor (MuJoCo orders a pair's geoms by type: the plane first)
-            if (g1 != self._floor).any():
-                a, b = self._robot_of_geom[g1], self._robot_of_geom[contact.geom2[:ncon]]
+            others = g1 != self._floor      # MuJoCo orders a pair's geoms by type: the plane first
+            if others.any():                # not only wheels on the floor
+                a = self._robot_of_geom[g1[others]]
+                b = self._robot_of_geom[contact.geom2[:ncon][others]]
                 both = (a >= 0) & (b >= 0)
-                pairs = np.unique(np.minimum(a, b)[both] * self.n + np.maximum(a, b)[both])
-        if pairs.size:
-            self.contacts += int(np.setdiff1d(pairs, self._touching, assume_unique=True).size)
+                pairs = tuple(sorted(set((np.minimum(a, b)[both] * self.n + np.maximum(a, b)[both]).tolist())))
+        if pairs and pairs != self._touching:
+            self.contacts += len(set(pairs).difference(self._touching))
         self._touching = pairs
 
     @property
     def touching(self) -> np.ndarray:
         """(K, 2) the pairs of robots (i < j) in contact at the end of the last period."""
-        return np.column_stack([self._touching // self.n, self._touching % self.n])
+        pairs = np.array(self._touching, dtype=np.int64)
+        return np.column_stack([pairs // self.n, pairs % self.n])
 
     def odometry(self) -> np.ndarray:
         """(N, 5) x, y, yaw, v, ω: wheel odometry, each robot in its own odom frame from
