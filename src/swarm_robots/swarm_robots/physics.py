@@ -137,6 +137,7 @@ class RobotWorld:
         self._ctrl = self.data.ctrl.reshape(self.n, 2)             # left, right per robot (a view)
         self._targets = None                                       # the wheel targets in ctrl
         self._at_top = np.zeros(self.n, dtype=bool)                # which are beyond the motors'
+        self._any_at_top = False
         self._steps = 0
         self._target = 0.0
         self.contacts = 0
@@ -178,18 +179,22 @@ class RobotWorld:
         contacts at the period's end; its wheel positions into ``wheels`` (2, N) (`advance`
         gives them to the wheel odometry, one update per period)."""
         targets, saturated = self.controllers.update(self.time, self.control_dt)
-        if targets is not self._targets:        # a settled controller repeats its answer: ctrl holds
+        if targets is self._targets:            # a settled controller repeats its answer: ctrl holds,
+            saturated, limited = self._at_top, self._any_at_top     # and no controller limit acts
+        else:
             self._targets = targets
             left, right = targets
             top = self.description.max_wheel_speed      # the motors' limit, not the controller's
             self._at_top = (np.abs(left) > top) | (np.abs(right) > top)
+            self._any_at_top = np.count_nonzero(self._at_top) > 0
             ctrl = self._ctrl
             ctrl[:, 0], ctrl[:, 1] = left, right
             np.clip(ctrl, -top, top, out=ctrl)
+            saturated |= self._at_top
+            limited = np.count_nonzero(saturated) > 0
         mujoco.mj_step(self.model, self.data, nstep=self.substeps)
         self._steps += 1
-        saturated |= self._at_top
-        if saturated.any():
+        if limited:
             np.add(self.saturated_time, self.control_dt, out=self.saturated_time, where=saturated)
         wheels[0], wheels[1] = self._qpos[:, LEFT], self._qpos[:, RIGHT]
         self._count_contacts()
@@ -204,7 +209,7 @@ class RobotWorld:
             contact = self.data.contact
             g1 = contact.geom1[:ncon]
             others = g1 != self._floor      # MuJoCo orders a pair's geoms by type: the plane first
-            if others.any():                # not only wheels on the floor
+            if np.count_nonzero(others):    # not only wheels on the floor
                 a = self._robot_of_geom[g1[others]]
                 b = self._robot_of_geom[contact.geom2[:ncon][others]]
                 both = (a >= 0) & (b >= 0)
