@@ -213,7 +213,8 @@ class RobotWorld:
                 a = self._robot_of_geom[g1[others]]
                 b = self._robot_of_geom[contact.geom2[:ncon][others]]
                 both = (a >= 0) & (b >= 0)
-                pairs = tuple(sorted(set((np.minimum(a, b)[both] * self.n + np.maximum(a, b)[both]).tolist())))
+                keys = np.minimum(a, b)[both] * self.n + np.maximum(a, b)[both]
+                pairs = tuple(sorted(set(keys.tolist())))
         if pairs and pairs != self._touching:
             self.contacts += len(set(pairs).difference(self._touching))
         self._touching = pairs
