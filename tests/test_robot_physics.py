@@ -197,6 +197,24 @@ def test_controller_keeps_the_reference_on_a_nan_command_and_drops_a_stale_one()
     assert world.ground_truth()[0, 0] == pytest.approx(0.0, abs=1e-4)
 
 
+def test_a_settled_controller_brakes_at_the_first_update_past_its_timeout():
+    """Settled long before, each controller still brakes at the first update where
+    now - stamp > cmd_vel_timeout (diff_drive_controller.cpp's test), each at its own stamp."""
+    ctl = DiffDriveControllers(BURGER, 2)
+    stamps = [0.0, 0.2]
+    ctl.command(np.arange(2), 0.1, 0.0, now=0.0)
+    braked = [None, None]
+    for k in range(100):
+        now = k * 0.01                              # as RobotWorld.time counts
+        if k == 20:
+            ctl.command(1, 0.1, 0.0, now=stamps[1])
+        (left, _), _ = ctl.update(now, 0.01)
+        for i in range(2):
+            if braked[i] is None and k > 30 and left[i] * BURGER.wheel_radius < 0.1 - 1e-9:
+                braked[i] = k
+    assert braked == [next(k for k in range(100) if k * 0.01 - s > BURGER.cmd_vel_timeout) for s in stamps]
+
+
 def test_wheel_odometry_integrates_an_arc_exactly():
     """odometry.cpp integrateExact: a quarter turn on a 0.5 m radius from wheel distances."""
     odom = WheelOdometry(BURGER, 1)
@@ -247,8 +265,8 @@ def test_advance_runs_whole_controller_periods_without_drift():
     assert world.data.time == pytest.approx(world.time)
 
 
-@pytest.mark.parametrize('kw, field', [(dict(physics_dt=0.005), 'physics_dt'),
-                                       (dict(physics_dt=0.0015), 'control_dt')])
+@pytest.mark.parametrize('kw, field', [(dict(physics_dt=0.02), 'physics_dt'),
+                                       (dict(physics_dt=0.003), 'control_dt')])
 def test_a_physics_step_the_wheel_servo_cannot_take_is_refused(kw, field):
     with pytest.raises(ValueError, match=field):
         RobotWorld(BURGER, [[0.0, 0.0, 0.0]], **kw)

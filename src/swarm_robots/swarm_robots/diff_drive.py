@@ -49,6 +49,7 @@ class DiffDriveControllers:
         self._min_velocity = -self._max_velocity
         self._never = np.zeros(n, dtype=bool)         # no cmd_vel_timeout: never timed out
         self._timed_out = self._never
+        self._quiet_until = -np.inf                   # see `update`
         self._settled = False                         # `update` may repeat its last answer
         self._wheels = None
         self._max_acceleration = np.array([[description.max_linear_accel],
@@ -69,11 +70,17 @@ class DiffDriveControllers:
         Settled (every robot's limited command equal to its reference), with no cmd_vel since
         and no robot's timeout passing, the update gives what it gave last time: that is
         returned without the arithmetic (the lockstep world holds one command for many updates)."""
+        if self._settled and now < self._quiet_until:           # no timeout can have passed
+            return self._wheels, np.zeros(self.n, dtype=bool)
         timeout = self.description.cmd_vel_timeout
         timed_out = now - self._stamp > timeout if timeout > 0 else self._never
         if self._settled and not (timed_out != self._timed_out).any():
             return self._wheels, np.zeros(self.n, dtype=bool)
         self._timed_out = timed_out
+        # the first `now` at which a running command may time out, less a margin far above the
+        # rounding of now - stamp: before it the comparison above cannot change
+        self._quiet_until = (np.min(self._stamp[~timed_out], initial=np.inf) + timeout - 1e-6
+                             if timeout > 0 else np.inf)
         reference = np.where(timed_out, 0.0, np.where(self._finite, self._msg, self._reference))
         self._reference = reference
         step = self._max_acceleration * dt

@@ -10,8 +10,9 @@ caster is a frictionless sphere.  Robots touch each other through a sphere of th
 height, so two robots collide as two discs in the plane; a robot's own parts never collide.
 
 The controllers update every ``control_dt`` (100 Hz) and the physics steps ``physics_dt``
-(2 ms) in between; `advance` runs whole controller periods.  Single-threaded MuJoCo with the
-same model and the same commands gives bit-identical results.
+(10 ms by default: one explicit Euler step per period, see `MAX_PHYSICS_DT`); `advance` runs
+whole controller periods.  Single-threaded MuJoCo with the same model and the same commands
+gives bit-identical results.
 """
 from __future__ import annotations
 
@@ -25,11 +26,19 @@ from .diff_drive import DiffDriveControllers, WheelOdometry
 CONTROL_DT = 0.01
 #: each wheel's velocity servo: N·m per rad/s of velocity error (the torque limit caps it)
 WHEEL_GAIN = 0.5
-#: reflected motor inertia on a wheel joint, kg·m² (order of magnitude of a geared servo).  The
-#: servo is integrated explicitly (Euler), stable while WHEEL_GAIN·physics_dt/WHEEL_ARMATURE < 2
-WHEEL_ARMATURE = 1e-3
-#: the largest physics_dt: the servo's stability bound with a margin of 2
+#: reflected motor inertia on a wheel joint, kg·m²: the rotor's inertia times the gear ratio
+#: squared (258.5² for the Burger's Dynamixel XL430-W250).  ROBOTIS publishes no rotor inertia;
+#: 0.75 g·cm², of the order of a small cored DC motor's, reflects to 5e-3.  The servo's time
+#: constant is WHEEL_ARMATURE / WHEEL_GAIN = 10 ms.
+WHEEL_ARMATURE = 5e-3
+#: the largest physics_dt.  The servo is integrated explicitly (Euler), stable while
+#: WHEEL_GAIN·physics_dt/WHEEL_ARMATURE < 2: this is that bound with a margin of 2.  (MuJoCo's
+#: implicitfast would take kv implicitly and lift the bound, but it sizes the contact forces for
+#: the mass matrix M and integrates with M + h·kv: a wheel's grip no longer matches its turning.
+#: Measured: at 10 ms the chassis outruns its accelerating wheels by 0.045 m/s.)
 MAX_PHYSICS_DT = WHEEL_ARMATURE / WHEEL_GAIN
+#: the default physics_dt: one MuJoCo step per controller period
+PHYSICS_DT = CONTROL_DT
 CASTER_RADIUS = 0.01
 #: height of the contact sphere's centre above the wheel axle, m
 BUMPER_HEIGHT = 0.05
@@ -97,7 +106,7 @@ class RobotWorld:
     ``poses`` (N, 3): start x, y (m) and yaw (rad) in the world frame.  Times are robot
     seconds."""
 
-    def __init__(self, description: RobotDescription, poses, physics_dt: float = 0.002,
+    def __init__(self, description: RobotDescription, poses, physics_dt: float = PHYSICS_DT,
                  control_dt: float = CONTROL_DT):
         poses = np.asarray(poses, dtype=float).reshape(-1, 3)
         if not np.isfinite(poses).all():
@@ -123,10 +132,12 @@ class RobotWorld:
         bumpers = [self.model.geom(f'r{i}_bumper').id for i in range(self.n)]
         self._robot_of_geom = np.full(self.model.ngeom, -1)
         self._robot_of_geom[bumpers] = np.arange(self.n)
-        self._no_pairs = np.zeros(0, dtype=np.int64)
         self._floor = self.model.geom('floor').id
-        self._touching = self._no_pairs                            # pairs i*n + j, i < j
+        self._touching = ()                                        # see `_count_contacts`
         self._ctrl = self.data.ctrl.reshape(self.n, 2)             # left, right per robot (a view)
+        self._targets = None                                       # the wheel targets in ctrl
+        self._at_top = np.zeros(self.n, dtype=bool)                # which are beyond the motors'
+        self._any_at_top = False
         self._steps = 0
         self._target = 0.0
         self.contacts = 0
@@ -167,37 +178,52 @@ class RobotWorld:
         """One controller period: the controllers' update, physics_dt substeps, then the
         contacts at the period's end; its wheel positions into ``wheels`` (2, N) (`advance`
         gives them to the wheel odometry, one update per period)."""
-        (left, right), saturated = self.controllers.update(self.time, self.control_dt)
-        top = self.description.max_wheel_speed          # the motors' limit, not the controller's
-        saturated |= (np.abs(left) > top) | (np.abs(right) > top)
-        ctrl = self._ctrl
-        ctrl[:, 0], ctrl[:, 1] = left, right
-        np.clip(ctrl, -top, top, out=ctrl)
+        targets, saturated = self.controllers.update(self.time, self.control_dt)
+        if targets is self._targets:            # a settled controller repeats its answer: ctrl holds,
+            saturated, limited = self._at_top, self._any_at_top     # and no controller limit acts
+        else:
+            self._targets = targets
+            left, right = targets
+            top = self.description.max_wheel_speed      # the motors' limit, not the controller's
+            self._at_top = (np.abs(left) > top) | (np.abs(right) > top)
+            self._any_at_top = np.count_nonzero(self._at_top) > 0
+            ctrl = self._ctrl
+            ctrl[:, 0], ctrl[:, 1] = left, right
+            np.clip(ctrl, -top, top, out=ctrl)
+            saturated |= self._at_top
+            limited = np.count_nonzero(saturated) > 0
         mujoco.mj_step(self.model, self.data, nstep=self.substeps)
         self._steps += 1
-        np.add(self.saturated_time, self.control_dt, out=self.saturated_time, where=saturated)
+        if limited:
+            np.add(self.saturated_time, self.control_dt, out=self.saturated_time, where=saturated)
         wheels[0], wheels[1] = self._qpos[:, LEFT], self._qpos[:, RIGHT]
         self._count_contacts()
 
     def _count_contacts(self):
-        """Robot-robot contact events: a pair of robots touching now that did not before."""
+        """Robot-robot contact events: a pair of robots touching now that did not before.  The
+        pairs (i·n + j, i < j) are a sorted tuple: robots that touch do so for many periods,
+        and a few Python ints compare faster than numpy's set routines."""
         ncon = self.data.ncon
-        pairs = self._no_pairs
+        pairs = ()
         if ncon:
             contact = self.data.contact
-            g1, g2 = contact.geom1[:ncon], contact.geom2[:ncon]
-            if ((g1 != self._floor) & (g2 != self._floor)).any():     # not only wheels on the floor
-                a, b = self._robot_of_geom[g1], self._robot_of_geom[g2]
+            g1 = contact.geom1[:ncon]
+            others = g1 != self._floor      # MuJoCo orders a pair's geoms by type: the plane first
+            if np.count_nonzero(others):    # not only wheels on the floor
+                a = self._robot_of_geom[g1[others]]
+                b = self._robot_of_geom[contact.geom2[:ncon][others]]
                 both = (a >= 0) & (b >= 0)
-                pairs = np.unique(np.minimum(a, b)[both] * self.n + np.maximum(a, b)[both])
-        if pairs.size:
-            self.contacts += int(np.setdiff1d(pairs, self._touching, assume_unique=True).size)
+                keys = np.minimum(a, b)[both] * self.n + np.maximum(a, b)[both]
+                pairs = tuple(sorted(set(keys.tolist())))
+        if pairs and pairs != self._touching:
+            self.contacts += len(set(pairs).difference(self._touching))
         self._touching = pairs
 
     @property
     def touching(self) -> np.ndarray:
         """(K, 2) the pairs of robots (i < j) in contact at the end of the last period."""
-        return np.column_stack([self._touching // self.n, self._touching % self.n])
+        pairs = np.array(self._touching, dtype=np.int64)
+        return np.column_stack([pairs // self.n, pairs % self.n])
 
     def odometry(self) -> np.ndarray:
         """(N, 5) x, y, yaw, v, ω: wheel odometry, each robot in its own odom frame from
