@@ -86,7 +86,7 @@ def test_lockstep_hold_on_messages(robots_node, rclpy_context, tmp_path):
         for topic in (M.odom_topic(nm), M.ground_truth_topic(nm)):
             peer.create_subscription(Odometry, topic, lambda m, topic=topic: got.setdefault(topic, []).append(m),
                                      P.qos_reliable(10))
-    cmd = {nm: peer.create_publisher(TwistStamped, M.cmd_vel_topic(nm), P.qos_reliable(10))
+    cmd = {nm: peer.create_publisher(TwistStamped, M.cmd_vel_topic(nm), P.qos_cmd_vel(True))
            for nm in ('agent_1', 'agent_3')}
     steps = peer.create_publisher(Float64MultiArray, P.LOCK_STEP, P.qos_latched())
     ex = make_executor(ctx, events=False)
@@ -183,7 +183,7 @@ def drive(ctx, path, steps, tag):
     cmd = []
     for k, nm in enumerate(('agent_0', 'agent_1')):
         peer.create_subscription(Odometry, M.odom_topic(nm), on_odom(k), P.qos_reliable(10))
-        cmd.append(peer.create_publisher(TwistStamped, M.cmd_vel_topic(nm), P.qos_reliable(10)))
+        cmd.append(peer.create_publisher(TwistStamped, M.cmd_vel_topic(nm), P.qos_cmd_vel(True)))
     ex = make_executor(ctx, events=False)
     ex.add_node(node)
     ex.add_node(peer)

@@ -84,7 +84,8 @@ class RobotsNode(Node):
             self.pub_truth.append(self.create_publisher(Odometry, ground_truth_topic(nm), P.qos_reliable(10)))
             stamped = self.sec.cmd_type == 'TwistStamped'
             self.create_subscription(TwistStamped if stamped else Twist, cmd_vel_topic(nm),
-                                     self._command_callback(k, stamped), P.qos_reliable(10), raw=True)
+                                     self._command_callback(k, stamped), P.qos_cmd_vel(self.mode == 'lockstep'),
+                                     raw=True)
         self.pub_metrics = self.create_publisher(DiagnosticArray, METRICS_TOPIC, 10)
         self.create_timer(1.0, self.publish_metrics, clock=steady_clock())
         if self.mode == 'lockstep':
