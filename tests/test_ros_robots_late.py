@@ -50,6 +50,8 @@ def test_a_robot_world_matched_after_the_first_commands_still_gets_them(tmp_path
     params['/world']['missing_timeout'] = 4.0           # a stall ends in seconds
     robots = {nm: 'mujoco' for nm in scn.names}
     apply_robots(params, scn, robots, 'lockstep')
+    for p in params.values():
+        p['run_id'] = 'late0001'                         # as swarm run sets it, before the robot world's
     add_robot_world(params, robots)
     world, commander, agents = build_nodes(params, rclpy_context, log=lambda *a, **k: None)
     nodes = [world, commander, *agents]
