@@ -70,6 +70,18 @@ def test_release_leaves_out_the_robots_of_a_known_step_that_did_not_answer():
     assert h.waiting_for() == [0, 1, 2]              # the next step waits for every robot again
 
 
+def test_the_hold_is_overdue_from_the_steps_first_message_and_a_repeat_keeps_the_release():
+    h = hold(rows=(0, 2, 4))
+    assert not h.overdue(100.0, 5.0)                 # no step message yet: nothing to time out
+    h.on_step(0, np.ones(6, bool), now=10.0)
+    h.on_step(0, np.ones(6, bool), now=14.0)         # the world repeats it while it stalls
+    assert not h.overdue(14.9, 5.0) and h.overdue(15.0, 5.0)
+    h.on_command(0, 0.0, 0.1, 0.0)
+    assert h.release() == [1, 2]
+    h.on_step(0, np.ones(6, bool), now=16.0)         # repeated again: the released robots stay out
+    assert h.run() == [pytest.approx(DT)] and not h.overdue(100.0, 5.0)
+
+
 def test_stale_and_off_step_stamps_are_ignored_and_the_first_command_counts():
     h = hold(rows=(0,))
     assert h.on_command(0, 0.0, 0.1, 0.5)

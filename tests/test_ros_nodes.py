@@ -382,6 +382,37 @@ def test_world_gives_up_on_a_step_that_never_completes(rclpy_context):
         nd.destroy_node()
 
 
+def test_world_ends_the_run_once_every_agent_is_lost(tmp_path, rclpy_context):
+    """Every agent goes silent: the world drops them all after missing_timeout and ends the run
+    there with an error (it used to wait at the next step for nobody until step_timeout), and
+    keeps the steps done."""
+    import time
+
+    from swarm_tools.launch import build_nodes
+    scn = load('homotopy_global')
+    ctx = rclpy_context
+    params = node_parameters(scn, 'homotopy_global', 'lockstep', duration=5.0, output_dir=str(tmp_path),
+                             extra_world=dict(step_timeout=100.0, missing_timeout=0.5, stall_timeout=0.1))
+    world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
+    ex = make_executor(ctx)
+    for nd in (world, commander, *agents):
+        ex.add_node(nd)
+    try:
+        assert spin_for(ex, lambda: world.started, timeout=30)
+        for nd in agents:
+            ex.remove_node(nd)
+        t0 = time.monotonic()
+        assert spin_for(ex, lambda: world.done, timeout=20)
+        assert time.monotonic() - t0 < 10
+        assert world.failed and 'every agent is lost or killed' in world.failed, world.failed
+        assert sum(e['kind'] == 'lost' for e in world.events) == len(scn.names)
+        saved = Trajectory.load(tmp_path / 'trajectory.npz')
+        assert 1 <= len(saved.t) <= world.lock.cur
+    finally:
+        for nd in (world, commander, *agents):
+            nd.destroy_node()
+
+
 def test_realtime_world_resolves_leader_i_from_the_commanders_events(tmp_path, rclpy_context):
     """Realtime (nodes in one executor, rtf 10): leaders are chosen by rule at t = 1; the
     scenario kills 'leader:1' at t = 2; the world names the agent the commander put in slot 1."""

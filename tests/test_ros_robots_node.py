@@ -86,7 +86,7 @@ def test_lockstep_hold_on_messages(robots_node, rclpy_context, tmp_path):
         for topic in (M.odom_topic(nm), M.ground_truth_topic(nm)):
             peer.create_subscription(Odometry, topic, lambda m, topic=topic: got.setdefault(topic, []).append(m),
                                      P.qos_reliable(10))
-    cmd = {nm: peer.create_publisher(TwistStamped, M.cmd_vel_topic(nm), P.qos_reliable(10))
+    cmd = {nm: peer.create_publisher(TwistStamped, M.cmd_vel_topic(nm), P.qos_cmd_vel(True))
            for nm in ('agent_1', 'agent_3')}
     steps = peer.create_publisher(Float64MultiArray, P.LOCK_STEP, P.qos_latched())
     ex = make_executor(ctx, events=False)
@@ -128,6 +128,43 @@ def test_lockstep_hold_on_messages(robots_node, rclpy_context, tmp_path):
     assert summary['contacts'] == 1 and summary['limit_seconds'] == {'agent_1': 0.25, 'agent_3': 0.25}
     assert summary['turn_limit_seconds'] == {'agent_1': 0.0, 'agent_3': 0.0}
     peer.destroy_node()
+
+
+def test_a_step_goes_on_without_a_silent_robot_hold_timeout_after_its_message(tmp_path, rclpy_context, monkeypatch):
+    """The hold's time-out counts from the step's message, not from the newest odometry (which
+    goes out again every half second while nothing moves), and the world's repeat of the step
+    does not bring the released robot back."""
+    import time
+    monkeypatch.setattr(M.RobotsNode, '_make_world', lambda self, desc: FakeWorld(
+        M.start_poses(self.scn, self.rows, self.units)))
+    path = short_homotopy(tmp_path / 'six.yaml', duration=10, lam='{kind: constant, value: 0}', at=1, robots=ROBOTS)
+    scn = load(str(path))
+    ctx = rclpy_context
+    node = M.RobotsNode(context=ctx, parameter_overrides=overrides(dict(
+        scenario=str(path), mode='lockstep', robots='agent_1,agent_3', hold_timeout=1.5)))
+    peer = rclpy.create_node('peer', context=ctx)
+    got = []
+    peer.create_subscription(Odometry, M.odom_topic('agent_1'), got.append, P.qos_reliable(10))
+    cmd = peer.create_publisher(TwistStamped, M.cmd_vel_topic('agent_1'), P.qos_cmd_vel(True))
+    steps = peer.create_publisher(Float64MultiArray, P.LOCK_STEP, P.qos_latched())
+    ex = make_executor(ctx, events=False)
+    ex.add_node(node)
+    ex.add_node(peer)
+    try:
+        assert spin_for(ex, lambda: got and cmd.get_subscription_count() == 1, 10)
+        steps.publish(_raw(step(scn, 0, np.ones(6, bool))))        # agent_3 alive, but it never answers
+        cmd.publish(command(0.0, 0.15))
+        start = time.monotonic()
+        spin_for(ex, lambda: False, 1.0)
+        steps.publish(_raw(step(scn, 0, np.ones(6, bool))))        # the world's repeat while it stalls
+        assert node.hold.n == 0 and len(got) >= 2                   # odometry of t_0 again meanwhile
+        assert spin_for(ex, lambda: node.hold.n == 1, 10)
+        assert 1.5 <= time.monotonic() - start < 5.0
+        assert node.world.commands == [(0.0, 0, 0.15, 0.0)]         # agent_3's robot got none
+        assert spin_for(ex, lambda: P.stamp_to_time(got[-1].header.stamp) == pytest.approx(scn.dt), 5)
+    finally:
+        peer.destroy_node()
+        node.destroy_node()
 
 
 def _raw(cdr):
@@ -183,7 +220,7 @@ def drive(ctx, path, steps, tag):
     cmd = []
     for k, nm in enumerate(('agent_0', 'agent_1')):
         peer.create_subscription(Odometry, M.odom_topic(nm), on_odom(k), P.qos_reliable(10))
-        cmd.append(peer.create_publisher(TwistStamped, M.cmd_vel_topic(nm), P.qos_reliable(10)))
+        cmd.append(peer.create_publisher(TwistStamped, M.cmd_vel_topic(nm), P.qos_cmd_vel(True)))
     ex = make_executor(ctx, events=False)
     ex.add_node(node)
     ex.add_node(peer)

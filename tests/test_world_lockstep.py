@@ -235,3 +235,50 @@ def test_a_batch_state_of_a_later_step_is_named():
                              np.array([0.0, 0.0]))
     assert late == ["state of 'b' for step 2 while the world is at step 0"] and acts == []
     assert b.have.tolist() == [True, False, False]
+
+
+def test_when_every_agent_is_dropped_the_run_fails_instead_of_waiting_for_nobody():
+    b = make(steps=4)
+    b.start()
+    feed_states(b, 0)
+    decide(b, 0)
+    acts = b.drop_missing()                       # no state of step 1 from anyone
+    assert kinds(acts) == ['event', 'event', 'event', 'fail'] and b.done
+    assert acts[-1][1] == ('step 1: no state from a, b, c (dropped): every agent is lost or killed: '
+                           'no agent is left, the run ends here')
+    assert b.rows_done() == 1                     # step 0 whole (u_0 unknown: lost), kept as a partial run
+    assert np.isnan(b.rec.trajectory().u[0]).all()
+    assert feed_states(b, 1) == [] and decide(b, 1) == []      # nothing goes out any more
+
+
+def test_the_last_agents_dropped_after_others_were_killed_end_the_run():
+    b = make(steps=4, faults=[Fault(0.5, 'kill', 'a')])        # step 1
+    b.start()
+    feed_states(b, 0)
+    assert kinds(decide(b, 0)) == ['step', 'event', 'signal'] and not b.done
+    acts = b.drop_missing()
+    assert kinds(acts) == ['event', 'event', 'fail'] and 'no state from b, c (dropped)' in acts[-1][1]
+
+
+def test_a_run_whose_agents_are_all_killed_ends_at_that_step():
+    b = make(steps=4, faults=[Fault(1.0, 'kill', nm) for nm in NAMES])    # step 2
+    b.start()
+    feed_states(b, 0)
+    decide(b, 0)
+    feed_states(b, 1)
+    acts = decide(b, 1)
+    assert kinds(acts) == ['step'] + ['event', 'signal'] * 3 + ['fail'] and b.done
+    assert acts[-1][1].startswith('step 2: every agent is killed or lost')
+    assert b.rows_done() == 2
+
+
+def test_while_every_agent_is_frozen_the_steps_go_on_without_states():
+    b = make(steps=6, faults=[Fault(1.0, 'freeze', nm, 1.0) for nm in NAMES])    # steps 2..3, back at 4
+    b.start()
+    for k in range(2):
+        feed_states(b, k)
+        acts = decide(b, k)
+    assert kinds(acts)[-3:] == ['clock', 'states', 'observe'] and b.cur == 2 and b.states_out
+    acts = decide(b, 2)                                # nobody to wait for at step 3 either
+    assert kinds(acts) == ['step', 'clock', 'states', 'observe'] and b.cur == 3
+    assert not b.done

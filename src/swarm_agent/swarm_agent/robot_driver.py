@@ -34,7 +34,7 @@ import time
 import numpy as np
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from swarm_core.robot_units import (CMD_TYPES, ROBOT_FRAMES, RateLimit, RobotsSpec, RobotUnits, SafetyGuard, wrap_near,
@@ -86,10 +86,11 @@ def declare_robot(node) -> dict:
 
 class RobotLink:
     """The robot of one agent node: odometry in (checked by the guard, in model units),
-    cmd_vel out (in the robot's units), the guard's events on ``/swarm/events``."""
+    cmd_vel out (in the robot's units; its QoS `protocol.qos_cmd_vel` of ``lockstep``), the
+    guard's events on ``/swarm/events``."""
 
-    def __init__(self, node, length_scale, cruise_speed, max_angular, odom_timeout, neighbour_timeout, max_jump,
-                 robot_frame, cmd_type, robot_clock, odom_reliability):
+    def __init__(self, node, lockstep, length_scale, cruise_speed, max_angular, odom_timeout, neighbour_timeout,
+                 max_jump, robot_frame, cmd_type, robot_clock, odom_reliability):
         self.node = node
         self.units = RobotUnits(length_scale, cruise_speed, max_angular)
         x0, y0 = node.core.pos[0]
@@ -102,11 +103,10 @@ class RobotLink:
         self.serialize_cmd = P.TwistWriter(f'{node.agent_name}/base_link', self.stamped)
         self.pose = None           # newest accepted odometry: (stamp s, x, y, θ unwrapped), model units
         self.on_pose = None        # the driver's hook for a new pose
-        reliable = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-                              durability=DurabilityPolicy.VOLATILE)
-        self.cmd_pub = node.create_publisher(TwistStamped if self.stamped else Twist, 'cmd_vel', reliable)
+        self.cmd_pub = node.create_publisher(TwistStamped if self.stamped else Twist, 'cmd_vel',
+                                             P.qos_cmd_vel(lockstep))
         self.events = node.create_publisher(String, P.EVENTS, P.qos_latched(100))
-        odom_qos = reliable if odom_reliability == 'reliable' else QoSProfile(
+        odom_qos = P.qos_reliable(10) if odom_reliability == 'reliable' else QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
         node.create_subscription(Odometry, 'odom', self._on_odom, odom_qos, raw=True)
         node.get_logger().info(f'robot on {node.get_namespace().rstrip("/")}/cmd_vel ({cmd_type}) and '
@@ -215,7 +215,7 @@ class LockstepRobotDriver(LockstepDriver):
 
     def __init__(self, node, state_subscribers, lockstep_clock, **robot):
         super().__init__(node, state_subscribers, lockstep_clock)
-        self.link = RobotLink(node, **robot)
+        self.link = RobotLink(node, True, **robot)
         self.link.on_pose = self.on_pose
         self.pending = None          # the step whose odometry the agent waits for
         self.hold = None             # its process's `OdometryHold` (alone: its own; contained: the container's)
@@ -268,7 +268,7 @@ class RealtimeRobotDriver(RealtimeDriver):
 
     def __init__(self, node, stale_after, catch_up_limit, future_tolerance, **robot):
         super().__init__(node, stale_after, catch_up_limit, future_tolerance)
-        self.link = RobotLink(node, **robot)
+        self.link = RobotLink(node, False, **robot)
 
     def start(self):
         """Alone: its own timer (`on_tick`) and its own batch of one state per tick on

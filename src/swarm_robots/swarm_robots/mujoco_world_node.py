@@ -73,7 +73,7 @@ class RobotsNode(Node):
         desc = self._description()
         self.world = turn_limit_clock(self._make_world(desc), self.sec, desc)
         self.t_odom = 0.0                       # sim time of the newest odometry published
-        self.last_progress = time.monotonic()
+        self.last_sent = time.monotonic()       # wall s of the newest odometry published
         self.pub_odom, self.pub_truth = [], []
         own = self.sec.frame == 'odom'
         self.odom_writers = [P.OdometryWriter(f'{nm}/base_link', f'{nm}/odom' if own else 'world')
@@ -84,7 +84,8 @@ class RobotsNode(Node):
             self.pub_truth.append(self.create_publisher(Odometry, ground_truth_topic(nm), P.qos_reliable(10)))
             stamped = self.sec.cmd_type == 'TwistStamped'
             self.create_subscription(TwistStamped if stamped else Twist, cmd_vel_topic(nm),
-                                     self._command_callback(k, stamped), P.qos_reliable(10), raw=True)
+                                     self._command_callback(k, stamped), P.qos_cmd_vel(self.mode == 'lockstep'),
+                                     raw=True)
         self.pub_metrics = self.create_publisher(DiagnosticArray, METRICS_TOPIC, 10)
         self.create_timer(1.0, self.publish_metrics, clock=steady_clock())
         if self.mode == 'lockstep':
@@ -158,7 +159,7 @@ class RobotsNode(Node):
         if len(m.alive) != len(self.scn.names):
             self.reject('step-roster', f'{P.LOCK_STEP}: {len(m.alive)} agents, the roster has {len(self.scn.names)}')
             return
-        self.hold.on_step(m.n, m.alive)
+        self.hold.on_step(m.n, m.alive, time.monotonic())
         self._advance()
 
     # ------------------------------------------------------------ physics and outputs
@@ -167,18 +168,19 @@ class RobotsNode(Node):
             self.publish_odometry(t)
 
     def _repeat(self):
-        """Lockstep: no progress for `REPEAT_AFTER` wall s: the newest odometry again; for
-        ``hold_timeout``: the step goes on without the robots whose commands did not come."""
-        quiet = time.monotonic() - self.last_progress
-        if quiet >= self.hold_timeout:
+        """Lockstep: no odometry for `REPEAT_AFTER` wall s: the newest again; ``hold_timeout``
+        after the held step's message came: the step goes on without the robots whose commands
+        did not come (the repeats do not put that off)."""
+        now = time.monotonic()
+        if self.hold.overdue(now, self.hold_timeout):
             missing = self.hold.release()
             if missing:
                 self.get_logger().warning(
-                    f'step {self.hold.n}: no command from {", ".join(self.agents[k] for k in missing)} after '
-                    f'{quiet:.1f} s; their robots get none this step')
+                    f'step {self.hold.n}: no command from {", ".join(self.agents[k] for k in missing)} '
+                    f'{self.hold_timeout:g} s after the step came; their robots get none this step')
                 self._advance()
                 return
-        if quiet >= REPEAT_AFTER:
+        if now - self.last_sent >= REPEAT_AFTER:
             self.publish_odometry(self.t_odom)
 
     def _tick(self):
@@ -192,7 +194,7 @@ class RobotsNode(Node):
         ground truth, stamped sim time ``t``.  Ground truth only while someone reads it (a
         recorder, a view; the agents never do): it is volatile, so a reader that matches later
         has missed nothing it could have had, and each publish costs as much as the odometry's."""
-        self.t_odom, self.last_progress = t, time.monotonic()
+        self.t_odom, self.last_sent = t, time.monotonic()
         sec, nsec = P.time_to_stamp(t)
         truth = self.world.ground_truth()
         odom = self.world.odometry() if self.sec.frame == 'odom' else truth

@@ -37,6 +37,7 @@ class RobotsLockstep:
         self.n = 0                              # the step whose commands are awaited
         self.commands = {}                      # step -> {robot k: (v, omega)}
         self.alive = {}                         # step -> (K,) bool: whose agent is alive
+        self.known_at = {}                      # step -> wall s its step message first came
         self.ignored = 0                        # commands of a past step or too far ahead
         self.asked = 0.0                        # robot s asked of the physics so far
 
@@ -56,10 +57,16 @@ class RobotsLockstep:
         self.commands.setdefault(n, {}).setdefault(int(k), (float(v), float(omega)))
         return True
 
-    def on_step(self, n: int, alive_rows) -> None:
-        """The world's step ``n`` with its alive mask over the whole roster."""
-        if self.n <= n <= self.n + AHEAD:
+    def on_step(self, n: int, alive_rows, now: float = 0.0) -> None:
+        """The world's step ``n`` with its alive mask over the whole roster, at wall time ``now``.
+        The world repeats a step while it stalls: a repeat changes nothing (a release stays)."""
+        if self.n <= n <= self.n + AHEAD and n not in self.alive:
             self.alive[n] = np.asarray(alive_rows, dtype=bool)[self.rows]
+            self.known_at[n] = now
+
+    def overdue(self, now: float, timeout: float) -> bool:
+        """The held step's message came ``timeout`` wall s or more before ``now``."""
+        return self.n in self.known_at and now - self.known_at[self.n] >= timeout
 
     def waiting_for(self) -> list:
         """Robots whose command for the held step is still missing: every robot until the step's
@@ -87,6 +94,7 @@ class RobotsLockstep:
         for k, (v, omega) in sorted(self.commands.pop(self.n, {}).items()):
             self.world.command(k, v, omega)
         self.alive.pop(self.n, None)
+        self.known_at.pop(self.n, None)
         self.n += 1
         t = self.n * self.dt
         self.asked = advance_to(self.world, self.asked, t * self.scale)

@@ -156,6 +156,15 @@ def qos_reliable(depth: int = 10):
                       durability=DurabilityPolicy.VOLATILE)
 
 
+def qos_cmd_vel(lockstep: bool):
+    """A robot agent's ``cmd_vel`` writer and the robot world's reader (reliable, depth 10).
+    Lockstep: transient-local.  Each command is sent once, and the robot world holds its step
+    until it has every one, so a reader matched after the agent sent it must still get it (a
+    volatile writer drops it, and the run stalls at its first step); a controller's volatile
+    reader matches it all the same.  Realtime: volatile (a replayed command would be stale)."""
+    return qos_latched(10) if lockstep else qos_reliable(10)
+
+
 def step_of(t: float, dt: float) -> int:
     return int(round(t / dt))
 

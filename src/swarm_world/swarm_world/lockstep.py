@@ -20,7 +20,8 @@ Every method returns a list of actions for the node, in order:
 - ``('step', msg)``: publish the step (a `swarm_ros.layouts.Step`);
 - ``('event', ev)``: a world event (log it, publish it, write it to the events file);
 - ``('signal', i, what)``: signal agent i's process, ``what`` in ``kill``/``stop``/``cont``;
-- ``('finish',)``: the last u is known; the run is over.
+- ``('finish',)``: the last u is known; the run is over;
+- ``('fail', why)``: no agent is left (every one lost or killed): the run cannot go on.
 
 The node keeps the wall clock (stalls, time-outs), the messages and the files.
 """
@@ -190,7 +191,19 @@ class LockstepBarrier:
             self.states_out = False
             self.decision = None
             acts += self.begin_step(self.cur)
+            if self.deserted():
+                return acts + self._fail('every agent is killed or lost')
+            if self.complete():                    # nobody to wait for (all frozen): the step goes on
+                acts += self.advance()
         return acts
+
+    def deserted(self):
+        """No agent will ever answer again: every one killed or lost (a frozen one comes back)."""
+        return bool(self.faults.dead.all()) and self.cur <= self.steps
+
+    def _fail(self, why):
+        self.done = True
+        return [('fail', f'step {self.cur}: {why}: no agent is left, the run ends here')]
 
     # ------------------------------------------------------------------ faults
     def begin_step(self, k):
@@ -228,11 +241,14 @@ class LockstepBarrier:
 
     def drop_missing(self):
         """Give up on the agents whose state has not come: they are lost (event ``lost``)."""
-        acts = []
-        for i in self.missing():
+        acts, gone = [], self.missing()
+        for i in gone:
             self.faults.lose(i)
             self.rec.lose(i, self.cur)
             acts.append(('event', dict(t=self.cur * self.dt, step=self.cur, kind='lost', agent=self.names[i])))
+        if self.deserted():
+            return acts + self._fail(f'no state from {", ".join(self.names[i] for i in gone)} (dropped): every '
+                                     'agent is lost or killed')
         return acts + self.advance()
 
     def add_fault(self, fault):
@@ -242,5 +258,6 @@ class LockstepBarrier:
         return k
 
     def rows_done(self):
-        """Rows whose state, λ, leaders and u are all known (u_{k-1} comes with step k)."""
-        return min(self.cur if self.states_out else self.cur - 1, self.steps + 1)
+        """Rows whose state, λ, leaders and u are all known (u_{k-1} comes with step k, or is
+        unknown once every agent is gone at step k)."""
+        return min(self.cur if self.states_out or self.deserted() else self.cur - 1, self.steps + 1)

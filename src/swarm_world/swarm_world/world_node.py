@@ -291,6 +291,8 @@ class WorldNode(RealtimeWorld, Node):
                 self.signal_agent(a[1], SIGNALS[a[2]])
             elif kind == 'finish':
                 self.finish()
+            elif kind == 'fail':
+                self.give_up(a[1])
 
     # ------------------------------------------------------------ events, faults
     def emit(self, ev):
@@ -431,8 +433,10 @@ class WorldNode(RealtimeWorld, Node):
             self.last_msg[0].publish(self.last_msg[1])
 
     def give_up(self, why):
+        """End the run with an error (exit 1), keeping the steps completed so far."""
         self.failed = why
         self.get_logger().error(why)
+        self.save_partial()
         self.done = True
 
     def trajectory(self) -> Trajectory:

@@ -1,0 +1,83 @@
+"""The start-up race of lockstep robot runs, made deterministic: the robot world's readers match
+only after every robot agent has sent its command of step 0 (the world does not wait for the
+robot world, so a run can start before their discovery is done; here the robot world's node is
+created only then, in a context of its own as in a process of its own).  Each command is sent
+once and the robot world holds a step until it has every one: with a volatile cmd_vel the late
+reader never got them, no odometry of t_1 came, and the world lost every agent at step 1.  One
+process, the test's own ROS_DOMAIN_ID; the robot world on MuJoCo."""
+import time
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.ros
+
+rclpy = pytest.importorskip('rclpy')
+pytest.importorskip('mujoco')
+
+from swarm_core.scenario import load  # noqa: E402
+from swarm_core.trajectory import Trajectory  # noqa: E402
+from swarm_ros.rosutil import make_executor  # noqa: E402
+from swarm_tools.launch import build_nodes, robots_nodes  # noqa: E402
+from swarm_tools.node_params import node_parameters  # noqa: E402
+from swarm_tools.robot_plan import apply_robots  # noqa: E402
+from swarm_tools.robot_world import add_robot_world  # noqa: E402
+
+from conftest import short_homotopy  # noqa: E402
+
+ROBOTS = {'length_scale': 0.3, 'cruise_speed': 0.15, 'frame': 'odom'}
+
+
+def spin_both(executors, cond, timeout):
+    """Spin each executor in turn until ``cond()`` or ``timeout`` s; returns cond()."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():
+            return True
+        for ex in executors:
+            ex.spin_once(timeout_sec=0.02)
+    return cond()
+
+
+def test_a_robot_world_matched_after_the_first_commands_still_gets_them(tmp_path, rclpy_context, ros_domain):
+    from rclpy.context import Context
+
+    from swarm_robots.engine import simulate as robot_simulate
+    path = short_homotopy(tmp_path / 'late.yaml', robots=ROBOTS, duration=1, lam='{kind: constant, value: 0}', at=0.5)
+    scn = load(str(path))
+    out = tmp_path / 'run'
+    params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
+    params['/world']['missing_timeout'] = 4.0           # a stall ends in seconds
+    robots = {nm: 'mujoco' for nm in scn.names}
+    apply_robots(params, scn, robots, 'lockstep')
+    for p in params.values():
+        p['run_id'] = 'late0001'                         # as swarm run sets it, before the robot world's
+    add_robot_world(params, robots)
+    world, commander, agents = build_nodes(params, rclpy_context, log=lambda *a, **k: None)
+    nodes = [world, commander, *agents]
+    ex = make_executor(rclpy_context)
+    for nd in nodes:
+        ex.add_node(nd)
+    late_ctx = Context()
+    rclpy.init(context=late_ctx, domain_id=ros_domain)
+    late = []
+    try:
+        # the world starts without the robot world: each agent sends its command of step 0 and
+        # waits for the odometry of t_1
+        assert spin_both([ex], lambda: all(a.driver.pending == 1 for a in agents), 60)
+        assert world.lock.cur == 1
+        late = robots_nodes(params, late_ctx)
+        late_ex = make_executor(late_ctx)
+        late_ex.add_node(late[0])
+        assert spin_both([ex, late_ex], lambda: world.done, 120), 'stalled'
+        assert world.failed is None, world.failed
+        assert late[0].hold.ignored == 0
+    finally:
+        for nd in nodes + late:
+            nd.destroy_node()
+        rclpy.shutdown(context=late_ctx)
+    # as if the robot world had been there from the start: the robot engine's run, bit for bit
+    got = Trajectory.load(out / 'trajectory.npz')
+    ref = robot_simulate(scn, 'all')
+    np.testing.assert_array_equal(got.r, ref.r)
+    np.testing.assert_array_equal(got.u, ref.u)
