@@ -83,15 +83,13 @@ def bag_timing(bag, dt, rtf) -> dict:
     ``skipped``, the periods the agents' states caught up over; ``worst_second``, the wall
     second (from the clock's start) with the smallest share of states on time at the recorder,
     and that share: bursts show there, spread lateness does not."""
-    import struct
-
-    from swarm_ros.protocol import cdr_byte_order, cdr_to_odometry_full
+    from swarm_ros.protocol import cdr_to_odometry_full
     from swarm_tools.bag import iter_messages
+    from swarm_tools.msgdefs import leading_stamp_ns
     clock, states = [], {}
     for m in iter_messages(bag, topics=['/clock', '/swarm/states']):
         if m.topic == '/clock':
-            sec, nsec = struct.unpack_from(cdr_byte_order(m.data) + 'iI', m.data, 4)
-            clock.append((m.log_time * 1e-9, sec + nsec * 1e-9))
+            clock.append((m.log_time * 1e-9, leading_stamp_ns(m.data) * 1e-9))
         else:
             _, name, sec, nsec, *_ = cdr_to_odometry_full(m.data)
             states.setdefault(name, []).append((m.log_time * 1e-9, sec + nsec * 1e-9))
