@@ -124,3 +124,39 @@ def test_auto_rule_and_groups():
         assert len(groups) >= 2 and max(map(len, groups)) <= CONTAINER_SIZE
         assert sum(map(len, groups)) == n
     assert split_agents(['a', 'b', 'c'], 2) == [['a', 'b'], ['c']]
+
+
+def test_an_agent_on_a_mujoco_robot_takes_its_pose_from_the_table_and_does_not_integrate():
+    """Lockstep on a MuJoCo robot (``reported``): the agent's pose of the step is its row of the
+    table (the robot world's report), its frame the table's quaternion, its heading unwrapped
+    near the one before; it computes u as a kinematic agent standing there would, and leaves
+    the move to its robot.  The kinematic agents beside it move as before."""
+    from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
+    scn = load('homotopy_global', duration=1.0)
+    n = len(scn.names)
+    theta = scn.theta0 + np.linspace(0.0, 0.5, n) + 4 * np.pi * (np.arange(n) == 1)   # b's report: 2 turns on
+    qz, qw = quaternion_from_heading(theta)
+    s = SimpleNamespace(n=0, t=0.0, lam=0.3, flags=np.zeros(n, bool), steering=np.zeros(n), x=scn.pos0[:, 0] + 0.1,
+                        y=scn.pos0[:, 1], qz=qz, qw=qw, u=np.zeros(n), alive=np.ones(n, bool), target=None,
+                        barrier=None, rendezvous=None)
+
+    def box(reported):
+        """Three agents; the kinematic ones stand where the table says, b too unless on a robot."""
+        cores = [AgentCore(i, n, s.x[i], s.y[i], theta[i], scn.law, scn.dt) for i in range(3)]
+        if reported:
+            cores[1] = AgentCore(1, n, *scn.pos0[1], scn.theta0[1], scn.law, scn.dt)
+            cores[1].reported = True
+        return cores, ContainerCore(cores)
+    robot, rbox = box(True)
+    points, pbox = box(False)
+    got, want = rbox.on_step(s), pbox.on_step(s)
+    assert [k for _, k, _ in got] == ['moved'] * 3
+    np.testing.assert_array_equal([u for *_, u in got], [u for *_, u in want])
+    b = robot[1]
+    assert b.pos.tolist() == [[s.x[1], s.y[1]]] and b.quaternion == (qz[1], qw[1])     # not moved
+    assert b._own_frame() == tuple(np.asarray(frame_from_quaternion(qz, qw))[:, 1])
+    assert b.theta[0] == pytest.approx(theta[1] - 4 * np.pi) and b.u_last == got[1][2] and b.step == 1
+    for i in (0, 2):
+        np.testing.assert_array_equal(robot[i].pos, points[i].pos)
+        np.testing.assert_array_equal(robot[i].theta, points[i].theta)
+    assert points[1].pos.tolist() != [[s.x[1], s.y[1]]]                # a kinematic b moved

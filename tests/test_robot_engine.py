@@ -52,6 +52,24 @@ def test_kinematic_only_equals_the_reference_engine():
     assert a.meta['robots']['robots'] == [] and a.meta['robots']['iae_mean'] == 0.0
 
 
+def test_with_a_radio_a_robot_agents_own_heading_is_its_row_of_the_table():
+    """As the agent node on a MuJoCo robot reads it (`AgentCore.take_reported`): the heading
+    of the quaternion its robot's pose was reported with, unwrapped near the one before; the
+    kinematic agents' own headings are their true ones."""
+    from swarm_core.robot_units import reported_heading
+    st = RobotStepper(six(duration=2, comms={'loss': 0.2}), [0, 1, 2])
+    near = st.own_headings(st.theta)
+    for _ in range(10):
+        st.step()
+        own = st.own_headings(st.theta)
+        qz, qw = quaternion_from_heading(st.theta)
+        assert own[3:].tolist() == st.theta[3:].tolist()
+        assert own[:3].tolist() == [reported_heading(qz[i], qw[i], near[i]) for i in range(3)]
+        assert np.abs(own[:3] - st.theta[:3]).max() < 1e-12
+        near = own
+    assert st.comms is not None
+
+
 def test_turn_limit_and_iae_on_a_hand_made_case(monkeypatch):
     """Every agent commanded u = 20 (needs ω = 10 rad/s at v0/L = 0.5: clipped at 2.84 rad/s),
     one step of 1 model s: the robots turn at most 2.84 rad/s, so |u − u_ach| ≥ 20 − 2·2.84."""
@@ -81,12 +99,15 @@ def test_faults_refused():
 
 
 @pytest.mark.ros
-def test_equals_the_ros_lockstep_run(tmp_path, ros_domain, processes, swarm_cmd):
-    """`swarm run --robots mujoco:agent_0-agent_2` (lockstep) and the engine, bit for bit."""
+@pytest.mark.parametrize('per', [[], ['--agents-per-process', '3']], ids=['processes', 'containers'])
+def test_equals_the_ros_lockstep_run(per, tmp_path, ros_domain, processes, swarm_cmd):
+    """`swarm run --robots mujoco:agent_0-agent_2` (lockstep: the robot world reports the robot
+    agents' poses) and the engine, bit for bit; the three robot agents alone in their own
+    processes, or sharing one container (the kinematic three in another)."""
     path = short_homotopy(tmp_path / 'robots.yaml', robots=ROBOTS, duration=10,
                           lam='{kind: tanh_window, rise_at: 4, fall_at: 1000, tau: 2}', at=2, curvature=0.05)
     p = processes.start([swarm_cmd, 'run', str(path), '--out', str(tmp_path / 'r'), '--no-figure',
-                         '--robots', 'mujoco:agent_0-agent_2'],
+                         '--robots', 'mujoco:agent_0-agent_2', *per],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = Lines(p)
     assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])

@@ -1,10 +1,11 @@
 """The start-up race of lockstep robot runs, made deterministic: the robot world's readers match
-only after every robot agent has sent its command of step 0 (the world does not wait for the
-robot world, so a run can start before their discovery is done; here the robot world's node is
-created only then, in a context of its own as in a process of its own).  Each command is sent
-once and the robot world holds a step until it has every one: with a volatile cmd_vel the late
-reader never got them, no odometry of t_1 came, and the world lost every agent at step 1.  One
-process, the test's own ROS_DOMAIN_ID; the robot world on MuJoCo."""
+only after every robot agent has sent its command of step 0 (the robot world's report of t_0
+can reach the world before its ``cmd_vel`` readers have matched the agents' writers; here the
+report of t_0 comes from the test, and the robot world's node is created only after the
+commands, in a context of its own as in a process of its own).  Each command is sent once and
+the robot world holds a step until it has every one: with a volatile cmd_vel the late reader
+never got them, no pose of t_1 came, and the world lost every agent at step 1.  One process,
+the test's own ROS_DOMAIN_ID; the robot world on MuJoCo."""
 import time
 
 import numpy as np
@@ -15,8 +16,13 @@ pytestmark = pytest.mark.ros
 rclpy = pytest.importorskip('rclpy')
 pytest.importorskip('mujoco')
 
+from std_msgs.msg import Float64MultiArray  # noqa: E402
+
+from swarm_core.frenet import quaternion_from_heading  # noqa: E402
 from swarm_core.scenario import load  # noqa: E402
 from swarm_core.trajectory import Trajectory  # noqa: E402
+from swarm_ros import protocol as P  # noqa: E402
+from swarm_ros.layouts import RobotStates  # noqa: E402
 from swarm_ros.rosutil import make_executor  # noqa: E402
 from swarm_tools.launch import build_nodes, robots_nodes  # noqa: E402
 from swarm_tools.node_params import node_parameters  # noqa: E402
@@ -61,11 +67,17 @@ def test_a_robot_world_matched_after_the_first_commands_still_gets_them(tmp_path
     late_ctx = Context()
     rclpy.init(context=late_ctx, domain_id=ros_domain)
     late = []
+    helper = rclpy.create_node('report_of_t0', context=rclpy_context)
+    nodes.append(helper)
+    report = helper.create_publisher(Float64MultiArray, P.LOCK_ROBOT_STATES, P.qos_latched())
+    rows = list(range(len(scn.names)))
+    report.publish(RobotStates(0, rows, np.stack([*scn.pos0.T, *quaternion_from_heading(scn.theta0)]))
+                   .to_cdr('late0001'))
     try:
-        # the world starts without the robot world: each agent sends its command of step 0 and
-        # waits for the odometry of t_1
-        assert spin_both([ex], lambda: all(a.driver.pending == 1 for a in agents), 60)
-        assert world.lock.cur == 1
+        # the world starts without the robot world (the test reports t_0): each agent sends its
+        # command of step 0, and the world waits for the robots' poses of t_1
+        assert spin_both([ex], lambda: all(a.step == 1 for a in agents), 60)
+        assert world.lock.cur == 1 and not world.lock.complete()
         late = robots_nodes(params, late_ctx)
         late_ex = make_executor(late_ctx)
         late_ex.add_node(late[0])

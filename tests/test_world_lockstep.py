@@ -282,3 +282,55 @@ def test_while_every_agent_is_frozen_the_steps_go_on_without_states():
     acts = decide(b, 2)                                # nobody to wait for at step 3 either
     assert kinds(acts) == ['step', 'clock', 'states', 'observe'] and b.cur == 3
     assert not b.done
+
+
+# ------------------------------------------------------------------ robots of the MuJoCo world
+
+def test_a_robot_agents_state_joins_its_robots_pose_with_its_own_u():
+    """Agent b is on a MuJoCo robot: its answer gives u (its pose there is not taken), the robot
+    world's report gives the pose; the state goes to the barrier once both parts of a step came,
+    in either order, and the others pass as they are."""
+    from swarm_world.lockstep import RobotPoseJoin
+    join = RobotPoseJoin([1], 3)
+    rows, ks, vals, us = join.from_agents([0, 1], [4, 4], np.array([state(0, 4), state(9, 9)]).T, [0.1, 0.2])
+    assert rows.tolist() == [0] and ks.tolist() == [4] and vals[:, 0].tolist() == list(state(0, 4))
+    rows, ks, vals, us = join.from_robots(4, [1], np.array([state(1, 4, 0.3)]).T)
+    assert (rows.tolist(), ks.tolist(), us.tolist()) == ([1], [4], [0.2])
+    assert vals[:, 0].tolist() == list(state(1, 4, 0.3))
+    assert join.from_robots(5, [1], np.array([state(1, 5)]).T)[0].size == 0      # the pose first
+    rows, ks, vals, us = join.from_agents([1], [5], np.array([state(9, 9)]).T, [0.5])
+    assert (rows.tolist(), ks.tolist(), us.tolist(), vals[:, 0].tolist()) == ([1], [5], [0.5], list(state(1, 5)))
+    # parts of steps before a state handed on are dropped; a kept part waits for its twin
+    join.from_robots(6, [1], np.array([state(1, 6)]).T)
+    join.from_robots(7, [1], np.array([state(1, 7)]).T)
+    assert join.from_agents([1], [7], np.array([state(9, 9)]).T, [0.7])[1].tolist() == [7]
+    assert join.poses[1] == {} and join.us[1] == {}
+    with pytest.raises(ValueError, match=r'rows \[0\].*robot_poses'):
+        join.from_robots(8, [0, 1], np.zeros((4, 2)))
+
+
+def test_a_dead_robot_agents_reports_are_kept_bounded(monkeypatch):
+    from swarm_world.lockstep import RobotPoseJoin
+    monkeypatch.setattr(RobotPoseJoin, 'KEPT', 5)
+    join = RobotPoseJoin([0], 3)
+    for k in range(20):
+        join.from_robots(k, [0], np.zeros((4, 1)))
+    assert sorted(join.poses[0]) == [15, 16, 17, 18, 19]
+
+
+def test_a_run_with_a_robot_agent_records_its_robots_poses():
+    """The barrier and the join together: b's states are its robot's poses, with its own u."""
+    from swarm_world.lockstep import RobotPoseJoin
+    b, join = make(steps=2), RobotPoseJoin([1], 3)
+    b.start()
+    for k in range(4):
+        acts = b.on_states(*join.from_agents([0, 1, 2], [k] * 3, np.array([state(i, k) for i in (0, 7, 2)]).T,
+                                             [0.1, 0.2 * k, 0.3]))[1]
+        assert 'states' not in kinds(acts)                          # b's pose is not here yet
+        acts = b.on_states(*join.from_robots(k, [1], np.array([state(1, 2 * k)]).T))[1]
+        assert kinds(acts)[:1] == (['finish'] if k == 3 else ['clock'])
+        if k < 3:
+            decide(b, k)
+    tr = b.rec.trajectory()
+    assert tr.r[:, 1].tolist() == [[1.0, 0.0], [1.0, 2.0], [1.0, 4.0]]
+    assert tr.u[:, 1].tolist() == pytest.approx([0.2, 0.4, 0.6])

@@ -31,6 +31,7 @@ from swarm_core.faults import alive_control, reunion_law
 from swarm_core.comms import Beliefs, CommModel, belief_controls
 from swarm_core.integrate import zoh_step
 from swarm_core.laws import LawConfig
+from swarm_core.robot_units import reported_heading
 from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
 
 
@@ -120,6 +121,7 @@ class AgentCore:
         self._quat = None                   # own (qz, qw) as published (cached until it moves)
         self.step = 0                       # lockstep: the step whose state it holds
         self.silent = False                 # lockstep: not in the table (frozen or killed)
+        self.reported = False               # lockstep on a MuJoCo robot: its pose is its row of the table
 
     def attach_comms(self, model: CommModel):
         """Receive through ``model`` from now on (lockstep: `comms_control`)."""
@@ -185,6 +187,16 @@ class AgentCore:
         self.theta = np.array([float(theta)])
         self._frame = self._quat = None
         self.u_last = float(u)
+
+    def take_reported(self, x: float, y: float, qz: float, qw: float):
+        """Lockstep on a MuJoCo robot: its pose of the step is its row of the step's table (the
+        robot world's report): the table's quaternion is its frame, as every neighbour sees it;
+        its heading (a radio model's law reads it) is unwrapped near the one before."""
+        self.pos = np.array([[float(x), float(y)]])
+        self.theta = np.array([reported_heading(float(qz), float(qw), float(self.theta[0]))])
+        self._quat = (float(qz), float(qw))
+        c, s = frame_from_quaternion(np.array([qz], dtype=float), np.array([qw], dtype=float))
+        self._frame = (c[0], s[0])
 
     def moved_to(self, pos, theta, u: float):
         """Take the state (pos (1, 2), θ (1,)) that one ZOH step with u gave (`advance`, or

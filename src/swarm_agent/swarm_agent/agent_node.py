@@ -167,12 +167,13 @@ class AgentNode(Node):
             raise ParameterError(f'parameter comms: {err}') from None
 
     # ------------------------------------------------------------ output
-    def publish_state(self):
-        """Publish the own state of t (pre-serialised: no message object per step)."""
+    def publish_state(self, u=None):
+        """Publish the own state of t (pre-serialised: no message object per step), carrying
+        ``u`` (default: the u held last)."""
         sec, nsec = P.time_to_stamp(self.t)
         qz, qw = self.core.quaternion
         self.own = (sec, nsec, float(self.core.pos[0, 0]), float(self.core.pos[0, 1]), qz, qw,
-                    float(self.core.u_last))
+                    float(self.core.u_last if u is None else u))
         self.pub.publish(self.serialize_state(*self.own))
 
     def applied(self, u):
@@ -468,7 +469,7 @@ def driver_class(mode: str, robot: str):
     if robot == 'none':
         return DRIVERS[mode]
     from .robot_driver import ROBOT_DRIVERS
-    return ROBOT_DRIVERS[mode]
+    return ROBOT_DRIVERS.get((mode, robot), ROBOT_DRIVERS[mode])
 
 
 def main(argv=None):

@@ -13,7 +13,9 @@ Rules per agent and step message ``s`` (as an agent process has always followed 
 - back in the table after a freeze: jump to the step;
 - any other step than the one the agent holds: reject;
 - otherwise move: u from the law (with a radio model: from the agent's own beliefs, one law
-  call per agent), one ZOH step (batched over the agents), the agent's own noise.
+  call per agent), one ZOH step (batched over the agents), the agent's own noise.  An agent on
+  a MuJoCo robot in lockstep (``reported``) takes its pose from its row of the table first and
+  does not integrate: its robot moves, and the robot world reports where to.
 
 `agents_per_process` is the rule behind ``swarm run --agents-per-process auto``, and
 `agent_services` the one behind ``--agent-services auto``.
@@ -124,6 +126,10 @@ class ContainerCore:
             go.append(j)
         if not go:
             return out
+        for j in go:
+            c = self.cores[j]
+            if c.reported:
+                c.take_reported(s.x[c.index], s.y[c.index], s.qz[c.index], s.qw[c.index])
         us = self.controls(s, go)
         for j, u in zip(go, us):
             if not math.isfinite(u):
@@ -156,8 +162,16 @@ class ContainerCore:
         """One ZOH step of the agents ``go`` with controls ``us`` (non-finite -> 0): one
         elementwise `zoh_step` over all of them (the same bits as one call per agent), then each
         agent's own noise draw."""
-        cores = [self.cores[j] for j in go]
         u = np.array([v if math.isfinite(v) else 0.0 for v in us])
+        for j, v in zip(go, u.tolist()):
+            if self.cores[j].reported:        # its robot moves (no integration, no noise draw)
+                self.cores[j].u_last = v
+        keep = [i for i, j in enumerate(go) if not self.cores[j].reported]
+        if len(keep) < len(go):
+            go, u = [go[i] for i in keep], u[keep]
+        if not go:
+            return
+        cores = [self.cores[j] for j in go]
         if len(cores) == 1:
             cores[0].advance(float(u[0]))
             return

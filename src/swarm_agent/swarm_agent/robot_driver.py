@@ -7,11 +7,17 @@ model, same ``/swarm/states`` in model units.  What differs is the robot's link 
 TwistStamped as Jazzy's diff_drive_controller takes it, or Twist) out, the units of
 `swarm_core.robot_units` between them, and its safety guard.
 
-- `LockstepRobotDriver`: at step n it sends u_n as one cmd_vel stamped t_n, and answers the
-  world (``/swarm/states``, ``/lockstep/agent_states``) only once odometry stamped t_(n+1)
-  came: then its state of t_(n+1) is the robot's pose.  Lockstep time moves only when every
-  robot answered, so odometry cannot go stale there (the world's stall watch sees a silent
-  robot); rejected odometry is never fed to the law.
+- `LockstepRobotDriver` (external robots): at step n it sends u_n as one cmd_vel stamped t_n,
+  and answers the world (``/swarm/states``, ``/lockstep/agent_states``) only once odometry
+  stamped t_(n+1) came: then its state of t_(n+1) is the robot's pose.  Lockstep time moves
+  only when every robot answered, so odometry cannot go stale there (the world's stall watch
+  sees a silent robot); rejected odometry is never fed to the law.
+- `LockstepMujocoDriver` (robots of the MuJoCo world): the robot world reports each robot's
+  pose of t_(n+1) to the world itself (``/lockstep/robot_states``), read from the odometry as
+  the agent would read it, so the agent reads no odometry and waits for none: at step n it
+  takes its pose of t_n from its row of the step's table, publishes that state on
+  ``/swarm/states``, sends u_n as one cmd_vel stamped t_n and answers the world with u_n at
+  once.  A step is then one hop shorter (docs/robots.md).
 - `RealtimeRobotDriver`: at every control period it takes the newest accepted odometry as its
   pose, and sends u (or zero velocity while its guard holds the robot: odometry older than
   ``odom_timeout``, no neighbour in radio range for ``neighbour_timeout``, paused), with one
@@ -90,7 +96,7 @@ class RobotLink:
     guard's events on ``/swarm/events``."""
 
     def __init__(self, node, lockstep, length_scale, cruise_speed, max_angular, odom_timeout, neighbour_timeout,
-                 max_jump, robot_frame, cmd_type, robot_clock, odom_reliability):
+                 max_jump, robot_frame, cmd_type, robot_clock, odom_reliability, odometry=True):
         self.node = node
         self.units = RobotUnits(length_scale, cruise_speed, max_angular)
         x0, y0 = node.core.pos[0]
@@ -106,11 +112,15 @@ class RobotLink:
         self.cmd_pub = node.create_publisher(TwistStamped if self.stamped else Twist, 'cmd_vel',
                                              P.qos_cmd_vel(lockstep))
         self.events = node.create_publisher(String, P.EVENTS, P.qos_latched(100))
-        odom_qos = P.qos_reliable(10) if odom_reliability == 'reliable' else QoSProfile(
-            history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
-        node.create_subscription(Odometry, 'odom', self._on_odom, odom_qos, raw=True)
-        node.get_logger().info(f'robot on {node.get_namespace().rstrip("/")}/cmd_vel ({cmd_type}) and '
-                               f'/odom ({robot_frame} frame, {robot_clock} clock); '
+        ns = node.get_namespace().rstrip('/')
+        if odometry:
+            odom_qos = P.qos_reliable(10) if odom_reliability == 'reliable' else QoSProfile(
+                history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+            node.create_subscription(Odometry, 'odom', self._on_odom, odom_qos, raw=True)
+            pose = f'{ns}/odom ({robot_frame} frame, {robot_clock} clock)'
+        else:
+            pose = f'the robot world\'s reports ({P.LOCK_ROBOT_STATES})'
+        node.get_logger().info(f'robot on {ns}/cmd_vel ({cmd_type}), pose from {pose}; '
                                + self.units.describe(node.law.cutoff_radius, node.law.gains.r0))
 
     # -- time
@@ -170,7 +180,7 @@ class RobotLink:
     def check(self, paused: bool, watch: bool = True) -> bool:
         """The guard's decision now (an event if it changed); True while the robot must stand
         (``watch`` False: only a pause stops it)."""
-        change = self.guard.decide(self.robot_now(), paused, watch)
+        change = self.guard.decide(self.robot_now() if watch else None, paused, watch)   # the time only if watched
         if change is not None:
             kind = 'robot_stopped' if change[0] == 'stop' else 'robot_resumed'
             ev = dict(t=self.node._now(), kind=kind, agent=self.node.agent_name, node='agent')
@@ -198,7 +208,7 @@ class OdometryHold:
 
     def __init__(self, batch, agents):
         self.batch = batch
-        self.robots = [a for a in agents if a.robot != 'none']
+        self.robots = [a for a in agents if isinstance(a.driver, LockstepRobotDriver)]
         self.said = []
 
     def publish(self, agents):
@@ -263,6 +273,38 @@ class LockstepRobotDriver(LockstepDriver):
         self.hold.publish([])
 
 
+class LockstepMujocoDriver(LockstepDriver):
+    """Lockstep on a robot of the MuJoCo world, whose pose the robot world reports (module
+    docstring).  Its answer to step n carries u_n (and its pose of t_n, which the world does not
+    take: the robot world's report of t_(n+1) is its state)."""
+
+    def __init__(self, node, state_subscribers, lockstep_clock, **robot):
+        super().__init__(node, state_subscribers, lockstep_clock)
+        self.link = RobotLink(node, True, odometry=False, **robot)
+        node.core.reported = True
+        self.hold = None             # a container's `OdometryHold` (set by it; never holds this agent)
+
+    def lockstep_outcome(self, kind, detail, s):
+        node, link = self.node, self.link
+        stamp = P.time_to_stamp(s.t)
+        if kind == 'moved':          # its state of t_n (the table's row), then u_n to the robot and the world
+            node.lam = s.lam
+            node.step, node.t = s.n, s.t
+            node.applied(detail)
+            if s.n > 0:              # the state of t_0 went out at the start
+                node.publish_state(u=float(s.u[node.index]))
+            if link.check(paused=node.halted is not None, watch=False):
+                link.publish_cmd(0.0, 0.0, stamp)
+            else:
+                link.drive(detail, stamp)
+            node.step = s.n + 1
+            node.own = node.own[:6] + (float(detail),)
+        elif kind != 'repeat':       # a repeat: the process sends the answer again
+            if kind == 'silent':     # out of the table: the robot stands
+                link.publish_cmd(0.0, 0.0, stamp)
+            super().lockstep_outcome(kind, detail, s)
+
+
 class RealtimeRobotDriver(RealtimeDriver):
     """Realtime with a robot (module docstring)."""
 
@@ -317,5 +359,6 @@ class RealtimeRobotDriver(RealtimeDriver):
         self._said()
 
 
-#: the drivers of a robot agent, by mode (`agent_node.driver_class`)
-ROBOT_DRIVERS = {'lockstep': LockstepRobotDriver, 'realtime': RealtimeRobotDriver}
+#: the drivers of a robot agent, by mode, or by (mode, robot kind) (`agent_node.driver_class`)
+ROBOT_DRIVERS = {'lockstep': LockstepRobotDriver, 'realtime': RealtimeRobotDriver,
+                 ('lockstep', 'mujoco'): LockstepMujocoDriver}

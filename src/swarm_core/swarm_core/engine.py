@@ -191,8 +191,13 @@ class SwarmStepper:
             self._comms_step = n
         s = np.zeros(self.n) if steering is None else np.asarray(steering, dtype=float)
         law, target = reunion_law(self.law, self.target, self.plan.rendezvous_now)
-        return belief_controls(law, self.beliefs, n, self.comms, pos, theta, lam, is_leader, s, target,
-                               self.barrier, active=None if self.faults.all_alive else alive)
+        return belief_controls(law, self.beliefs, n, self.comms, pos, self.own_headings(theta), lam, is_leader, s,
+                               target, self.barrier, active=None if self.faults.all_alive else alive)
+
+    def own_headings(self, theta):
+        """The headings a radio model's law takes as the agents' own: their true ones here
+        (a robot engine's robot agents take theirs from the table)."""
+        return theta
 
     def comms_stats(self) -> dict | None:
         """What the radio did so far: messages sent/delivered (links j ≠ k), delays."""

@@ -98,11 +98,12 @@ class RobotUnits:
         u = float(u)
         if not math.isfinite(u):
             u = 0.0
-        w = float(self.omega(u))
-        clipped = abs(w) > self.max_angular
+        w = self.cruise_speed * u / self.length_scale           # `omega`, on a float (the same bits)
+        m = self.max_angular
+        clipped = abs(w) > m
         self.commands += 1
         self.saturated += int(clipped)
-        return self.cruise_speed, float(np.clip(w, -self.max_angular, self.max_angular)), clipped
+        return self.cruise_speed, float(min(max(w, -m), m)), clipped
 
     @property
     def saturated_fraction(self) -> float:
@@ -146,6 +147,13 @@ def yaw_of_quaternion(x: float, y: float, z: float, w: float) -> float:
 def wrap_near(yaw: float, theta: float) -> float:
     """The angle equal to ``yaw`` (mod 2π) nearest the unwrapped heading ``theta``."""
     return theta + math.remainder(yaw - theta, 2 * math.pi)
+
+
+def reported_heading(qz: float, qw: float, theta: float) -> float:
+    """Lockstep on a MuJoCo robot: an agent's heading from its row of the step's table (the
+    robot world's report, planar quaternion ``qz``, ``qw``), unwrapped near its heading
+    ``theta`` before; only a radio model's law reads it (the table's quaternion is the frame)."""
+    return wrap_near(2.0 * math.atan2(qz, qw), theta)
 
 
 # ------------------------------------------------------------------ safety guard

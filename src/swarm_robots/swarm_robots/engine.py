@@ -9,10 +9,12 @@ Each step n (model time t_n = n·dt):
 3. each robot agent sends u_n as one cmd_vel (v0, clip(v0·u/L, ±ω_max)) stamped t_n
    (`RobotUnits.command`); the world takes the step's commands in robot order and runs the
    physics to robot time t_(n+1)·L/v0 (`timing.RobotsLockstep`: the robot world node's hold);
-4. each robot agent takes its pose of t_(n+1) from its odometry as the agent node reads it:
-   the orientation through the message's quaternion, its own odom frame turned into the common
-   one from its start pose (``frame: odom``; ``world``: ground truth), metres into model units,
-   the yaw unwrapped near its last heading (`swarm_core.robot_units`).
+4. each robot's pose of t_(n+1) is read from its odometry (`run_setup.OdometryPoses`), as the
+   robot world reports it to the world (``/lockstep/robot_states``): the orientation through
+   the message's quaternion, its own odom frame turned into the common one from its start pose
+   (``frame: odom``; ``world``: ground truth), metres into model units, the yaw unwrapped near
+   its last heading.  With a radio model a robot agent's law takes its own heading from its
+   row of the table (`swarm_core.robot_units.reported_heading`), as the agent node does.
 
 So a run here equals the ROS lockstep run with the same robots bit for bit
 (tests/test_robot_engine.py).  Not covered (refused): faults (a killed robot agent's robot
@@ -37,11 +39,12 @@ from __future__ import annotations
 import numpy as np
 
 from swarm_core import engine
-from swarm_core.robot_units import ROBOT_SETS, odometry_quaternion, wrap_near, yaw_of_quaternion
+from swarm_core.frenet import quaternion_from_heading
+from swarm_core.robot_units import ROBOT_SETS, reported_heading
 from swarm_core.scenario import Scenario
 
 from .physics import RobotWorld
-from .run_setup import robot_description, robots_section, start_poses, turn_limit_clock
+from .run_setup import OdometryPoses, robot_description, robots_section, start_poses, turn_limit_clock
 from .timing import RobotsLockstep, robot_summary
 
 
@@ -66,24 +69,24 @@ class RobotStepper(engine.SwarmStepper):
         self.world = turn_limit_clock(RobotWorld(self.description, start_poses(scn, self.rows, self.units)),
                                       self.sec, self.description)
         self.hold = RobotsLockstep(self.world, self.rows, self.dt, self.units.seconds_per_model_unit)
-        self.starts = [self.units.start_pose(*self.pos[i], self.theta[i]) if self.sec.frame == 'odom' else None
-                       for i in self.rows]
         self.everyone = np.ones(self.n, dtype=bool)
-        # each agent unwraps its odometry's yaw near the newest accepted pose's heading: first
-        # near its θ0, the odometry the world publishes at t = 0 (which then sets that heading)
-        self.heading = [float(self.theta[i]) for i in self.rows]
-        self.heading = [pose[2] for pose in self._poses()]
+        self.odometry = OdometryPoses(self.world, scn, self.rows, self.units, self.sec.frame)
+        # a radio model's law takes each robot agent's own heading from its row of the table
+        # (`robot_units.reported_heading`), unwrapped near the one before
+        self.own_theta = self.theta.copy()
+        self._own_headings()
         self.yaw = self.world.ground_truth()[:, 2].copy()
         self.iae = np.zeros(len(self.rows))
 
-    def _poses(self) -> list:
-        """Each robot's pose (x, y, θ) in model units from the odometry, as its agent reads it."""
-        odom = self.world.odometry() if self.sec.frame == 'odom' else self.world.ground_truth()
-        out = []
-        for k, (x, y, yaw) in enumerate(odom[:, :3].tolist()):
-            yaw = yaw_of_quaternion(0.0, 0.0, *odometry_quaternion(yaw))
-            x, y, yaw = self.units.to_model(x, y, yaw, self.starts[k])
-            out.append((x, y, wrap_near(yaw, self.heading[k])))
+    def _own_headings(self):
+        qz, qw = quaternion_from_heading(self.theta[self.rows])
+        for i, z, w in zip(self.rows, qz.tolist(), qw.tolist()):
+            self.own_theta[i] = reported_heading(z, w, self.own_theta[i])
+
+    def own_headings(self, theta):
+        """The headings the agents' radio law takes as their own: a robot agent's from the table."""
+        out = np.asarray(theta, dtype=float).copy()
+        out[self.rows] = self.own_theta[self.rows]
         return out
 
     def advance(self, t, u, lam, is_leader, steering):
@@ -98,9 +101,10 @@ class RobotStepper(engine.SwarmStepper):
             v, omega, _ = self.units.command(uk)
             self.hold.on_command(k, n * self.dt, v, omega)
         self.hold.run()
-        for k, (i, pose) in enumerate(zip(self.rows, self._poses())):
+        for i, pose in zip(self.rows, self.odometry.read()):
             self.pos[i] = pose[:2]
-            self.theta[i] = self.heading[k] = pose[2]
+            self.theta[i] = pose[2]
+        self._own_headings()
         yaw = self.world.ground_truth()[:, 2]
         self.iae += np.abs(sent - (yaw - self.yaw) / self.dt) * self.dt
         self.yaw = yaw.copy()

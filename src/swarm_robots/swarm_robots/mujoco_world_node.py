@@ -5,7 +5,9 @@ each robot's ``/<agent>/cmd_vel`` (geometry_msgs/TwistStamped, or Twist with the
 ``cmd_type: Twist``, realtime only) and publishes ``/<agent>/odom`` and ``/<agent>/ground_truth``
 (nav_msgs/Odometry).  Lockstep: the physics advances one step once every robot of an alive agent
 has sent its command for the step (`timing.RobotsLockstep`, the alive mask from
-``/lockstep/step``).  Realtime: the physics follows the sim clock (/clock), odometry at 50 Hz.
+``/lockstep/step``); then the robots' poses of the new step go to the world on
+``/lockstep/robot_states`` (`layouts.RobotStates`, read from the odometry as the agents would
+read it: `run_setup.OdometryPoses`), and odometry goes out only while someone reads it.  Realtime: the physics follows the sim clock (/clock), odometry at 50 Hz.
 Robot-robot contacts and the time at the velocity limits go to ``/robots/metrics`` and, at the
 end, to ``robots.json`` in ``output_dir`` (metrics.json's ``summary.robots``).  docs/robots.md.
 """
@@ -17,6 +19,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
@@ -24,15 +28,17 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
 from swarm_core.atomic import write_atomic
+from swarm_core.frenet import quaternion_from_heading
 from swarm_core.robot_units import odometry_quaternion
 from swarm_ros import protocol as P
-from swarm_ros.layouts import Step
+from swarm_ros.layouts import RobotStates, Step
 from swarm_ros.msg_checks import RejectLog, decoded
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
 
-from .run_setup import SUMMARY_FILE, chosen_rows, robot_description, robots_section, start_poses, turn_limit_clock
+from .run_setup import (SUMMARY_FILE, OdometryPoses, chosen_rows, robot_description, robots_section, start_poses,
+                        turn_limit_clock)
 from .timing import RealtimePacer, RobotsLockstep, advance_to, robot_summary
 
 METRICS_TOPIC = '/robots/metrics'
@@ -90,9 +96,15 @@ class RobotsNode(Node):
         self.create_timer(1.0, self.publish_metrics, clock=steady_clock())
         if self.mode == 'lockstep':
             self.hold = RobotsLockstep(self.world, self.rows, self.scn.dt, self.scale)
+            self.poses = OdometryPoses(self.world, self.scn, self.rows, self.units, self.sec.frame)
+            self.pub_report = self.create_publisher(Float64MultiArray, P.LOCK_ROBOT_STATES, P.qos_latched())
             self.create_subscription(Float64MultiArray, P.LOCK_STEP, self._on_step, P.qos_latched(), raw=True)
             self.create_timer(REPEAT_AFTER / 2, self._repeat, clock=steady_clock())
             self.publish_odometry(0.0)
+            theta0 = self.scn.theta0[self.rows]      # the state of t_0: the scenario's, as the agents have it
+            self.report = RobotStates(0, self.rows, np.stack([*self.scn.pos0[self.rows].T,
+                                                              *quaternion_from_heading(theta0)])).to_cdr(self.run_id)
+            self.pub_report.publish(self.report)
         else:
             self.pacer, self.asked = RealtimePacer(self.scale), 0.0
             self.create_timer(TICK, self._tick, clock=steady_clock())
@@ -164,7 +176,12 @@ class RobotsNode(Node):
 
     # ------------------------------------------------------------ physics and outputs
     def _advance(self):
-        for t in self.hold.run():
+        """Lockstep: each step whose commands are all here: the physics, the robots' poses of
+        the next step to the world, the odometry."""
+        while self.hold.ready():
+            t = self.hold.advance()
+            self.report = RobotStates(self.hold.n, self.rows, self.poses.table()).to_cdr(self.run_id)
+            self.pub_report.publish(self.report)
             self.publish_odometry(t)
 
     def _repeat(self):
@@ -181,6 +198,7 @@ class RobotsNode(Node):
                 self._advance()
                 return
         if now - self.last_sent >= REPEAT_AFTER:
+            self.pub_report.publish(self.report)
             self.publish_odometry(self.t_odom)
 
     def _tick(self):
@@ -192,14 +210,17 @@ class RobotsNode(Node):
     def publish_odometry(self, t: float):
         """Each robot's odometry (its own ``odom`` frame, or the common ``world`` frame) and
         ground truth, stamped sim time ``t``.  Ground truth only while someone reads it (a
-        recorder, a view; the agents never do): it is volatile, so a reader that matches later
-        has missed nothing it could have had, and each publish costs as much as the odometry's."""
+        recorder, a view; the agents never do), and in lockstep the odometry too (the agents
+        take their poses from the world's table): both are volatile, so a reader that matches
+        later has missed nothing it could have had."""
         self.t_odom, self.last_sent = t, time.monotonic()
         sec, nsec = P.time_to_stamp(t)
         truth = self.world.ground_truth()
         odom = self.world.odometry() if self.sec.frame == 'odom' else truth
+        always = self.mode == 'realtime'
         for k in range(len(self.agents)):
-            self.pub_odom[k].publish(serialized_odometry(self.odom_writers[k], sec, nsec, odom[k]))
+            if always or self.pub_odom[k].get_subscription_count():
+                self.pub_odom[k].publish(serialized_odometry(self.odom_writers[k], sec, nsec, odom[k]))
             if self.pub_truth[k].get_subscription_count():
                 self.pub_truth[k].publish(serialized_odometry(self.truth_writers[k], sec, nsec, truth[k]))
 

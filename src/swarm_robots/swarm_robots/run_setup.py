@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from swarm_core.frenet import quaternion_from_heading
+from swarm_core.robot_units import odometry_quaternion, wrap_near, yaw_of_quaternion
+
 #: the file the robot world writes into the run's output directory at the end (metrics.json
 #: carries it as ``summary.robots``)
 SUMMARY_FILE = 'robots.json'
@@ -33,6 +36,38 @@ def start_poses(scn, rows, units) -> np.ndarray:
     initial conditions in metres (``units``: `swarm_core.robot_units.RobotUnits`)."""
     return np.array([units.start_pose(float(scn.pos0[i, 0]), float(scn.pos0[i, 1]), float(scn.theta0[i]))
                      for i in rows], dtype=float).reshape(-1, 3)
+
+
+class OdometryPoses:
+    """Each robot's pose in model units as its agent reads its odometry (`swarm_agent.robot_driver`):
+    the orientation through the message's quaternion, its own odom frame turned into the common
+    one from its start pose (``frame: odom``; ``world``: ground truth), metres into model units,
+    the yaw unwrapped near the robot's heading before (first near its θ0, from the odometry of
+    t = 0).  The robot engine and the robot world's lockstep reports (``/lockstep/robot_states``)
+    both read their robots through it.  ``world``: a `physics.RobotWorld`."""
+
+    def __init__(self, world, scn, rows, units, frame: str):
+        self.units = units
+        self.odom = world.odometry if frame == 'odom' else world.ground_truth
+        starts = start_poses(scn, rows, units).tolist()
+        self.starts = starts if frame == 'odom' else [None] * len(starts)
+        self.heading = [float(scn.theta0[i]) for i in rows]
+        self.read()
+
+    def read(self) -> list:
+        """[(x, y, θ)] of the robots now, in model units; θ unwrapped (and kept as the heading)."""
+        out = []
+        for k, (x, y, yaw) in enumerate(self.odom()[:, :3].tolist()):
+            yaw = yaw_of_quaternion(0.0, 0.0, *odometry_quaternion(yaw))
+            x, y, yaw = self.units.to_model(x, y, yaw, self.starts[k])
+            self.heading[k] = wrap_near(yaw, self.heading[k])
+            out.append((x, y, self.heading[k]))
+        return out
+
+    def table(self) -> np.ndarray:
+        """(4, K) x, y, qz, qw of the robots now, as their agents would publish them."""
+        x, y, theta = np.array(self.read(), dtype=float).reshape(-1, 3).T
+        return np.stack([x, y, *quaternion_from_heading(theta)])
 
 
 def robot_description(sec):

@@ -28,7 +28,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .protocol import AGENT_STATES, LOCK_AGENT_STATES, LOCK_DECISION, LOCK_STATES, LOCK_STEP, cdr_to_float64_array, float64_array_header
+from .protocol import (AGENT_STATES, LOCK_AGENT_STATES, LOCK_DECISION, LOCK_ROBOT_STATES, LOCK_STATES, LOCK_STEP,
+                       cdr_to_float64_array, float64_array_header)
 
 #: bytes of the run id field (swarm_ros.runinfo: 1-32 letters, digits, _ or -)
 RUN_ID_BYTES = 32
@@ -296,6 +297,18 @@ class AgentStates(Packed):
     u: np.ndarray            # (K,) the u the state carries (u_{step−1})
 
 
+@declare(LOCK_ROBOT_STATES, Field('n', kind='whole'), Field('K', kind='count'), Field('index', 'K', 'whole'),
+         Field('pose', (4, 'K'), 'finite'))
+@dataclasses.dataclass(eq=False)
+class RobotStates(Packed):
+    """Lockstep: the MuJoCo robot world's poses of its robots at t_n, in model units, as each
+    robot's agent reads its odometry (`swarm_robots.timing.OdometryPoses`).  The world takes
+    these agents' states of t_n from here and only u from their own answers."""
+    n: int                   # the step: the physics just reached t_n·L/v0
+    index: np.ndarray        # (K,) the robots' agents' rows in the roster
+    pose: np.ndarray         # (4, K) x, y, qz, qw
+
+
 @declare(AGENT_STATES, Field('K', kind='count'), Field('tag', kind='finite'),
          Field('index', 'K', 'whole'), Field('t', 'K', 'finite'), Field('pose', (4, 'K'), 'finite'),
          Field('u', 'K', 'finite'))
@@ -362,4 +375,4 @@ class Step(Packed):
     rendezvous: Any
 
 
-MESSAGES = (AgentStates, ProcessStates, States, Decision, Step)
+MESSAGES = (AgentStates, RobotStates, ProcessStates, States, Decision, Step)

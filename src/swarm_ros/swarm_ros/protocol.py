@@ -117,6 +117,8 @@ LOCK_STATES = '/lockstep/states'
 LOCK_DECISION = '/lockstep/decision'
 LOCK_STEP = '/lockstep/step'
 LOCK_AGENT_STATES = '/lockstep/agent_states'
+#: lockstep: the MuJoCo robot world's poses of its robots after each physics step (`layouts.RobotStates`)
+LOCK_ROBOT_STATES = '/lockstep/robot_states'
 #: realtime: one message per agent process and tick with its agents' new states (`layouts.ProcessStates`)
 AGENT_STATES = '/swarm/agent_states'
 #: publisher depth of /swarm/agent_states (transient-local): a late reader gets each process's

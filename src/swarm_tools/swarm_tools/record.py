@@ -112,6 +112,7 @@ SWARM_TYPES = {
     '/lockstep/decision': 'std_msgs/msg/Float64MultiArray',
     '/lockstep/step': 'std_msgs/msg/Float64MultiArray',
     '/lockstep/agent_states': 'std_msgs/msg/Float64MultiArray',
+    '/lockstep/robot_states': 'std_msgs/msg/Float64MultiArray',
     '/swarm/agent_states': 'std_msgs/msg/Float64MultiArray',
 }
 

@@ -28,6 +28,8 @@ def add_robot_world(params: dict, robots: dict) -> None:
         world = params['/world']
         params[ROBOTS_NODE] = dict({k: world[k] for k in SHARED}, robots=','.join(chosen), use_sim_time=True,
                                    hold_timeout=world['missing_timeout'] / 2)
+        if world['mode'] == 'lockstep':     # their poses come from the robot world's reports
+            world['robot_poses'] = ','.join(chosen)
 
 
 def read_summary(out_dir) -> dict | None:

@@ -45,6 +45,76 @@ def decision_valid(lam, flags, steering, n):
     return bool(LAMBDA_BOUND.ok(lam) and np.all(np.abs(steering) <= STEERING_BOUND.hi) and len(flags) == n)
 
 
+#: no states (rows, steps, values, u)
+_NO_STATES = (np.zeros(0, np.intp), np.zeros(0, np.int64), np.zeros((4, 0)), np.zeros(0))
+
+
+class RobotPoseJoin:
+    """Lockstep with robots of the MuJoCo world: the state of t_k of an agent at ``rows`` comes
+    in two parts, its pose from the robot world (``/lockstep/robot_states``) and the u it
+    carries from the agent's own answer (whose pose is not taken); once both parts of one step
+    are here, the state goes to the barrier (`LockstepBarrier.on_states`) as any other.  Each
+    part waits for its twin; a part older than a state handed on is dropped, and at most
+    `KEPT` parts are kept per agent (a dead agent's robot is still reported)."""
+
+    KEPT = 1000
+
+    def __init__(self, rows, n: int):
+        self.mask = np.zeros(n, dtype=bool)
+        self.mask[np.asarray(list(rows), dtype=np.intp)] = True
+        self.poses = {int(i): {} for i in np.flatnonzero(self.mask)}     # row -> {step: (4,) pose}
+        self.us = {int(i): {} for i in np.flatnonzero(self.mask)}        # row -> {step: u}
+
+    def from_agents(self, rows, ks, vals, us):
+        """One agent process's answer (as `LockstepBarrier.on_states` takes it): the states of
+        its other agents as they are, then those whose pose was already here."""
+        rows = np.asarray(rows, np.intp)
+        mine = self.mask[rows]
+        if not mine.any():
+            return rows, ks, vals, us
+        ks, us = np.asarray(ks), np.asarray(us)
+        done = [self._put(self.us, self.poses, i, k, u)
+                for i, k, u in zip(rows[mine].tolist(), ks[mine].tolist(), us[mine].tolist())]
+        r, k, v, u = self._joined([d for d in done if d is not None])
+        if mine.all():
+            return r, k, v, u
+        other = ~mine
+        return (np.concatenate([rows[other], r]), np.concatenate([ks[other].astype(np.int64), k]),
+                np.concatenate([np.asarray(vals)[:, other], v], axis=1), np.concatenate([us[other], u]))
+
+    def from_robots(self, n: int, rows, pose):
+        """The robot world's report of step ``n`` (``pose`` (4, K) at ``rows``): the states now
+        complete.  Rows that are not robots here: ValueError naming them."""
+        rows = np.asarray(rows, np.intp)
+        if rows.size and (rows.max() >= self.mask.size or not self.mask[rows].all()):
+            raise ValueError(f'poses of agent rows {sorted(set(rows.tolist()) - set(self.poses))}, which are '
+                             'not on robots of the MuJoCo world here (world parameter robot_poses)')
+        pose = np.asarray(pose, dtype=float)
+        done = [self._put(self.poses, self.us, int(i), int(n), pose[:, j]) for j, i in enumerate(rows.tolist())]
+        return self._joined([d for d in done if d is not None])
+
+    def _put(self, mine, twin, i, k, value):
+        """Keep one part; (row, step) if its twin is here."""
+        kept = mine[i]
+        kept[k] = value
+        if len(kept) > self.KEPT:
+            del kept[min(kept)]
+        return (i, k) if k in twin[i] else None
+
+    def _joined(self, done):
+        """rows, steps, values (4, K) and u of the states ``done`` ((row, step)), their parts
+        and every older one dropped."""
+        if not done:
+            return _NO_STATES
+        vals, us = np.zeros((4, len(done))), np.zeros(len(done))
+        for j, (i, k) in enumerate(done):
+            vals[:, j], us[j] = self.poses[i].pop(k), self.us[i].pop(k)
+            for kept in (self.poses[i], self.us[i]):
+                for old in [s for s in kept if s < k]:
+                    del kept[old]
+        return (np.array([i for i, _ in done], np.intp), np.array([k for _, k in done], np.int64), vals, us)
+
+
 class LockstepBarrier:
     """The lockstep state of a world: step ``cur`` and the states, u and decision it holds.
 

@@ -33,6 +33,8 @@ WORLD = {
                       {}),
     'remote_robots': ('', 'the robots of remote agents, NAME=KIND comma-separated (KIND external or mujoco); '
                       'announced on /swarm/run, where swarm join reads them', {}),
+    'robot_poses': ('', 'lockstep: the agents on robots of the MuJoCo world, comma-separated: their states come '
+                    f'from the robot world ({P.LOCK_ROBOT_STATES}) and only u from their own answers', {}),
     'pid_file': ('', 'JSON {agent: pid} of the agent processes, for kill/pause ("": none)', {}),
     'events_file': ('', 'append every event here as JSON lines ("": output_dir/events.jsonl)', {}),
     'trail_length': (200, 'trail points per agent in the markers', dict(lo=0, hi=100000)),

@@ -33,7 +33,7 @@ from swarm_core.robot_units import ROBOT_KINDS
 from swarm_core.trajectory import Trajectory, TrajectoryRecorder
 
 from swarm_ros import protocol as P
-from swarm_ros.layouts import AgentStates, Decision
+from swarm_ros.layouts import AgentStates, Decision, RobotStates
 from swarm_ros.msg_checks import (NewestStates, ProcessSenders, RejectLog, check_agent_states, decoded, may_signal,
                                   reason)
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
@@ -41,7 +41,7 @@ from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, older_runs, pa
 from swarm_ros.scenario_params import declare_scenario
 
 from .inputs import fault_request, format_points, parse_geometry, parse_point, parse_points
-from .lockstep import LockstepBarrier, comms_schedule, decision_valid
+from .lockstep import LockstepBarrier, RobotPoseJoin, comms_schedule, decision_valid
 from .lateness import TIMING_FILE, Lateness
 from .markers import Trails, geometry_messages, markers_every, markers_message, metrics_message, view_values
 from .observe import Observer
@@ -164,6 +164,15 @@ class WorldNode(RealtimeWorld, Node):
             self.pub_step = self.create_publisher(Float64MultiArray, P.LOCK_STEP, P.qos_latched())
             self.sub_decision = self.create_subscription(Float64MultiArray, P.LOCK_DECISION, self._on_decision,
                                                          P.qos_latched(), raw=True)
+            self.join = None
+            robots = [nm.strip() for nm in self.robot_poses.split(',') if nm.strip()]
+            if robots:          # their poses from the robot world, u from their answers (`RobotPoseJoin`)
+                unknown = [nm for nm in robots if nm not in self.row]
+                if unknown:
+                    raise ParameterError(f'parameter robot_poses: no agent {", ".join(unknown)} in the scenario')
+                self.join = RobotPoseJoin([self.row[nm] for nm in robots], self.n)
+                self.create_subscription(Float64MultiArray, P.LOCK_ROBOT_STATES, self._on_robot_states,
+                                         P.qos_latched(), raw=True)
 
     def _create_logic(self):
         """The lockstep barrier or the realtime schedule, the record, the checks and the
@@ -225,10 +234,30 @@ class WorldNode(RealtimeWorld, Node):
         if idx.size == 0 or why is not None and why.kind != 'second-publisher':
             return
         self.process_senders.accept(idx, tag)
+        if self.join is not None:
+            idx, ks, vals, u = self.join.from_agents(idx, ks, vals, u)
+        self.take_states(idx, ks, vals, u)
+
+    def _on_robot_states(self, raw):
+        """Lockstep: the robot world's poses of its robots' agents at one step (`RobotPoseJoin`)."""
+        m = decoded(RobotStates, raw, self.run_id, self.reject, 'robot-decode')
+        if m is None:
+            return
+        try:
+            idx, ks, vals, u = self.join.from_robots(m.n, m.index, m.pose)
+        except ValueError as err:
+            self.reject('robot-rows', f'{P.LOCK_ROBOT_STATES}: {err}')
+            return
+        self.take_states(idx, ks, vals, u)
+
+    def take_states(self, idx, ks, vals, u):
+        """States (`LockstepBarrier.on_states`) into the barrier, and what it decides done."""
+        self.watch.progressed(time.monotonic())
+        if idx.size == 0:           # a robot agent's u whose pose has not come (`RobotPoseJoin`)
+            return
         late, acts = self.lock.on_states(idx, ks, vals, u)
         for text in late[:1]:
             self.reject('step', text)
-        self.watch.progressed(time.monotonic())
         self.act(acts)
 
     def _on_decision(self, raw):
