@@ -214,15 +214,18 @@ class RobotsNode(Node):
         take their poses from the world's table): both are volatile, so a reader that matches
         later has missed nothing it could have had."""
         self.t_odom, self.last_sent = t, time.monotonic()
+        always = self.mode == 'realtime'
+        to_odom = [k for k, pub in enumerate(self.pub_odom) if always or pub.get_subscription_count()]
+        to_truth = [k for k, pub in enumerate(self.pub_truth) if pub.get_subscription_count()]
+        if not (to_odom or to_truth):
+            return
         sec, nsec = P.time_to_stamp(t)
         truth = self.world.ground_truth()
-        odom = self.world.odometry() if self.sec.frame == 'odom' else truth
-        always = self.mode == 'realtime'
-        for k in range(len(self.agents)):
-            if always or self.pub_odom[k].get_subscription_count():
-                self.pub_odom[k].publish(serialized_odometry(self.odom_writers[k], sec, nsec, odom[k]))
-            if self.pub_truth[k].get_subscription_count():
-                self.pub_truth[k].publish(serialized_odometry(self.truth_writers[k], sec, nsec, truth[k]))
+        odom = self.world.odometry() if self.sec.frame == 'odom' and to_odom else truth
+        for k in to_odom:
+            self.pub_odom[k].publish(serialized_odometry(self.odom_writers[k], sec, nsec, odom[k]))
+        for k in to_truth:
+            self.pub_truth[k].publish(serialized_odometry(self.truth_writers[k], sec, nsec, truth[k]))
 
     def summary(self) -> dict:
         w = self.world
