@@ -93,7 +93,7 @@ def test_stale_and_off_step_stamps_are_ignored_and_the_first_command_counts():
     assert h.ignored == 3 and h.run() == []
     assert h.world.calls[0] == ('command', 0, 0.1, 0.5)
     h.on_step(0, np.ones(1, bool))                      # a repeated old step changes nothing
-    assert 0 not in h.alive and h.run() == []
+    assert 0 not in h.known and h.run() == []
 
 
 def test_commands_ahead_are_kept_for_their_step_and_time_does_not_drift():

@@ -36,8 +36,8 @@ class RobotsLockstep:
         self.scale = float(robot_per_model)     # robot s per model s: L / v0
         self.n = 0                              # the step whose commands are awaited
         self.commands = {}                      # step -> {robot k: (v, omega)}
-        self.alive = {}                         # step -> (K,) bool: whose agent is alive
-        self.known_at = {}                      # step -> wall s its step message first came
+        self.known = {}                         # step -> ((K,) bool: whose agent is alive, wall s its
+                                                # step message first came)
         self.ignored = 0                        # commands of a past step or too far ahead
         self.asked = 0.0                        # robot s asked of the physics so far
 
@@ -60,19 +60,18 @@ class RobotsLockstep:
     def on_step(self, n: int, alive_rows, now: float = 0.0) -> None:
         """The world's step ``n`` with its alive mask over the whole roster, at wall time ``now``.
         The world repeats a step while it stalls: a repeat changes nothing (a release stays)."""
-        if self.n <= n <= self.n + AHEAD and n not in self.alive:
-            self.alive[n] = np.asarray(alive_rows, dtype=bool)[self.rows]
-            self.known_at[n] = now
+        if self.n <= n <= self.n + AHEAD and n not in self.known:
+            self.known[n] = (np.asarray(alive_rows, dtype=bool)[self.rows], now)
 
     def overdue(self, now: float, timeout: float) -> bool:
         """The held step's message came ``timeout`` wall s or more before ``now``."""
-        return self.n in self.known_at and now - self.known_at[self.n] >= timeout
+        return self.n in self.known and now - self.known[self.n][1] >= timeout
 
     def waiting_for(self) -> list:
         """Robots whose command for the held step is still missing: every robot until the step's
         alive mask is known, then the robots of alive agents only."""
         have = self.commands.get(self.n, {})
-        mask = self.alive.get(self.n)
+        mask = self.known.get(self.n, (None,))[0]
         return [k for k in range(len(self.rows)) if k not in have and (mask is None or mask[k])]
 
     def ready(self) -> bool:
@@ -82,10 +81,10 @@ class RobotsLockstep:
         """Stop waiting for the held step's missing robots, once the step itself is known (its
         agents died after the world sent it: without this the robots of the others would never
         move and the world would lose them too).  They get no command this step; returns them."""
-        if self.n not in self.alive:
+        if self.n not in self.known:
             return []
         missing = self.waiting_for()
-        self.alive[self.n][missing] = False
+        self.known[self.n][0][missing] = False
         return missing
 
     def advance(self) -> float:
@@ -93,8 +92,7 @@ class RobotsLockstep:
         t_(n+1)·L/v0 and move on; returns t_(n+1), the stamp of the odometry to publish."""
         for k, (v, omega) in sorted(self.commands.pop(self.n, {}).items()):
             self.world.command(k, v, omega)
-        self.alive.pop(self.n, None)
-        self.known_at.pop(self.n, None)
+        self.known.pop(self.n, None)
         self.n += 1
         t = self.n * self.dt
         self.asked = advance_to(self.world, self.asked, t * self.scale)
