@@ -162,6 +162,6 @@ def test_a_robot_set_is_checked():
     with pytest.raises(st.StudyError, match='robot_set .some.: one of none, half, all'):
         st.validate(s)
     s.grid = {'robot_set': ['all']}
-    del s.fixed['robots.length_scale'], s.fixed['robots.cruise_speed']
+    del s.fixed['robots.length_scale'], s.fixed['robots.cruise_speed'], s.data['robots']
     with pytest.raises(st.StudyError, match="needs the scenario's robots: section"):
         st.validate(s)

@@ -36,6 +36,9 @@ def test_plan_starts_the_robot_world_for_the_mujoco_agents(six):
     # 3 kinematic agents, 3 robot agents (each a process of its own), world, commander, robots
     assert run.processes == 6 + 3
     assert 'robots' not in run.params['/world'] and run.params['/world']['rtf'] == 1.0
+    assert 'robot_poses' not in run.params['/world']       # realtime: the agents read their odometry
+    lock = plan(six, '--robots', 'mujoco:agent_1-agent_3', '--robots', 'external:agent_5')
+    assert lock.params['/world']['robot_poses'] == 'agent_1,agent_2,agent_3'   # lockstep: the robot world reports
     for other in ([], ['--robots', 'external']):          # no MuJoCo robots: no robot world
         assert '/robots' not in plan(six, *other).params and plan(six, *other).processes == 8
 
