@@ -187,7 +187,7 @@ def test_controller_keeps_the_reference_on_a_nan_command_and_drops_a_stale_one()
     ctl.update(0.0, 0.01)
     ctl.command(0, np.nan, 0.0, now=0.01)            # NaN: the reference stays 0.1
     for k in range(1, 30):
-        (left, right), _ = ctl.update(0.01 * k, 0.01)
+        (left, right), _, _ = ctl.update(0.01 * k, 0.01)
     assert left[0] * BURGER.wheel_radius == pytest.approx(0.1)
     assert not ctl.fresh(now=1.0, stamp=0.4) and ctl.fresh(now=1.0, stamp=0.6)
     world = RobotWorld(BURGER, [[0.0, 0.0, 0.0]])
@@ -208,7 +208,7 @@ def test_a_settled_controller_brakes_at_the_first_update_past_its_timeout():
         now = k * 0.01                              # as RobotWorld.time counts
         if k == 20:
             ctl.command(1, 0.1, 0.0, now=stamps[1])
-        (left, _), _ = ctl.update(now, 0.01)
+        (left, _), _, _ = ctl.update(now, 0.01)
         for i in range(2):
             if braked[i] is None and k > 30 and left[i] * BURGER.wheel_radius < 0.1 - 1e-9:
                 braked[i] = k

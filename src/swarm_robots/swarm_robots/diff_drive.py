@@ -65,17 +65,19 @@ class DiffDriveControllers:
 
     def update(self, now: float, dt: float):
         """One controller update at `now` over `dt`: returns (left, right) wheel velocities
-        (rad/s, arrays over robots) and whether a limit changed each robot's command.
+        (rad/s, arrays over robots), whether a limit changed each robot's command, and whether
+        the wheel velocities are those of the update before (``same``: the caller may keep what
+        it made of them).
 
         Settled (every robot's limited command equal to its reference), with no cmd_vel since
         and no robot's timeout passing, the update gives what it gave last time: that is
         returned without the arithmetic (the lockstep world holds one command for many updates)."""
         if self._settled and now < self._quiet_until:           # no timeout can have passed
-            return self._wheels, np.zeros(self.n, dtype=bool)
+            return self._wheels, np.zeros(self.n, dtype=bool), True
         timeout = self.description.cmd_vel_timeout
         timed_out = now - self._stamp > timeout if timeout > 0 else self._never
         if self._settled and not (timed_out != self._timed_out).any():
-            return self._wheels, np.zeros(self.n, dtype=bool)
+            return self._wheels, np.zeros(self.n, dtype=bool), True
         self._timed_out = timed_out
         # the first `now` at which a running command may time out, less a margin far above the
         # rounding of now - stamp: before it the comparison above cannot change
@@ -92,7 +94,7 @@ class DiffDriveControllers:
         self._previous = limited
         self._wheels = wheel_velocities(self.description, limited[0], limited[1])
         self._settled = not saturated.any()
-        return self._wheels, saturated
+        return self._wheels, saturated, False
 
     @property
     def limited_command(self) -> np.ndarray:

@@ -135,7 +135,6 @@ class RobotWorld:
         self._floor = self.model.geom('floor').id
         self._touching = ()                                        # see `_count_contacts`
         self._ctrl = self.data.ctrl.reshape(self.n, 2)             # left, right per robot (a view)
-        self._targets = None                                       # the wheel targets in ctrl
         self._at_top = np.zeros(self.n, dtype=bool)                # which are beyond the motors'
         self._any_at_top = False
         self._steps = 0
@@ -178,11 +177,10 @@ class RobotWorld:
         """One controller period: the controllers' update, physics_dt substeps, then the
         contacts at the period's end; its wheel positions into ``wheels`` (2, N) (`advance`
         gives them to the wheel odometry, one update per period)."""
-        targets, saturated = self.controllers.update(self.time, self.control_dt)
-        if targets is self._targets:            # a settled controller repeats its answer: ctrl holds,
+        targets, saturated, same = self.controllers.update(self.time, self.control_dt)
+        if same:                                # a settled controller repeats its answer: ctrl holds,
             saturated, limited = self._at_top, self._any_at_top     # and no controller limit acts
         else:
-            self._targets = targets
             left, right = targets
             top = self.description.max_wheel_speed      # the motors' limit, not the controller's
             self._at_top = (np.abs(left) > top) | (np.abs(right) > top)
