@@ -60,6 +60,20 @@ def test_a_killed_agents_robot_is_not_waited_for():
     assert h.run() == [] and h.waiting_for() == [1]
 
 
+def test_a_robot_whose_agent_is_killed_in_a_step_already_sent_is_not_waited_for():
+    """The world kills an agent right after it sends a step: its kill event lets the step go
+    on without its command (without waiting for the hold's time-out), and every step after."""
+    h = hold(rows=(0, 2, 4))
+    h.on_step(0, np.ones(6, bool))                   # robot 1's agent alive in step 0 ...
+    h.on_command(0, 0.0, 0.1, 0.0)
+    h.on_command(2, 0.0, 0.1, 0.0)
+    assert h.run() == [] and h.waiting_for() == [1]
+    h.lose(1)                                        # ... and killed before it commanded it
+    assert h.run() == [pytest.approx(DT)] and h.waiting_for() == [0, 2]
+    h.on_step(1, np.ones(6, bool))
+    assert h.waiting_for() == [0, 2]
+
+
 def test_release_leaves_out_the_robots_of_a_known_step_that_did_not_answer():
     h = hold(rows=(0, 2, 4))
     h.on_command(0, 0.0, 0.1, 0.0)

@@ -25,7 +25,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, String
 
 from swarm_core.atomic import write_atomic
 from swarm_core.frenet import quaternion_from_heading
@@ -99,6 +99,7 @@ class RobotsNode(Node):
             self.poses = OdometryPoses(self.world, self.scn, self.rows, self.units, self.sec.frame)
             self.pub_report = self.create_publisher(Float64MultiArray, P.LOCK_ROBOT_STATES, P.qos_latched())
             self.create_subscription(Float64MultiArray, P.LOCK_STEP, self._on_step, P.qos_latched(), raw=True)
+            self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
             self.create_timer(REPEAT_AFTER / 2, self._repeat, clock=steady_clock())
             self.publish_odometry(0.0)
             theta0 = self.scn.theta0[self.rows]      # the state of t_0: the scenario's, as the agents have it
@@ -173,6 +174,16 @@ class RobotsNode(Node):
             return
         self.hold.on_step(m.n, m.alive, time.monotonic())
         self._advance()
+
+    def _on_event(self, msg):
+        """Lockstep: a kill of a robot's agent (/swarm/events): its command is not awaited."""
+        try:
+            ev = json.loads(msg.data)
+        except ValueError:
+            return
+        if isinstance(ev, dict) and ev.get('kind') == 'kill' and ev.get('agent') in self.agents:
+            self.hold.lose(self.agents.index(ev['agent']))
+            self._advance()
 
     # ------------------------------------------------------------ physics and outputs
     def _advance(self):

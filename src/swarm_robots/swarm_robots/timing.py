@@ -38,6 +38,7 @@ class RobotsLockstep:
         self.commands = {}                      # step -> {robot k: (v, omega)}
         self.known = {}                         # step -> ((K,) bool: whose agent is alive, wall s its
                                                 # step message first came)
+        self.dead = set()                       # robots whose agent was killed: never awaited again
         self.ignored = 0                        # commands of a past step or too far ahead
         self.asked = 0.0                        # robot s asked of the physics so far
 
@@ -72,10 +73,18 @@ class RobotsLockstep:
         alive mask is known, then the robots of alive agents only."""
         have = self.commands.get(self.n, {})
         mask = self.known.get(self.n, (None,))[0]
-        return [k for k in range(len(self.rows)) if k not in have and (mask is None or mask[k])]
+        return [k for k in range(len(self.rows))
+                if k not in have and (mask is None or mask[k]) and k not in self.dead]
 
     def ready(self) -> bool:
         return not self.waiting_for()
+
+    def lose(self, k: int) -> None:
+        """Robot ``k``'s agent was killed (its kill event): its command is not awaited from the
+        held step on.  The world kills an agent right after it sends a step, so the agent may
+        die before it commands that step; without this the step would wait for the hold's
+        time-out.  A command of it that came is still applied."""
+        self.dead.add(int(k))
 
     def release(self) -> list:
         """Stop waiting for the held step's missing robots, once the step itself is known (its
