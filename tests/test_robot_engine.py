@@ -165,3 +165,26 @@ def test_a_robot_set_is_checked():
     del s.fixed['robots.length_scale'], s.fixed['robots.cruise_speed'], s.data['robots']
     with pytest.raises(st.StudyError, match="needs the scenario's robots: section"):
         st.validate(s)
+
+
+def test_a_lockstep_robot_run_with_a_freeze_and_a_kill(tmp_path, ros_domain, processes, swarm_cmd):
+    """`swarm run --robots mujoco` with a frozen and a killed robot agent: the run goes on
+    through both; the robot world learns of the kill from its event, so it does not wait the
+    hold's time-out for the killed agent's command (the world kills right after a step went
+    out); the frozen agent's rows hold its state, the killed agent's are NaN from its step."""
+    path = short_homotopy(tmp_path / 'faults.yaml', robots=ROBOTS, duration=8, lam='{kind: constant, value: 0}',
+                          at=1, faults=[{'at': 2, 'freeze': 'agent_1', 'for': 2.0}, {'at': 5, 'kill': 'agent_4'}])
+    out = tmp_path / 'r'
+    p = processes.start([swarm_cmd, 'run', str(path), '--out', str(out), '--no-figure', '--robots', 'mujoco'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
+    text = ''.join(lines.lines)
+    assert 'agent_4 killed' in text and 'no command from' not in text, text[-3000:]
+    tr = Trajectory.load(out / 'trajectory.npz')
+    dt = tr.t[1] - tr.t[0]
+    kill, freeze = round(5 / dt), round(2 / dt)
+    assert np.isnan(tr.r[kill:, 4]).all() and np.isfinite(tr.r[:kill, 4]).all()
+    held = tr.r[freeze:2 * freeze, 1]
+    assert (held == tr.r[freeze, 1]).all() and (tr.r[2 * freeze + 2, 1] != tr.r[freeze, 1]).all()
+    assert np.isfinite(tr.r[:, [0, 1, 2, 3, 5]]).all()
