@@ -334,3 +334,12 @@ def test_a_run_with_a_robot_agent_records_its_robots_poses():
     tr = b.rec.trajectory()
     assert tr.r[:, 1].tolist() == [[1.0, 0.0], [1.0, 2.0], [1.0, 4.0]]
     assert tr.u[:, 1].tolist() == pytest.approx([0.2, 0.4, 0.6])
+
+
+def test_the_join_says_when_a_robot_agents_pose_is_what_is_missing():
+    from swarm_world.lockstep import RobotPoseJoin
+    join = RobotPoseJoin([1], 3)
+    join.from_agents([1], [2], np.zeros((4, 1)), [0.5])
+    assert join.awaits_pose(1, 2) and not join.awaits_pose(1, 3) and not join.awaits_pose(0, 2)
+    join.from_robots(2, [1], np.zeros((4, 1)))
+    assert not join.awaits_pose(1, 2)

@@ -93,6 +93,10 @@ class RobotPoseJoin:
         done = [self._put(self.poses, self.us, int(i), int(n), pose[:, j]) for j, i in enumerate(rows.tolist())]
         return self._joined([d for d in done if d is not None])
 
+    def awaits_pose(self, i: int, k: int) -> bool:
+        """Has agent ``i``'s u of step ``k`` come while its robot's pose has not?"""
+        return i in self.us and k in self.us[i] and k not in self.poses[i]
+
     def _put(self, mine, twin, i, k, value):
         """Keep one part; (row, step) if its twin is here."""
         kept = mine[i]

@@ -440,26 +440,39 @@ class WorldNode(RealtimeWorld, Node):
                 self.watch.stepped(now)
                 self.act(self.lock.start())
             elif go == 'time_out':
+                poses = [self.names[i] for i in self.lock.missing() if self.awaits_robot(i)]
                 self.give_up(f'discovery timed out after {self.start_timeout:.0f} s: have states of '
                              f'{int(self.lock.have.sum())}/{self.n} agents, relay readers '
                              f'{self.pub_step.get_subscription_count()}, commander '
-                             f'{"yes" if self.pub_lock_states.get_subscription_count() else "no"}')
+                             f'{"yes" if self.pub_lock_states.get_subscription_count() else "no"}'
+                             + (f'; no robot pose from the robot world ({P.LOCK_ROBOT_STATES}) for '
+                                + ', '.join(poses) if poses else ''))
             return
         what = self.watch.decide(now, states_out=self.lock.states_out, complete=self.lock.complete(),
                                  can_repeat=self.last_msg is not None)
         if what == 'drop':
             for i in self.lock.missing():
-                self.get_logger().warning(f'{self.names[i]}: no state for step {self.lock.cur} within '
-                                          f'{self.missing_timeout:g} s: dropped from the roster')
+                self.get_logger().warning(f'{self.state_of(i)}: none for step {self.lock.cur} within '
+                                          f'{self.missing_timeout:g} s: {self.names[i]} dropped from the roster')
             self.act(self.lock.drop_missing())
         elif what == 'give_up':
             self.give_up(f'step {self.lock.cur} has not completed after {now - self.watch.step_wall:.0f} s '
                          f'(waiting for {"the commander" if self.lock.states_out else "agents"}): giving up')
         elif what == 'repeat':
             waiting = ("the commander's decision" if self.lock.states_out else
-                       'the states of ' + ', '.join(self.names[i] for i in self.lock.missing()))
+                       ', '.join(self.state_of(i) for i in self.lock.missing()))
             self.get_logger().warning(f'stalled at step {self.lock.cur} waiting for {waiting}: repeating the last message')
             self.last_msg[0].publish(self.last_msg[1])
+
+    def awaits_robot(self, i) -> bool:
+        """Lockstep: has agent ``i``'s u of the current step come while its robot's pose has not?"""
+        return self.join is not None and self.join.awaits_pose(int(i), self.lock.cur)
+
+    def state_of(self, i) -> str:
+        """What the world waits for of agent ``i`` in the current step, in words."""
+        if self.awaits_robot(i):
+            return f"the pose of {self.names[i]}'s robot ({P.LOCK_ROBOT_STATES}, from the robot world)"
+        return f'the state of {self.names[i]}'
 
     def give_up(self, why):
         """End the run with an error (exit 1), keeping the steps completed so far."""
