@@ -48,6 +48,9 @@ class FakeWorld:
     def odometry(self):
         return np.column_stack([self.poses - self.start, self.v, np.zeros(self.n)])
 
+    def odometry_pose(self):
+        return self.poses - self.start
+
 
 ROBOTS = {'length_scale': 0.3, 'cruise_speed': 0.15}
 

@@ -192,11 +192,11 @@ class AgentCore:
         """Lockstep on a MuJoCo robot: its pose of the step is its row of the step's table (the
         robot world's report): the table's quaternion is its frame, as every neighbour sees it;
         its heading (a radio model's law reads it) is unwrapped near the one before."""
+        qz, qw = float(qz), float(qw)
         self.pos = np.array([[float(x), float(y)]])
-        self.theta = np.array([reported_heading(float(qz), float(qw), float(self.theta[0]))])
-        self._quat = (float(qz), float(qw))
-        c, s = frame_from_quaternion(np.array([qz], dtype=float), np.array([qw], dtype=float))
-        self._frame = (c[0], s[0])
+        self.theta = np.array([reported_heading(qz, qw, float(self.theta[0]))])
+        self._quat = (qz, qw)
+        self._frame = (qw * qw - qz * qz, 2.0 * qw * qz)       # `frame_from_quaternion` (eq. 3), the same bits
 
     def moved_to(self, pos, theta, u: float):
         """Take the state (pos (1, 2), θ (1,)) that one ZOH step with u gave (`advance`, or

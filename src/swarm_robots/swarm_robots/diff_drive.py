@@ -51,6 +51,7 @@ class DiffDriveControllers:
         self._timed_out = self._never
         self._quiet_until = -np.inf                   # see `update`
         self._settled = False                         # `update` may repeat its last answer
+        self._unsaturated = np.zeros(n, dtype=bool)   # (what a repeat returns; not to be changed)
         self._wheels = None
         self._max_acceleration = np.array([[description.max_linear_accel],
                                            [description.max_angular_accel]])
@@ -73,11 +74,11 @@ class DiffDriveControllers:
         and no robot's timeout passing, the update gives what it gave last time: that is
         returned without the arithmetic (the lockstep world holds one command for many updates)."""
         if self._settled and now < self._quiet_until:           # no timeout can have passed
-            return self._wheels, np.zeros(self.n, dtype=bool), True
+            return self._wheels, self._unsaturated, True
         timeout = self.description.cmd_vel_timeout
         timed_out = now - self._stamp > timeout if timeout > 0 else self._never
         if self._settled and not (timed_out != self._timed_out).any():
-            return self._wheels, np.zeros(self.n, dtype=bool), True
+            return self._wheels, self._unsaturated, True
         self._timed_out = timed_out
         # the first `now` at which a running command may time out, less a margin far above the
         # rounding of now - stamp: before it the comparison above cannot change

@@ -79,6 +79,7 @@ class RobotsNode(Node):
         desc = self._description()
         self.world = turn_limit_clock(self._make_world(desc), self.sec, desc)
         self.t_odom = 0.0                       # sim time of the newest odometry published
+        self.readers, self.readers_at = ([], []), -math.inf     # robots whose odometry, ground truth is read
         self.last_sent = time.monotonic()       # wall s of the newest odometry published
         self.pub_odom, self.pub_truth = [], []
         own = self.sec.frame == 'odom'
@@ -222,12 +223,15 @@ class RobotsNode(Node):
         """Each robot's odometry (its own ``odom`` frame, or the common ``world`` frame) and
         ground truth, stamped sim time ``t``.  Ground truth only while someone reads it (a
         recorder, a view; the agents never do), and in lockstep the odometry too (the agents
-        take their poses from the world's table): both are volatile, so a reader that matches
-        later has missed nothing it could have had."""
+        take their poses from the world's table), looked at every `REPEAT_AFTER` s: both are
+        volatile, so a reader that matches later has missed little it could have had."""
         self.t_odom, self.last_sent = t, time.monotonic()
-        always = self.mode == 'realtime'
-        to_odom = [k for k, pub in enumerate(self.pub_odom) if always or pub.get_subscription_count()]
-        to_truth = [k for k, pub in enumerate(self.pub_truth) if pub.get_subscription_count()]
+        if self.last_sent >= self.readers_at + REPEAT_AFTER:     # who reads: looked at twice a second
+            always = self.mode == 'realtime'
+            self.readers = ([k for k, pub in enumerate(self.pub_odom) if always or pub.get_subscription_count()],
+                            [k for k, pub in enumerate(self.pub_truth) if pub.get_subscription_count()])
+            self.readers_at = self.last_sent
+        to_odom, to_truth = self.readers
         if not (to_odom or to_truth):
             return
         sec, nsec = P.time_to_stamp(t)

@@ -229,6 +229,10 @@ class RobotWorld:
         keeps adding to its heading)."""
         return np.column_stack([self.wheel_odometry.pose.T, self.wheel_odometry.velocity.T])
 
+    def odometry_pose(self) -> np.ndarray:
+        """(N, 3) x, y, yaw of `odometry`, without the velocities."""
+        return self.wheel_odometry.pose.T
+
     def ground_truth(self) -> np.ndarray:
         """(N, 5) x, y, yaw, v, ω in the world frame (yaw not wrapped); v and ω in the body
         frame."""

@@ -48,7 +48,7 @@ class OdometryPoses:
 
     def __init__(self, world, scn, rows, units, frame: str):
         self.units = units
-        self.odom = world.odometry if frame == 'odom' else world.ground_truth
+        self.odom = world.odometry_pose if frame == 'odom' else world.ground_truth
         starts = start_poses(scn, rows, units).tolist()
         self.starts = starts if frame == 'odom' else [None] * len(starts)
         self.heading = [float(scn.theta0[i]) for i in rows]
