@@ -164,7 +164,11 @@ def stop_on_signals():
     """SIGINT / SIGTERM set a flag instead of rclpy's handler (which shuts the context down
     under a running callback): returns (stop, wake, restore) — ``stop`` (a list) gets the
     signal number, ``wake`` (a Future, `spin_until`'s ``wake``) completes at once, ``restore()``
-    puts the previous handlers back.  Installed only in the main thread (signals go there)."""
+    puts the previous handlers back, unless a stop signal came: then later ones are still only
+    noted, since the process is ending and a repeat must not raise KeyboardInterrupt while it
+    writes its outputs (a parent-death signal comes once for each thread of a dying parent
+    that exits: a launcher started by a script that is killed gets SIGINT two or three times).
+    Installed only in the main thread (signals go there)."""
     import signal
     import threading
 
@@ -180,6 +184,8 @@ def stop_on_signals():
         old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
 
     def restore():
+        if stop:
+            return
         for sig, handler in old.items():
             signal.signal(sig, handler)
     return stop, wake, restore

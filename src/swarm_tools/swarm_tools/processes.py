@@ -107,7 +107,9 @@ def supervised(prog: str, signals=(signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     ``stopped``).  ``signals`` set a flag instead of raising in the middle of a start;
     ``stopped()`` says whether one came (printing ``PROG: SIGINT: stopping N processes``
     once).  When the block ends, also on an error, every process is stopped (``first``
-    first: the recorder, so it can finish its file) and the old handlers are back."""
+    first: the recorder, so it can finish its file) and the old handlers are back, unless a
+    signal came: then later ones are still only noted while the outputs are written
+    (`swarm_ros.rosutil.stop_on_signals`: a dying parent's death signal repeats)."""
     sup = Supervisor()
     got, said = [], []
     old = {s: signal.signal(s, lambda signum, _frame: got.append(signum)) for s in signals}
@@ -122,7 +124,7 @@ def supervised(prog: str, signals=(signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
         yield sup, stopped
     finally:
         sup.stop(first=first)
-        for s, h in old.items():
+        for s, h in old.items() if not got else ():
             signal.signal(s, h)
 
 
