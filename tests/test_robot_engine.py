@@ -167,6 +167,7 @@ def test_a_robot_set_is_checked():
         st.validate(s)
 
 
+@pytest.mark.ros
 def test_a_lockstep_robot_run_with_a_freeze_and_a_kill(tmp_path, ros_domain, processes, swarm_cmd):
     """`swarm run --robots mujoco` with a frozen and a killed robot agent: the run goes on
     through both; the robot world learns of the kill from its event, so it does not wait the
