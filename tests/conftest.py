@@ -24,6 +24,37 @@ if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
 ROOT = Path(__file__).resolve().parents[1]
 VENV_BIN = Path(sys.executable).parent
 
+
+def pytest_addoption(parser):
+    parser.addoption('--shard', default=None, metavar='I/K', help=(
+        'run only shard I of K (1-based): the selected tests\' files dealt out by their number of '
+        'tests, the largest first, each to the shard with the fewest (scripts/test.sh runs the ROS '
+        'tests as two shards; each test claims its own ROS_DOMAIN_ID, so shards run side by side)'))
+
+
+@pytest.hookimpl(trylast=True)          # after -m / -k have deselected
+def pytest_collection_modifyitems(config, items):
+    shard = config.getoption('shard')
+    if not shard:
+        return
+    try:
+        i, k = (int(v) for v in shard.split('/'))
+        assert 1 <= i <= k
+    except (ValueError, AssertionError):
+        raise pytest.UsageError(f'--shard {shard}: want I/K with 1 <= I <= K') from None
+    count = {}
+    for item in items:
+        count[item.path] = count.get(item.path, 0) + 1
+    load, mine = [0] * k, set()
+    for path in sorted(count, key=lambda f: (-count[f], str(f))):
+        j = load.index(min(load))
+        load[j] += count[path]
+        if j == i - 1:
+            mine.add(path)
+    keep = [it for it in items if it.path in mine]
+    config.hook.pytest_deselected(items=[it for it in items if it.path not in mine])
+    items[:] = keep
+
 # ``ros_domain`` (a ROS_DOMAIN_ID of the test's own) and ``swarm`` come from the project's pytest
 # plugin, swarm_tools.pytest_plugin (entry point pytest11), which users' tests get too.
 
