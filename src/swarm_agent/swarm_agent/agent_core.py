@@ -196,7 +196,8 @@ class AgentCore:
         self.pos = np.array([[float(x), float(y)]])
         self.theta = np.array([reported_heading(qz, qw, float(self.theta[0]))])
         self._quat = (qz, qw)
-        self._frame = (qw * qw - qz * qz, 2.0 * qw * qz)       # `frame_from_quaternion` (eq. 3), the same bits
+        c, s = frame_from_quaternion(np.array([qz]), np.array([qw]))
+        self._frame = (c[0], s[0])
 
     def moved_to(self, pos, theta, u: float):
         """Take the state (pos (1, 2), θ (1,)) that one ZOH step with u gave (`advance`, or

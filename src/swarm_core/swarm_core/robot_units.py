@@ -98,7 +98,7 @@ class RobotUnits:
         u = float(u)
         if not math.isfinite(u):
             u = 0.0
-        w = self.cruise_speed * u / self.length_scale           # `omega`, on a float (the same bits)
+        w = float(self.omega(u))
         m = self.max_angular
         clipped = abs(w) > m
         self.commands += 1

@@ -7,7 +7,8 @@ each robot's ``/<agent>/cmd_vel`` (geometry_msgs/TwistStamped, or Twist with the
 has sent its command for the step (`timing.RobotsLockstep`, the alive mask from
 ``/lockstep/step``); then the robots' poses of the new step go to the world on
 ``/lockstep/robot_states`` (`layouts.RobotStates`, read from the odometry as the agents would
-read it: `run_setup.OdometryPoses`), and odometry goes out only while someone reads it.  Realtime: the physics follows the sim clock (/clock), odometry at 50 Hz.
+read it: `run_setup.OdometryPoses`), and odometry goes out only while someone reads it.
+Realtime: the physics follows the sim clock (/clock), odometry at 50 Hz.
 Robot-robot contacts and the time at the velocity limits go to ``/robots/metrics`` and, at the
 end, to ``robots.json`` in ``output_dir`` (metrics.json's ``summary.robots``).  docs/robots.md.
 """
@@ -19,8 +20,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
@@ -28,7 +27,6 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray, String
 
 from swarm_core.atomic import write_atomic
-from swarm_core.frenet import quaternion_from_heading
 from swarm_core.robot_units import odometry_quaternion
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RobotStates, Step
@@ -103,9 +101,7 @@ class RobotsNode(Node):
             self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
             self.create_timer(REPEAT_AFTER / 2, self._repeat, clock=steady_clock())
             self.publish_odometry(0.0)
-            theta0 = self.scn.theta0[self.rows]      # the state of t_0: the scenario's, as the agents have it
-            self.report = RobotStates(0, self.rows, np.stack([*self.scn.pos0[self.rows].T,
-                                                              *quaternion_from_heading(theta0)])).to_cdr(self.run_id)
+            self.report = RobotStates(0, self.rows, self.poses.first).to_cdr(self.run_id)
             self.pub_report.publish(self.report)
         else:
             self.pacer, self.asked = RealtimePacer(self.scale), 0.0

@@ -52,6 +52,7 @@ class OdometryPoses:
         starts = start_poses(scn, rows, units).tolist()
         self.starts = starts if frame == 'odom' else [None] * len(starts)
         self.heading = [float(scn.theta0[i]) for i in rows]
+        self.first = self._table(*scn.pos0[rows].T, scn.theta0[rows])   # t_0: the scenario's, as the agents have it
         self.read()
 
     def read(self) -> list:
@@ -65,8 +66,12 @@ class OdometryPoses:
         return out
 
     def table(self) -> np.ndarray:
-        """(4, K) x, y, qz, qw of the robots now, as their agents would publish them."""
-        x, y, theta = np.array(self.read(), dtype=float).reshape(-1, 3).T
+        """(4, K) x, y, qz, qw of the robots now, as their agents would publish them (``first``:
+        those of t_0, the scenario's initial conditions)."""
+        return self._table(*np.array(self.read(), dtype=float).reshape(-1, 3).T)
+
+    @staticmethod
+    def _table(x, y, theta) -> np.ndarray:
         return np.stack([x, y, *quaternion_from_heading(theta)])
 
 
