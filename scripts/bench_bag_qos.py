@@ -77,7 +77,7 @@ def main(argv=None) -> int:
     p.add_argument('--duration', type=float, default=30.0, help='sim seconds (default 30)')
     p.add_argument('--repeat', type=int, default=3)
     a = p.parse_args(argv)
-    from swarm_core.scenario import load
+    from swarm_core.scenario.loader import load
     scn = load(a.scenario)
     steps = int(round(a.duration / scn.dt))
     dom, lock = claim_domain(61)
@@ -99,7 +99,8 @@ def main(argv=None) -> int:
                   f'~{rate:.0f} states/s incl. start-up',
                   flush=True)
     lock.close()
-    print('\n| recorder QoS on /swarm/states | runs | states lost per run (all agents) | of those, after the first received |')
+    print('\n| recorder QoS on /swarm/states | runs | states lost per run (all agents) '
+          '| of those, after the first received |')
     print('|---|---|---|---|')
     for overrides in (False, True):
         rs = [r for r in rows if r[0] == overrides]

@@ -30,6 +30,16 @@ ROOT = Path(__file__).resolve().parents[1]
 
 # ------------------------------------------------------------------ worker (one measurement)
 
+def compiled_engine():
+    """The study fast path of the checkout this worker runs: `swarm_core.engine.compiled`, or
+    `swarm_core.fast` in revisions before the sub-packages."""
+    try:
+        from swarm_core.engine import compiled
+    except ImportError:
+        from swarm_core import fast as compiled
+    return compiled
+
+
 def swarm(n, kind, spacing=1.5, seed=0):
     """n agents on a square grid at the paper's spacing, random headings in a 90° cone."""
     from swarm_core import scenario
@@ -65,12 +75,12 @@ def steps_per_second(n, kind, min_seconds=1.0, search='auto'):
 def full_run(name, dt, comms=None, duration=None, engine_name='reference'):
     """(wall s, CPU s) of one simulate() of a shipped scenario to its duration at dt, with the
     radio ``comms`` (a scenario ``comms`` mapping) or its own, on the reference engine or the
-    fast one (`swarm_core.fast`, compiled or loaded first; the median of as many runs as fill
+    fast one (`swarm_core.engine.compiled`, compiled or loaded first; the median of as many runs as fill
     0.3 s of CPU)."""
     from swarm_core import engine, scenario
     simulate = engine.simulate
     if engine_name == 'fast':
-        from swarm_core import fast
+        fast = compiled_engine()
         fast.warm_up()
         simulate = fast.simulate
     scn = scenario.load(name, dt=dt, comms=comms, duration=duration)
@@ -84,12 +94,12 @@ def full_run(name, dt, comms=None, duration=None, engine_name='reference'):
 
 
 def fast_start(cold):
-    """(wall s, CPU s) of importing `swarm_core.fast` and compiling its kernels (``cold``: into
+    """(wall s, CPU s) of importing the fast path and compiling its kernels (``cold``: into
     an empty numba cache) or loading them from the cache."""
     if cold:
         os.environ['NUMBA_CACHE_DIR'] = tempfile.mkdtemp()
     t0, c0 = time.perf_counter(), time.process_time()
-    from swarm_core import fast
+    fast = compiled_engine()
     fast.warm_up()
     return time.perf_counter() - t0, time.process_time() - c0
 
@@ -98,6 +108,7 @@ def law_call(receivers, lam, min_seconds):
     """µs (wall, CPU) per swarm_control call on homotopy_global's n = 6 table at t = 450
     (two leaders; λ ≈ 0.97, or ``lam``), for receivers 'one' (agent 2) or 'all'."""
     import numpy as np
+
     from swarm_core import engine, laws, scenario
     st = engine.SwarmStepper(scenario.load('homotopy_global'))
     for _ in range(9000):
@@ -133,7 +144,10 @@ def agent_call(min_seconds):
     on homotopy_global's states at t = 450, agent 2."""
     try:                      # module names since the layout change, then older revisions'
         from swarm_agent.agent_core import AgentCore
-        from swarm_core import frenet as model
+        try:
+            from swarm_core.model import frenet as model
+        except ImportError:
+            from swarm_core import frenet as model
     except ImportError:
         from swarm_agent.core import AgentCore
         from swarm_core import model
@@ -248,7 +262,7 @@ def main(argv=None):
     specs += [dict(what='agent', min_seconds=min_s)]
     specs += [dict(what='sps', kind=kind, n=n, min_seconds=min_s) for kind, ns in sizes.items() for n in ns]
     if a.reference:
-        from swarm_core.large_swarms import COMPILED_LIMIT
+        from swarm_core.laws.compiled_sums import COMPILED_LIMIT
         specs += [dict(what='sps', kind=kind, n=n, min_seconds=min_s, search='kdtree')
                   for kind, ns in sizes.items() for n in ns if n >= COMPILED_LIMIT]
     if not a.no_runs:
@@ -318,8 +332,8 @@ def spec_key(spec):
 
 def table(res):
     cmp_ = bool(res['baseline'])
-    lines = [f'load average (1, 5, 15 min): before {fmt_load(res["load_before"])}, after {fmt_load(res["load_after"])}; '
-             f'{res["cpus"]} CPUs; median of {res["repeats"]} run(s)']
+    lines = [f'load average (1, 5, 15 min): before {fmt_load(res["load_before"])}, '
+             f'after {fmt_load(res["load_after"])}; {res["cpus"]} CPUs; median of {res["repeats"]} run(s)']
 
     def section(whats, head, base_head, label, digits, speed_up):
         """One Markdown table: the rows of kinds ``whats``, label cells, wall and CPU numbers,
@@ -377,7 +391,8 @@ def radio_ratios(res):
                     f'{got["fast", True] / got["fast", False]:.2f}; fast radio / reference radio '
                     f'{got["fast", True] / got["reference", True]:.4f}')
             if ('reference', False) in got:
-                line += f'; reference radio / reference perfect radio {got["reference", True] / got["reference", False]:.2f}'
+                line += ('; reference radio / reference perfect radio '
+                         f'{got["reference", True] / got["reference", False]:.2f}')
             out += ['', line]
     return out
 

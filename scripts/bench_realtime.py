@@ -17,10 +17,11 @@ a grid (`bench_ros.scenario_file`):
   against n on log-log axes.
 
 The machine's load changes every number here but the CPU per period; the script prints the
-load average next to each run.  ``--compare REV --rounds R`` runs git revision REV (its src/ first on
-PYTHONPATH, with this venv and this script, so the same measures) and this checkout in turn, R
-pairs, for numbers side by side on a loaded machine.  ``--keep DIR`` keeps every run's output.  Processes, the domain id and Ctrl-C are handled as in
-`bench_ros` (it reuses its `Run`).
+load average next to each run.  ``--compare REV --rounds R`` runs git revision REV (its src/
+first on PYTHONPATH, with this venv and this script, so the same measures) and this checkout in
+turn, R pairs, for numbers side by side on a loaded machine.  ``--keep DIR`` keeps every run's
+output.  Processes, the domain id and Ctrl-C are handled as in `bench_ros` (it reuses its
+`Run`).
 """
 from __future__ import annotations
 
@@ -84,8 +85,8 @@ def bag_timing(bag, dt, rtf) -> dict:
     second (from the clock's start) with the smallest share of states on time at the recorder,
     and that share: bursts show there, spread lateness does not."""
     from swarm_ros.protocol import cdr_to_odometry_full
-    from swarm_tools.bag import iter_messages
-    from swarm_tools.msgdefs import leading_stamp_ns
+    from swarm_tools.bags.mcap_io import iter_messages
+    from swarm_tools.bags.msgdefs import leading_stamp_ns
     clock, states = [], {}
     for m in iter_messages(bag, topics=['/clock', '/swarm/states']):
         if m.topic == '/clock':
@@ -111,7 +112,8 @@ def bag_timing(bag, dt, rtf) -> dict:
 def scenario_dt() -> float:
     """dt of the scenario the runs are made from (`bench_ros.scenario_file`: homotopy_global)."""
     import yaml
-    from swarm_core.scenario import resolve
+
+    from swarm_core.scenario.loader import resolve
     return float(yaml.safe_load(resolve('homotopy_global')[0])['dt'])
 
 

@@ -72,7 +72,7 @@ def loadavg() -> str:
 
 def scenario_file(n: int, steps: int, tmp: Path) -> Path:
     """homotopy_global with n agents on a grid, run for `steps` steps."""
-    from swarm_core.scenario import resolve
+    from swarm_core.scenario.loader import resolve
     text, _ = resolve('homotopy_global')
     doc = yaml.safe_load(text)
     doc['name'] = f'bench_n{n}'
@@ -127,8 +127,8 @@ def role(pid: int) -> str:
     except OSError:
         return '?'
     text = b' '.join(cmd).decode(errors='replace')
-    for key, name in (('swarm_agents', 'container'), ('swarm_agent', 'agent'), ('swarm_world', 'world'), ('homotopy_commander', 'commander'),
-                      (' record', 'recorder'), (' run', 'launcher')):
+    for key, name in (('swarm_agents', 'container'), ('swarm_agent', 'agent'), ('swarm_world', 'world'),
+                      ('homotopy_commander', 'commander'), (' record', 'recorder'), (' run', 'launcher')):
         if key in text:
             return name
     return 'other'
@@ -262,10 +262,13 @@ def parse_ints(text):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0], formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument('--agents', default='6,12,24,48,96', help='agent counts, agents as processes (default 6,12,24,48,96)')
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument('--agents', default='6,12,24,48,96',
+                    help='agent counts, agents as processes (default 6,12,24,48,96)')
     ap.add_argument('--in-process', default='6,12,24', help="agent counts run with --in-process ('' = none)")
-    ap.add_argument('--steps', type=float, default=1.0, help='scale the steps per run (default 1: 4000 steps at n=6 … 400 at n=96)')
+    ap.add_argument('--steps', type=float, default=1.0,
+                    help='scale the steps per run (default 1: 4000 steps at n=6 … 400 at n=96)')
     ap.add_argument('--full', action=argparse.BooleanOptionalAction, default=True,
                     help='also the whole homotopy_global run to t = 1000 with a bag (default on)')
     ap.add_argument('--per-process', default='1', help="--agents-per-process values for the process runs, "
@@ -347,7 +350,8 @@ def main(argv=None) -> int:
                             r['bag_states'] = bag_states(bag)
                             if r.get('steps'):
                                 r['bag_states_expected'] = (r['steps'] + 2) * n   # t_0 … t_{steps+1}
-                        r.update(label=label, kind=kind, agents=n, per_process=k, repeat=rep, load_before=load0, load_after=loadavg())
+                        r.update(label=label, kind=kind, agents=n, per_process=k, repeat=rep, load_before=load0,
+                                 load_after=loadavg())
                         results['runs'].append(r)
                         print(f'    -> {summary_line(r)}', flush=True)
                         out_path.write_text(json.dumps(results, indent=1))
@@ -391,15 +395,16 @@ def plot(results, path):
 
 def bag_states(bag) -> int:
     """Number of /swarm/states messages in a bag."""
-    from swarm_tools.bag import bag_topics
+    from swarm_tools.bags.mcap_io import bag_topics
     return bag_topics(bag).get('/swarm/states', {}).get('count', 0)
 
 
 def summary_line(r):
     rss = r.get('rss_mib', {})
     ag = rss.get('agent', {})
-    return (f"exit {r['exit_code']}, {r.get('steps_per_s', '—')} steps/s, {r.get('stalls')} stalls, start {r.get('start_s', '—')} s "
-            f"(discovery {r.get('discovery_s', '—')} s), launcher wall {r['launcher_wall_s']} s, "
+    return (f"exit {r['exit_code']}, {r.get('steps_per_s', '—')} steps/s, {r.get('stalls')} stalls, "
+            f"start {r.get('start_s', '—')} s (discovery {r.get('discovery_s', '—')} s), "
+            f"launcher wall {r['launcher_wall_s']} s, "
             f"agent RSS {ag.get('median', '—')} MiB, total {r.get('rss_total_mib', '—')} MiB, "
             f"CPU ms/step {r.get('cpu_ms_per_step', {})}"
             + (f", bag {r.get('bag_mib')} MiB with {r.get('bag_states')}/{r.get('bag_states_expected')} states"
@@ -407,23 +412,25 @@ def summary_line(r):
 
 
 def markdown(results) -> str:
-    rows = ['| executable | how | agents | agents per process | steps/s | start (s) | discovery (s) | RSS agent / world / commander (MiB) '
-            '| RSS total (MiB) | CPU ms/step (agents / world / commander / total) | wall (s) | load before→after |',
+    rows = ['| executable | how | agents | agents per process | steps/s | start (s) | discovery (s) '
+            '| RSS agent / world / commander (MiB) | RSS total (MiB) '
+            '| CPU ms/step (agents / world / commander / total) | wall (s) | load before→after |',
             '|---|---|---|---|---|---|---|---|---|---|---|---|']
     for r in results['runs']:
         rss = r.get('rss_mib', {})
-        f = lambda k: str(rss.get(k, {}).get('median', '—'))  # noqa: E731
+        f = lambda k, rss=rss: str(rss.get(k, {}).get('median', '—'))  # noqa: E731
         how = {'processes': 'processes', 'in-process': 'one process', 'full': 'homotopy_global t=1000 + bag',
                'no-agent-clock': 'processes, /clock every 10^6 steps'}[r['kind']]
         sps = r.get('steps_per_s', '—') if r['exit_code'] == 0 else f"failed ({r['exit_code']})"
         cpu = r.get('cpu_ms_per_step', {})
-        c = lambda k: str(cpu.get(k, '—'))  # noqa: E731
+        c = lambda k, cpu=cpu: str(cpu.get(k, '—'))  # noqa: E731
         cpus = (f"{c('agent') if 'agent' in cpu else c('container')} / {c('world')} / {c('commander')} / {c('total')}"
                 if r['kind'] != 'in-process' else f"one process: {c('total')}")
         ag = 'agent' if 'agent' in rss or 'container' not in rss else 'container'
-        rows.append(f"| {r['label']} | {how} | {r['agents']} | {r.get('per_process', '1')} | {sps} | {r.get('start_s', '—')} | "
-                    f"{r.get('discovery_s', '—')} | {f(ag)} / {f('world')} / {f('commander')} | "
-                    f"{r.get('rss_total_mib', '—')} | {cpus} | {r['launcher_wall_s']} | {r['load_before']} → {r['load_after']} |")
+        rows.append(f"| {r['label']} | {how} | {r['agents']} | {r.get('per_process', '1')} | {sps} | "
+                    f"{r.get('start_s', '—')} | {r.get('discovery_s', '—')} | "
+                    f"{f(ag)} / {f('world')} / {f('commander')} | {r.get('rss_total_mib', '—')} | {cpus} | "
+                    f"{r['launcher_wall_s']} | {r['load_before']} → {r['load_after']} |")
     return '\n'.join(rows)
 
 

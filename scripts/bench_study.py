@@ -12,7 +12,7 @@ is part of that executor's cost).  The overhead is (local runs/s ÷ Dask runs/s 
 median round of each; the tables of both executors are checked to be equal.  Each round
 also gives the time per run outside the engine: (wall × workers − Σ engine seconds) / runs,
 the engine seconds measured inside the workers (idle workers at the end of a round count too).
-The parent imports `swarm_core.simulate_cli` first, as `swarm sweep` does, so the local
+The parent imports `swarm_tools.simulate` first, as `swarm sweep` does, so the local
 pool's forked workers start with the engine imported.
 
 ``--engines``: instead, the fast engine against the reference, side by side in one run (local
@@ -81,8 +81,8 @@ def outcomes(rows):
 
 def engines_main(a, s) -> int:
     """The fast engine against the reference on the same study (see the module's doc)."""
-    from swarm_core import fast
     from swarm_core import study as st
+    from swarm_core.engine import compiled as fast
     n = len(s.cells()) * len(s.seeds)
     t0 = time.perf_counter()
     compile_s = fast.warm_up()          # in this process: the forked workers inherit the kernels
@@ -134,14 +134,14 @@ def main(argv=None) -> int:
     p.add_argument('--seeds', type=int, default=None, help='seeds per cell (default 2; --engines: the study\'s)')
     p.add_argument('--workers', type=int, default=2)
     p.add_argument('--rounds', type=int, default=2)
-    p.add_argument('--duration', type=float, help="override the runs' duration (shorter runs: a larger share of overhead)")
+    p.add_argument('--duration', type=float,
+                   help="override the runs' duration (shorter runs: a larger share of overhead)")
     p.add_argument('--json', help='also write the numbers here')
     p.add_argument('--engines', action='store_true', help='the fast engine against the reference (local processes)')
     p.add_argument('--radio', type=float, metavar='LOSS',
                    help='--engines: also the study with comms.loss LOSS on both engines, and the ratios')
     a = p.parse_args(argv)
     if a.engines:
-        from swarm_core import simulate_cli  # noqa: F401
         from swarm_core import study as st
         s = st.load_study(a.study)
         if a.seeds is not None:
@@ -152,7 +152,7 @@ def main(argv=None) -> int:
         return engines_main(a, s)
 
     from distributed import LocalCluster
-    from swarm_core import simulate_cli  # noqa: F401  (as in `swarm sweep`: forked workers inherit it)
+
     from swarm_core import study as st
 
     s = st.load_study(a.study)
@@ -165,7 +165,8 @@ def main(argv=None) -> int:
     cluster = LocalCluster(n_workers=a.workers, threads_per_worker=1, processes=True,
                            dashboard_address=None, host='127.0.0.1')
     startup = time.perf_counter() - t0
-    res = {'study': s.name, 'runs': n, 'duration': a.duration, 'workers': a.workers, 'dask_startup_s': round(startup, 2),
+    res = {'study': s.name, 'runs': n, 'duration': a.duration, 'workers': a.workers,
+           'dask_startup_s': round(startup, 2),
            'local_s': [], 'dask_s': [], 'local_outside_ms': [], 'dask_outside_ms': []}
     tables = {}
     try:

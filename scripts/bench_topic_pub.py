@@ -33,7 +33,7 @@ def main() -> int:
     p.add_argument('--wait', type=float, default=10.0, help='wall s to wait for the commander per try')
     a = p.parse_args()
     sys.path.insert(0, str(ROOT / 'tests'))
-    from conftest import _claim_domain      # a ROS_DOMAIN_ID no other run or test uses meanwhile
+    from conftest import _claim_domain  # a ROS_DOMAIN_ID no other run or test uses meanwhile
     domain, lock = _claim_domain()
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                RMW_IMPLEMENTATION='rmw_fastrtps_cpp', PYTHONUNBUFFERED='1')

@@ -43,7 +43,8 @@ def client(url, stop, counts):
 
 
 def one(scenario, duration, mode):
-    args = [SWARM, 'run', scenario, '--duration', str(duration), '--no-figure', '--out', f'/tmp/bench_view_{os.getpid()}']
+    args = [SWARM, 'run', scenario, '--duration', str(duration), '--no-figure',
+            '--out', f'/tmp/bench_view_{os.getpid()}']
     if mode != 'none':
         args += ['--foxglove', '0']
     p = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1)
@@ -71,10 +72,12 @@ def main():
         for mode in rows:
             rows[mode].append(one(a.scenario, a.duration, mode))
             print(mode, rows[mode][-1], flush=True)
-    print(f'| set-up ({a.scenario}, lockstep, {a.duration:g} s) | steps/s per round | states / marker arrays to the client |')
+    print(f'| set-up ({a.scenario}, lockstep, {a.duration:g} s) | steps/s per round '
+          '| states / marker arrays to the client |')
     print('|---|---|---|')
     for mode, rs in rows.items():
-        label = {'none': 'no view', 'view': '--foxglove, no client', 'client': '--foxglove, client on states + markers'}[mode]
+        label = {'none': 'no view', 'view': '--foxglove, no client',
+                 'client': '--foxglove, client on states + markers'}[mode]
         print(f'| {label} | {", ".join(f"{s:.0f}" for s, _, _ in rs)} | '
               f'{", ".join(f"{n1} / {n2}" for _, n1, n2 in rs) if mode == "client" else "-"} |')
 

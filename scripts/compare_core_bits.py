@@ -29,12 +29,18 @@ SCENARIOS = ('homotopy_global', 'homotopy_local', 'target_barrier', 'leader_fail
 def produce(out, quick):
     """Every result, into an .npz file (runs in a worker process)."""
     import numpy as np
+
     from swarm_core import engine, laws, scenario
     from swarm_core.laws import LawConfig, swarm_control
-    try:                      # the module's name since the layout change, then older revisions'
-        from swarm_core.frenet import PairGains, heading_frame
+    try:                      # the layout with sub-packages, then older revisions' module names
+        from swarm_core.engine import reference as engine
+        from swarm_core.laws import PairGains
+        from swarm_core.model.frenet import heading_frame
     except ImportError:
-        from swarm_core.model import PairGains, heading_frame
+        try:
+            from swarm_core.frenet import PairGains, heading_frame
+        except ImportError:
+            from swarm_core.model import PairGains, heading_frame
     res = {}
     rng = np.random.default_rng(0)
     for n in ((1, 3, 6, 40) if quick else (1, 2, 3, 6, 9, 40, 300)):
@@ -86,8 +92,8 @@ def main(argv=None):
         produce(a.worker[0], a.worker[1] == 'quick')
         return 0
     sys.path.insert(0, str(ROOT / 'scripts'))
-    from bench_core import extract
     import numpy as np
+    from bench_core import extract
     with tempfile.TemporaryDirectory() as tmp:
         base_src = extract(a.rev, tmp)
         outs = {}

@@ -1,15 +1,18 @@
 #!/usr/bin/env bash
-# Set up (.venv, dependencies, project packages) and run the whole test suite.
+# Set up (.venv, dependencies, project packages), lint (ruff) and run the whole test suite.
 #
-# Two pytest runs side by side at any time.  The ROS tests (marker `ros`: they mostly wait on
-# processes and DDS) are two shards of files (`--shard`, tests/conftest.py; each test claims a
-# ROS_DOMAIN_ID of its own, so shards do not meet): shard 1 runs from the start, beside the
+# Two pytest runs side by side at any time.  The ROS tests (marker `ros`, given by folder: every
+# test under a ros/ folder or tests/e2e/; they mostly wait on processes and DDS) are two shards
+# of files (`--shard`, tests/conftest.py; each test claims a ROS_DOMAIN_ID of its own, so
+# shards do not meet): shard 1 runs from the start, beside the
 # pure tests (CPU-bound, no DDS); shard 2 runs once the pure tests are done.  The outputs of the
 # background runs follow shard 1's; the exit code is the first failure's.  Arguments go to every
 # run (a run that selects no test passes).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh || exit $?
+# the lint gate first (ruff.toml): a finding fails the run before any test starts
+.venv/bin/ruff check --quiet . || { echo "ruff check found the problems above (ruff.toml); fix them first"; exit 1; }
 work=$(mktemp -d "${TMPDIR:-/tmp}/swarm-tests.XXXXXX")
 trap 'rm -rf "$work"' EXIT
 

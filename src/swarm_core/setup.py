@@ -17,6 +17,6 @@ setup(
     zip_safe=True,
     maintainer='homotopy-swarm developers',
     maintainer_email='dev@homotopy-swarm.invalid',
-    description='Pure numpy model of Morgan and Schwartz swarm control laws: control laws, integrator, scenarios, metrics, batch engine (no ROS).',
+    description='Morgan and Schwartz swarm laws in pure numpy: integrator, scenarios, metrics, batch engine (no ROS).',
     license='Apache-2.0',
 )

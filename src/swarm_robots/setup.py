@@ -17,7 +17,9 @@ setup(
     zip_safe=True,
     maintainer='homotopy-swarm developers',
     maintainer_email='dev@homotopy-swarm.invalid',
-    description='Robots for the swarm: a robot description, a pure emulation of diff_drive_controller and a MuJoCo world of differential-drive robots.',
+    description='Robots for the swarm: a robot description, a diff_drive_controller emulation and a MuJoCo world.',
     license='Apache-2.0',
-    entry_points={'console_scripts': ['swarm_robots = swarm_robots.mujoco_world_node:main']},
+    entry_points={'console_scripts': ['swarm_robots = swarm_robots.mujoco_world_node:main'],
+                  # the robot engine of studies, by name (swarm_core.engine.registry)
+                  'swarm_core.engines': ['robots = swarm_robots.engine:simulate']},
 )

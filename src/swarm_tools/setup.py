@@ -11,8 +11,10 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', ['config/record_qos_overrides.yaml']),
+        # ros2 launch swarm_tools swarm.launch.py (after colcon build; the logic: swarm_tools.run.launch_description)
+        ('share/' + package_name + '/launch', ['launch/swarm.launch.py']),
     ],
-    package_data={package_name: ['foxglove_layout.json']},
+    package_data={package_name: ['live/foxglove_layout.json']},
     include_package_data=True,
     install_requires=['setuptools'],
     zip_safe=True,
@@ -22,10 +24,10 @@ setup(
     license='Apache-2.0',
     entry_points={'console_scripts': [
         'swarm = swarm_tools.cli:main',
-        'swarm_record = swarm_tools.record:main',
-        'swarm_report = swarm_tools.report:main',
-        'swarm_play = swarm_tools.play:main',
-        'swarm_view = swarm_tools.view:main',
+        'swarm_record = swarm_tools.bags.record:main',
+        'swarm_report = swarm_tools.bags.report:main',
+        'swarm_play = swarm_tools.bags.play:main',
+        'swarm_view = swarm_tools.live.view:main',
     ],
         # the fixtures ros_domain and swarm for users' own tests (swarm_tools.pytest_plugin)
         'pytest11': ['swarm_tools = swarm_tools.pytest_plugin']},

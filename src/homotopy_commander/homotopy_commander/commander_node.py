@@ -1,6 +1,6 @@
 """CommanderNode: the λ schedule, the leaders and their steering programs, live commands.
 
-Runs the scenario's `swarm_core.command_plan.CommandPlan` (the batch engine runs the same):
+Runs the scenario's `swarm_core.command.plan.CommandPlan` (the batch engine runs the same):
 - lockstep: on each ``/lockstep/states`` (the states of step n) it decides λ, leaders and
   s_k for step n and answers on ``/lockstep/decision``;
 - realtime: a timer at 1/dt (sim time) decides from the newest states, read from the agent
@@ -25,7 +25,7 @@ commander publishes, so a one-shot publisher's single match is always the comman
 λ outside [0, 1] or not finite, a non-finite steering value, an unknown agent: rejected with
 one log line, nothing changes.
 
-Faults (swarm_core.faults): in lockstep the plan sees which agents the world heard at each step
+Faults (swarm_core.faults.agents): in lockstep the plan sees which agents the world heard at each step
 (the alive mask of ``/lockstep/states``), so leader failover elects the same successor as the
 batch engine; the decision carries the leader slots and the rendezvous (reunion) target.  The
 plan's events (leaders chosen, failover, leader lost, rendezvous on/off, commands) go to
@@ -44,18 +44,17 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64, Float64MultiArray, String
 
-from swarm_core.faults import event_names
-from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
-from swarm_core.command_plan import check_command
-from swarm_core.inputs import LAMBDA_BOUND, RAMP_BOUND, STEERING_BOUND
+from homotopy_commander.command_watch import CommandWatch, of_swarm
+from swarm_core.checks import LAMBDA_BOUND, RAMP_BOUND, STEERING_BOUND
+from swarm_core.command.plan import check_command
+from swarm_core.faults.agents import event_names
+from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_ros import protocol as P
 from swarm_ros.layouts import Decision, ProcessStates, States
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, ProcessSenders, RejectLog, check_agent_states, decoded
 from swarm_ros.rosutil import declare, gid_key, run_node, steady_clock, when_matched
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
-
-from homotopy_commander.command_watch import CommandWatch, of_swarm
 
 SETPOINT = P.LAMBDA_SETPOINT
 #: depth of the commander's λ and steering writers (transient-local): a command reader made

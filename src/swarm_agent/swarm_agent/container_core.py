@@ -26,11 +26,10 @@ import math
 
 import numpy as np
 
-from swarm_core.faults import alive_control
-from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
-from swarm_core.integrate import zoh_step
-
-from .agent_core import received_table
+from swarm_agent.agent_core import received_table
+from swarm_core.faults.agents import alive_control
+from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
+from swarm_core.model.integrate import zoh_step
 
 #: ``auto``: one process per agent while there are at most this many agents per core
 PROCESSES_PER_CORE = 3
@@ -135,7 +134,7 @@ class ContainerCore:
             if not math.isfinite(u):
                 out.append((j, 'reject', ('u-nan', f'non-finite control u={u} at step {s.n}; holding u=0')))
         self.advance(go, us)
-        for j, u in zip(go, us):
+        for j, _u in zip(go, us):
             self.cores[j].step = s.n + 1
             out.append((j, 'moved', self.cores[j].u_last))
         return out

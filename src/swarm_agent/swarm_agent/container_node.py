@@ -2,15 +2,15 @@
 
 Usage: ``swarm_agents [--no-services] AGENT [AGENT ...] --ros-args --params-file FILE``
 (``swarm run --agents-per-process K`` starts it; ``--no-services``: the agent nodes have no
-parameter services, type-description service or /rosout writer, see ``--agent-services``). Every agent is its own rclpy node ``/AGENT/agent`` (its
-own parameters from FILE, logger, ``steering`` subscription and ``/swarm/states``
-publisher), as an agent process would be. What the agents share is done once per process, on
-a host node ``/agent_container_<first index>``: one subscription each to the step relay
-(lockstep: decoded once, the controls of all agents from one law call, see
-`swarm_agent.container_core`; the agents' new states go to the world in ONE
+parameter services, type-description service or /rosout writer, see ``--agent-services``). Every
+agent is its own rclpy node ``/AGENT/agent`` (its own parameters from FILE, logger, ``steering``
+subscription and ``/swarm/states`` publisher), as an agent process would be. What the agents
+share is done once per process, on a host node ``/agent_container_<first index>``: one
+subscription each to the step relay (lockstep: decoded once, the controls of all agents from one
+law call, see `swarm_agent.container_core`; the agents' new states go to the world in ONE
 ``/lockstep/agent_states`` message), ``/swarm/agent_states`` (realtime: the other processes'
-batches of states, one table of the states heard, checked once), λ, leaders, target, barrier
-and ``/swarm/events``, and one sim clock.
+batches of states, one table of the states heard, checked once), λ, leaders, target, barrier and
+``/swarm/events``, and one sim clock.
 Realtime: ONE timer at the control rate drives all the agents (`process_io.realtime_tick`: one
 law call for the agents that hear perfectly, one batched move, each agent publishing its state,
 and their new states in ONE ``/swarm/agent_states`` message); an agent with a radio model hears
@@ -38,16 +38,25 @@ import sys
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time_source import TimeSource
+from rclpy.utilities import remove_ros_args
 
-from swarm_core.inputs import LAMBDA_BOUND
+from swarm_agent.agent_node import AgentNode
+from swarm_agent.container_core import ContainerCore
+from swarm_agent.process_io import (
+    CLOCKS,
+    AgentStatesWriter,
+    LeaderMask,
+    decode_batch,
+    realtime_tick,
+    shared_inputs,
+    step_message,
+    step_time,
+)
+from swarm_agent.realtime_core import Continued, HeardStates
+from swarm_agent.robot_driver import OdometryHold
+from swarm_core.checks import LAMBDA_BOUND
 from swarm_ros.msg_checks import batch_states
 from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node
-
-from .agent_node import AgentNode
-from .container_core import ContainerCore
-from .process_io import (CLOCKS, AgentStatesWriter, LeaderMask, decode_batch, realtime_tick, shared_inputs,
-                         step_message, step_time)
-from .realtime_core import Continued, HeardStates
 
 
 class AgentContainer(Node):
@@ -101,7 +110,6 @@ class AgentContainer(Node):
             self.batch = AgentStatesWriter(self)     # the agents' states for the world, in one message
             self.answers = self.batch
             if any(a.robot != 'none' for a in self.agents):     # held until their robots' odometry came
-                from .robot_driver import OdometryHold
                 self.answers = OdometryHold(self.batch, self.agents)
                 for a in self.agents:
                     a.driver.hold = self.answers
@@ -196,7 +204,6 @@ NO_SERVICES = '--no-services'
 
 
 def main(argv=None):
-    from rclpy.utilities import remove_ros_args
     args = sys.argv if argv is None else argv
     own = remove_ros_args(list(args))[1:]
     SERVICES[0] = NO_SERVICES not in own

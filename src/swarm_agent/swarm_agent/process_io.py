@@ -12,11 +12,10 @@ from geometry_msgs.msg import PointStamped, PolygonStamped
 from rclpy.time import Time
 from std_msgs.msg import Float64, Float64MultiArray, String
 
+from swarm_agent.realtime_core import advance_periods, due_periods, shared_controls
 from swarm_ros import protocol as P
 from swarm_ros.layouts import AgentStates, ProcessStates, Step
 from swarm_ros.msg_checks import batch_ok, decoded, new_sender_tag
-
-from .realtime_core import advance_periods, due_periods, shared_controls
 
 #: lockstep: where an agent's sim time comes from (parameter ``lockstep_clock``)
 CLOCKS = ('step', 'topic')
@@ -35,7 +34,8 @@ def shared_inputs(node, on_input):
     if node.mode == 'lockstep':
         subs.append((Float64MultiArray, P.LOCK_STEP, on_input, P.qos_latched(), True))
     else:
-        subs.append((Float64MultiArray, P.AGENT_STATES, on_input, P.qos_latched(max(50, 4 * node.n)), True))  # `decode_batch`
+        subs.append((Float64MultiArray, P.AGENT_STATES, on_input,  # `decode_batch`
+                     P.qos_latched(max(50, 4 * node.n)), True))
     return subs
 
 

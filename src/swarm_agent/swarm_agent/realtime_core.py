@@ -20,10 +20,9 @@ import threading
 
 import numpy as np
 
-from swarm_core.faults import alive_control
+from swarm_agent.agent_core import catch_up, received_table
+from swarm_core.faults.agents import alive_control
 from swarm_ros.msg_checks import NewestStates
-
-from .agent_core import catch_up, received_table
 
 
 class HeardStates(NewestStates):

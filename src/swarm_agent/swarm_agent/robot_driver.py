@@ -43,13 +43,20 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
-from swarm_core.robot_units import (CMD_TYPES, ROBOT_FRAMES, RateLimit, RobotsSpec, RobotUnits, SafetyGuard, wrap_near,
-                                    yaw_of_quaternion)
+from swarm_agent.drivers import LockstepDriver, RealtimeDriver
+from swarm_agent.process_io import AgentStatesWriter, step_message, step_time
+from swarm_core.robot_units import (
+    CMD_TYPES,
+    ROBOT_FRAMES,
+    RateLimit,
+    RobotsSpec,
+    RobotUnits,
+    SafetyGuard,
+    wrap_near,
+    yaw_of_quaternion,
+)
 from swarm_ros import protocol as P
 from swarm_ros.rosutil import ParameterError, declare
-
-from .agent_node import LockstepDriver, RealtimeDriver
-from .process_io import AgentStatesWriter, step_message, step_time
 
 #: the robot's clock: the swarm's sim clock (a simulator on /clock, lockstep) or the system
 #: clock (real robots; their controllers stamp and time out in wall time)

@@ -1,1 +1,1 @@
-"""Pure numpy model of Morgan and Schwartz swarm control laws: control laws, integrator, scenarios, metrics, batch engine (no ROS)."""
+"""Pure numpy model of Morgan and Schwartz swarm control laws: integrator, scenarios, metrics, batch engine (no ROS)."""

@@ -22,7 +22,7 @@ from typing import Literal, Optional
 
 import numpy as np
 
-from .scenario_schema import Length, NonNeg, Positive, Strict
+from swarm_core.schema import Length, NonNeg, Positive, Strict
 
 #: TurtleBot3 Burger's largest turn rate (rad/s), the default ω_max
 DEFAULT_MAX_ANGULAR = 2.84

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .description import RobotDescription
+from swarm_robots.description import RobotDescription
 
 #: odometry.cpp: intervals shorter than this are not integrated
 MIN_ODOM_INTERVAL = 0.0001

@@ -9,7 +9,7 @@ Each step n (model time t_n = n·dt):
 3. each robot agent sends u_n as one cmd_vel (v0, clip(v0·u/L, ±ω_max)) stamped t_n
    (`RobotUnits.command`); the world takes the step's commands in robot order and runs the
    physics to robot time t_(n+1)·L/v0 (`timing.RobotsLockstep`: the robot world node's hold);
-4. each robot's pose of t_(n+1) is read from its odometry (`run_setup.OdometryPoses`), as the
+4. each robot's pose of t_(n+1) is read from its odometry (`world_setup.OdometryPoses`), as the
    robot world reports it to the world (``/lockstep/robot_states``): the orientation through
    the message's quaternion, its own odom frame turned into the common one from its start pose
    (``frame: odom``; ``world``: ground truth), metres into model units, the yaw unwrapped near
@@ -38,14 +38,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from swarm_core import engine
-from swarm_core.frenet import quaternion_from_heading
+from swarm_core.engine import reference as engine
+from swarm_core.model.frenet import quaternion_from_heading
 from swarm_core.robot_units import ROBOT_SETS, reported_heading
-from swarm_core.scenario import Scenario
-
-from .physics import RobotWorld
-from .run_setup import OdometryPoses, robot_description, robots_section, start_poses, turn_limit_clock
-from .timing import RobotsLockstep, robot_summary
+from swarm_core.scenario.loader import Scenario
+from swarm_robots.timing import RobotsLockstep, robot_summary
+from swarm_robots.world_setup import OdometryPoses, robot_description, robots_section, start_poses, turn_limit_clock
 
 
 def robot_rows(n: int, robot_set: str) -> list:
@@ -59,6 +57,7 @@ class RobotStepper(engine.SwarmStepper):
     """`engine.SwarmStepper` whose agents at ``rows`` are robots of one MuJoCo world."""
 
     def __init__(self, scn: Scenario, rows):
+        from swarm_robots.physics import RobotWorld
         super().__init__(scn, 'zoh')
         if not self.faults.all_alive or scn.spec.faults:
             raise ValueError('the robot engine does not run faults')

@@ -7,7 +7,7 @@ each robot's ``/<agent>/cmd_vel`` (geometry_msgs/TwistStamped, or Twist with the
 has sent its command for the step (`timing.RobotsLockstep`, the alive mask from
 ``/lockstep/step``); then the robots' poses of the new step go to the world on
 ``/lockstep/robot_states`` (`layouts.RobotStates`, read from the odometry as the agents would
-read it: `run_setup.OdometryPoses`), and odometry goes out only while someone reads it.
+read it: `world_setup.OdometryPoses`), and odometry goes out only while someone reads it.
 Realtime: the physics follows the sim clock (/clock), odometry at 50 Hz.
 Robot-robot contacts and the time at the velocity limits go to ``/robots/metrics`` and, at the
 end, to ``robots.json`` in ``output_dir`` (metrics.json's ``summary.robots``).  docs/robots.md.
@@ -26,18 +26,25 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray, String
 
-from swarm_core.atomic import write_atomic
+from swarm_core.files import write_atomic
 from swarm_core.robot_units import odometry_quaternion
+from swarm_robots.physics import RobotWorld
+from swarm_robots.timing import RealtimePacer, RobotsLockstep, advance_to, robot_summary
+from swarm_robots.world_setup import (
+    SUMMARY_FILE,
+    OdometryPoses,
+    chosen_rows,
+    robot_description,
+    robots_section,
+    start_poses,
+    turn_limit_clock,
+)
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RobotStates, Step
 from swarm_ros.msg_checks import RejectLog, decoded
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
-
-from .run_setup import (SUMMARY_FILE, OdometryPoses, chosen_rows, robot_description, robots_section, start_poses,
-                        turn_limit_clock)
-from .timing import RealtimePacer, RobotsLockstep, advance_to, robot_summary
 
 METRICS_TOPIC = '/robots/metrics'
 #: lockstep: wall s without progress after which the newest odometry is published again (an
@@ -143,7 +150,6 @@ class RobotsNode(Node):
             raise ParameterError(f'scenario robots.description {self.sec.description}: {err}') from None
 
     def _make_world(self, desc):
-        from .physics import RobotWorld
         return RobotWorld(desc, start_poses(self.scn, self.rows, self.units))
 
     # ------------------------------------------------------------ inputs

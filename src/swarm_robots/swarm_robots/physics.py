@@ -19,8 +19,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .description import RobotDescription
-from .diff_drive import DiffDriveControllers, WheelOdometry
+from swarm_robots.description import RobotDescription
+from swarm_robots.diff_drive import DiffDriveControllers, WheelOdometry
 
 #: the controller's update period (controller_manager's update_rate, 100 Hz)
 CONTROL_DT = 0.01

@@ -1,1 +1,1 @@
-"""The ROS layer every node and tool shares: topics and packed messages (protocol), message checks, node and CLI helpers."""
+"""The ROS layer of every node and tool: topics and packed messages (protocol), message checks, node and CLI helpers."""

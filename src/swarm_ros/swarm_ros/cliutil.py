@@ -1,6 +1,6 @@
 """Option helpers shared by the live-control commands (`swarm lambda/steer`, `swarm kill/pause`,
 `swarm drop/partition`); no rclpy import, so ``--help`` stays fast (their node is
-`swarm_tools.client.Client`)."""
+`swarm_tools.live.client.Client`)."""
 from __future__ import annotations
 
 import argparse

@@ -7,14 +7,15 @@ is the bytes of ONE record of the message's dtype: the run id (`RUN_ID_BYTES` AS
 NUL-padded: the first four doubles), then float64 fields in declared order.  A field's count
 is fixed (``3``) or names a count field declared before it (``'N'``); the decoder reads the
 counts, checks that the data holds exactly that many values, then reads each field where the
-record's dtype puts it (a view of the received bytes, no copy).  Kinds (what a field's float64 values mean and how they are checked):
+record's dtype puts it (a view of the received bytes, no copy).  Kinds (what a field's float64
+values mean and how they are checked):
 
 ``float``  as sent;  ``finite``  rejected if not finite (`NotFinite`);
 ``whole``  an integer ≥ 0 (int);  ``count``  a whole number of rows (not a message attribute);
 ``int``  an integer, finite (truncated; −1 = none);  ``flag``  1/0 (decoded > 0.5, bool);
 ``point``  [has, x, y] → (2,) array or None;  ``points``  rows of (x, y) → (M, 2) array or None
 when M = 0;  ``rendezvous``  [on, has_point, x, y, γ, normalised, q0 (−1: the law's)] →
-(point or None, γ, normalised, q0 or None) of `swarm_core.faults.Rendezvous`, or None (off).
+(point or None, γ, normalised, q0 or None) of `swarm_core.faults.agents.Rendezvous`, or None (off).
 
 A node with a run id rejects a message of another run (`OtherRun`); a node without one takes any.
 """
@@ -28,8 +29,16 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .protocol import (AGENT_STATES, LOCK_AGENT_STATES, LOCK_DECISION, LOCK_ROBOT_STATES, LOCK_STATES, LOCK_STEP,
-                       cdr_to_float64_array, float64_array_header)
+from swarm_ros.protocol import (
+    AGENT_STATES,
+    LOCK_AGENT_STATES,
+    LOCK_DECISION,
+    LOCK_ROBOT_STATES,
+    LOCK_STATES,
+    LOCK_STEP,
+    cdr_to_float64_array,
+    float64_array_header,
+)
 
 #: bytes of the run id field (swarm_ros.runinfo: 1-32 letters, digits, _ or -)
 RUN_ID_BYTES = 32
@@ -194,19 +203,9 @@ class Layout:
                 lines[-1] += ', ' + f.text()
         return '\n'.join(lines) + ']'
 
-    @functools.lru_cache(maxsize=64)
     def plan(self, counts: tuple) -> _Plan:
         """The record of this layout for the count values ``counts`` (declared order)."""
-        c = dict(zip(self.counts, counts))
-        dtype = np.dtype([('run_id', f'S{RUN_ID_BYTES}')] + [(f.name, '<f8', f.shape(c)) for f in self.fields])
-        slots = []
-        for f in self.fields:
-            a = dtype.fields[f.name][1] // 8
-            slots.append((f, a, a + dtype[f.name].itemsize // 8, f.shape(c)))
-        reads = tuple((a, b, len(shape), shape, _CODECS[f.kind][1] if shape else _SCALAR[f.kind])
-                      for f, a, b, shape in slots if f.kind != 'count')
-        return _Plan(dtype, tuple(slots), _runs([s for s in slots if s[0].kind in ('finite', 'whole', 'int')]),
-                     _runs([s for s in slots if s[0].kind == 'whole']), reads)
+        return _layout_plan(self, counts)
 
     def encode(self, msg, run_id: str = '') -> bytes:
         """The serialized Float64MultiArray of ``msg`` (an instance of ``cls``) with ``run_id``."""
@@ -261,6 +260,22 @@ class Layout:
                 v = data[a:b] if ndim == 1 else data[a:b].reshape(shape)
                 out.append(v if dec is None else dec(v))
         return self.cls(*out)
+
+
+@functools.lru_cache(maxsize=64)
+def _layout_plan(layout: Layout, counts: tuple) -> _Plan:
+    """`Layout.plan`, cached by (layout, counts) in a module-level cache rather than on the method:
+    the layouts it holds are declared once per message class and live for the process anyway."""
+    c = dict(zip(layout.counts, counts))
+    dtype = np.dtype([('run_id', f'S{RUN_ID_BYTES}')] + [(f.name, '<f8', f.shape(c)) for f in layout.fields])
+    slots = []
+    for f in layout.fields:
+        a = dtype.fields[f.name][1] // 8
+        slots.append((f, a, a + dtype[f.name].itemsize // 8, f.shape(c)))
+    reads = tuple((a, b, len(shape), shape, _CODECS[f.kind][1] if shape else _SCALAR[f.kind])
+                  for f, a, b, shape in slots if f.kind != 'count')
+    return _Plan(dtype, tuple(slots), _runs([s for s in slots if s[0].kind in ('finite', 'whole', 'int')]),
+                 _runs([s for s in slots if s[0].kind == 'whole']), reads)
 
 
 class Packed:
@@ -348,7 +363,7 @@ class Decision(Packed):
     lam: float
     flags: np.ndarray        # (N,) bool: leaders
     steering: np.ndarray     # (N,) s_k
-    slots: np.ndarray        # (N,) int: leader slot (swarm_core.faults), −1 for none
+    slots: np.ndarray        # (N,) int: leader slot (swarm_core.faults.agents), −1 for none
     rendezvous: Any          # the reunion of step n or None
 
 

@@ -4,10 +4,13 @@ and the rate-limited one-line-per-kind rejection log."""
 from __future__ import annotations
 
 import math
+import secrets
 import time
 
-from . import protocol as P
-from .layouts import BadMessage
+import numpy as np
+
+from swarm_ros import protocol as P
+from swarm_ros.layouts import BadMessage
 
 #: most points a /world/barrier polygon may have (more is refused: the law reads the hull each step)
 MAX_BARRIER_POINTS = 1000
@@ -130,7 +133,6 @@ class ProcessSenders:
     ``/lockstep/agent_states`` carried it (its sender tag), as `Senders` does per name."""
 
     def __init__(self, n):
-        import numpy as np
         self.tag = np.full(int(n), np.nan)
 
     def check(self, index, tag):
@@ -152,7 +154,6 @@ def check_agent_states(index, vals, n, topic=P.LOCK_AGENT_STATES):
     ``/swarm/agent_states`` (`layouts.ProcessStates`), whose decoders check that every value is
     finite, must be rejected as a whole (a `Reason`), or None: an agent index outside the roster
     or twice, an orientation that is not a planar unit quaternion."""
-    import numpy as np
     if index.size and index.max() >= n:
         return reason('unknown-agent', f'{topic} with agent index {int(index.max())} (the roster has {n})')
     if index.size > 1 and np.unique(index).size != index.size:
@@ -191,7 +192,6 @@ def _show(sender):
 
 def new_sender_tag() -> float:
     """A random sender tag (an integer 1..2^31 as a float: exact in a float64)."""
-    import secrets
     return float(secrets.randbits(31) + 1)
 
 
@@ -305,7 +305,6 @@ class NewestStates:
     whose states only it may send."""
 
     def __init__(self, n):
-        import numpy as np
         self.t = np.full(int(n), -np.inf)
         self.state = np.zeros((int(n), 4))
         self.u = np.zeros(int(n))
@@ -320,7 +319,6 @@ class NewestStates:
 
     def by_name(self, roster) -> dict:
         """name -> (t, x, y, qz, qw, u) of the agents heard, in roster order."""
-        import numpy as np
         return {roster[i]: (float(self.t[i]), *map(float, self.state[i]), float(self.u[i]))
                 for i in np.flatnonzero(np.isfinite(self.t))}
 
@@ -328,7 +326,6 @@ class NewestStates:
         """(K,) bool: the states of ``msg`` (`layouts.ProcessStates`) taken as the agents' newest;
         each refused one logged with ``reject`` by kind, as `check_values` words it (an exact
         repeat of the newest state is dropped silently)."""
-        import numpy as np
         i, t, pose = msg.index, msg.t, msg.pose.T
         t0 = self.t[i]
         same = t == t0

@@ -1,104 +1,14 @@
-"""The lockstep protocol of the ROS 2 swarm: topics, QoS, packed message layouts.
+"""The ROS 2 graph's shared constants and codecs: topic names, QoS profiles and depths, sim-time
+stamps, and the raw CDR of the messages the per-step path sends and reads without message
+objects (Float64MultiArray, nav_msgs/Odometry with its sender tag, geometry_msgs/Twist(Stamped),
+rosgraph_msgs/Clock).
 
-Fixed, user-facing topics (docs/ros-graph.md)
----------------------------------------------
-``/swarm/states``  nav_msgs/Odometry, every agent. header.stamp = sim time t of the state,
-    header.frame_id = ``world``, child_frame_id = agent name, pose = (x, y, 0) and the planar
-    quaternion (0, 0, sin θ/2, cos θ/2), twist.linear.x = 1 (unit speed),
-    twist.angular.z = u, **the curvature held over the step that ended at this stamp**
-    (u_{n−1} for the state of t_n; 0 for the initial state).  In lockstep the u an agent
-    applies from t_n on is decided only after every agent's state of t_n is known, so it is
-    carried by the agent's next message (t_{n+1}); realtime agents use the same convention.
-    QoS: reliable, transient-local, depth `STATES_DEPTH` (a late joiner gets each agent's
-    newest states; a reader one step behind loses none).  pose.covariance[35] is the agent's
-    sender tag (`SENDER_TAG_INDEX`; all other covariances 0).  Agents publish it pre-serialised
-    (`OdometryWriter`) and the world reads it raw (`cdr_to_odometry_tagged`): the same bytes as
-    rclpy's serializer, without building message objects each step.
-``/swarm/agent_states``  std_msgs/Float64MultiArray, realtime, each agent process: the states
-    its agents published on /swarm/states in a tick, in one packed message
-    (`layouts.ProcessStates`); what the world, the commander and the other agent processes
-    read.  QoS: reliable, transient-local, depth `AGENT_STATES_DEPTH`.
-``/swarm/lambda``  std_msgs/Float64, commander (or a user): λ ∈ [0, 1].
-``/<agent>/steering``  std_msgs/Float64, commander (or a user): leader steering value s_k.
-``/swarm/leaders``  std_msgs/String, transient-local: comma-separated leader names ('' = none).
-``/clock``  rosgraph_msgs/Clock, world: t_n in lockstep, wall time × rtf in realtime.
-``/world/target``  geometry_msgs/PointStamped, transient-local.
-``/world/barrier``  geometry_msgs/PolygonStamped, transient-local (no points = no barrier).
-``/world/markers``  visualization_msgs/MarkerArray; ``/world/metrics`` diagnostic_msgs/DiagnosticArray.
-``/swarm/events``  std_msgs/String, reliable + transient-local depth 100 (`qos_latched(100)`):
-    one JSON object per injected or decided event, at least ``t`` (sim time), ``kind`` and
-    ``agent``, plus ``node`` (who published it).  Kinds: ``kill``, ``freeze``, ``resume``,
-    ``lost`` (the world gave up waiting for an agent), ``fault_skipped`` (world);
-    ``leaders_chosen``, ``failover``, ``leader_lost``, ``rendezvous_on``/``_off`` (commander).
-``/swarm/run``  std_msgs/String, reliable + transient-local depth 1, world: JSON ``{"run_id",
-    "scenario", "mode", "agents": [names], "since", "scenario_hash", "remote": [names], "robots":
-    {name: kind}}`` of the run (`swarm_ros.runinfo.run_json`); the live verbs (``swarm lambda``,
-    ``swarm kill``, ...) read it to say which run they reached, check agent names, and refuse
-    when two runs share the domain; ``swarm join`` checks it and starts the remote robot agents.
-``/swarm/fault_request``  std_msgs/String, reliable + transient-local depth 10: JSON ``{"kind": "kill"|"freeze",
-    "agent": NAME, "for": SECONDS}`` (``swarm kill`` / ``swarm pause``); the world applies it
-    at its next step (see swarm_core.faults for the semantics) and signals the agent process.
-    The communication model's events on ``/swarm/events`` (``"t"`` may be null if unknown);
-    recorded in the bag by ``swarm record``.  Kinds of the
-    communication model (swarm_core.comms), which agents APPLY when they read them:
-    ``{"t", "kind": "drop", "loss": P, "duration": T|null}`` (burst loss P on every link for T
-    sim s; P = 0 ends a burst; ``swarm drop``), ``{"t", "kind": "partition", "groups":
-    [[names], ...]}`` (``[]`` heals; ``swarm partition``), ``{"t", "kind": "comms", "loss",
-    "latency", "jitter"}`` (base values; any subset).  Events with ``"source": "scenario"``
-    are the scenario's own ``comms.events``, published by the world at their step for the
-    record; agents apply those from their copy of the scenario, not from the topic.  Other
-    kinds (faults) are ignored by the radio.
-
-Lockstep (deterministic; equal to ``swarm simulate`` to rounding)
------------------------------------------------------------------
-Every input is paired with the step it belongs to.  For step n (t_n = n·dt):
-
-1. every agent has published its state of t_n on ``/swarm/states``;
-2. the world, once it holds all N states of t_n (rows in agent-index order = the scenario's
-   roster; in lockstep it reads them from ``/lockstep/agent_states``, one message per agent
-   process), publishes ``/clock`` = t_n (every ``clock_every`` steps, default every step) and
-   the packed states on ``/lockstep/states``;
-3. the commander runs its `CommandPlan` (λ schedule, leader rule, steering programs, live
-   set-points) on exactly those states and answers on ``/lockstep/decision``; it also
-   publishes ``/swarm/lambda``, ``/<agent>/steering`` (on change) and ``/swarm/leaders``;
-4. the world relays ONE packed message ``/lockstep/step`` (states + decision + world
-   geometry) — each agent reads one message per step (O(N) deliveries, not N²);
-5. each agent computes u_n with `swarm_core.laws.swarm_control` from that table (its own
-   row from its own θ), integrates with `zoh_step`, adds its seeded noise and publishes its
-   state of t_{n+1} with twist.angular.z = u_n on ``/swarm/states``; each agent process also
-   sends its agents' states together on ``/lockstep/agent_states`` (what the world reads).
-The world relays step ``steps`` too (so the last u is known) and then finishes.  All
-lockstep topics are reliable + transient-local depth 1, so a reader that matches late still
-gets the last message; every node answers a repeated message for a step it already handled by
-re-publishing its answer (stall recovery: the world repeats its last message after
-``stall_timeout`` seconds without progress).
-
-Run identity: ``swarm run`` gives every node a ``run_id``; each lockstep message carries it as
-its first field, and a node with a ``run_id`` rejects lockstep messages of another run (a
-second run on the same ROS_DOMAIN_ID).
-
-Packed layouts: the four lockstep topics are std_msgs/Float64MultiArray whose ``data`` is one
-record declared in `swarm_ros.layouts` (``AgentStates``, ``States``, ``Decision``, ``Step``;
-docs/ros-graph.md lists them).  ``/lockstep/agent_states`` is what one agent process (a lone
-agent or a container of K agents) answers per step: the same states its agents publish on
-``/swarm/states`` (the state of t_step, carrying u), in ONE message for the world, which reads
-only this topic in lockstep; its ``tag`` is the process's sender tag (the world binds each
-agent to the first process heard for it).  The world's reader keeps max(100, 4 N) messages
-(many writers share it).  In ``/lockstep/step``, u(N) is the u each agent's state of t_n
-carries (twist.angular.z, u_{n−1}); an agent with a communication model dead-reckons with it.
-Faults, failover, reunion:
-``alive``  1 for the agents heard at step n (in the table), 0 for dead or frozen ones (their
-           x, y, qz, qw are stale and must not be read);
-``slots``  the leader slot of each agent (faults.py), −1 for none;
-``rendezvous``  the reunion of step n (swarm_core.faults.Rendezvous), or off.
-The world decides ``alive`` (scheduled faults at exactly their step, live requests at its next
-step, agents it gave up waiting for); the commander decides leaders (failover) and the
-rendezvous.  An agent
-computes u over the alive rows only, in index order (as the batch engine does), and ignores
-steps in which it is not alive; a frozen agent resumes at the first step that lists it alive.
+What each topic carries, who publishes it, its QoS, the JSON topics and the lockstep cycle are
+described once, in docs/ros-graph.md; the packed lockstep layouts are declared in `swarm_ros.layouts`.
 """
 from __future__ import annotations
 
+import json
 import math
 import struct
 
@@ -191,7 +101,6 @@ def stamp_seconds(sec: int, nanosec: int) -> float:
 
 def event_json(kind: str, t, **fields) -> str:
     """The JSON text of a ``/swarm/events`` message."""
-    import json
     return json.dumps(dict(t=None if t is None else float(t), kind=str(kind), **fields))
 
 

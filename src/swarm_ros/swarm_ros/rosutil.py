@@ -2,11 +2,18 @@
 and ranges, one-line rejection logs, the spin loop, message-info publisher ids."""
 from __future__ import annotations
 
+import cProfile
+import gc
 import math
+import os
+import signal
+import sys
+import threading
+import time
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
-from .msg_checks import RejectLog  # noqa: F401  (the nodes' rejection log lives with the checks)
+from swarm_ros.msg_checks import RejectLog  # noqa: F401  (the nodes' rejection log lives with the checks)
 
 
 class ParameterError(ValueError):
@@ -16,6 +23,7 @@ class ParameterError(ValueError):
 def declare(node, name, default, description, lo=None, hi=None, choices=None, finite=True, read_only=False):
     """Declare a parameter with a description (and a range); return its validated value.
     ``read_only``: a value read once at the start, which ``ros2 param set`` may not change."""
+    from rclpy.exceptions import ParameterException
     desc = ParameterDescriptor(description=description, read_only=read_only)
     if isinstance(default, bool):
         pass
@@ -27,7 +35,6 @@ def declare(node, name, default, description, lo=None, hi=None, choices=None, fi
             from_value=float(-1e300 if lo is None else lo), to_value=float(1e300 if hi is None else hi), step=0.0)]
     if choices:
         desc.additional_constraints = 'one of: ' + ', '.join(choices)
-    from rclpy.exceptions import ParameterException
     try:
         value = node.declare_parameter(name, default, desc).value
     except ParameterException as err:
@@ -55,16 +62,15 @@ def make_executor(context, events=None):
     """The EventsExecutor when available (fast), else the SingleThreadedExecutor.
 
     ``SWARM_EXECUTOR=single`` in the environment forces the SingleThreadedExecutor."""
-    import os
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.experimental import EventsExecutor
     if events is None:
         events = os.environ.get('SWARM_EXECUTOR', 'events') != 'single'
     try:
         if not events:
             raise ImportError
-        from rclpy.experimental import EventsExecutor
         return EventsExecutor(context=context)
     except Exception:  # pragma: no cover - older rclpy
-        from rclpy.executors import SingleThreadedExecutor
         return SingleThreadedExecutor(context=context)
 
 
@@ -100,7 +106,6 @@ def when_matched(node, matched, then, limit, what):
     """Call ``then()`` once ``matched()`` holds (checked every 0.05 s on a steady-clock timer:
     sim time does not run yet), or after ``limit`` wall s with a warning that ``what`` did not
     happen.  For a node that must not start before a recorder reads its writers."""
-    import time
     deadline = time.monotonic() + limit
 
     def check():
@@ -129,11 +134,9 @@ def node_help(node_class, exe) -> str:
     """Usage of a node executable: what it is (its module's docstring, first paragraph) and
     its parameters with type, default and description, read from a node built with the
     defaults in a context of its own with DDS discovery off."""
-    import os
-    import sys
-
     import rclpy
     from rclpy.context import Context
+
     doc = (sys.modules[node_class.__module__].__doc__ or '').strip().split('\n\n')[0]
     args = getattr(node_class, 'USAGE_ARGS', '')
     lines = [f'usage: {exe} [-h] {args + " " if args else ""}[--ros-args -p NAME:=VALUE ... | --params-file FILE]',
@@ -169,10 +172,8 @@ def stop_on_signals():
     writes its outputs (a parent-death signal comes once for each thread of a dying parent
     that exits: a launcher started by a script that is killed gets SIGINT two or three times).
     Installed only in the main thread (signals go there)."""
-    import signal
-    import threading
-
     from rclpy.task import Future
+
     stop, wake = [], Future()
 
     def on_signal(signum, _frame):
@@ -196,12 +197,9 @@ def profiler():
     returns a function that writes ``DIR/<name>-<pid>.prof`` (None without the variable).
     Wall time by default; ``SWARM_PROFILE_TIMER=cpu``: the spinning thread's CPU time (what a
     loaded machine does not inflate; the time waiting for work and DDS's own threads left out)."""
-    import os
     where = os.environ.get('SWARM_PROFILE')
     if not where:
         return None
-    import cProfile
-    import time
     cpu = os.environ.get('SWARM_PROFILE_TIMER', 'wall') == 'cpu'
     prof = cProfile.Profile(time.thread_time) if cpu else cProfile.Profile()
     prof.enable()
@@ -218,7 +216,6 @@ def settle_garbage():
     reach (`gc.freeze`).  The nodes' objects live as long as the process; without this the
     collector walks all of them again and again while each step's short-lived objects come and
     go (measured: a container of 100 agents spent a third of its step time in the collector)."""
-    import gc
     gc.collect()
     gc.freeze()
 
@@ -235,10 +232,9 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
     every node logged a traceback on Ctrl-C), then ``on_stop(node)`` runs (e.g. the world
     saves the steps done so far) and the node is cleaned up.  ``more_nodes(node)``: further
     nodes the node holds (an agent container's agents), spun by the same executor."""
-    import sys
-
     import rclpy
     from rclpy.signals import SignalHandlerOptions
+
     args = sys.argv if argv is None else argv
     if wants_help(args):
         print(node_help(node_class, logger_name))
@@ -270,8 +266,6 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
     code = exit_code(node) if exit_code is not None else 0
     # a DDS teardown that never returns (seen with Fast DDS after a peer process was SIGKILLed)
     # must not keep a finished node alive: its work is done and saved, so exit anyway
-    import os
-    import threading
 
     def give_up():
         rclpy.logging.get_logger(logger_name).warning(

@@ -10,9 +10,9 @@ import numbers
 import re
 import secrets
 
-from swarm_core.inputs import json_value
-
-from . import protocol as P
+from swarm_core.checks import json_value
+from swarm_ros import protocol as P
+from swarm_ros.rosutil import ParameterError, declare
 
 #: longest ``/swarm/run`` text (the agent list of the largest run is about 40 kB)
 MAX_RUN_CHARS = 1 << 20
@@ -34,7 +34,6 @@ def valid_run_id(text: str) -> bool:
 def declare_run_id(node, what: str) -> str:
     """Declare a node's ``run_id`` parameter (``what``: what the node does with it) and return it;
     ParameterError for one that is not 1-32 letters, digits, _ or -."""
-    from .rosutil import ParameterError, declare
     run_id = declare(node, 'run_id', '', f"this run's id (swarm run sets it; '' = none): {what}")
     if not valid_run_id(run_id):
         raise ParameterError(f'parameter run_id: {run_id!r} is not 1-32 letters, digits, _ or -')
@@ -45,7 +44,7 @@ def run_json(run_id: str, scenario: str, mode: str, agents, since: float, scenar
              remote=(), robots=None) -> str:
     """The text of a ``/swarm/run`` message; ``since``: when its world started (wall s, epoch),
     so that of two runs on one domain the younger one gives way; ``scenario_hash``: the
-    content hash of its scenario (`swarm_core.scenario.Scenario.content_hash`), ``remote``:
+    content hash of its scenario (`swarm_core.scenario.loader.Scenario.content_hash`), ``remote``:
     the agents other hosts start, which ``swarm join`` checks (`join_error`), and ``robots``:
     {agent: robot kind} of those that drive a robot (``swarm join`` starts them so)."""
     return json.dumps(dict(run_id=run_id, scenario=scenario, mode=mode, agents=list(agents), since=since,

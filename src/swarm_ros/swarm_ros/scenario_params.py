@@ -3,14 +3,15 @@
 and loaded by the node itself, the same way for both (`declare_scenario`).
 
 Agents are given values instead (their initial state, the law, dt, seed, the roster: the
-launcher's ``swarm_tools.node_params``).  The world and the commander run what the scenario
+launcher's ``swarm_tools.run.params``).  The world and the commander run what the scenario
 nests (the λ schedule, leader rule and steering programs, faults, comms events, reunions),
 which flat ROS parameters do not hold, and every process of a run parses the whole parameters
 file: a reference keeps that file small however large the scenario.  See docs/ros-graph.md."""
 from __future__ import annotations
 
-from swarm_core.inputs import DT_BOUND, DURATION_BOUND
-from swarm_core.scenario import ScenarioError, load
+from swarm_core.checks import DT_BOUND, DURATION_BOUND
+from swarm_core.scenario.loader import ScenarioError, load
+from swarm_ros.rosutil import ParameterError, declare
 
 #: name -> (default, description, limits); 0 / -1: the scenario's own value
 SCENARIO_PARAMETERS = {
@@ -29,7 +30,7 @@ def scenario_parameters(scn, ref: str, duration: float = 0.0) -> dict:
 
 
 def reload_scenario(scenario: str, seed: int = -1, duration: float = 0.0, dt: float = 0.0):
-    """The scenario the values of `SCENARIO_PARAMETERS` name (swarm_core.scenario.load;
+    """The scenario the values of `SCENARIO_PARAMETERS` name (swarm_core.scenario.loader.load;
     raises its ScenarioError)."""
     return load(scenario, seed=None if seed < 0 else seed, duration=duration or None, dt=dt or None)
 
@@ -37,7 +38,6 @@ def reload_scenario(scenario: str, seed: int = -1, duration: float = 0.0, dt: fl
 def declare_scenario(node):
     """Declare `SCENARIO_PARAMETERS` on ``node`` (with descriptions and ranges) and load the
     scenario they name; a bad one raises ``ParameterError('parameter scenario: ...')``."""
-    from .rosutil import ParameterError, declare      # ROS: only here, the rest is pure
     # read once, at the start: read-only (`ros2 param set /world dt 0.0` is refused)
     values = {nm: declare(node, nm, default, text, read_only=True, **lim)
               for nm, (default, text, lim) in SCENARIO_PARAMETERS.items()}

@@ -10,7 +10,7 @@
 `Swarm.start` runs ``swarm run`` (the same launcher, as a child process) and returns once the
 run has announced itself and its sim time runs; leaving the ``with`` block stops it as Ctrl-C
 does (SIGINT; the outputs are kept).  `Swarm.attach` joins a run that is already going.  The
-commands and the observation go through one rclpy node (`swarm_tools.client.Client`) in a
+commands and the observation go through one rclpy node (`swarm_tools.live.client.Client`) in a
 Context of its own, spun in a background thread: two Swarm objects on two domains work in one
 script, and a Jupyter kernel's loop is never blocked.  docs/python-api.md lists every call.
 """
@@ -30,10 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
+from swarm_core.engine.trajectory import Trajectory
+from swarm_core.model.frenet import yaw_from_quaternion
 from swarm_ros import protocol as P
-
-from .client import Client, NoSwarm, SwarmError, TwoRuns, UnknownAgent
-from .processes import die_with_parent
+from swarm_ros import runinfo
+from swarm_tools.live.client import Client, NoSwarm, SwarmError, TwoRuns, UnknownAgent
+from swarm_tools.live.view import metrics_numbers
+from swarm_tools.run.processes import die_with_parent
 
 __all__ = ['Swarm', 'States', 'SwarmError', 'NoSwarm', 'TwoRuns', 'UnknownAgent', 'WaitTimeout', 'run_argv']
 
@@ -86,7 +89,6 @@ class _Observer:
         node.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
 
     def _on_metrics(self, msg):
-        from .view import metrics_numbers          # the one decoder of /world/metrics' numbers
         for st in msg.status:
             m = metrics_numbers({kv.key: kv.value for kv in st.values})
             if 'clusters' in m:
@@ -95,7 +97,6 @@ class _Observer:
                 self.metrics = m
 
     def _on_state(self, raw):
-        from swarm_core.frenet import yaw_from_quaternion
         _, name, sec, nsec, (x, y, _, _, qz, qw), _, wz, _ = P.cdr_to_odometry_full(raw)
         t = sec + nsec * 1e-9
         with self.lock:
@@ -193,7 +194,6 @@ class Swarm:
         ``run_id``; ``out``: its output directory (for `trajectory`).  Waits up to ``wait``
         wall s for its announcement; `NoSwarm`, or `TwoRuns` when two share the domain and no
         ``run_id`` is given."""
-        from swarm_ros import runinfo
         client = Client(domain, name='swarm_api')
         try:
             Client.until(lambda: (run_id in client.runs) if run_id else client.runs, wait)
@@ -410,8 +410,7 @@ class Swarm:
         return path
 
     def trajectory(self):
-        """The run's `swarm_core.trajectory.Trajectory` (trajectory.npz), after the run."""
-        from swarm_core.trajectory import Trajectory
+        """The run's `swarm_core.engine.trajectory.Trajectory` (trajectory.npz), after the run."""
         return Trajectory.load(self._output('trajectory.npz'))
 
     def metrics_json(self) -> dict:

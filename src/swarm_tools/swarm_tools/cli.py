@@ -12,84 +12,84 @@ import sys
 
 # ---------------------------------------------------------------- the batch engine (no ROS)
 def simulate(argv):
-    from swarm_core.simulate_cli import simulate_main
+    from swarm_tools.simulate import simulate_main
     return simulate_main(argv)
 
 
 def sweep(argv):
-    from swarm_core.simulate_cli import sweep_main
+    from swarm_tools.simulate import sweep_main
     return sweep_main(argv)
 
 
 def scenarios(argv):
-    from swarm_core.simulate_cli import scenarios_main
+    from swarm_tools.simulate import scenarios_main
     return scenarios_main(argv)
 
 
 # ---------------------------------------------------------------- ROS 2
 def run(argv):
-    from .launch import main
+    from swarm_tools.run.launch import main
     return main(argv)
 
 
 def record(argv):
-    from .record import main
+    from swarm_tools.bags.record import main
     return main(argv)
 
 
 def view(argv):
-    from .view import main
+    from swarm_tools.live.view import main
     return main(argv)
 
 
 def report(argv):
-    from .report import main
+    from swarm_tools.bags.report import main
     return main(argv)
 
 
 def play(argv):
-    from .play import main
+    from swarm_tools.bags.play import main
     return main(argv)
 
 
 def join(argv):
-    from .join import main
+    from swarm_tools.run.join import main
     return main(argv)
 
 
 def bag(argv):
-    from .bag_recover import main
+    from swarm_tools.bags.recover import main
     return main(argv)
 
 
-# ---------------------------------------------------------------- live verbs (swarm_tools.live)
+# ---------------------------------------------------------------- live verbs (swarm_tools.live.verbs)
 def lambda_(argv):
-    from .live import lambda_main
+    from swarm_tools.live.verbs import lambda_main
     return lambda_main(argv)
 
 
 def steer(argv):
-    from .live import steer_main
+    from swarm_tools.live.verbs import steer_main
     return steer_main(argv)
 
 
 def kill(argv):
-    from .live import kill_main
+    from swarm_tools.live.verbs import kill_main
     return kill_main(argv)
 
 
 def pause(argv):
-    from .live import pause_main
+    from swarm_tools.live.verbs import pause_main
     return pause_main(argv)
 
 
 def drop(argv):
-    from .live import drop_main
+    from swarm_tools.live.verbs import drop_main
     return drop_main(argv)
 
 
 def partition(argv):
-    from .live import partition_main
+    from swarm_tools.live.verbs import partition_main
     return partition_main(argv)
 
 

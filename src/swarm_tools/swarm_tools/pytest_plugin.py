@@ -10,6 +10,7 @@
 """
 from __future__ import annotations
 
+import fcntl
 import itertools
 import os
 import time
@@ -25,7 +26,6 @@ _start = itertools.count((os.getpid() * 7) % 100)
 
 def claim_domain():
     """(domain id, open lock file) of a free id; the id is ours until the file is closed."""
-    import fcntl
     _LOCK_DIR.mkdir(parents=True, exist_ok=True)
     first = next(_start)
     for attempt in range(3 * 100):

@@ -23,14 +23,16 @@ Every method returns a list of actions for the node, in order:
 - ``('finish',)``: the last u is known; the run is over;
 - ``('fail', why)``: no agent is left (every one lost or killed): the run cannot go on.
 
-The node keeps the wall clock (stalls, time-outs), the messages and the files.
+The node carries them out (`WorldNode.carry_out`, the clock, states, step and observe actions by
+its `LockstepDriver`), which also keeps the wall clock (stalls, time-outs); the node keeps the
+messages and the files.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from swarm_core.comms import event_step
-from swarm_core.inputs import LAMBDA_BOUND, STEERING_BOUND
+from swarm_core.checks import LAMBDA_BOUND, STEERING_BOUND
+from swarm_core.faults.radio import event_step
 from swarm_ros.layouts import States, Step
 
 
@@ -122,8 +124,8 @@ class RobotPoseJoin:
 class LockstepBarrier:
     """The lockstep state of a world: step ``cur`` and the states, u and decision it holds.
 
-    ``faults`` is the scenario's `swarm_core.faults.FaultTimeline`, ``recorder`` a
-    `swarm_core.trajectory.TrajectoryRecorder`; ``comms_events`` is a list of (step, event)
+    ``faults`` is the scenario's `swarm_core.faults.agents.FaultTimeline`, ``recorder`` a
+    `swarm_core.engine.trajectory.TrajectoryRecorder`; ``comms_events`` is a list of (step, event)
     sorted by step; ``geometry()`` returns the (target, barrier) to put in each step."""
 
     def __init__(self, names, steps, dt, faults, recorder, *, comms_events=(), clock_every=1,

@@ -15,8 +15,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point32, PointStamped, PolygonStamped
 
-from swarm_core import metrics as M
-
+from swarm_core.analysis import metrics as M
 from swarm_ros import protocol as P
 
 PALETTE = [(0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16),
@@ -92,8 +91,8 @@ class Trails:
         self.points[idx, self.count[idx], :2] = pos
         self.count[idx] += 1
 
-    def of(self, i) -> np.ndarray:
-        """(k, 3) agent i's trail."""
+    def trail(self, i) -> np.ndarray:
+        """(k, 3) agent i's trail, the oldest point first."""
         return self.points[i, :self.count[i]]
 
 
@@ -183,7 +182,7 @@ def markers_message(t, pos, theta, labels, idx, leaders, trails: Trails, target=
         _marker(c, head, 'agents', i, ARROW, (pos[row, 0], pos[row, 1], 0.0, 0.0, 0.0, math.sin(half[row]),
                                               math.cos(half[row])), (0.8, 0.25, 0.25),
                 (*(LEADER_COLOUR if leaders[i] else rgb), 1.0))
-        _marker(c, head, 'trails', i, LINE_STRIP, (0.0,) * 6 + (1.0,), (0.05, 0.0, 0.0), (*rgb, 0.6), trails.of(i))
+        _marker(c, head, 'trails', i, LINE_STRIP, (0.0,) * 6 + (1.0,), (0.05, 0.0, 0.0), (*rgb, 0.6), trails.trail(i))
     if target is not None:
         _marker(c, head, 'target', 0, SPHERE, (float(target[0]), float(target[1]), 0.0, 0.0, 0.0, 0.0, 1.0),
                 (1.0, 1.0, 1.0), (0.0, 1.0, 0.0, 1.0))

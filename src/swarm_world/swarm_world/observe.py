@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from swarm_core import metrics as M
+from swarm_core.analysis import metrics as M
 
 
 class Observer:

@@ -1,15 +1,20 @@
 """The world node's ROS parameters: name → (default, description, limits), one place for each
-default.  The scenario's (``scenario``, ``seed``, ``duration``, ``dt``) are shared with the
-commander (swarm_ros.scenario_params); its movable target and barrier are declared by the node
-from the scenario it loads."""
+default, and which of them are one mode's own (`MODE_PARAMETERS`).  The scenario's
+(``scenario``, ``seed``, ``duration``, ``dt``) are shared with the commander
+(swarm_ros.scenario_params); its movable target and barrier are declared by the node from the
+scenario it loads."""
 from __future__ import annotations
 
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE
 
-#: kept as attributes of the node
+#: the modes of a world node (parameter ``mode``; `swarm_world.drivers.DRIVERS` drives each)
+MODES = ('lockstep', 'realtime')
+
+#: every parameter of a world node, declared whatever its mode (as the agent declares those of
+#: every mode); the node keeps those every mode shares as its attributes
 WORLD = {
-    'mode': ('lockstep', 'lockstep or realtime', dict(choices=('lockstep', 'realtime'))),
+    'mode': ('lockstep', 'lockstep or realtime', dict(choices=MODES)),
     'rtf': (1.0, 'realtime: sim seconds per wall second', dict(lo=1e-3, hi=1e4)),
     'output_dir': ('', 'where to write trajectory.npz at the end ("": nowhere)', {}),
     'progress_every': (50.0, 'progress line every this many sim s (0: none)', dict(lo=0.0, hi=1e9)),
@@ -40,4 +45,11 @@ WORLD = {
     'trail_length': (200, 'trail points per agent in the markers', dict(lo=0, hi=100000)),
     'future_tolerance': (FUTURE_TOLERANCE, 'realtime: reject states stamped more than this many sim s ahead '
                          'of the world clock', dict(lo=0.0, hi=1e9)),
+}
+
+#: each mode's own parameters (of `WORLD`), given to the mode's driver (`swarm_world.drivers`)
+MODE_PARAMETERS = {
+    'lockstep': ('clock_every', 'stall_timeout', 'wait_for_recorder', 'step_timeout', 'start_timeout',
+                 'missing_timeout', 'step_readers', 'clock_readers', 'robot_poses'),
+    'realtime': ('rtf', 'future_tolerance'),
 }

@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-from swarm_core.faults import track_slots
-from swarm_core.frenet import yaw_from_quaternion
+from swarm_core.faults.agents import track_slots
+from swarm_core.model.frenet import yaw_from_quaternion
 
 SIGNAL_OF = {'kill': 'kill', 'freeze': 'stop', 'resume': 'cont'}   # fault event → signal
 #: the realtime world ticks (and publishes /clock) at least this often, wall s ...

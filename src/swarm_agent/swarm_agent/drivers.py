@@ -1,0 +1,220 @@
+"""The drivers of an agent node, one per mode: what the node does each step in lockstep
+(`LockstepDriver`) and in realtime (`RealtimeDriver`).  A robot agent's drivers build on these
+(`robot_driver`); `agent_node.driver_class` chooses one."""
+from __future__ import annotations
+
+import numpy as np
+
+from swarm_agent.agent_core import known_table
+from swarm_agent.container_core import ContainerCore
+from swarm_agent.process_io import (
+    CLOCKS,
+    AgentStatesWriter,
+    LeaderMask,
+    decode_batch,
+    own_echo,
+    realtime_tick,
+    step_message,
+    step_time,
+)
+from swarm_agent.realtime_core import Continued, HeardStates
+from swarm_core.faults.radio import StreamRadio
+from swarm_ros import protocol as P
+from swarm_ros.msg_checks import FUTURE_TOLERANCE, Senders, batch_states, check_values, refused
+from swarm_ros.rosutil import declare, when_matched
+
+
+class LockstepDriver:
+    """Lockstep: one ``/lockstep/step`` message per step (alone: its own subscription and a
+    `ContainerCore` of one; contained: the container decides for all its agents and calls
+    `lockstep_outcome`)."""
+
+    @staticmethod
+    def declare(node):
+        """This mode's parameters (every agent node declares those of every mode)."""
+        return dict(
+            state_subscribers=declare(
+                node, 'state_subscribers', 0, 'lockstep: publish the first state only once this many readers '
+                'of /swarm/states have matched (1 = the recorder; the world reads /lockstep/agent_states)',
+                lo=0, hi=100000),
+            lockstep_clock=declare(
+                node, 'lockstep_clock', 'step', 'lockstep: sim time from each step message (step: no /clock '
+                "reader) or from /clock (topic); in a container its host node's parameter applies",
+                choices=CLOCKS))
+
+    def __init__(self, node, state_subscribers, lockstep_clock):
+        self.node = node
+        self.state_subscribers = state_subscribers
+        self.lockstep_clock = lockstep_clock
+        self.lock = None if node.contained else ContainerCore([node.core])
+        self.batch = None
+
+    def start(self):
+        """Alone: a container of one for the world (contained: the container starts it)."""
+        if self.node.contained:
+            return
+        if self.lockstep_clock == 'step':
+            self.node._time_source.detach_node()      # the step messages carry the time: no /clock reader
+        self.batch = AgentStatesWriter(self.node)
+        self.start_lockstep(lambda agent: self.batch.publish([agent]))
+
+    def start_lockstep(self, on_first):
+        """Publish the first state, then call ``on_first(node)`` (the process sends it to the
+        world on /lockstep/agent_states).  With ``state_subscribers`` > 0 only once that many
+        readers of /swarm/states matched: a recorder matched late would miss the first states
+        (the writer keeps 100), and the world starts step 0 only when it holds every first state."""
+        node = self.node
+
+        def first():
+            node.publish_state()
+            on_first(node)
+        if self.state_subscribers > 0:
+            when_matched(node, lambda: node.pub.get_subscription_count() >= self.state_subscribers,
+                         first, P.RECORDER_MATCH_WAIT,
+                         f'{P.STATES}: fewer than {self.state_subscribers} readers matched')
+        else:
+            first()
+
+    def on_input(self, raw):
+        """Alone: one ``/lockstep/step`` message."""
+        s = step_message(raw, self.lock, [self.node], self.node.reject, self.batch)
+        if s is not None and self.lockstep_clock == 'step':
+            step_time([self.node], s)
+
+    def lockstep_outcome(self, kind, detail, s):
+        """Carry out one `ContainerCore.on_step` decision for this agent."""
+        node = self.node
+        if kind == 'moved':
+            node.lam = s.lam
+            node.step = s.n
+            node.applied(detail)
+            node.step = node.core.step
+            node.t = node.step * node.dt
+            node.publish_state()
+        elif kind == 'repeat':       # a repeat (stall recovery): say our answer again
+            node.publish_state()
+        elif kind == 'silent':
+            # faults: dead or frozen at this step: neither move nor speak (a frozen agent
+            # resumes at the first step that lists it alive, with the state it holds)
+            node.get_logger().info(f'not in the table from step {detail} on (killed or frozen)')
+        elif kind == 'back':         # back after a freeze (maybe stopped before it saw one)
+            node.get_logger().info(f'back in the table at step {s.n} (was frozen at step {detail})')
+        elif kind == 'reject':
+            node.reject(*detail)
+
+    def radio_step(self):
+        """The step from which a radio change applies: the step held."""
+        return self.node.step
+
+    def radio_started(self):
+        """The radio is not perfect (any more): receive each step's table through it."""
+        self.node.core.attach_comms(self.node.radio)
+
+
+class RealtimeDriver:
+    """Realtime: a timer at the control rate; neighbour states from the agent processes'
+    batches on ``/swarm/agent_states`` (through the radio model if there is one), λ and the
+    rest as they arrive.  Alone the agent is a container of one (`process_io.realtime_tick`,
+    its own batch of one state per tick); contained, the container's one timer drives it, the
+    container sends the batch and the states it heard perfectly are the container's
+    (`HeardStates`)."""
+
+    @staticmethod
+    def declare(node):
+        """This mode's parameters (every agent node declares those of every mode)."""
+        return dict(
+            stale_after=declare(node, 'stale_after', 2.0, 'realtime: ignore neighbour states older than this '
+                                '(sim s)', lo=0.0, hi=1e9),
+            catch_up_limit=declare(
+                node, 'catch_up_limit', 4, 'realtime: most control periods the agent integrates (u held) after '
+                'its process was stopped (SIGSTOP ... SIGCONT); a late tick of a running process integrates '
+                'every period that passed', lo=1, hi=10**6),
+            future_tolerance=declare(
+                node, 'future_tolerance', FUTURE_TOLERANCE, 'realtime: reject neighbour states stamped more '
+                'than this many sim s ahead of this clock', lo=0.0, hi=1e9))
+
+    def __init__(self, node, stale_after, catch_up_limit, future_tolerance):
+        self.node = node
+        self.stale_after = stale_after
+        self.catch_up_limit = catch_up_limit
+        self.future_tolerance = future_tolerance
+        self.senders = Senders()     # radio model: each neighbour name bound to its first publisher
+        self.heard = HeardStates(node.roster)   # alone, perfect radio: newest states (contained: the container's)
+        self.heard.own[node.index] = True
+        self.radio_heard = {}        # radio model: name -> newest state heard (before the radio)
+        self.stream = StreamRadio(node.radio, node.index)
+        self.timer = None
+        self.lock = None
+        self.batch = None            # alone: its process's /swarm/agent_states writer
+        self.process_tag = None      # the sender tag of its process's batches (contained: set by the container)
+
+    def start(self):
+        node = self.node
+        if not node.contained:
+            self.lock = ContainerCore([node.core])
+            self.batch = AgentStatesWriter(node, realtime=True)
+            self.process_tag = self.batch.tag
+            leaders, continued = LeaderMask(node.roster), Continued()
+            self.timer = node.create_timer(
+                node.dt, lambda: realtime_tick([node], self.lock, self.heard, leaders, self.batch, continued))
+        node.publish_state()
+        self.heard.hear(node.agent_name, (node.t, *node.own[2:]))
+        if self.batch is not None:
+            self.batch.publish([node])
+
+    def radio_step(self):
+        """The step from which a radio change applies: that of the sim time now."""
+        return P.step_of(self.node._now(), self.node.dt)
+
+    def radio_started(self):
+        """Nothing to switch: `on_input` routes states through the radio from now on."""
+
+    def on_input(self, raw):
+        """One agent process's states on ``/swarm/agent_states`` (serialized)."""
+        node = self.node
+        m = decode_batch(raw, node.run_id, node.roster, self.process_tag, node.reject)
+        if m is None:
+            return
+        if node.radio_on:
+            for state in batch_states(m, node.roster):
+                self.hear_radio(state)
+        else:
+            self.heard.take(m, node.roster, node._now(), self.future_tolerance, node.reject)
+
+    def hear_radio(self, state):
+        """A decoded state (`decode_batch`) through this agent's radio model."""
+        node = self.node
+        name, t, pose, wz, tag = state
+        if own_echo(name, tag, {node.agent_name: self.process_tag}, node.reject):
+            return
+        if refused(node.reject, check_values(name, t, pose, wz, node.row, self.radio_heard, node._now(),
+                                             self.future_tolerance) or self.senders.check(name, tag)):
+            return
+        self.senders.accept(name, tag)
+        vals = (t, pose[0], pose[1], pose[4], pose[5], wz)
+        self.radio_heard[name] = vals
+        self.stream.hear(node.row[name], vals, node.core.pos[0])
+
+    def table(self, now, heard=None):
+        """(own row, states (m, 4) of x, y, qz, qw, leader flags) of the agents known at ``now``
+        (perfect radio: from ``heard``, a `HeardStates`, default this driver's)."""
+        node, core = self.node, self.node.core
+        heard = self.heard if heard is None else heard
+        own = (core.pos[0, 0], core.pos[0, 1], *core.quaternion)
+        if not node.radio_on:
+            return known_table(node.roster, node.agent_name, own, heard.newest, node.leaders, now, self.stale_after)
+        rows, states = self.stream.table(now, own)     # what the radio delivered (`comms.StreamRadio`)
+        flags = np.array([node.roster[j] in node.leaders for j in rows])
+        return int(np.searchsorted(rows, node.index)), states, flags
+
+    def control(self, now, heard):
+        """u of this agent alone at ``now`` (a radio model, or not in a shared table)."""
+        node = self.node
+        own, rows, flags = self.table(now, heard)
+        return node.core.control(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], node.lam, flags, node.steering,
+                                 node.target, node.barrier, row=own)
+
+
+#: the modes of an agent node (parameter ``mode``) and the class that drives each
+DRIVERS = {'lockstep': LockstepDriver, 'realtime': RealtimeDriver}
+MODES = tuple(DRIVERS)

@@ -1,0 +1,251 @@
+"""The commander's logic (no ROS): `CommandPlan` decides λ, the leaders and their steering
+values each step, and applies live commands at defined steps.
+
+The batch engine and the ROS commander node both run it, so they compute the same λ(t), the
+same leaders and the same s_k.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from swarm_core.checks import LAMBDA_BOUND, RAMP_BOUND, STEERING_BOUND, json_value
+from swarm_core.command.schedules import (
+    RAMP_SHAPES,
+    ConstantLambda,
+    ConstantSteering,
+    LambdaSchedule,
+    LiveSchedule,
+    SteeringProgram,
+)
+from swarm_core.faults.agents import Failover, elect_successor, followers_of
+
+# ---------------------------------------------------------------- live commands
+
+COMMANDS = ('lambda', 'steer')
+
+
+def check_command(cmd: dict, n_agents: int) -> dict:
+    """A live command, validated and normalised (ValueError names the bad field):
+    ``{'command': 'lambda', 'value': λ (LAMBDA_BOUND), 'ramp': s (RAMP_BOUND), 'shape':
+    RAMP_SHAPES}`` or ``{'command': 'steer', 'agent': index, 'value': s_k (STEERING_BOUND)}``;
+    other keys are kept."""
+    out = dict(cmd)
+    kind = out.get('command')
+    if not isinstance(kind, str) or kind not in COMMANDS:
+        raise ValueError(f'command {kind!r}: one of {", ".join(COMMANDS)}')
+    out['value'] = (LAMBDA_BOUND if kind == 'lambda' else STEERING_BOUND).check(out.get('value'))
+    if kind == 'lambda':
+        out['ramp'] = RAMP_BOUND.check(out.get('ramp', 0.0))
+        out.setdefault('shape', 'smoothstep')
+        if not isinstance(out['shape'], str) or out['shape'] not in RAMP_SHAPES:
+            raise ValueError(f'ramp shape {out["shape"]!r}: one of {", ".join(RAMP_SHAPES)}')
+    else:
+        agent = out.get('agent')
+        if isinstance(agent, bool) or not isinstance(agent, (int, np.integer)) or not 0 <= agent < n_agents:
+            raise ValueError(f'steer agent {agent!r}: not an agent index in [0, {n_agents})')
+        out['agent'] = int(agent)
+    return out
+
+
+# ---------------------------------------------------------------- steering programs s_k
+
+
+# ---------------------------------------------------------------- leaders
+
+LEADER_RULES = ('lateral_extremes',)
+
+#: a leader rule also fires as soon as λ has risen this much above the lowest λ so far, whoever
+#: raised it (the schedule, a live set-point): raising λ splits the swarm
+CHOOSE_RISE = 0.01
+
+
+def lateral_extremes(pos, cos_t, sin_t):
+    """Indices (left, right) of the agents at the lateral extremes of the swarm, relative to
+    its mean heading: left = largest offset along the mean heading rotated by +90°."""
+    pos = np.asarray(pos, dtype=float)
+    hx, hy = float(np.mean(cos_t)), float(np.mean(sin_t))
+    norm = math.hypot(hx, hy)
+    hx, hy = (1.0, 0.0) if norm == 0.0 else (hx / norm, hy / norm)
+    rel = pos - pos.mean(axis=0)
+    lateral = -rel[:, 0] * hy + rel[:, 1] * hx
+    return int(np.argmax(lateral)), int(np.argmin(lateral))
+
+
+@dataclass
+class CommandPlan:
+    """What the commander decides each step: λ, the leaders and their steering values.
+
+    Leaders are either fixed (``fixed_leaders``: agent index → program) or chosen by
+    ``rule`` at the first step with t ≥ ``choose_at`` or with λ risen by `CHOOSE_RISE` above
+    its lowest value so far (the left extreme gets programs[0], the right one programs[1]).
+    Before the choice there are no leaders.
+
+    Live commands (``update(..., commands=[...])``, see `check_command`) are applied at the
+    start of the step they are given to: a λ set-point starts a ramp from the λ reached at
+    t_n; a steering command makes that agent a leader with a constant program.  The batch
+    engine replays recorded commands at their steps the same way.
+
+    Beyond the paper (see `swarm_core.faults.agents`): ``failover_timeout`` (None: off) replaces a
+    leader not heard for that long by the elected successor, which inherits its program and
+    slot (``slots``: slot → agent index; slot i = programs[i] / the i-th fixed leader);
+    ``rendezvous`` entries switch on a shared rendezvous target (``rendezvous_now`` after
+    each update: (point, gain, normalised) or None).  ``events`` lists what the last update
+    decided (leader choice, leader lost, failover, rendezvous on/off) as dicts.
+    """
+
+    schedule: LambdaSchedule = field(default_factory=ConstantLambda)
+    fixed_leaders: dict = field(default_factory=dict)
+    rule: str | None = None
+    choose_at: float = 0.0
+    rule_programs: Sequence[SteeringProgram] = ()
+    leaders: dict = field(default_factory=dict)   # current: agent index → program
+    failover_timeout: float | None = None
+    rendezvous: Sequence = ()
+
+    def __post_init__(self):
+        if not self.leaders:
+            self.leaders = dict(self.fixed_leaders)
+        if self.rule is not None and self.rule not in LEADER_RULES:
+            raise ValueError(f'leader rule must be one of {LEADER_RULES}, got {self.rule!r}')
+        self.slots = {s: i for s, i in enumerate(self.leaders)}
+        self.failover = Failover(self.failover_timeout) if self.failover_timeout is not None else None
+        self.events = []
+        self.rendezvous_now = None
+        self._rdv_on = [False] * len(self.rendezvous)
+        self._lam_low = math.inf
+
+    def command(self, t: float, cmd: dict, n_agents: int) -> dict:
+        """Apply one live command at time t (validated by `check_command`); returns its event."""
+        cmd = check_command(cmd, n_agents)
+        if cmd['command'] == 'lambda':
+            if not isinstance(self.schedule, LiveSchedule):
+                self.schedule = LiveSchedule(self.schedule)
+            self.schedule.set_point(t, cmd['value'], cmd['ramp'], cmd['shape'])
+        else:
+            self.leaders[cmd['agent']] = ConstantSteering(cmd['value'])
+        return dict(cmd, t=t, kind='command')
+
+    @property
+    def pending_choice(self) -> bool:
+        return self.rule is not None and not self.leaders
+
+    def update(self, t: float, pos, cos_t, sin_t, heard=None, commands=()):
+        """Advance to time t with the swarm's states; returns (λ, leader indices, steering).
+
+        pos (N, 2) and the frames (cos θ, sin θ) are what the agents publish, so the batch
+        engine and the ROS commander get the same answer.  ``heard`` (bool (N,), default all):
+        the agents whose states of t are known; the rows of the others are not read.
+        steering is an array (N,) with s_k for leaders (from their last known state if not
+        heard) and 0 elsewhere.  The leader indices include leaders that are not heard (until
+        failover replaces them).  ``commands``: live commands applied first (`command`); their
+        events come first in ``events``."""
+        self.events = []
+        n = len(cos_t)
+        for cmd in commands:
+            self.events.append(self.command(t, cmd, n))
+        heard = np.ones(n, bool) if heard is None else np.asarray(heard, bool)
+        lam = float(self.schedule.value(t))
+        self._lam_low = min(self._lam_low, lam)
+        if self.pending_choice and (t >= self.choose_at or lam - self._lam_low >= CHOOSE_RISE):
+            rows = np.flatnonzero(heard)
+            pos_h = np.asarray(pos, float)[rows]
+            left, right = lateral_extremes(pos_h, np.asarray(cos_t)[rows], np.asarray(sin_t)[rows])
+            left, right = int(rows[left]), int(rows[right])
+            progs = list(self.rule_programs)
+            self.leaders = {left: progs[0]}
+            self.slots = {0: left}
+            if right != left and len(progs) > 1:
+                self.leaders[right] = progs[1]
+                self.slots[1] = right
+            self.events.append(dict(t=t, kind='leaders_chosen', leaders=sorted(self.leaders),
+                                    slots=[self.slots[k] for k in sorted(self.slots)]))
+        if self.failover is not None and self.leaders:
+            self._failover(t, pos, heard)
+        steering = np.zeros(n)
+        for idx, prog in self.leaders.items():
+            heading = math.atan2(float(sin_t[idx]), float(cos_t[idx]))
+            steering[idx] = prog.value(t, pos[idx], heading)
+        self.rendezvous_now = None
+        for j, r in enumerate(self.rendezvous):
+            now = r.update(t, pos, heard)
+            if now is not None and self.rendezvous_now is None:
+                self.rendezvous_now = now
+            if (now is not None) != self._rdv_on[j]:
+                self._rdv_on[j] = now is not None
+                ev = dict(t=t, kind='rendezvous_on' if now is not None else 'rendezvous_off')
+                if now is not None:
+                    ev.update(point=None if now[0] is None else list(now[0]), gain=now[1], coupling=now[3])
+                self.events.append(ev)
+        return lam, sorted(self.leaders), steering
+
+    def _failover(self, t, pos, heard):
+        fo = self.failover
+        lost = []
+        for idx in sorted(self.leaders):
+            if heard[idx]:
+                fo.missing_since.pop(idx, None)
+            else:
+                fo.missing_since.setdefault(idx, t)
+                if idx in fo.last_position and t - fo.missing_since[idx] >= fo.timeout - 1e-9:
+                    lost.append(idx)
+        for idx in lost:
+            prog = self.leaders.pop(idx)
+            slot = next((s for s, i in self.slots.items() if i == idx), None)
+            eligible = fo.followers.get(idx, np.zeros(len(heard), bool)) & heard
+            eligible[list(self.leaders)] = False
+            succ = elect_successor(fo.last_position[idx], pos, eligible)
+            fo.missing_since.pop(idx, None)
+            ev = dict(t=t, kind='failover' if succ >= 0 else 'leader_lost', lost=idx, slot=slot)
+            if succ >= 0:
+                self.leaders[succ] = prog
+                if slot is not None:
+                    self.slots[slot] = succ
+                ev['agent'] = succ
+            elif slot is not None:
+                self.slots.pop(slot)
+            self.events.append(ev)
+        # remember, for every heard leader, where it is and who follows it (for a later loss)
+        rows = sorted(self.leaders)
+        lk = followers_of(pos, heard, rows)
+        for idx in rows:
+            if heard[idx]:
+                fo.last_position[idx] = np.array(pos[idx], float)
+                fo.followers[idx] = lk == idx
+
+
+#: longest line of an events file (an event is a few hundred characters)
+MAX_EVENT_CHARS = 65536
+
+
+def read_commands(lines, names) -> dict:
+    """{step: [command, ...]} of the ``command`` events among JSON lines (a run's
+    ``events.jsonl``, or ``/swarm/events`` messages), agent names turned into indices.
+    ValueError names the line of a bad event (no step, unknown agent, bad value)."""
+    row = {nm: i for i, nm in enumerate(names)}
+    out: dict[int, list] = {}
+    for k, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            ev = json_value(line, MAX_EVENT_CHARS)
+        except ValueError as err:
+            raise ValueError(f'line {k}: not a JSON event ({err})') from None
+        if not isinstance(ev, dict) or ev.get('kind') != 'command':
+            continue
+        step = ev.get('step')
+        if isinstance(step, bool) or not isinstance(step, int) or step < 0:
+            raise ValueError(f'line {k}: command without a step ≥ 0 (step={step!r})')
+        cmd = {key: v for key, v in ev.items() if key not in ('t', 'kind', 'step', 'node')}
+        if cmd.get('command') == 'steer':
+            if not isinstance(cmd.get('agent'), str) or cmd['agent'] not in row:
+                raise ValueError(f'line {k}: steer command for unknown agent {cmd.get("agent")!r}')
+            cmd['agent'] = row[cmd['agent']]
+        try:
+            out.setdefault(step, []).append(check_command(cmd, len(names)))
+        except ValueError as err:
+            raise ValueError(f'line {k}: {err}') from None
+    return out

@@ -1,0 +1,264 @@
+"""Batch engine: the whole swarm in numpy arrays, no ROS.
+
+The reference the ROS nodes are checked against, and the fast path for sweeps and large
+swarms.  Each step: the commander plan gives λ, leaders and s_k from the states of t_n; the
+law gives u_k; the integrator advances every agent; noise is added per agent from its own
+seeded stream (as each agent node does).
+
+Faults, failover and reunion (swarm_core.faults.agents) are confined to `inputs` (the fault
+timeline and the plan's failover), `control` (only agents heard this step are in the table;
+a rendezvous adds the target term) and `advance` (agents not heard do not move or draw
+noise).  ``simulate`` records NaN for dead agents and the events in ``meta['events']``.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from swarm_core.engine.trajectory import Trajectory
+from swarm_core.faults.agents import alive_control, event_names, reunion_law
+from swarm_core.faults.radio import Beliefs, belief_controls, delay_stats
+from swarm_core.laws.compiled_sums import COMPILED, COMPILED_LIMIT
+from swarm_core.laws.compiled_sums import available as compiled_available
+from swarm_core.laws.pair_sums import DENSE_LIMIT, sparse_coupling
+from swarm_core.model.frenet import heading_frame, quaternion_from_heading
+from swarm_core.model.integrate import rk4_step, zoh_step
+from swarm_core.scenario.loader import Scenario
+
+
+def neighbour_pairs(pos, radius):
+    """(k, j) pairs with |r_k − r_j| ≤ radius, both directions, sorted by (k, j): a KD-tree
+    neighbour search (not all pairs), for laws that couple only within w."""
+    n = len(pos)
+    ij = cKDTree(pos).query_pairs(radius, output_type='ndarray')
+    if ij.size == 0:
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty
+    # one sort of the keys k·n + j (both directions) orders the pairs by (k, j)
+    ij = ij.astype(np.intp, copy=False)
+    key = np.empty(2 * len(ij), dtype=np.intp)
+    np.multiply(ij[:, 0], n, out=key[:len(ij)])
+    key[:len(ij)] += ij[:, 1]
+    np.multiply(ij[:, 1], n, out=key[len(ij):])
+    key[len(ij):] += ij[:, 0]
+    key.sort()
+    k = key // n
+    return k, key - k * n
+
+
+class SwarmStepper:
+    """Steps a scenario's swarm; `simulate` drives it, benchmarks and tests may too."""
+
+    def __init__(self, scn: Scenario, integrator: str | None = None,
+                 neighbour_search: str = 'auto', commands=None):
+        self.scn = scn
+        self.commands = commands or {}      # live commands to replay: step → [command, ...]
+        self.law = scn.law
+        self.integrator = integrator or scn.spec.integrator
+        if self.integrator not in ('zoh', 'rk4'):
+            raise ValueError(f'integrator must be zoh or rk4, got {self.integrator!r}')
+        self.n = len(scn.names)
+        self.dt = scn.dt
+        self.pos = scn.pos0.copy()
+        self.theta = scn.theta0.copy()
+        self.plan = scn.command_plan()
+        self.receivers = np.arange(self.n)
+        self.target = scn.target
+        self.barrier = scn.barrier
+        if neighbour_search not in ('auto', 'all', 'kdtree'):
+            raise ValueError(f'neighbour_search must be auto, all or kdtree, got {neighbour_search!r}')
+        self.neighbour_search = neighbour_search
+        # a table of at most DENSE_LIMIT rows is summed densely whatever λ (`sparse_coupling`)
+        self._always_dense = neighbour_search == 'all' or (neighbour_search == 'auto'
+                                                          and self.n <= DENSE_LIMIT)
+        self._compiled = neighbour_search == 'auto' and self.n >= COMPILED_LIMIT and compiled_available()
+        self._is_leader = (None, None)      # (leader indices, flags) of the last step
+        noise = scn.spec.noise
+        self.noise_scale = np.array([noise.position, noise.position, noise.heading])
+        self.noisy = bool(np.any(self.noise_scale > 0))
+        self._rngs = [scn.noise_rng(i) for i in range(self.n)] if self.noisy else None
+        self.step_index = 0
+        self.faults = scn.fault_timeline()
+        self.events = []
+        self._init_comms()
+
+    def _pairs(self, pos, lam):
+        """None (all pairs, dense), the KD-tree pairs within w where only those carry weight, or
+        from COMPILED_LIMIT agents on 'compiled' (`large_swarms`, to rounding)."""
+        if self._compiled and len(pos) >= COMPILED_LIMIT:
+            return COMPILED
+        if self._always_dense or self.law.couples_globally(lam):
+            return None
+        if self.neighbour_search == 'auto' and not sparse_coupling(len(pos), self.law, lam):
+            return None
+        return neighbour_pairs(pos, self.law.cutoff_radius)
+
+    def control(self, t, pos, theta, lam, is_leader, steering, frame=None):
+        if self.comms is not None:
+            return self._comms_control(pos, theta, lam, is_leader, steering)
+        cos_t, sin_t = heading_frame(theta) if frame is None else frame
+        # faults: the table holds only the agents heard this step, in index order
+        return alive_control(pos, cos_t, sin_t, self.receivers, self.law, lam, is_leader, steering, self.target,
+                             self.barrier, alive=None if self.faults.all_alive else self.faults.alive,
+                             rendezvous=self.plan.rendezvous_now, pairs=lambda p: self._pairs(p, lam))
+
+    def inputs(self):
+        """t, λ, leader flags (n,), steering (n,) for the current step (the commander's job),
+        and the frames (cos θ, sin θ) they were computed from."""
+        t = self.step_index * self.dt
+        frame = heading_frame(self.theta)
+        names = self.scn.names
+        for ev in self.faults.apply(self.step_index, self.plan.slots):
+            self.events.append(ev)
+        lam, leaders, steering = self.plan.update(t, self.pos, *frame, heard=self.faults.alive,
+                                                  commands=self.commands.get(self.step_index, ()))
+        for ev in self.plan.events:
+            if ev['kind'] == 'command':
+                ev = dict(ev, step=self.step_index)
+            self.events.append(event_names(ev, names))
+        last, is_leader = self._is_leader
+        if leaders != last:                 # the flags are rebuilt only when the leaders change
+            is_leader = np.zeros(self.n, dtype=bool)
+            is_leader[leaders] = True
+            is_leader.flags.writeable = False
+            self._is_leader = (leaders, is_leader)
+        return t, lam, is_leader, steering, frame
+
+    def step(self):
+        """Advance one dt; returns (t, λ, leader flags, u) of the step just taken."""
+        t, lam, is_leader, steering, frame = self.inputs()
+        u = self.control(t, self.pos, self.theta, lam, is_leader, steering, frame)
+        self.advance(t, u, lam, is_leader, steering)
+        return t, lam, is_leader, u
+
+    def advance(self, t, u, lam, is_leader, steering):
+        if self.faults.all_alive:
+            still, held = None, None
+        else:
+            still = ~self.faults.alive
+            held = (self.pos[still], self.theta[still])
+        if self.integrator == 'zoh':
+            self.pos, self.theta = zoh_step(self.pos, self.theta, u, self.dt)
+        else:
+            def control(tt, p, th):
+                # λ and s_k are evaluated at the stage time; leaders stay as chosen at t_n
+                lam_s = float(self.plan.schedule.value(tt))
+                c, s = heading_frame(th)
+                steer = np.zeros(self.n)
+                for idx, prog in self.plan.leaders.items():
+                    steer[idx] = prog.value(tt, p[idx], float(np.arctan2(s[idx], c[idx])))
+                return self.control(tt, p, th, lam_s, is_leader, steer)
+            self.pos, self.theta = rk4_step(self.pos, self.theta, t, self.dt, control)
+        if self.comms is not None:          # faults: the dead and frozen keep the u they last flew
+            self.u_prev = np.array(u, dtype=float) if still is None else \
+                np.where(still, self.u_prev, np.asarray(u, dtype=float))
+        if self.noisy:
+            quiet = np.zeros(self.n, dtype=bool) if still is None else still   # dead or frozen: no draw
+            draws = np.stack([np.zeros(3) if q else rng.uniform(-1.0, 1.0, size=3)
+                              for rng, q in zip(self._rngs, quiet)])
+            noise = draws * self.noise_scale
+            self.pos = self.pos + noise[:, :2]
+            self.theta = self.theta + noise[:, 2]
+        if held is not None:                 # faults: dead and frozen agents do not move
+            self.pos[still], self.theta[still] = held
+        self.step_index += 1
+
+    # ---------------------------------------------------------------- communication model
+    # A separate path (swarm_core.faults.radio), taken only when the scenario's radio is not perfect:
+    # every receiver computes its u with THE law on its own beliefs (one law call over the
+    # believed pairs of all receivers; the fates of all links of a step are drawn at once).
+
+    def _init_comms(self):
+        self.comms = self.scn.comm_model()
+        if self.comms is None:
+            return
+        if self.integrator != 'zoh':
+            raise ValueError('a communication model needs the zoh integrator')
+        self.beliefs = Beliefs(self.receivers, self.n)
+        self.u_prev = np.zeros(self.n)          # u held over the step that ended at t_n (sent with the state)
+        self._comms_step = -1
+
+    def _comms_control(self, pos, theta, lam, is_leader, steering):
+        n = self.step_index
+        alive = self.faults.alive           # faults: the dead and the frozen neither send nor listen
+        if self._comms_step != n:               # the radio delivers once per step
+            qz, qw = quaternion_from_heading(theta)
+            arrival = self.comms.decide(n, self.receivers, pos, self.receivers, pos)
+            self.beliefs.receive(n, arrival, pos[:, 0], pos[:, 1], qz, qw, self.u_prev,
+                                 alive=None if self.faults.all_alive else alive)
+            self._comms_step = n
+        s = np.zeros(self.n) if steering is None else np.asarray(steering, dtype=float)
+        law, target = reunion_law(self.law, self.target, self.plan.rendezvous_now)
+        return belief_controls(law, self.beliefs, n, self.comms, pos, self.own_headings(theta), lam, is_leader, s,
+                               target, self.barrier, active=None if self.faults.all_alive else alive)
+
+    def own_headings(self, theta):
+        """The headings a radio model's law takes as the agents' own: their true ones here
+        (a robot engine's robot agents take theirs from the table)."""
+        return theta
+
+    def comms_stats(self) -> dict | None:
+        """What the radio did so far: messages sent/delivered (links j ≠ k), delays."""
+        if self.comms is None:
+            return None
+        b = self.beliefs
+        sent, got = int(b.sent.sum()), int(b.delivered.sum())
+        return dict(sent=sent, delivered=got, delivered_fraction=got / sent if sent else None,
+                    **delay_stats(b.delay_counts, self.dt))
+
+
+def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int = 1,
+             neighbour_search: str = 'auto', progress=None, commands=None, stepper=None) -> Trajectory:
+    """Run a scenario to its duration; ``progress(step, steps)`` is called now and then.
+    ``commands``: live commands to replay, {step: [command, ...]} (`read_commands`).
+    ``stepper``: a prepared `SwarmStepper` of ``scn`` (one that moves some agents otherwise:
+    `swarm_robots.engine`); the other arguments are then its own."""
+    stepper = stepper or SwarmStepper(scn, integrator, neighbour_search, commands)
+    steps = scn.steps
+    n = stepper.n
+    n_rec = steps // record_every + 1
+    t_rec = np.empty(n_rec)
+    r_rec = np.empty((n_rec, n, 2))
+    th_rec = np.empty((n_rec, n))
+    u_rec = np.empty((n_rec, n))
+    lam_rec = np.empty(n_rec)
+    lead_rec = np.zeros((n_rec, n), dtype=bool)
+    wall = time.perf_counter()
+    report_every = max(1, steps // 100)
+    recorded = 0
+    interrupted = False
+    try:
+        for i in range(steps + 1):
+            t, lam, is_leader, steering, frame = stepper.inputs()
+            u = stepper.control(t, stepper.pos, stepper.theta, lam, is_leader, steering, frame)
+            if i % record_every == 0:
+                s = i // record_every
+                t_rec[s], r_rec[s], th_rec[s], u_rec[s] = t, stepper.pos, stepper.theta, u
+                lam_rec[s] = lam
+                if stepper.faults.all_alive:
+                    lead_rec[s] = is_leader
+                else:
+                    lead_rec[s] = is_leader & stepper.faults.alive
+                    dead = stepper.faults.dead
+                    if dead.any():           # faults: a dead agent's rows are NaN
+                        r_rec[s, dead], th_rec[s, dead], u_rec[s, dead] = np.nan, np.nan, np.nan
+                recorded = s + 1
+            if i == steps:
+                break
+            stepper.advance(t, u, lam, is_leader, steering)
+            if progress is not None and i % report_every == 0:
+                progress(i, steps)
+    except KeyboardInterrupt:      # keep what was computed: the caller saves a partial run
+        interrupted = True
+    if progress is not None and not interrupted:
+        progress(steps, steps)
+    meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration,
+                integrator=stepper.integrator, steps=steps, record_every=record_every,
+                wall_seconds=time.perf_counter() - wall, neighbour_search=stepper.neighbour_search,
+                interrupted=interrupted, events=stepper.events)
+    if stepper.comms is not None:
+        meta['comms'] = stepper.comms_stats()
+    return Trajectory(scn.names, t_rec[:recorded], r_rec[:recorded], th_rec[:recorded],
+                      u_rec[:recorded], lam_rec[:recorded], lead_rec[:recorded], meta)

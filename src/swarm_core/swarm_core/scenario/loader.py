@@ -1,0 +1,577 @@
+"""Scenario files (YAML): everything a run needs, validated before anything runs (no ROS).
+
+A bad file raises `ScenarioError` with one line naming the field, e.g.
+``scenario.yaml: law.alpha: Input should be greater than or equal to 0 (got -1)``.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Literal, Optional, Union, get_args
+
+import numpy as np
+import yaml
+from pydantic import ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
+from scipy.spatial import ConvexHull
+
+from swarm_core.checks import InputError, check_run_size
+from swarm_core.command.plan import CommandPlan
+from swarm_core.command.spec import (
+    ConstantLambdaSpec,
+    LambdaSpec,
+    LeadersSpec,
+    ProgramSpec,
+    build_program,
+    build_schedule,
+)
+from swarm_core.faults.agents import Fault, FaultTimeline, Rendezvous
+from swarm_core.faults.radio import CommModel
+from swarm_core.laws import LawConfig
+from swarm_core.laws.parameters import LAW_PARAMETER, LAW_TABLE
+from swarm_core.robot_units import RobotsSpec
+from swarm_core.scenario.placement import AGENT_NAME, AgentsSpec, initial_conditions  # noqa: F401  (AGENT_NAME: report.py)
+from swarm_core.schema import (
+    Finite,
+    NonNeg,
+    PauseSeconds,
+    Point,
+    Positive,
+    RunSeconds,
+    SimTime,
+    StepSeconds,
+    Strict,
+    bounded,
+)
+
+#: largest scenario file read (bytes), checked before parsing
+MAX_FILE_BYTES = 2 * 1024 * 1024
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot run; the message names the file and the field."""
+
+
+# ------------------------------------------------------------------ law
+
+def _law_field(p):
+    """(type, default) of a law parameter in the schema (`law_parameters.LAW_TABLE`)."""
+    if p.choices:
+        return Literal[p.choices], p.default
+    return (bounded(p.bound) if p.bound else type(p.default)), p.default
+
+
+LawSpec = create_model('LawSpec', __base__=Strict, __module__=__name__,
+                       __doc__='The ``law:`` section: fields, defaults, bounds of `law_parameters.LAW_TABLE`.',
+                       **{p.scenario_key: _law_field(p) for p in LAW_TABLE if p.section == 'law'})
+
+
+# ------------------------------------------------------------------ world
+
+class TargetSpec(Strict):
+    position: Point
+    gain: bounded(LAW_PARAMETER['target_gain'].bound) = 0.05      # γ
+    normalised: bool = False
+
+
+#: most barrier points (the law visits every point for every agent)
+MAX_BARRIER_POINTS = 1000
+
+
+class BarrierSpec(Strict):
+    """A convex polygon: at least 3 points, not all on one line, each a corner of the hull
+    (the intrusion check uses the hull; a point inside it would be silently ignored there)."""
+    points: list[Point] = Field(min_length=3, max_length=MAX_BARRIER_POINTS)
+    gain: bounded(LAW_PARAMETER['barrier_gain'].bound) = 5.0      # s_b
+    mode: Literal[LAW_PARAMETER['barrier_mode'].choices] = LAW_PARAMETER['barrier_mode'].default
+
+    @field_validator('points')
+    @classmethod
+    def _convex(cls, pts):
+        p = np.asarray(pts, dtype=float)
+        span = float(np.ptp(p, axis=0).max())
+        d = p[1:] - p[0]
+        cross = d[:, 0, None] * d[None, :, 1] - d[:, 1, None] * d[None, :, 0]
+        if span == 0 or np.abs(cross).max() <= 1e-12 * span * span:
+            raise ValueError('the barrier points are identical or on one line: a barrier needs an area')
+        corners = set(ConvexHull(p).vertices.tolist())
+        inner = [i for i in range(len(p)) if i not in corners]
+        if inner:
+            raise ValueError(f'not a convex polygon: point {inner[0]} {tuple(pts[inner[0]])} is not a corner of '
+                             f'the hull ({len(inner)} such point{"s" if len(inner) > 1 else ""}); '
+                             'give the corners of a convex barrier')
+        return pts
+
+
+class NoiseSpec(Strict):
+    position: NonNeg = 0.0       # half-width of uniform noise on each coordinate, per step
+    heading: NonNeg = 0.0        # half-width of uniform noise on θ, per step
+
+
+# ------------------------------------------------------------------ faults, failover, reunion
+
+class FaultSpec(Strict):
+    """``{at: 450, kill: agent_2}`` or ``{at: 300, freeze: leader:0, for: 5.0}`` (faults.py)."""
+    at: SimTime
+    kill: Optional[str] = None
+    freeze: Optional[str] = None
+    for_: Optional[PauseSeconds] = Field(default=None, alias='for')
+    model_config = ConfigDict(extra='forbid', populate_by_name=True)
+
+    @model_validator(mode='after')
+    def _one(self):
+        if (self.kill is None) == (self.freeze is None):
+            raise ValueError('give exactly one of kill: AGENT or freeze: AGENT')
+        if self.freeze is not None and self.for_ is None:
+            raise ValueError('freeze needs for: SECONDS')
+        if self.kill is not None and self.for_ is not None:
+            raise ValueError('for: is only for freeze')
+        who = self.kill or self.freeze
+        if who.startswith('leader:') and not who[7:].isdigit():
+            raise ValueError(f'{who!r}: leader slots are leader:0, leader:1, ...')
+        return self
+
+    @property
+    def kind(self):
+        return 'kill' if self.kill is not None else 'freeze'
+
+    @property
+    def agent(self):
+        return self.kill if self.kill is not None else self.freeze
+
+
+class FailoverSpec(Strict):
+    """Leader failover (faults.py): a leader not heard for ``timeout`` sim s is replaced."""
+    timeout: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 1.0
+
+
+class ReunionSpec(Strict):
+    """Over [at, at + for): a shared rendezvous target (eq. 15; point: [x, y], centroid or none)
+    and/or far coupling q0 = ``coupling`` (faults.py)."""
+    at: SimTime
+    for_: Positive = Field(alias='for')
+    point: Union[Literal['centroid', 'none'], Point] = 'centroid'
+    coupling: Optional[bounded(LAW_PARAMETER['q0'].bound)] = None
+    gain: bounded(LAW_PARAMETER['target_gain'].bound) = 0.05
+    normalised: bool = False
+    track: bool = False          # point: centroid re-taken at every step (moves with the swarm)
+    model_config = ConfigDict(extra='forbid', populate_by_name=True)
+
+
+# ------------------------------------------------------------------ communication (comms.py)
+
+Probability = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
+NameOrNames = Union[str, list[str]]
+
+
+class LinkSpec(Strict):
+    """Per-agent or per-link values: links from ``sender`` to ``receiver`` (a name or a list of
+    names; omitted = every agent) get these values instead of the base ones."""
+    sender: Optional[NameOrNames] = None
+    receiver: Optional[NameOrNames] = None
+    loss: Optional[Probability] = None
+    latency: Optional[NonNeg] = None
+    jitter: Optional[NonNeg] = None
+
+
+class CommsEventSpec(Strict):
+    """A change of the radio at sim time ``at`` (from the first step n with n·dt ≥ at)."""
+    at: SimTime
+    loss: Optional[Probability] = None
+    latency: Optional[NonNeg] = None
+    jitter: Optional[NonNeg] = None
+    drop: Optional[Probability] = None        # burst loss on top of ``loss`` (0 ends a burst)
+    duration: Optional[Positive] = None       # of the burst (omitted: until the next drop)
+    partition: Optional[list[list[str]]] = None   # new groups; [] heals
+
+    @model_validator(mode='after')
+    def _something(self):
+        if all(getattr(self, k) is None for k in ('loss', 'latency', 'jitter', 'drop', 'partition')):
+            raise ValueError('a comms event needs one of loss, latency, jitter, drop, partition')
+        if self.duration is not None and self.drop is None:
+            raise ValueError('duration belongs to a drop (burst loss)')
+        return self
+
+
+class CommsSpec(Strict):
+    """The communication model (see swarm_core.faults.radio); the defaults are a perfect radio."""
+    seed: Optional[Annotated[int, Field(ge=0)]] = None     # default: the scenario's seed
+    radio_range: Optional[Positive] = None                  # None: unlimited (w still applies)
+    loss: Probability = 0.0
+    latency: NonNeg = 0.0                                   # sim s
+    jitter: NonNeg = 0.0                                    # sim s, delay = latency + U[0,1)·jitter
+    timeout: Positive = 2.0                                 # forget senders silent this long (sim s)
+    dead_reckoning: bool = True
+    links: list[LinkSpec] = Field(default_factory=list)
+    partition: list[list[str]] = Field(default_factory=list)
+    events: list[CommsEventSpec] = Field(default_factory=list)
+
+
+# ------------------------------------------------------------------ expect (outcomes.py)
+
+Window = tuple[NonNeg, NonNeg]
+XWindow = tuple[Finite, Finite]
+
+
+class PolarisationAbove(Strict):
+    at: NonNeg
+    value: Annotated[float, Field(ge=0, le=1)]
+
+
+class FollowsProgram(Strict):
+    slot: Annotated[int, Field(ge=0, le=1000)] = 0
+    from_: NonNeg = Field(alias='from')
+    to: NonNeg
+    tolerance: Annotated[float, Field(gt=0, le=10)] = 0.3
+    model_config = ConfigDict(extra='forbid', populate_by_name=True)
+
+
+class ExpectSpec(Strict):
+    """The checks of outcomes.py, each with its argument's type (a window is [a, b], a ≤ b)."""
+    one_cluster_at: Optional[Window] = None
+    polarisation_above: Optional[PolarisationAbove] = None
+    split_between: Optional[Window] = None
+    one_cluster_at_end: Optional[bool] = None
+    stays_split_from: Optional[NonNeg] = None
+    no_intrusion: Optional[bool] = None
+    split_near_x: Optional[XWindow] = None
+    rejoins_after_x: Optional[XWindow] = None
+    arrives_within: Optional[Positive] = None
+    split_at: Optional[NonNeg] = None
+    one_cluster_from: Optional[NonNeg] = None
+    follows_program: Optional[FollowsProgram] = None
+
+    @model_validator(mode='after')
+    def _windows(self):
+        for k in ('one_cluster_at', 'split_between', 'split_near_x', 'rejoins_after_x'):
+            w = getattr(self, k)
+            if w is not None and w[0] > w[1]:
+                raise ValueError(f'{k}: [{w[0]:g}, {w[1]:g}] is empty (a > b)')
+        return self
+
+
+class ScenarioSpec(Strict):
+    name: str
+    description: str = ''
+    seed: Annotated[int, Field(ge=0)] = 0
+    dt: StepSeconds = 0.05
+    duration: RunSeconds = 1000.0
+    integrator: Literal['zoh', 'rk4'] = 'zoh'
+    agents: AgentsSpec
+    law: LawSpec = Field(default_factory=LawSpec)
+    lambda_: LambdaSpec = Field(default_factory=lambda: ConstantLambdaSpec(kind='constant'), alias='lambda')
+    leaders: LeadersSpec = Field(default_factory=LeadersSpec)
+    target: Optional[TargetSpec] = None
+    barrier: Optional[BarrierSpec] = None
+    noise: NoiseSpec = Field(default_factory=NoiseSpec)
+    faults: list[FaultSpec] = Field(default_factory=list)
+    failover: Optional[FailoverSpec] = None
+    reunion: list[ReunionSpec] = Field(default_factory=list)
+    comms: Optional[CommsSpec] = None
+    robots: Optional[RobotsSpec] = None          # the scale to robots (swarm_core.robot_units)
+    expect: dict = Field(default_factory=dict)   # what `swarm sweep` checks (see outcomes.py)
+    model_config = ConfigDict(extra='forbid', populate_by_name=True)
+
+    @field_validator('name')
+    @classmethod
+    def _name(cls, v):
+        if not v.strip():
+            raise ValueError('must not be empty')
+        if len(v) > 200:
+            raise ValueError('longer than 200 characters')
+        return v
+
+    @field_validator('expect', mode='before')
+    @classmethod
+    def _expect(cls, v):
+        """Checked against `ExpectSpec`, kept as the plain mapping outcomes.py reads."""
+        if v is None:
+            return {}
+        if not isinstance(v, dict):
+            raise ValueError('expect is a mapping of checks (see outcomes.py)')
+        spec = ExpectSpec.model_validate(v)
+        return {k: (list(x) if isinstance(x, tuple) else x)
+                for k, x in spec.model_dump(by_alias=True, exclude_unset=True).items()}
+
+    @model_validator(mode='after')
+    def _steps(self):
+        steps = round(self.duration / self.dt)
+        if steps < 1:
+            raise ValueError(f'duration {self.duration:g} is shorter than one step (dt {self.dt:g}): '
+                             'nothing would run')
+        check_run_size(steps, self.agents.count or 0)
+        return self
+
+    @model_validator(mode='after')
+    def _reunion_vs_target(self):
+        if self.reunion and self.target is not None:
+            raise ValueError('reunion: a scenario with a target cannot also have a rendezvous '
+                             '(both use the target term of eq. 15)')
+        return self
+
+
+# ------------------------------------------------------------------ runtime scenario
+
+@dataclass
+class Scenario:
+    """A validated scenario with its initial conditions drawn for one seed."""
+
+    spec: ScenarioSpec
+    names: list
+    pos0: np.ndarray
+    theta0: np.ndarray
+    law: LawConfig
+    source: str = ''
+
+    # -- convenience views of the spec
+    @property
+    def name(self):
+        return self.spec.name
+
+    @property
+    def label(self) -> str:
+        """The name made safe as one file-name component (`safe_label`)."""
+        return safe_label(self.spec.name)
+
+    @property
+    def seed(self):
+        return self.spec.seed
+
+    @property
+    def dt(self):
+        return self.spec.dt
+
+    @property
+    def content_hash(self) -> str:
+        """A hash of the validated scenario (with its overrides: seed, dt, duration): two
+        processes that loaded the same run have the same one (``swarm join`` checks it)."""
+        text = json.dumps(self.spec.model_dump(mode='json', by_alias=True), sort_keys=True, separators=(',', ':'))
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    @property
+    def duration(self):
+        return self.spec.duration
+
+    @property
+    def steps(self) -> int:
+        return int(round(self.spec.duration / self.spec.dt))
+
+    @property
+    def target(self):
+        return None if self.spec.target is None else np.array(self.spec.target.position, float)
+
+    @property
+    def barrier(self):
+        return None if self.spec.barrier is None else np.array(self.spec.barrier.points, float)
+
+    def command_plan(self) -> CommandPlan:
+        """A fresh commander plan (λ schedule and leaders) for this scenario."""
+        return CommandPlan(schedule=build_schedule(self.spec.lambda_),
+                           fixed_leaders={self.names.index(n): build_program(p)
+                                          for n, p in self.spec.leaders.fixed.items()},
+                           rule=self.spec.leaders.rule, choose_at=self.spec.leaders.at,
+                           rule_programs=[build_program(p) for p in self.spec.leaders.programs],
+                           failover_timeout=self.spec.failover.timeout if self.spec.failover else None,
+                           rendezvous=[Rendezvous(r.at, r.for_, None if r.point == 'centroid' else
+                                                  r.point if r.point == 'none' else tuple(r.point),
+                                                  r.gain, r.normalised, r.track, r.coupling)
+                                       for r in self.spec.reunion])
+
+    def fault_timeline(self) -> FaultTimeline:
+        """A fresh timeline of the scenario's faults (faults.py)."""
+        return FaultTimeline([Fault(f.at, f.kind, f.agent, f.for_ or 0.0) for f in self.spec.faults],
+                             self.names, self.spec.dt)
+
+    def comms_config(self) -> dict | None:
+        """The ``comms`` section as a plain mapping (what `comms.CommModel.from_config` and
+        the agents' ``comms`` parameter take), None without one."""
+        return None if self.spec.comms is None else self.spec.comms.model_dump(mode='json')
+
+    def comm_model(self):
+        """A fresh `comms.CommModel` of this scenario, or None if its radio is perfect."""
+        m = CommModel.from_config(self.comms_config(), self.names, self.dt, self.seed)
+        return None if m.perfect else m
+
+    def noise_rng(self, index: int) -> np.random.Generator:
+        """Agent ``index``'s own noise stream (the same in the batch engine and its node)."""
+        return noise_rng(self.spec.seed, index)
+
+
+def noise_rng(seed: int, index: int) -> np.random.Generator:
+    """Agent ``index``'s own noise stream of a run with ``seed``: one place for its key."""
+    return np.random.default_rng([seed, 7919, index])
+
+
+def _kinds(union) -> str:
+    """'a, b, c': the ``kind`` tags of a discriminated union such as `LambdaSpec`."""
+    return ', '.join(get_args(m.model_fields['kind'].annotation)[0] for m in get_args(get_args(union)[0]))
+
+
+#: top-level field → the discriminated union found under it (for "no kind given" errors)
+_UNION_OF = {'lambda': LambdaSpec, 'leaders': ProgramSpec}
+
+
+def _format_error(err: ValidationError) -> str:
+    e = err.errors()[0]
+    loc = '.'.join(str(p) for p in e['loc'] if not str(p).startswith('function-')) or '(top level)'
+    if e['type'] == 'union_tag_not_found' and e['loc']:
+        union = _UNION_OF.get(str(e['loc'][0]))
+        kinds = f' (one of: {_kinds(union)})' if union is not None else ''
+        return f'{loc}: needs a `kind:` field{kinds}'
+    # discriminated unions put the tag in the path: keep it readable
+    more = len(err.errors()) - 1
+    tail = f' [+{more} more problem{"s" if more > 1 else ""}]' if more else ''
+    if isinstance(e.get('ctx', {}).get('error'), InputError):    # a `Bound`'s one text, as it is
+        return f'{loc}: {e["ctx"]["error"]}{tail}'
+    got = e.get('input')
+    got_s = '' if isinstance(got, (dict, list)) or got is None else f' (got {got!r})'
+    return f'{loc}: {e["msg"]}{got_s}{tail}'
+
+
+def safe_label(name: str) -> str:
+    """``name`` as one file-name component: anything but letters, digits, ``-``, ``_`` and
+    single dots becomes ``_``; leading and trailing dots and underscores go.  So ``../x`` or
+    ``/etc/x`` stays inside the output directory (the name itself is only a label)."""
+    out = re.sub(r'[^A-Za-z0-9_.-]+', '_', name)
+    out = re.sub(r'_+', '_', re.sub(r'\.{2,}', '_', out)).strip('._')
+    return out[:100] or 'scenario'
+
+
+SCENARIO_DIR = 'scenarios'
+
+
+def shipped_scenarios() -> list[str]:
+    """Names of the scenarios shipped with swarm_core."""
+    root = resources.files('swarm_core') / SCENARIO_DIR
+    return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith('.yaml'))
+
+
+def resolve(name_or_path: str) -> tuple[str, str]:
+    """(text, source) of a shipped scenario name or a YAML file path."""
+    p = Path(name_or_path)
+    if p.suffix in ('.yaml', '.yml') or p.exists():
+        if not p.is_file():
+            raise ScenarioError(f'{name_or_path}: no such scenario file')
+        try:
+            size = p.stat().st_size
+            if size > MAX_FILE_BYTES:
+                raise ScenarioError(f'{name_or_path}: {size} bytes; a scenario file is at most '
+                                    f'{MAX_FILE_BYTES} bytes (give large swarms a placement rule)')
+            with open(p, 'rb') as fh:          # read at most the limit (a file may grow)
+                raw = fh.read(MAX_FILE_BYTES + 1)
+        except OSError as err:
+            raise ScenarioError(f'{name_or_path}: cannot read: {err.strerror or err}') from None
+        if len(raw) > MAX_FILE_BYTES:
+            raise ScenarioError(f'{name_or_path}: more than {MAX_FILE_BYTES} bytes')
+        try:
+            return raw.decode('utf-8'), str(p)
+        except UnicodeDecodeError as err:
+            raise ScenarioError(f'{name_or_path}: not UTF-8 text ({err.reason} at byte {err.start})') from None
+    res = resources.files('swarm_core') / SCENARIO_DIR / f'{name_or_path}.yaml'
+    if not res.is_file():
+        raise ScenarioError(f'{name_or_path}: not a shipped scenario ({", ".join(shipped_scenarios())}) '
+                            'nor a .yaml file')
+    return res.read_text(), f'{name_or_path} (shipped)'
+
+
+def law_config(spec: ScenarioSpec) -> LawConfig:
+    """The law of a validated spec: each parameter from its section (`law_parameters.LAW_TABLE`),
+    its `LawConfig` default where the scenario has no such section (no target, no barrier)."""
+    def value(p):
+        section = getattr(spec, p.section)
+        return p.default if section is None else getattr(section, p.scenario_key)
+    return LawConfig.from_parameters({p.name: value(p) for p in LAW_TABLE})
+
+
+def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
+    """Validate a scenario mapping; ``overrides`` (seed, duration, dt) replace its fields."""
+    if not isinstance(data, dict):
+        raise ScenarioError(f'{source}: a scenario is a YAML mapping, got {type(data).__name__}')
+    data = dict(data)
+    for key, val in overrides.items():
+        if val is not None:
+            data[key] = val
+    try:
+        spec = ScenarioSpec.model_validate(data)
+    except ValidationError as err:
+        raise ScenarioError(f'{source}: {_format_error(err)}') from None
+    law = law_config(spec)
+    names = list(spec.agents.names) if spec.agents.names else None
+    for who in spec.leaders.fixed:
+        known = names or [f'agent_{i}' for i in range(spec.agents.count)]
+        if who not in known:
+            raise ScenarioError(f'{source}: leaders.fixed.{who}: unknown agent (agents are {", ".join(known[:8])}'
+                                f'{", ..." if len(known) > 8 else ""})')
+    known = names or [f'agent_{i}' for i in range(spec.agents.count)]
+    for i, f in enumerate(spec.faults):
+        if not f.agent.startswith('leader:') and f.agent not in known:
+            raise ScenarioError(f'{source}: faults.{i}.{f.kind}: unknown agent {f.agent!r} (agents are '
+                                f'{", ".join(known[:8])}{", ..." if len(known) > 8 else ""})')
+    names, pos0, theta0 = initial_conditions(spec)
+    if spec.comms is not None:
+        try:
+            CommModel.from_config(spec.comms.model_dump(mode='json'), names, spec.dt, spec.seed)
+        except ValueError as err:
+            raise ScenarioError(f'{source}: {err}') from None
+        if spec.integrator != 'zoh' and spec.comms.model_dump() != CommsSpec().model_dump():
+            raise ScenarioError(f'{source}: comms: a communication model needs integrator zoh')
+    return Scenario(spec=spec, names=names, pos0=pos0, theta0=theta0, law=law, source=source)
+
+
+_Loader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)     # libyaml when there (4x faster)
+
+
+#: deepest nesting of a scenario or study file (the schema nests about 6 levels)
+MAX_YAML_DEPTH = 32
+
+
+def safe_yaml(text: str):
+    """Parse YAML text with the safe loader, refusing anchors and aliases (``&a`` / ``*a``)
+    and nesting deeper than `MAX_YAML_DEPTH`: an alias bomb (a few lines that expand to
+    billions of values) is refused before anything is built from it.  The node graph is
+    composed, checked (an alias is a node met twice), then constructed."""
+    loader = _Loader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        seen, stack = set(), [(node, 1)]
+        while stack:
+            nd, depth = stack.pop()
+            if id(nd) in seen:
+                mark = nd.start_mark
+                raise yaml.composer.ComposerError(None, None, 'YAML aliases (*name) are not allowed in a scenario',
+                                                  mark)
+            if depth > MAX_YAML_DEPTH:
+                raise yaml.composer.ComposerError(None, None, f'nested deeper than {MAX_YAML_DEPTH} levels',
+                                                  nd.start_mark)
+            seen.add(id(nd))
+            if isinstance(nd, yaml.SequenceNode):
+                stack.extend((v, depth + 1) for v in nd.value)
+            elif isinstance(nd, yaml.MappingNode):
+                stack.extend((x, depth + 1) for kv in nd.value for x in kv)
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
+def read_yaml(name_or_path: str):
+    """(data, source) of a shipped scenario or a YAML file (a scenario or a study) with the
+    limits of every YAML input: `MAX_FILE_BYTES`, no aliases, `MAX_YAML_DEPTH`."""
+    text, source = resolve(name_or_path)
+    if len(text) > MAX_FILE_BYTES:
+        raise ScenarioError(f'{source}: more than {MAX_FILE_BYTES} bytes')
+    try:
+        return safe_yaml(text), source
+    except yaml.YAMLError as err:
+        msg = ' '.join(str(err).split())
+        raise ScenarioError(f'{source}: not valid YAML: {msg[:300]}') from None
+
+
+def load(name_or_path: str, **overrides) -> Scenario:
+    """Load a shipped scenario by name, or a YAML file, with optional overrides."""
+    data, source = read_yaml(name_or_path)
+    return parse(data, source, **overrides)

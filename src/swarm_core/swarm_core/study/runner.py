@@ -1,0 +1,390 @@
+"""Parameter studies: a grid over scenario fields × seeds, a tidy table, rates with CIs (no ROS).
+
+A study is a scenario, a grid ``{field: [values]}`` (fields in dotted form, ``law.leader_gain``,
+``lambda.tau``, ``faults.0.at``), fixed overrides and a list of seeds.  Every cell is validated
+through the scenario model (`scenario.parse`) before anything runs.  Each run is one task that
+carries its whole scenario mapping, so a worker needs only the project installed.  Runs are
+cached one JSON file per run, keyed by (scenario content hash, parameter values, seed, code
+version): a study re-run skips what finished.  The table is sorted by cell and seed and holds
+nothing that depends on the executor (no wall times), so it is the same for any executor and
+any number of workers.  The checks are the scenario's own (`outcomes.evaluate`).
+"""
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.util
+import json
+import signal
+import warnings
+from concurrent import futures
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import get_args
+
+import numpy as np
+from pydantic import BaseModel
+
+from swarm_core.analysis.outputs import analyse, summary_of
+from swarm_core.engine import registry
+from swarm_core.robot_units import ROBOT_SETS
+from swarm_core.scenario import loader as scenario
+from swarm_core.scenario import placement
+from swarm_core.study.cache import ROBOT_METRICS, ROW_METRICS, Cache, row_error
+from swarm_core.study.grid import ROBOT_SET, Study, StudyError, check_size, parse_set, parse_values
+
+# ------------------------------------------------------------------ the study
+
+def _scenario_text(name_or_path):
+    try:
+        data, source = scenario.read_yaml(name_or_path)
+    except scenario.ScenarioError as err:
+        raise StudyError(str(err)) from None
+    if not isinstance(data, dict):
+        raise StudyError(f'{source}: a scenario is a YAML mapping')
+    return data, source
+
+
+def make_study(scenario_name, sets=(), seeds=10, first_seed=0, fixed=None, name=None) -> Study:
+    """A study from a scenario name or file and ``--set`` expressions."""
+    data, source = _scenario_text(scenario_name)
+    grid = {}
+    for expr in sets:
+        fld, vals = parse_set(expr) if isinstance(expr, str) else expr
+        if fld in grid:
+            raise StudyError(f'--set {fld}: given twice')
+        grid[fld] = vals
+    check_size(grid, seeds)
+    seed_list = list(range(first_seed, first_seed + seeds)) if isinstance(seeds, int) else list(seeds)
+    return Study(data=data, source=source, grid=grid, fixed=dict(fixed or {}), seeds=seed_list,
+                 name=name or data.get('name', 'study'))
+
+
+def load_study(path, base_dir=None) -> Study:
+    """A study file (YAML)::
+
+        name: fig3_ramp
+        scenario: homotopy_global      # a shipped name or a file (relative to the study file)
+        seeds: 10                      # or first_seed + seeds, or a list
+        set: {duration: 800}           # fixed overrides (optional)
+        grid:
+          law.leader_gain: [10, 30, 50]
+          lambda.tau: "5:45:3"         # a list or a range string
+        figure: {check: all}           # optional
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise StudyError(f'{path}: cannot read: no such file')
+    try:                          # the limits of scenario files: size, no aliases, depth
+        doc, _ = scenario.read_yaml(str(p))
+    except scenario.ScenarioError as err:
+        raise StudyError(str(err)) from None
+    if not isinstance(doc, dict):
+        raise StudyError(f'{path}: a study is a YAML mapping')
+    unknown = set(doc) - {'name', 'description', 'scenario', 'seeds', 'first_seed', 'set', 'grid', 'figure'}
+    if unknown:
+        raise StudyError(f'{path}: unknown key(s) {sorted(unknown)}')
+    if 'scenario' not in doc or 'grid' not in doc:
+        raise StudyError(f'{path}: a study needs `scenario:` and `grid:`')
+    scn = str(doc['scenario'])
+    rel = (Path(base_dir) if base_dir else p.parent) / scn
+    if scn.endswith(('.yaml', '.yml')) and rel.is_file():
+        scn = str(rel)
+    sets = []
+    if not isinstance(doc['grid'], dict) or not doc['grid']:
+        raise StudyError(f'{path}: grid: a mapping FIELD: [values] with at least one field')
+    for k, v in doc['grid'].items():
+        if isinstance(v, str):
+            try:
+                v = parse_values(v)
+            except StudyError as err:
+                raise StudyError(f'{path}: grid.{k}: {err}') from None
+        if not isinstance(v, list) or not v:
+            raise StudyError(f'{path}: grid.{k}: needs a non-empty list or a START:STOP:COUNT range')
+        sets.append((str(k), v))
+    seeds = doc.get('seeds', 10)
+    st = make_study(scn, sets, seeds=seeds, first_seed=int(doc.get('first_seed', 0)),
+                    fixed=doc.get('set') or {}, name=doc.get('name') or p.stem)
+    st.figure = doc.get('figure') or {}
+    return st
+
+
+def validate(study: Study) -> None:
+    """Parse every cell through the scenario model; the first bad one raises `StudyError`
+    naming the ``--set`` field and the scenario's complaint.  Nothing runs."""
+    if not study.seeds:
+        raise StudyError('no seeds (--seeds must be ≥ 1)')
+    for k, vals in study.grid.items():
+        if not vals:
+            raise StudyError(f'--set {k}: empty list of values')
+    for k, v in study.fixed.items():
+        _check_cell(study, {}, f'set {k}={v}', cell_of_grid=False)
+    for cell in study.cells():
+        _check_cell(study, cell, ', '.join(f'{k}={v}' for k, v in cell.items()))
+
+
+def _known(data: dict, dotted: str) -> bool:
+    """Is ``dotted`` a field the scenario model has (a section may be absent from the file)?"""
+    model = scenario.ScenarioSpec
+    for part in dotted.split('.'):
+        if part.isdigit():
+            continue
+        fields = getattr(model, 'model_fields', None)
+        if fields is None:
+            return True          # a union or a free mapping below: the model validates it
+        match = [n for n, f in fields.items() if part in (n, f.alias)]
+        if not match:
+            return False
+        ann = fields[match[0]].annotation
+        model = _model_in(ann)
+        if model is None:
+            return True
+    return True
+
+
+def _model_in(ann):
+
+    if isinstance(ann, type) and issubclass(ann, BaseModel):
+        return ann
+    models = []
+    stack = [ann]
+    while stack:
+        a = stack.pop()
+        if isinstance(a, type) and issubclass(a, BaseModel):
+            models.append(a)
+        else:
+            stack.extend(get_args(a))
+    return models[0] if len(models) == 1 else None
+
+
+def _check_cell(study, cell, label, cell_of_grid=True):
+    for k in list(study.fixed) + list(cell):
+        if k != ROBOT_SET and not _known(study.data, k):
+            raise StudyError(f'--set {k}: unknown scenario field')
+    try:
+        data = study.cell_data(cell)
+        scn = scenario.parse(data, study.source, seed=study.seeds[0])
+    except (StudyError, scenario.ScenarioError) as err:
+        raise StudyError(f'{label}: {err}') from None
+    robots = study.robot_set(cell)
+    if robots is not None and robots not in ROBOT_SETS:
+        raise StudyError(f'{label}: {ROBOT_SET} {robots!r}: one of {", ".join(ROBOT_SETS)}')
+    if robots is not None and scn.spec.robots is None and cell_of_grid:
+        raise StudyError(f'{label}: {ROBOT_SET} needs the scenario\'s robots: section (length_scale, cruise_speed)')
+
+
+# ------------------------------------------------------------------ runs and the cache
+
+def _canon(x) -> str:
+    return json.dumps(x, sort_keys=True, separators=(',', ':'), default=str)
+
+
+@functools.lru_cache(maxsize=None)
+def code_version(package: str = 'swarm_core') -> str:
+    """A hash of a package's sources (swarm_core: a change to the law or the checks invalidates
+    the cache; swarm_robots too for runs on the robot engine)."""
+    h = hashlib.sha256()
+    root = Path(importlib.util.find_spec(package).origin).parent       # found, not imported
+    for p in sorted(root.rglob('*')):
+        if p.suffix in ('.py', '.yaml') and '__pycache__' not in p.parts:
+            h.update(p.relative_to(root).as_posix().encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def run_key(base_hash: str, cell: dict, seed: int, version: str) -> str:
+    """The cache key of one run: (scenario content hash, parameter values, seed, code version)."""
+    return hashlib.sha256(_canon([base_hash, cell, seed, version]).encode()).hexdigest()[:24]
+
+
+@dataclass
+class Task:
+    """One run: everything a worker needs (the scenario travels with the task)."""
+    key: str
+    index: int
+    cell: dict
+    seed: int
+    data: dict
+    source: str
+    version: str = ''
+    engine: str = 'fast'
+    robot_set: str | None = None      # engine 'robots': which agents are robots
+
+
+#: the engines a study runs on: 'fast' (`fast.simulate`: the compiled kernel where it covers
+#: the run, else the reference) and 'reference' (`engine.simulate`); a cell with a `ROBOT_SET`
+#: runs on ROBOTS_ENGINE (registered by swarm_robots, `engine.registry`) whatever the engine asked for
+ENGINES = ('fast', 'reference')
+#: the engine of a cell with a robot set: ``simulate(scenario, robot_set)``
+ROBOTS_ENGINE = 'robots'
+
+
+def tasks(study: Study, version: str | None = None, engine: str = 'fast') -> list[Task]:
+    if engine not in ENGINES:
+        raise StudyError(f'engine {engine!r}: one of {", ".join(ENGINES)}')
+    version = version or code_version()
+    base = hashlib.sha256(_canon([study.data, study.fixed]).encode()).hexdigest()
+    out = []
+    for ci, cell in enumerate(study.cells()):
+        data = study.cell_data(cell)
+        on = ROBOTS_ENGINE if study.robot_set(cell) is not None else engine
+        tag = {'fast': version, 'reference': f'{version}-reference'}.get(on) or \
+            f'{version}-robots-{code_version("swarm_robots")}-{study.robot_set(cell)}'
+        for seed in study.seeds:
+            out.append(Task(run_key(base, cell, seed, tag), ci, cell, seed, data, study.source, version, on,
+                            study.robot_set(cell)))
+    return out
+
+
+def _num(v):
+    if isinstance(v, (bool, np.bool_)) or v is None:
+        return v if v is None else bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return float(v)
+    return None
+
+
+def run_task(task: Task) -> dict:
+    """Simulate one run and return its row's results (checks and metrics; no wall time)."""
+    if task.version and task.version != code_version():
+        raise RuntimeError(f'this worker runs swarm_core {code_version()}, the study needs {task.version}: '
+                           'install the same project version on every worker')
+    scn = scenario.parse(task.data, task.source, seed=task.seed)
+    simulate = registry.engine(task.engine)
+    traj = simulate(scn, task.robot_set) if task.engine == ROBOTS_ENGINE else simulate(scn)
+    series, checks = analyse(traj, scenario=scn)
+    s = summary_of(scn, traj, series, checks)
+    row = {'ok': s['behaviour_ok']}
+    for name, res in checks.items():
+        row[name] = res['passed']
+        for k, v in res.items():
+            if k not in ('passed', 'not_judged') and _num(v) is not None:
+                row[f'{name}.{k}'] = _num(v)
+    for k in ROW_METRICS:
+        if k in s:
+            row[k] = _num(s[k])
+    for k in ROBOT_METRICS if 'robots' in s else ():
+        row[k] = _num(s['robots'][k])
+    # the first time the swarm has two clusters and the last time it becomes one again
+    ch = s['cluster_changes']
+    row['t_first_split'] = next((t for t, c in ch if c >= 2), None)
+    row['t_last_one'] = next((t for t, c in reversed(ch) if c == 1), None) if ch and ch[-1][1] == 1 else None
+    return {'key': task.key, 'result': row, 'wall': s['wall_seconds']}
+
+
+# ------------------------------------------------------------------ executors
+
+def _ignore_sigint():
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # the parent decides what a Ctrl-C ends
+
+
+def _local_map(todo, jobs):
+    """Yield run_task results as they finish, in local processes (``jobs`` 1: in this one)."""
+    if jobs <= 1:
+        for t in todo:
+            yield run_task(t)
+        return
+    pool = ProcessPoolExecutor(max_workers=jobs, initializer=_ignore_sigint)
+    done = False
+    try:
+        futs = [pool.submit(run_task, t) for t in todo]
+        for f in futures.as_completed(futs):
+            yield f.result()
+        done = True
+    finally:
+        if not done:                       # Ctrl-C or an error: end the runs in flight now
+            procs = list((pool._processes or {}).values())
+            for proc in procs:
+                proc.terminate()
+            for proc in procs:
+                proc.join(10)
+            pool.shutdown(wait=True)   # the pool sees its workers gone and fails what was left
+        else:
+            pool.shutdown(wait=True)
+
+
+def dask_client(scheduler: str):
+    """A distributed Client: ``tcp://HOST:PORT`` (an existing scheduler) or ``local:N`` (a
+    local cluster of N single-threaded worker processes, ended with the client)."""
+    from distributed import Client, LocalCluster
+    if scheduler.startswith('local:'):
+        n = int(scheduler[6:])
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               dashboard_address=None, host='127.0.0.1')
+        client = Client(cluster)
+        client._study_cluster = cluster
+        return client
+    return Client(scheduler, timeout=30)
+
+
+def _dask_map(todo, scheduler):
+    from distributed import as_completed
+    client = dask_client(scheduler)
+    try:
+        futs = [client.submit(run_task, t, key=f'swarm-run-{t.key}', pure=False) for t in todo]
+        try:
+            for f in as_completed(futs):
+                yield f.result()
+        finally:
+            client.cancel(futs)
+    finally:
+        cluster = getattr(client, '_study_cluster', None)
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _cached(cache, task) -> bool:
+    """Whether the cache holds the task's row; a file that is not one (`study_cache.row_error`)
+    is run again, with one warning."""
+    doc = cache.get(task.key)
+    if doc is None and not cache.path(task.key).exists():
+        return False
+    agents = placement.AgentsSpec.model_validate(task.data['agents']).count
+    why = 'not JSON' if doc is None else row_error(doc, task.cell, task.seed, agents)
+    if why:
+        warnings.warn(f'study cache {cache.path(task.key)}: {why}; running it again', stacklevel=3)
+    return why is None
+
+
+def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, version=None,
+              on_result=None, engine='fast'):
+    """Run every task not in the cache; return (rows in cell × seed order, counts).
+
+    ``engine``: 'fast' (default) or 'reference' (`ENGINES`); each has its own cache keys.
+    ``scheduler``: None for local processes (``jobs``), else a Dask address or ``local:N``.
+    ``on_result(counts)`` is called after each finished run is cached.  Ctrl-C
+    (KeyboardInterrupt) leaves the finished runs in the cache and propagates."""
+    from tqdm import tqdm
+    cache = Cache(cache_dir)
+    all_tasks = tasks(study, version, engine)
+    todo = [t for t in all_tasks if not _cached(cache, t)]
+    counts = {'total': len(all_tasks), 'cached': len(all_tasks) - len(todo), 'ran': 0}
+    by_key = {t.key: t for t in todo}
+    bar = None
+    if progress:
+        bar = tqdm(total=len(all_tasks), initial=counts['cached'], unit='run', dynamic_ncols=True,
+                   desc=study.name, smoothing=0.1)
+    try:
+        if todo:
+            it = _dask_map(todo, scheduler) if scheduler else _local_map(todo, jobs)
+            for out in it:
+                t = by_key[out['key']]
+                cache.put(t.key, {'cell': t.cell, 'seed': t.seed, 'result': out['result'],
+                                  'wall': out['wall']})
+                counts['ran'] += 1
+                if bar is not None:
+                    bar.update(1)
+                if on_result is not None:
+                    on_result(counts)
+    finally:
+        if bar is not None:
+            bar.close()
+    rows = []
+    for t in all_tasks:
+        doc = cache.get(t.key)
+        rows.append({**t.cell, 'seed': t.seed, **doc['result']})
+    return rows, counts
