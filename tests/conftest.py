@@ -1,8 +1,13 @@
-"""Shared fixtures.
+"""Shared fixtures, and the `ros` marker by folder.
 
 DDS isolation: every test that touches ROS gets its own ROS_DOMAIN_ID (``ros_domain``),
 discovery stays on localhost, and every process a test starts is ended by the test
 (``processes``), also when it fails.
+
+The `ros` marker (tests that use rclpy / DDS) comes from where a test lives, not from the
+test: every test under a ``ros/`` folder (tests/agent/ros/, tests/tools/bags/ros/...) or under
+tests/e2e/ (whole runs) is marked; a test elsewhere that is marked `ros` by hand is an error
+(move it into a ros/ folder).  Helpers the tests share are in tests/helpers.py.
 """
 from __future__ import annotations
 
@@ -10,7 +15,6 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -21,7 +25,7 @@ import pytest
 if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
-ROOT = Path(__file__).resolve().parents[1]
+TESTS = Path(__file__).resolve().parent
 VENV_BIN = Path(sys.executable).parent
 
 
@@ -32,8 +36,37 @@ def pytest_addoption(parser):
         'tests as two shards; each test claims its own ROS_DOMAIN_ID, so shards run side by side)'))
 
 
-@pytest.hookimpl(trylast=True)          # after -m / -k have deselected
+def ros_by_folder(path: Path) -> bool | None:
+    """Whether the tests of ``path`` use ROS, by their folder: a ``ros`` folder anywhere under
+    tests/, or tests/e2e/.  None for a file outside tests/ (another suite in the same run)."""
+    try:
+        folders = Path(path).resolve().relative_to(TESTS).parts[:-1]
+    except ValueError:
+        return None
+    return 'ros' in folders or folders[:1] == ('e2e',)
+
+
+@pytest.hookimpl(wrapper=True, tryfirst=True)
 def pytest_collection_modifyitems(config, items):
+    # before every other implementation, so before `-m` deselects (the mark plugin's): the
+    # marker by folder; a test marked `ros` by hand outside a ros/ folder is an error
+    misplaced = set()
+    for item in items:
+        by_folder = ros_by_folder(item.path)
+        if by_folder:
+            item.add_marker(pytest.mark.ros)
+        elif by_folder is not None and item.get_closest_marker('ros'):
+            misplaced.add(str(Path(item.path).resolve().relative_to(TESTS.parent)))
+    if misplaced:
+        raise pytest.UsageError('marked `ros` outside a ros/ folder (the marker comes from the folder: '
+                                'move the tests into one, e.g. tests/agent/ros/): ' + ', '.join(sorted(misplaced)))
+    yield
+    # after the others, so after -m / -k have deselected: this run's shard
+    take_shard(config, items)
+
+
+def take_shard(config, items):
+    """Keep only the items of shard I of K (``--shard I/K``), the others deselected."""
     shard = config.getoption('shard')
     if not shard:
         return
@@ -54,6 +87,7 @@ def pytest_collection_modifyitems(config, items):
     keep = [it for it in items if it.path in mine]
     config.hook.pytest_deselected(items=[it for it in items if it.path not in mine])
     items[:] = keep
+
 
 # ``ros_domain`` (a ROS_DOMAIN_ID of the test's own) and ``swarm`` come from the project's pytest
 # plugin, swarm_tools.pytest_plugin (entry point pytest11), which users' tests get too.
@@ -139,119 +173,3 @@ def processes():
 def swarm_cmd():
     """Path of the installed ``swarm`` command (the venv's console script)."""
     return str(VENV_BIN / 'swarm')
-
-
-#: the six agents of Figs. 3-4 under the homotopy law: the scenario of most tests
-SIX_AGENTS = {
-    'name': 'homotopy_short',
-    'seed': 0,
-    'dt': 0.05,
-    'agents': {'positions': [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]],
-               'headings': {'rule': 'cone', 'half_width': 0.7853981633974483}},
-    'law': {'kind': 'homotopy', 'alpha': 0.02, 'eta': 0.02, 'mu': 0.02, 'r0': 1.5, 'cutoff_radius': 4.0,
-            'leader_gain': 30.0, 'q0': 1.0},
-}
-
-
-def short_homotopy(path, *, duration, lam, at, curvature=0.01, **overrides):
-    """Write `SIX_AGENTS` to ``path`` (returned) as a scenario of ``duration`` s: λ schedule
-    ``lam`` (a dict or YAML text), the two lateral-extreme leaders chosen at ``at`` steering
-    ±``curvature``.  ``overrides``: further top-level keys (seed=5, faults=[...]); a dict is
-    merged into the base's dict of that key (law={'cutoff_radius': 5.0})."""
-    import copy
-
-    import yaml
-    data = copy.deepcopy(SIX_AGENTS)
-    data.update(duration=duration, **{'lambda': yaml.safe_load(lam) if isinstance(lam, str) else lam})
-    data['leaders'] = {'rule': 'lateral_extremes', 'at': at,
-                       'programs': [{'kind': 'constant', 'curvature': c} for c in (curvature, -curvature)]}
-    for key, value in overrides.items():
-        data[key] = {**data[key], **value} if isinstance(data.get(key), dict) else value
-    path = Path(path)
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
-    return path
-
-
-class Lines:
-    """Collects a child's stdout lines in a thread (start it with stdout=PIPE, text=True)."""
-
-    def __init__(self, proc):
-        self.lines = []
-        self.t = threading.Thread(target=self._read, args=(proc,), daemon=True)
-        self.t.start()
-
-    def _read(self, proc):
-        for line in proc.stdout:
-            self.lines.append(line)
-
-    def wait_for(self, text, timeout):
-        """Whether a line holds ``text`` (or, ``text`` a function, a line makes it true) within
-        ``timeout`` s."""
-        hit = text if callable(text) else (lambda ln: text in ln)
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            if any(hit(ln) for ln in list(self.lines)):
-                return True
-            time.sleep(0.1)
-        return False
-
-    def wait(self, proc, timeout):
-        """proc.wait(timeout); on a timeout the test fails with everything the child printed."""
-        try:
-            return proc.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            pytest.fail(f'no exit within {timeout} s; it printed:\n' + ''.join(self.lines[-200:]))
-
-
-def overrides(d):
-    """rclpy Parameters from a dict (a node's parameter_overrides)."""
-    from rclpy.parameter import Parameter
-    return [Parameter(k, value=v) for k, v in d.items()]
-
-
-def odom(name, x, y, theta, t, u=0.0):
-    """An agent's state as the nodes publish it (nav_msgs/Odometry; stamp = sim time t)."""
-    from nav_msgs.msg import Odometry
-
-    from swarm_core.frenet import quaternion_from_heading
-    from swarm_ros import protocol as P
-    m = Odometry()
-    m.header.frame_id, m.child_frame_id = 'world', name
-    m.header.stamp.sec, m.header.stamp.nanosec = P.time_to_stamp(t)
-    m.pose.pose.position.x, m.pose.pose.position.y = x, y
-    qz, qw = quaternion_from_heading(theta)
-    m.pose.pose.orientation.z, m.pose.pose.orientation.w = float(qz), float(qw)
-    m.twist.twist.angular.z = u
-    return m
-
-
-def run_nodes(params, ctx, timeout):
-    """World, commander and agents from `node_parameters`' output, in one executor on ``ctx``,
-    spun until the world is done (at most ``timeout`` s); returns (done?, world, [all nodes])."""
-    from swarm_tools.launch import build_nodes
-    from swarm_ros.rosutil import make_executor
-    world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
-    ex = make_executor(ctx)
-    nodes = [world, commander, *agents]
-    for nd in nodes:
-        ex.add_node(nd)
-    done = spin_for(ex, lambda: world.done, timeout)
-    return done, world, nodes
-
-
-def spin_for(ex, cond, timeout=10.0):
-    """Spin ``ex`` until ``cond()`` or ``timeout`` s; returns cond()."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        ex.spin_once(timeout_sec=0.05)
-    return cond()
-
-
-def pairs_of_one(pairs, k):
-    """The pairs of receiver ``k`` out of `engine.neighbour_pairs`' (k, j) arrays, as one
-    receiver's (position 0, sender row) list for ``swarm_control(..., receivers=[k])``."""
-    import numpy as np
-    mine = pairs[0] == k
-    return np.zeros(np.count_nonzero(mine), dtype=np.intp), pairs[1][mine]

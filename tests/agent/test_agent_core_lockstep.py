@@ -1,12 +1,12 @@
 """Pure-python check (no DDS) of the lockstep claim: one `AgentCore` per agent, each with a
 table of the states it received (positions and quaternions as they would travel in
-nav_msgs/Odometry), reproduces `swarm_core.engine.simulate` bit for bit."""
+nav_msgs/Odometry), reproduces `swarm_core.engine.reference.simulate` bit for bit."""
 import numpy as np
 import pytest
 
 from swarm_agent.agent_core import AgentCore
-from swarm_core.engine import simulate
-from swarm_core.scenario import load
+from swarm_core.engine.reference import simulate
+from swarm_core.scenario.loader import load
 
 
 @pytest.mark.parametrize('name,duration', [('homotopy_global', 40.0), ('target_barrier', 20.0)])
@@ -26,7 +26,7 @@ def test_agents_reproduce_batch_engine(name, duration):
         x = np.array([a.pos[0, 0] for a in agents])
         y = np.array([a.pos[0, 1] for a in agents])
         q = np.array([a.quaternion for a in agents])
-        from swarm_core.frenet import frame_from_quaternion
+        from swarm_core.model.frenet import frame_from_quaternion
         c, s = frame_from_quaternion(q[:, 0], q[:, 1])
         lam, leaders, steering = plan.update(t, np.stack([x, y], 1), c, s)
         flags = np.zeros(n, bool)

@@ -1,5 +1,5 @@
 """Agent containers without DDS (`swarm_agent.container_core`): K agents of one process, driven
-by the step messages the world would send, reproduce `swarm_core.engine.simulate` bit for bit
+by the step messages the world would send, reproduce `swarm_core.engine.reference.simulate` bit for bit
 (one law call per container and step), with faults; the ``auto`` rule; the grouping."""
 from types import SimpleNamespace
 
@@ -7,20 +7,24 @@ import numpy as np
 import pytest
 
 from swarm_agent.agent_core import AgentCore
-from swarm_agent.container_core import (CONTAINER_SIZE, PROCESSES_PER_CORE, ContainerCore, agents_per_process,
-                                        split_agents)
-from swarm_core.engine import simulate
-from swarm_core.scenario import load
-
-from conftest import short_homotopy
+from swarm_agent.container_core import (
+    CONTAINER_SIZE,
+    PROCESSES_PER_CORE,
+    ContainerCore,
+    agents_per_process,
+    split_agents,
+)
+from swarm_core.engine.reference import simulate
+from swarm_core.scenario.loader import load
+from tests.helpers import short_homotopy
 
 
 def drive(scn, groups):
     """Run the agents as containers (``groups``: agent indices per process) on the batch
     engine's own step inputs (what the world relays: λ, leaders, s_k, who is in the table),
     checking u and positions against the engine step by step; returns the agent-steps moved."""
-    from swarm_core.engine import SwarmStepper
-    from swarm_core.frenet import quaternion_from_heading
+    from swarm_core.engine.reference import SwarmStepper
+    from swarm_core.model.frenet import quaternion_from_heading
     eng = SwarmStepper(scn)
     n = len(scn.names)
     cores = [AgentCore(i, n, *scn.pos0[i], scn.theta0[i], scn.law, scn.dt,
@@ -94,7 +98,7 @@ def test_repeat_reject_and_kill():
     n = len(scn.names)
     cores = [AgentCore(i, n, *scn.pos0[i], scn.theta0[i], scn.law, scn.dt) for i in range(n)]
     box = ContainerCore(cores[:3])
-    from swarm_core.frenet import quaternion_from_heading
+    from swarm_core.model.frenet import quaternion_from_heading
     qz, qw = quaternion_from_heading(scn.theta0)
 
     def msg(k, alive=None):
@@ -131,7 +135,7 @@ def test_an_agent_on_a_mujoco_robot_takes_its_pose_from_the_table_and_does_not_i
     table (the robot world's report), its frame the table's quaternion, its heading unwrapped
     near the one before; it computes u as a kinematic agent standing there would, and leaves
     the move to its robot.  The kinematic agents beside it move as before."""
-    from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
+    from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
     scn = load('homotopy_global', duration=1.0)
     n = len(scn.names)
     theta = scn.theta0 + np.linspace(0.0, 0.5, n) + 4 * np.pi * (np.arange(n) == 1)   # b's report: 2 turns on

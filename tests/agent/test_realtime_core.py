@@ -9,8 +9,8 @@ import pytest
 from swarm_agent.agent_core import AgentCore, known_table
 from swarm_agent.container_core import ContainerCore
 from swarm_agent.realtime_core import Continued, HeardStates, advance_periods, due_periods, shared_controls
-from swarm_core.frenet import quaternion_from_heading
 from swarm_core.laws import LawConfig
+from swarm_core.model.frenet import quaternion_from_heading
 
 N, DT, STALE = 12, 0.05, 0.3
 MINE = [2, 3, 5, 8, 9]          # the container's agents (roster rows)

@@ -11,7 +11,7 @@ import numpy as np
 
 from swarm_agent.process_io import AgentStatesWriter, decode_batch, own_echo
 from swarm_agent.realtime_core import HeardStates
-from swarm_core.frenet import quaternion_from_heading
+from swarm_core.model.frenet import quaternion_from_heading
 from swarm_ros import protocol as P
 from swarm_ros.layouts import ProcessStates
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, Senders, check_values, refused
@@ -51,8 +51,8 @@ def _agents(rng, rows, t):
     for j, i in enumerate(rows):
         sec, nsec = P.time_to_stamp(t[j])
         x, y = rng.uniform(-5, 5, 2)
-        out.append(SimpleNamespace(index=i, run_id=RUN, agent_name=ROSTER[i],
-                                   own=(sec, nsec, float(x), float(y), float(qz[j]), float(qw[j]), float(rng.normal()))))
+        own = (sec, nsec, float(x), float(y), float(qz[j]), float(qw[j]), float(rng.normal()))
+        out.append(SimpleNamespace(index=i, run_id=RUN, agent_name=ROSTER[i], own=own))
     return out
 
 

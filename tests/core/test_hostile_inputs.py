@@ -1,6 +1,6 @@
 """Hostile inputs, one test (or a few) per class, all without a ROS graph: finite but absurd
 values, study files and caches, the size of a run, replay files and the hosts' records.  The
-peers on the domain are in test_input_checks.py (runinfo is pure)."""
+peers on the domain are in tests/swarm_ros/test_msg_checks.py (runinfo is pure)."""
 from __future__ import annotations
 
 import json
@@ -10,9 +10,13 @@ import time
 import numpy as np
 import pytest
 
-from swarm_core import command_plan, inputs, schedules, scenario, simulate_cli
+from swarm_core import checks as inputs
 from swarm_core import study as st
-from swarm_core.faults import Fault, FaultTimeline
+from swarm_core.command import plan as command_plan
+from swarm_core.command import schedules
+from swarm_core.faults.agents import Fault, FaultTimeline
+from swarm_core.scenario import loader as scenario
+from swarm_tools import simulate as simulate_cli
 
 NAMES = ['agent_0', 'agent_1', 'agent_2']
 
@@ -53,7 +57,7 @@ def test_the_world_survives_any_fault_request_a_peer_can_send():
     """Every request is either refused (ValueError, KeyError, TypeError: one log line in the
     world) or applied; `swarm pause agent_1 1e308` was accepted and crashed the world with
     OverflowError in the freeze schedule."""
-    from swarm_world.inputs import fault_request
+    from swarm_world.parsing import fault_request
     requests = ['{"kind": "freeze", "agent": "agent_1", "for": 1e308}',
                 '{"kind": "freeze", "agent": "agent_1", "for": 1e999}',
                 '{"kind": "freeze", "agent": "agent_1", "for": "5"}',
@@ -80,7 +84,7 @@ def test_the_world_survives_any_fault_request_a_peer_can_send():
 def test_commands_and_decisions_take_the_same_bounds():
     """A steering of 1e308 made an agent NaN once λ = 1: refused by the commander's check,
     the world's check of a decision and the Foxglove view alike."""
-    from swarm_tools.view import client_bound
+    from swarm_tools.live.view import client_bound
     from swarm_world.lockstep import decision_valid
     for cmd in [dict(command='steer', agent=0, value=1e308), dict(command='lambda', value=1.0, ramp=1e308),
                 dict(command='lambda', value=1.0, ramp=[1]), dict(command='lambda', value=1.0, shape=['x'])]:
@@ -229,9 +233,9 @@ def test_a_cached_row_that_is_not_one_is_run_again_with_one_warning(tmp_path, ed
 def test_a_rebuild_never_replaces_a_longer_record(tmp_path, capsys):
     """The launcher rebuilt the world's 85-sample trajectory from the bag as 84 samples (the
     discovery server was SIGKILLed, the run ended with an error): the longer one stays."""
-    from swarm_core.trajectory import Trajectory
-    from swarm_tools import launch
-    from test_bag_report import write_bag
+    from swarm_core.engine.trajectory import Trajectory
+    from swarm_tools.run import launch
+    from tests.helpers import write_run_bag
     run_dir = tmp_path / 'run'
     assert simulate_cli.simulate_main(['homotopy_global', '--duration', '4', '--out', str(run_dir),
                                        '--quiet', '--no-figure']) == 0
@@ -240,7 +244,7 @@ def test_a_rebuild_never_replaces_a_longer_record(tmp_path, capsys):
     short = Trajectory(names=traj.names, t=traj.t[:-1], r=traj.r[:-1], theta=traj.theta[:-1], u=traj.u[:-1],
                        lam=traj.lam[:-1], leader=traj.leader[:-1], meta=dict(traj.meta))
     scn = scenario.load('homotopy_global', duration=4)
-    bag = write_bag(short, tmp_path / 'run.mcap', metrics_cutoff=scn.law.cutoff_radius)
+    bag = write_run_bag(short, tmp_path / 'run.mcap', metrics_cutoff=scn.law.cutoff_radius)
     assert not launch.salvage(scn, run_dir, bag, 'lockstep', 0.0, figure=False)
     assert (run_dir / 'trajectory.npz').read_bytes() == saved
     assert f'kept the trajectory the world saved ({len(traj.t)} samples); the bag holds {len(traj.t) - 1}' \

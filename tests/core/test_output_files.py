@@ -33,7 +33,7 @@ def _planted(tmp_path):
 
 
 def test_writers_refuse_links_devices_fifos_and_directories(tmp_path):
-    from swarm_core.atomic import atomic_open, open_regular
+    from swarm_core.files import atomic_open, open_regular
     victim, d = _planted(tmp_path)
     for name in ('link', 'fifo', 'dir', 'dev'):
         with pytest.raises(OSError, match='not a regular file'):
@@ -77,7 +77,7 @@ def test_sweep_and_bag_recover_do_not_write_through_planted_files(tmp_path):
     assert r.returncode == 1 and 'tiny.png' in r.stderr and 'Traceback' not in r.stderr, r.stderr
     assert victim.read_text() == 'precious' and (out / 'rates.md').is_file()
 
-    from swarm_tools.bag import BagWriter
+    from swarm_tools.bags.mcap_io import BagWriter
     bag = tmp_path / 'b.mcap'
     BagWriter(bag).close()
     dev = tmp_path / 'full'

@@ -2,7 +2,6 @@
 ``swarm run --robots`` (pure: no ROS)."""
 import math
 
-import numpy as np
 import pytest
 
 from swarm_core.robot_units import RateLimit, RobotsSpec, RobotUnits, SafetyGuard, wrap_near
@@ -94,7 +93,7 @@ def test_robots_section_is_validated():
 
 
 def test_scenario_robots_section_and_error_names_the_field(tmp_path):
-    from swarm_core.scenario import ScenarioError, parse
+    from swarm_core.scenario.loader import ScenarioError, parse
     base = {'name': 'r', 'agents': {'positions': [[0, 0], [1, 0]]}, 'duration': 1.0}
     scn = parse(dict(base, robots={'length_scale': 0.3, 'cruise_speed': 0.15}))
     assert scn.spec.robots.units().robot_time(1.0) == pytest.approx(2.0)
@@ -106,7 +105,7 @@ NAMES = [f'agent_{i}' for i in range(6)]
 
 
 def test_parse_robots_kinds_and_selections():
-    from swarm_tools.robot_plan import parse_robots
+    from swarm_tools.run.robots import parse_robots
     assert parse_robots(None, NAMES) == {}
     assert parse_robots(['external'], NAMES) == {nm: 'external' for nm in NAMES}
     assert parse_robots(['external:agent_0-agent_2'], NAMES) == {f'agent_{i}': 'external' for i in range(3)}
@@ -122,9 +121,9 @@ def test_parse_robots_kinds_and_selections():
 
 
 def test_robot_agents_get_their_parameters():
-    from swarm_core.scenario import parse
-    from swarm_tools.node_params import node_parameters
-    from swarm_tools.robot_plan import apply_robots
+    from swarm_core.scenario.loader import parse
+    from swarm_tools.run.params import node_parameters
+    from swarm_tools.run.robots import apply_robots
     scn = parse({'name': 'r', 'agents': {'positions': [[i, 0] for i in range(6)]}, 'duration': 1.0,
                  'robots': {'length_scale': 0.5, 'cruise_speed': 0.25, 'cmd_type': 'Twist'}})
     params = node_parameters(scn, 'r.yaml', 'realtime')

@@ -9,13 +9,10 @@ import numpy as np
 import pytest
 import yaml
 
-from swarm_core.engine import simulate
-from swarm_core.scenario import load
-from swarm_core.trajectory import Trajectory
-
-from conftest import Lines, short_homotopy
-
-pytestmark = pytest.mark.ros
+from swarm_core.engine.reference import simulate
+from swarm_core.engine.trajectory import Trajectory
+from swarm_core.scenario.loader import load
+from tests.helpers import Lines, short_homotopy
 
 
 def scenario(tmp_path, n, duration):
@@ -30,42 +27,43 @@ def scenario(tmp_path, n, duration):
     return path
 
 
-def graph_agents(ctx_node, want, proc, timeout):
-    """The agent nodes the graph shows, polled until all of ``want`` are there (or ``proc``
-    ends). As `ros2 node list` does (ros2cli, ros2node/api/__init__.py `get_node_names`):
-    ``node.get_node_names_and_namespaces()``, full name = namespace + '/' + name."""
+def graph_agents(want, proc, timeout):
+    """The nodes ``ros2 node list`` shows (the faithful stand-in, tests/fakes/ros2cli_verbs.py:
+    a fresh participant, 0.5 s of discovery, one look), run again as a user would until all of
+    ``want`` are there (or ``proc`` ends)."""
+    from tests.fakes.ros2cli_verbs import node_list
     end = time.monotonic() + timeout
     seen = set()
     while time.monotonic() < end and proc.poll() is None:
-        seen = {(ns.rstrip('/') + '/' + nm) for nm, ns in ctx_node.get_node_names_and_namespaces()}
+        seen = set(node_list())
         if want <= seen:
             break
-        time.sleep(0.2)
     return seen
 
 
-def node_services(ctx_node, ns, lean, proc, timeout):
-    """The service names of node ``<ns>/agent`` as `ros2 service list` finds them per node
-    (rclpy ``get_service_names_and_types_by_node``), polled until its parameter services are
-    there (``lean`` False) or, for a lean node, until its /swarm/states writer is known."""
+def node_services(ns, lean, proc, timeout):
+    """The service servers of node ``<ns>/agent`` as ``ros2 node info`` lists them (the stand-in),
+    run again until its parameter services are there (``lean`` False) or, for a lean node,
+    until its /swarm/states writer is listed."""
+    from tests.fakes.ros2cli_verbs import NodeNotFound, node_info
     end = time.monotonic() + timeout
     names = set()
     while time.monotonic() < end and proc.poll() is None:
-        names = {nm for nm, _ in ctx_node.get_service_names_and_types_by_node('agent', ns)}
-        pubs = {nm for nm, _ in ctx_node.get_publisher_names_and_types_by_node('agent', ns)}
-        if (f'{ns}/agent/set_parameters' in names) if not lean else '/swarm/states' in pubs:
+        try:
+            info = node_info(f'{ns}/agent')
+        except NodeNotFound:
+            continue
+        names = set(info['services'])
+        if (f'{ns}/agent/set_parameters' in names) if not lean else '/swarm/states' in info['publishers']:
             break
-        time.sleep(0.2)
     return names
 
 
 @pytest.mark.parametrize('n,per', [(6, 1), (6, 3), (6, 6), (24, 12)], ids=['6x1', '2x3', '1x6', '24-2x12'])
-def test_containers_lockstep_equal_simulate(n, per, tmp_path, ros_domain, rclpy_context, processes, swarm_cmd):
-    from rclpy.node import Node
-
+def test_containers_lockstep_equal_simulate(n, per, tmp_path, ros_domain, processes, swarm_cmd):
     from swarm_agent.container_core import split_agents
-    from swarm_tools.node_params import node_parameters, write_params_file
-    from swarm_tools.processes import agent_commands
+    from swarm_tools.run.params import node_parameters, write_params_file
+    from swarm_tools.run.processes import agent_commands
     path = scenario(tmp_path, n, duration=10.0 if n == 6 else 6.0)
     scn = load(str(path))
     # the graph: the agent processes as the launcher spawns them (`agent_commands`), on their own
@@ -75,12 +73,10 @@ def test_containers_lockstep_equal_simulate(n, per, tmp_path, ros_domain, rclpy_
     lean = n == 24          # the agent nodes without services (`swarm run --agent-services off`)
     agents = [processes.start(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
               for _, _, cmd in agent_commands(groups, ['--ros-args', '--params-file', str(params)], not lean)]
-    watcher = Node('graph_watch', context=rclpy_context)
     want = {f'/{nm}/agent' for nm in scn.names}
     hosts = set() if per == 1 else {f'/agent_container_{i}' for i in range(0, n, per)}
-    seen = graph_agents(watcher, want | hosts, agents[0], 180)
-    services = node_services(watcher, '/agent_1', lean, agents[0], 60) if want <= seen else set()
-    watcher.destroy_node()
+    seen = graph_agents(want | hosts, agents[0], 180)
+    services = node_services('/agent_1', lean, agents[0], 60) if want <= seen else set()
     for a in agents:
         a.terminate()
     for a in agents:

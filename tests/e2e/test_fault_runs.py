@@ -17,14 +17,11 @@ import subprocess
 import numpy as np
 import pytest
 
-from swarm_core import outcomes
-from swarm_core.engine import simulate
-from swarm_core.trajectory import Trajectory
-from swarm_core.scenario import load
-
-from conftest import Lines, short_homotopy
-
-pytestmark = pytest.mark.ros
+from swarm_core.analysis import outcomes
+from swarm_core.engine.reference import simulate
+from swarm_core.engine.trajectory import Trajectory
+from swarm_core.scenario.loader import load
+from tests.helpers import Lines, short_homotopy
 
 #: the scheduled faults: a follower frozen for 2 s at t = 6, the left leader killed at t = 14
 SCHEDULED = [{'at': 6, 'freeze': 'agent_1', 'for': 2.0}, {'at': 14, 'kill': 'leader:0'}]
@@ -34,8 +31,8 @@ PROGRAM = 0.05
 def bag_view(bag, names, dt, steps):
     """(t, r (T, n, 2), θ (T, n), events) from the bag: each agent's published states on the
     step grid (NaN where it published none) and the /swarm/events objects."""
-    from swarm_core.frenet import yaw_from_quaternion
-    from swarm_tools.bag import iter_messages, parse_float64, parse_odometry, parse_string
+    from swarm_core.model.frenet import yaw_from_quaternion
+    from swarm_tools.bags.mcap_io import iter_messages, parse_float64, parse_odometry, parse_string
     T = steps + 1
     r = np.full((T, len(names), 2), np.nan)
     th = np.full((T, len(names)), np.nan)

@@ -12,31 +12,28 @@ import threading
 import time
 
 import numpy as np
-import pytest
 import rclpy
 from geometry_msgs.msg import Point32, PointStamped, PolygonStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from swarm_agent.agent_node import AgentNode
-from swarm_core.scenario import load
-from swarm_tools.launch import build_nodes
-from swarm_tools.node_params import agent_parameters, node_parameters
+from swarm_core.scenario.loader import load
 from swarm_ros import protocol as P
 from swarm_ros.layouts import ProcessStates, States, Step
 from swarm_ros.rosutil import make_executor
 from swarm_ros.runinfo import run_json
+from swarm_tools.run.launch import build_nodes
+from swarm_tools.run.params import agent_parameters, node_parameters
 from swarm_world.world_node import WorldNode
-
-from conftest import odom, overrides, short_homotopy, spin_for
-
-pytestmark = pytest.mark.ros
+from tests.helpers import odom, overrides, short_homotopy, spin_for
 
 
 def test_hostile_publisher_during_a_realtime_run(tmp_path, rclpy_context):
     """During a short realtime run a probe publishes future and duplicate states, NaN / inf
     states (on /swarm/states, which only the recorder and tools read, and as a process's batch
-    on /swarm/agent_states, which the world, commander and agents read), a flood of bad λ and steering values, a NaN target and a 10,000-point polygon.
+    on /swarm/agent_states, which the world, commander and agents read), a flood of bad λ and
+    steering values, a NaN target and a 10,000-point polygon.
     Every node stays up (a callback exception would end the spin), every recorded state is
     finite, the spoofed states never enter the world's record, and each node logs at most a
     couple of lines per kind of rejection."""
@@ -82,7 +79,7 @@ def test_hostile_publisher_during_a_realtime_run(tmp_path, rclpy_context):
     assert spin_for(ex, lambda: world.done, 120.0)
     assert world.failed is None
     # the spoofs never got in: agent_4's newest is the true one, agent_3 never at 777
-    assert world.newest['agent_4'][0] < 100.0
+    assert world.driver.newest['agent_4'][0] < 100.0
     assert not np.any(world.rec.r == 777.0) and not np.any(world.rec.r == 900.0)
     assert not np.any(np.abs(commander.pos) > 700.0)          # the commander's view neither
     tr = world.trajectory()
@@ -253,9 +250,8 @@ def test_a_second_swarm_run_on_the_domain_refuses_and_the_first_is_not_mixed(tmp
     """Run A (in one process) is going; run B (processes) on the same ROS_DOMAIN_ID refuses to
     start with one line naming A (it used to follow A's world and fail with "discovery timed
     out"); A goes on, equal to `swarm simulate` bit for bit, so nothing of B got in."""
-    from swarm_core.engine import Trajectory, simulate
-
-    from conftest import Lines
+    from swarm_core.engine.reference import Trajectory, simulate
+    from tests.helpers import Lines
     a = processes.start([swarm_cmd, 'run', 'homotopy_global', '--in-process', '--out', tmp_path / 'a',
                          '--no-figure', '--progress-every', '5'],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -292,11 +288,11 @@ def test_world_rejects_future_and_second_publisher_states(rclpy_context):
 
     def batch(tag, i, t, x, y):
         return ProcessStates(tag, [i], [t], np.array([[x], [y], [0.0], [1.0]]), [0.0]).to_cdr(world.run_id)
-    world._on_state(batch(1234.0, 3, 0.0, 1.0, 2.0))
-    world._on_state(batch(77.0, 4, 500.0, 9.0, 9.0))                  # t = 500
-    world._on_state(batch(99.0, 3, 0.05, 777.0, 777.0))               # a second process for agent_3
-    world._on_state(batch(5.0, 4, 0.1, 3.0, 4.0))
-    assert world.newest['agent_3'][:3] == (0.0, 1.0, 2.0)
-    assert world.newest['agent_4'][:3] == (0.1, 3.0, 4.0)
+    world.driver.on_states(batch(1234.0, 3, 0.0, 1.0, 2.0))
+    world.driver.on_states(batch(77.0, 4, 500.0, 9.0, 9.0))                  # t = 500
+    world.driver.on_states(batch(99.0, 3, 0.05, 777.0, 777.0))               # a second process for agent_3
+    world.driver.on_states(batch(5.0, 4, 0.1, 3.0, 4.0))
+    assert world.driver.newest['agent_3'][:3] == (0.0, 1.0, 2.0)
+    assert world.driver.newest['agent_4'][:3] == (0.1, 3.0, 4.0)
     assert {'future-stamp', 'second-publisher'} <= set(world.reject.kinds), world.reject.lines
     world.destroy_node()

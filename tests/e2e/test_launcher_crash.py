@@ -12,9 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import Lines
-
-pytestmark = pytest.mark.ros
+from tests.helpers import Lines
 
 
 def group_members(pgid: int) -> list[int]:
@@ -113,7 +111,7 @@ def test_killed_world_trajectory_is_rebuilt_from_the_bag(ros_domain, processes, 
         text = ''.join(lines.lines)
         assert code != 0, text
         assert 'rebuilt t = 0..' in text, text[-3000:]
-        from swarm_core.engine import Trajectory
+        from swarm_core.engine.reference import Trajectory
         traj = Trajectory.load(out / 'trajectory.npz')
         assert len(traj.names) == 6 and len(traj.t) > 40
         assert np.isfinite(traj.r).all()
@@ -138,7 +136,7 @@ def test_sighup_stops_the_run_and_keeps_the_steps_done(ros_domain, processes, sw
         p.send_signal(signal.SIGHUP)
         assert lines.wait(p, 120) == 130, ''.join(lines.lines[-50:])
         assert not group_members(pgid)
-        from swarm_core.engine import Trajectory
+        from swarm_core.engine.reference import Trajectory
         assert (out / 'trajectory.npz').exists(), ''.join(lines.lines[-30:])
         assert len(Trajectory.load(out / 'trajectory.npz').t) > 40
     finally:

@@ -1,6 +1,6 @@
 """Live commands from the shell (docs/commands.md).
 
-- ``ros2 topic pub --once`` (the Jazzy tool, emulated in ``emulate_topic_pub.py``: default
+- ``ros2 topic pub --once`` (the Jazzy tool, emulated in ``tests/fakes/emulate_topic_pub.py``: default
   QoS RELIABLE/VOLATILE/KEEP_LAST 10, waits for >= 1 matching subscription, publishes once,
   keeps alive 0.1 s, exits) takes effect on the first try, on /swarm/lambda and on a steering
   topic, against a realtime run with ``--record``; ``ros2 param set /commander ...`` too.
@@ -13,12 +13,10 @@ import threading
 import time
 
 import numpy as np
-import pytest
 
-from conftest import Lines, short_homotopy
-from emulate_topic_pub import main as topic_pub_once
-
-pytestmark = pytest.mark.ros
+from tests.fakes.emulate_topic_pub import main as topic_pub_once
+from tests.fakes.ros2cli_verbs import NodeNotFound, param_set
+from tests.helpers import Lines, short_homotopy
 
 
 def _pub_once_in_own_context(topic, value):
@@ -32,17 +30,15 @@ def test_topic_pub_once_and_param_set_take_effect_every_time(tmp_path, ros_domai
     /agent_0/steering, each a new value; after the first, two at a time side by side) against
     a realtime ``swarm run --record``: after each one the commander publishes the new value
     (its ``ramp`` parameter is set to 0 first, with
-    the SetParameters service as ``ros2 param set`` uses), and ``/swarm/events`` holds exactly
+    ``ros2 param set``, tests/fakes/ros2cli_verbs.py), and ``/swarm/events`` holds exactly
     one ``command`` event per try.  ``ros2 param set /commander lambda 0.77`` is applied the
     same way; ``lambda 1.5`` is refused."""
     import rclpy
-    from rclpy.parameter import Parameter
-    from rclpy.parameter_client import AsyncParameterClient
     from std_msgs.msg import Float64, String
 
     from swarm_ros import protocol as P
-    from conftest import spin_for
     from swarm_ros.rosutil import make_executor
+    from tests.helpers import spin_for
 
     path = short_homotopy(tmp_path / 'rt.yaml', duration=100000, lam='{kind: constant, value: 0.0}', at=1e6)
     run = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--record', tmp_path / 'bag.mcap',
@@ -54,19 +50,28 @@ def test_topic_pub_once_and_param_set_take_effect_every_time(tmp_path, ros_domai
     ex.add_node(node)
     seen = {'lambda': [], 'steer': []}
     events = []
-    # transient-local, as agents read them: these readers never match the tool's volatile writer
+    # transient-local, as `swarm record` reads them: these readers never match the tool's volatile writer
     node.create_subscription(Float64, P.LAMBDA, lambda m: seen['lambda'].append(m.data), P.qos_latched(100))
     node.create_subscription(Float64, '/agent_0/steering', lambda m: seen['steer'].append(m.data), P.qos_latched(100))
     node.create_subscription(String, P.EVENTS, lambda m: events.append(json.loads(m.data)), P.qos_latched(100))
     assert spin_for(ex, lambda: len(seen['lambda']) >= 3, 180), ''.join(lines.lines[-30:])
 
-    params = AsyncParameterClient(node, 'commander')
-    assert params.wait_for_services(timeout_sec=60.0)
-
     def set_param(name, value):
-        fut = params.set_parameters([Parameter(name, value=value)])
-        assert spin_for(ex, fut.done, 60)
-        return fut.result().results[0]
+        """``ros2 param set /commander NAME VALUE`` (tests/fakes/ros2cli_verbs.py: a fresh
+        participant, the tool's waits), run again as a user would while it says 'Node not found'."""
+        got = []
+
+        def shell():
+            for _ in range(10):
+                try:
+                    got.append(param_set('/commander', name, str(value)))
+                    return
+                except NodeNotFound:
+                    pass
+        t = threading.Thread(target=shell)
+        t.start()
+        assert spin_for(ex, lambda: not t.is_alive(), 120) and got, (name, value)
+        return got[0]
 
     assert set_param('ramp', 0.0).successful
     taken = []
@@ -80,9 +85,9 @@ def test_topic_pub_once_and_param_set_take_effect_every_time(tmp_path, ros_domai
         t0 = time.monotonic()
         for t in ts:
             t.start()
-        spin_for(ex, lambda: not any(t.is_alive() for t in ts), 120)
+        spin_for(ex, lambda ts=ts: not any(t.is_alive() for t in ts), 120)
         for topic, key, value in pair:
-            hit = spin_for(ex, lambda: value in seen[key], 30)
+            hit = spin_for(ex, lambda key=key, value=value: value in seen[key], 30)
             taken.append((topic, value, hit, round(time.monotonic() - t0, 2)))
     assert all(h for _, _, h, _ in taken), '\n'.join([str(x) for x in taken] + [
         ln.rstrip() for ln in lines.lines if 'commander' in ln][-40:])
@@ -107,13 +112,13 @@ def test_lockstep_live_commands_replay_in_the_batch_engine(tmp_path, rclpy_conte
     simulate --replay``) reproduces the ROS trajectory: positions, λ and leaders bit for bit,
     θ and u to 1e-9 (θ travels as a quaternion).  Raising λ also fired the
     leader rule (the scenario's clock time for it is never reached)."""
-    from swarm_core.engine import simulate
-    from swarm_core.scenario import load
-    from swarm_core.command_plan import read_commands
-    from swarm_tools.launch import build_nodes
-    from swarm_tools.node_params import node_parameters
+    from swarm_core.command.plan import read_commands
+    from swarm_core.engine.reference import simulate
+    from swarm_core.scenario.loader import load
     from swarm_ros.rosutil import make_executor
-    from conftest import spin_for
+    from swarm_tools.run.launch import build_nodes
+    from swarm_tools.run.params import node_parameters
+    from tests.helpers import spin_for
 
     path = short_homotopy(tmp_path / 'lock.yaml', duration=25, lam='{kind: constant, value: 0.0}', at=1e6)
     scn = load(str(path))
@@ -125,7 +130,7 @@ def test_lockstep_live_commands_replay_in_the_batch_engine(tmp_path, rclpy_conte
         ex.add_node(nd)
 
     def command(topic, value, at_step):
-        assert spin_for(ex, lambda: world.lock.cur >= at_step, 120)
+        assert spin_for(ex, lambda: world.driver.lock.cur >= at_step, 120)
         n = len([e for e in world.events if e['kind'] == 'command'])
         t = threading.Thread(target=_pub_once_in_own_context, args=(topic, value))
         t.start()

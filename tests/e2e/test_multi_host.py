@@ -14,13 +14,10 @@ from collections import defaultdict
 import numpy as np
 import pytest
 
-from swarm_core.engine import simulate
-from swarm_core.scenario import load
-from swarm_core.trajectory import Trajectory
-
-from conftest import Lines, short_homotopy
-
-pytestmark = pytest.mark.ros
+from swarm_core.engine.reference import simulate
+from swarm_core.engine.trajectory import Trajectory
+from swarm_core.scenario.loader import load
+from tests.helpers import Lines, short_homotopy
 
 IP = shutil.which('ip')
 
@@ -48,7 +45,7 @@ def two_hosts(tag):
     hosts = {'A': (ns_a, f'{net}.1'), 'B': (ns_b, f'{net}.2')}
     made = []
     try:
-        for side, (ns, _addr) in hosts.items():
+        for ns, _addr in hosts.values():
             _ip('netns', 'add', ns)
             made.append(ns)
         _ip('link', 'add', veth[0], 'type', 'veth', 'peer', 'name', veth[1])

@@ -6,16 +6,12 @@ import subprocess
 import time
 
 import numpy as np
-import pytest
 
-from swarm_core.engine import simulate
-from swarm_core.trajectory import Trajectory
-from swarm_core.metrics import cluster_labels
-from swarm_core.scenario import load
-
-from conftest import Lines, short_homotopy
-
-pytestmark = pytest.mark.ros
+from swarm_core.analysis.metrics import cluster_labels
+from swarm_core.engine.reference import simulate
+from swarm_core.engine.trajectory import Trajectory
+from swarm_core.scenario.loader import load
+from tests.helpers import Lines, short_homotopy
 
 # homotopy_global's law, agents and start at dt = 0.1, with the λ window brought forward (rise at
 # t = 30, fall at 90, leaders chosen at 10) so that the split and the reform fit in t = 180
@@ -181,8 +177,10 @@ def test_swarm_run_rejects_a_bad_scenario(tmp_path, swarm_cmd):
 
 
 def test_cli_rejects_bad_lambda_and_steering(swarm_cmd):
-    for args, word in ((['lambda', 'nan'], 'λ=nan'), (['lambda', '1.5'], 'λ=1.5'), (['lambda', '--', '-0.5'], 'λ=-0.5'),
-                       (['steer', 'agent_0', 'inf'], 'steering=inf'), (['steer', 'agent_0', '1e308'], 'steering=1e+308'),
+    for args, word in ((['lambda', 'nan'], 'λ=nan'), (['lambda', '1.5'], 'λ=1.5'),
+                       (['lambda', '--', '-0.5'], 'λ=-0.5'),
+                       (['steer', 'agent_0', 'inf'], 'steering=inf'),
+                       (['steer', 'agent_0', '1e308'], 'steering=1e+308'),
                        (['pause', 'agent_1', '1e308'], 'pause seconds=1e+308'),
                        (['lambda', '1', '--ramp', '1e308'], 'ramp=1e+308')):
         r = subprocess.run([swarm_cmd, *args], capture_output=True, text=True, timeout=60)

@@ -1,33 +1,29 @@
 """The communication model in the ROS nodes: a lockstep run with loss, latency, jitter, a
-per-link override and a scheduled partition equals the batch engine (positions and u exactly; headings, rebuilt from quaternions, to 1e-9) (and the world
-publishes the scheduled events on /swarm/events), also with faults (a frozen follower, a
-killed leader and failover) on top; a realtime agent delays incoming states by
-the latency, and ``swarm drop`` (a CLI process) cuts what it receives, after which the silent
-neighbour is forgotten; ``swarm drop 0`` restores it; so do ``swarm partition`` / ``--heal``."""
+per-link override and a scheduled partition equals the batch engine (positions and u exactly;
+headings, rebuilt from quaternions, to 1e-9) and the world publishes the scheduled events on
+/swarm/events, also with faults (a frozen follower, a killed leader and failover) on top; a
+realtime agent delays incoming states by the latency, and ``swarm drop`` (a CLI process) cuts
+what it receives, after which the silent neighbour is forgotten; ``swarm drop 0`` restores it;
+so do ``swarm partition`` / ``--heal``."""
 import json
 import math
 import subprocess
 
 import numpy as np
-import pytest
+import rclpy
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float64MultiArray, String
 
-pytestmark = pytest.mark.ros
-
-rclpy = pytest.importorskip('rclpy')
-from rosgraph_msgs.msg import Clock  # noqa: E402
-from std_msgs.msg import Float64MultiArray, String  # noqa: E402
-
-from swarm_agent.agent_node import AgentNode  # noqa: E402
-from swarm_core.engine import simulate
-from swarm_core.trajectory import Trajectory  # noqa: E402
-from swarm_core.scenario import load  # noqa: E402
-from swarm_tools.launch import build_nodes  # noqa: E402
-from swarm_tools.node_params import agent_parameters, node_parameters  # noqa: E402
-from swarm_ros import protocol as P  # noqa: E402
-from swarm_ros.layouts import ProcessStates  # noqa: E402
-from swarm_ros.rosutil import make_executor  # noqa: E402
-
-from conftest import overrides, run_nodes, short_homotopy, spin_for  # noqa: E402
+from swarm_agent.agent_node import AgentNode
+from swarm_core.engine.reference import simulate
+from swarm_core.engine.trajectory import Trajectory
+from swarm_core.scenario.loader import load
+from swarm_ros import protocol as P
+from swarm_ros.layouts import ProcessStates
+from swarm_ros.rosutil import make_executor
+from swarm_tools.run.launch import build_nodes
+from swarm_tools.run.params import agent_parameters, node_parameters
+from tests.helpers import overrides, run_nodes, short_homotopy, spin_for
 
 #: a lossy, delayed radio with one worse link and a partition from t = 5 to 8
 COMMS = {'loss': 0.25, 'latency': 0.1, 'jitter': 0.1, 'timeout': 0.6,
@@ -112,7 +108,7 @@ def test_lockstep_radio_with_faults_failover_and_reunion_equals_the_batch_engine
 def _perfect(path):
     import yaml
 
-    from swarm_core.scenario import parse
+    from swarm_core.scenario.loader import parse
     data = yaml.safe_load(path.read_text())
     data.pop('comms')
     return parse(data, str(path))

@@ -215,6 +215,6 @@ def test_ros2_launch_swarm_tools_after_colcon_build(tmp_path, ros_domain, proces
     text = ''.join(lines.lines)
     check_lockstep_outputs(out, 'global_alignment', 3.0, text)
     assert '(3 agents per process)' in text and '4 processes' in text, text[:3000]
-    containers = sorted(ros_view(argv)[1] for argv, _ in seen.values() if ros_view(argv)[0] == 'swarm_agents')
+    containers = sorted(ros_view(argv)[1] for argv, _ in seen.values() if ros_view(argv)[0] == 'swarm_agent_container')
     assert containers == [('agent_0', 'agent_1', 'agent_2'), ('agent_3', 'agent_4', 'agent_5')], text[-3000:]
     shutil.rmtree(tmp_path / 'build', ignore_errors=True)

@@ -1,7 +1,7 @@
 """A stand-in for ros2_controllers' ``diff_drive_controller`` (Jazzy) on a perfect unicycle,
 for tests of robot agents: one node per robot, no hardware, no controller_manager.
 
-Usage: ``python tests/diff_drive_standin.py NAME [NAME ...]`` starts one node
+Usage: ``python tests/fakes/diff_drive_standin.py NAME [NAME ...]`` starts one node
 ``/NAME/diff_drive_controller`` per robot, with ``~/cmd_vel`` remapped to ``/NAME/cmd_vel`` and
 ``~/odom`` to ``/NAME/odom`` as a user remaps the real controller; its odometry starts at the
 origin of its own odom frame, as the controller's does.
@@ -57,7 +57,8 @@ class DiffDriveStandin(Node):
     def __init__(self, robot: str, context=None, update_rate: float = 100.0):
         super().__init__('diff_drive_controller', namespace=robot, context=context,
                          cli_args=['--ros-args', '-r', f'~/cmd_vel:=/{robot}/cmd_vel', '-r', f'~/odom:=/{robot}/odom'])
-        p = lambda name, default: self.declare_parameter(name, default).value  # noqa: E731
+        def p(name, default):
+            return self.declare_parameter(name, default).value
         self.cmd_vel_timeout = p('cmd_vel_timeout', 0.5)
         self.publish_period = 1.0 / p('publish_rate', 50.0)
         # velocity limits of a TurtleBot3 Burger; acceleration: the controller's default (NaN, off)

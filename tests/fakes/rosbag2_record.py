@@ -1,8 +1,8 @@
 """An emulation of ``ros2 bag record -a [--qos-profile-overrides-path FILE]`` (ROS 2 Jazzy) that
-counts what it receives instead of writing it.  Used by tests/test_bag_qos.py and
-scripts/bench_bag_qos.py; run it as a process and stop it with SIGINT: it then prints one JSON
-line (per topic: messages received and the QoS it subscribed with; per agent on /swarm/states:
-the sim-time stamps received).
+counts what it receives instead of writing it.  Used by tests/tools/bags/ (test_bag_qos.py,
+ros/test_bag_qos_recorder.py) and scripts/bench_bag_qos.py; run it as a process and stop it
+with SIGINT: it then prints one JSON line (per topic: messages received and the QoS it
+subscribed with; per agent on /swarm/states: the sim-time stamps received).
 
 What it copies from rosbag2 (jazzy branch):
 
@@ -43,8 +43,7 @@ def overrides_from_yaml(text: str) -> dict:
     """{topic: QoSProfile} as ros2bag's convert_yaml_to_qos_profile builds it."""
     import yaml
     from rclpy.duration import Duration
-    from rclpy.qos import (QoSDurabilityPolicy, QoSHistoryPolicy, QoSLivelinessPolicy, QoSProfile,
-                           QoSReliabilityPolicy)
+    from rclpy.qos import QoSDurabilityPolicy, QoSHistoryPolicy, QoSLivelinessPolicy, QoSProfile, QoSReliabilityPolicy
     short = {'history': QoSHistoryPolicy.get_from_short_key,
              'reliability': QoSReliabilityPolicy.get_from_short_key,
              'durability': QoSDurabilityPolicy.get_from_short_key,
@@ -93,8 +92,8 @@ def main(argv=None) -> int:
     from rclpy.signals import SignalHandlerOptions
     from rclpy.topic_or_service_is_hidden import topic_or_service_is_hidden
 
-    from swarm_tools.bag import parse_odometry
-    from swarm_tools.record import message_class
+    from swarm_tools.bags.mcap_io import parse_odometry
+    from swarm_tools.bags.record import message_class
 
     overrides = {}
     if a.qos_profile_overrides_path:

@@ -1,23 +1,19 @@
 """The robot engine of studies (`swarm_robots.engine`, no ROS): deterministic, the reference
-engine where no agent has a robot, its metrics on hand-made cases, and equal to the ROS
-lockstep run of `swarm run --robots mujoco` bit for bit (the one ROS test here)."""
+engine where no agent has a robot, its metrics on hand-made cases, and the studies on robots.
+That it equals the ROS lockstep run of `swarm run --robots mujoco` bit for bit:
+tests/robots/ros/test_mujoco_runs.py."""
 import copy
-import json
-import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from swarm_core import engine as reference
-from swarm_core import scenario
-from swarm_core.frenet import quaternion_from_heading, yaw_from_quaternion
-from swarm_core.trajectory import Trajectory, unwrap_headings
+from swarm_core.engine import reference
+from swarm_core.model.frenet import quaternion_from_heading
+from swarm_core.scenario import loader as scenario
 from swarm_robots.engine import RobotStepper, collisions, robot_rows, simulate
+from tests.helpers import ROOT, SIX_AGENTS
 
-from conftest import SIX_AGENTS, Lines, short_homotopy
-
-STUDIES = Path(__file__).resolve().parents[1] / 'studies'
+STUDIES = ROOT / 'studies'
 ROBOTS = {'length_scale': 0.3, 'cruise_speed': 0.15, 'frame': 'odom'}
 
 
@@ -98,33 +94,6 @@ def test_faults_refused():
         simulate(six(faults=[{'kind': 'kill', 'agent': 'agent_1', 'at': 1.0}]))
 
 
-@pytest.mark.ros
-@pytest.mark.parametrize('per', [[], ['--agents-per-process', '3']], ids=['processes', 'containers'])
-def test_equals_the_ros_lockstep_run(per, tmp_path, ros_domain, processes, swarm_cmd):
-    """`swarm run --robots mujoco:agent_0-agent_2` (lockstep: the robot world reports the robot
-    agents' poses) and the engine, bit for bit; the three robot agents alone in their own
-    processes, or sharing one container (the kinematic three in another)."""
-    path = short_homotopy(tmp_path / 'robots.yaml', robots=ROBOTS, duration=10,
-                          lam='{kind: tanh_window, rise_at: 4, fall_at: 1000, tau: 2}', at=2, curvature=0.05)
-    p = processes.start([swarm_cmd, 'run', str(path), '--out', str(tmp_path / 'r'), '--no-figure',
-                         '--robots', 'mujoco:agent_0-agent_2', *per],
-                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    lines = Lines(p)
-    assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
-    ros = Trajectory.load(tmp_path / 'r' / 'trajectory.npz')
-    scn = scenario.load(str(path))
-    ours = simulate(scn, 'half')
-    np.testing.assert_array_equal(ros.r, ours.r)
-    np.testing.assert_array_equal(ros.u, ours.u)
-    np.testing.assert_array_equal(ros.lam, ours.lam)
-    # the ROS run records headings as its messages carry them (a quaternion), unwrapped in time
-    np.testing.assert_array_equal(ros.theta, unwrap_headings(
-        yaw_from_quaternion(*quaternion_from_heading(ours.theta)), scn.theta0))
-    robots = json.loads((tmp_path / 'r' / 'metrics.json').read_text())['summary']['robots']
-    for k in ('robots', 'contacts', 'turn_limit_seconds', 'limit_seconds'):
-        assert robots[k] == ours.meta['robots'][k]
-
-
 # ------------------------------------------------------------------ the study on robots
 
 @pytest.mark.parametrize('name', ['robots_fig3', 'robots_fig5', 'robots_scale'])
@@ -149,7 +118,7 @@ def test_a_two_run_robot_study_runs_and_is_cached(tmp_path):
     kin, rob = rows
     assert kin['robot_set'] == 'none' and kin['iae_mean'] == 0.0 and kin['contacts'] == 0
     assert rob['robot_set'] == 'all' and rob['iae_mean'] > 0 and 0 <= rob['turn_limit_fraction'] <= 1
-    from swarm_core.study_tables import check_names
+    from swarm_core.study.tables import check_names
     assert check_names(rows, s.params) == ['ok', 'one_cluster_at', 'split_between', 'one_cluster_at_end']
     assert 'IAE of u' in st.robot_metrics_markdown(s, rows)
     assert st.run_study(s, tmp_path / 'cache')[1]['cached'] == 2
@@ -165,27 +134,3 @@ def test_a_robot_set_is_checked():
     del s.fixed['robots.length_scale'], s.fixed['robots.cruise_speed'], s.data['robots']
     with pytest.raises(st.StudyError, match="needs the scenario's robots: section"):
         st.validate(s)
-
-
-@pytest.mark.ros
-def test_a_lockstep_robot_run_with_a_freeze_and_a_kill(tmp_path, ros_domain, processes, swarm_cmd):
-    """`swarm run --robots mujoco` with a frozen and a killed robot agent: the run goes on
-    through both; the robot world learns of the kill from its event, so it does not wait the
-    hold's time-out for the killed agent's command (the world kills right after a step went
-    out); the frozen agent's rows hold its state, the killed agent's are NaN from its step."""
-    path = short_homotopy(tmp_path / 'faults.yaml', robots=ROBOTS, duration=8, lam='{kind: constant, value: 0}',
-                          at=1, faults=[{'at': 2, 'freeze': 'agent_1', 'for': 2.0}, {'at': 5, 'kill': 'agent_4'}])
-    out = tmp_path / 'r'
-    p = processes.start([swarm_cmd, 'run', str(path), '--out', str(out), '--no-figure', '--robots', 'mujoco'],
-                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    lines = Lines(p)
-    assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
-    text = ''.join(lines.lines)
-    assert 'agent_4 killed' in text and 'no command from' not in text, text[-3000:]
-    tr = Trajectory.load(out / 'trajectory.npz')
-    dt = tr.t[1] - tr.t[0]
-    kill, freeze = round(5 / dt), round(2 / dt)
-    assert np.isnan(tr.r[kill:, 4]).all() and np.isfinite(tr.r[:kill, 4]).all()
-    held = tr.r[freeze:2 * freeze, 1]
-    assert (held == tr.r[freeze, 1]).all() and (tr.r[2 * freeze + 2, 1] != tr.r[freeze, 1]).all()
-    assert np.isfinite(tr.r[:, [0, 1, 2, 3, 5]]).all()

@@ -4,8 +4,8 @@ pacer; a small fake of the physics API stands in for MuJoCo."""
 import numpy as np
 import pytest
 
-from swarm_robots.run_setup import chosen_rows, robots_section, start_poses
 from swarm_robots.timing import RealtimePacer, RobotsLockstep, TurnLimitClock, robot_summary
+from swarm_robots.world_setup import chosen_rows, robots_section, start_poses
 
 
 class FakeWorld:
@@ -155,7 +155,7 @@ def test_realtime_pacer_odometry_at_50_hz_robot_time_and_while_time_stands_still
 
 def test_run_setup_rows_poses_and_a_scenario_without_robots(tmp_path):
     from swarm_core.robot_units import RobotUnits
-    from swarm_core.scenario import load
+    from swarm_core.scenario.loader import load
     names = [f'agent_{i}' for i in range(6)]
     assert chosen_rows(names, []) == list(range(6))
     assert chosen_rows(names, ['agent_4', 'agent_1']) == [1, 4]

@@ -5,15 +5,13 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from swarm_ros import protocol as P
 from swarm_ros.layouts import MESSAGES, RUN_ID_BYTES, AgentStates, BadMessage, Decision, NotFinite, OtherRun, Step
-
-ROOT = Path(__file__).resolve().parents[1]
+from tests.helpers import ROOT
 
 
 def sample(cls, rng, n=3):
@@ -74,7 +72,7 @@ def test_a_wrong_size_or_bad_counts_are_rejected(cls):
     for bad in (data[:-1], np.append(data, 0.0), data[:cls.LAYOUT.head - 1], data[:0]):
         with pytest.raises(BadMessage):
             cls.from_cdr(P.float64_array_to_cdr(bad), 'run1')
-    for c, at in cls.LAYOUT.counts.items():
+    for at in cls.LAYOUT.counts.values():
         for v in (np.nan, -1.0, 0.5, 1e12):
             bad = data.copy()
             bad[at] = v

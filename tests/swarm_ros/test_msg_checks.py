@@ -4,20 +4,26 @@ lockstep messages."""
 from __future__ import annotations
 
 import json
-
 import os
 import subprocess
+import sys
 import time
 from pathlib import Path
-import sys
 
 import numpy as np
 import pytest
 
 from swarm_ros import protocol as P
 from swarm_ros.layouts import AgentStates, BadMessage, NotFinite
-from swarm_ros.msg_checks import (MAX_BARRIER_POINTS, RejectLog, Senders, check_barrier, check_values,
-                                may_signal, new_sender_tag)
+from swarm_ros.msg_checks import (
+    MAX_BARRIER_POINTS,
+    RejectLog,
+    Senders,
+    check_barrier,
+    check_values,
+    may_signal,
+    new_sender_tag,
+)
 from swarm_ros.runinfo import describe, one_run, parse_run, run_json, unknown_agent
 
 ROW = {'agent_0': 0, 'agent_1': 1}

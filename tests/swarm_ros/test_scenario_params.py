@@ -8,9 +8,9 @@ import argparse
 import numpy as np
 import pytest
 
-from swarm_core.scenario import ScenarioError, load
+from swarm_core.scenario.loader import ScenarioError, load
 from swarm_ros.scenario_params import SCENARIO_PARAMETERS, reload_scenario, scenario_parameters
-from swarm_tools.node_params import load_scenario, node_parameters
+from swarm_tools.run.params import load_scenario, node_parameters
 
 SCENARIO = """\
 name: small

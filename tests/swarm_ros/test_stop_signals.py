@@ -7,9 +7,7 @@ import signal
 
 import pytest
 
-rclpy = pytest.importorskip('rclpy')
-
-from swarm_ros.rosutil import stop_on_signals  # noqa: E402
+from swarm_ros.rosutil import stop_on_signals
 
 
 @pytest.fixture

@@ -15,12 +15,14 @@ import struct
 import numpy as np
 import pytest
 
-from swarm_core import analysis, scenario, simulate_cli
-from swarm_core.trajectory import Trajectory
-from test_bag_report import write_bag
+from swarm_core.analysis import outputs as analysis
+from swarm_core.engine.trajectory import Trajectory
+from swarm_core.scenario import loader as scenario
+from swarm_tools import simulate as simulate_cli
+from tests.helpers import write_run_bag
 
 DURATION = 20
-#: keys every summary carries (swarm_core.analysis.run_summary)
+#: keys every summary carries (swarm_core.analysis.outputs.run_summary)
 SHARED = ('steps', 't_end', 'agents', 'final_clusters', 'max_clusters', 'min_distance',
           'final_polarisation', 'cluster_changes', 'intrusions_total', 'barrier_clearance',
           'closest_centroid_target_distance')
@@ -38,7 +40,8 @@ def _same(a, b, key):
 
 
 def test_three_entry_points_share_one_analysis(tmp_path, capsys):
-    from swarm_tools import launch, report
+    from swarm_tools.bags import report
+    from swarm_tools.run import launch
 
     sim_dir = tmp_path / 'simulate'
     assert simulate_cli.simulate_main(['target_barrier', '--duration', str(DURATION), '--out',
@@ -48,7 +51,7 @@ def test_three_entry_points_share_one_analysis(tmp_path, capsys):
     scn = scenario.load('target_barrier', duration=DURATION)
     assert len(traj.t) == scn.steps + 1
 
-    bag = write_bag(traj, tmp_path / 'run.mcap', metrics_cutoff=scn.law.cutoff_radius,
+    bag = write_run_bag(traj, tmp_path / 'run.mcap', metrics_cutoff=scn.law.cutoff_radius,
                     target=scn.target, barrier=scn.barrier)
     run_dir = tmp_path / 'run'
     assert launch.salvage(scn, run_dir, bag, 'lockstep', 0.0, figure=False)
@@ -100,7 +103,7 @@ def test_one_odometry_decoder_for_the_world_and_the_report(end):
     """Both byte orders; the report's fields (frame_id, stamp, vx) and the world's (pose, u,
     sender tag) come from the one decoder."""
     from swarm_ros import protocol as P
-    from swarm_tools.bag import parse_odometry
+    from swarm_tools.bags.mcap_io import parse_odometry
     d = np.arange(85, dtype=float) / 8
     raw = _odometry_cdr(end, 'map', 'agent_3', 12, 345, d)
     name, sec, nsec, pose, wz, tag = P.cdr_to_odometry_tagged(raw)

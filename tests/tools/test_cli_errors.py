@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from conftest import Lines
+from tests.helpers import Lines
 
 
 def _swarm(*args, timeout=120):
@@ -114,18 +114,6 @@ def test_ros_verbs_help_shows_defaults(verb, flag):
     test_help_shows_defaults(verb, flag)
 
 
-@pytest.mark.ros          # --help lists the parameters of a node built in a context of its own
-@pytest.mark.parametrize('exe, param', [('swarm_world', 'scenario (str)'), ('swarm_agent', 'leader_gain (float)'),
-                                        ('homotopy_commander', 'ramp (float)')])
-def test_node_executables_answer_help_without_starting(ros_domain, swarm_cmd, exe, param):
-    """`swarm_world --help` (a setup.py entry point) prints its usage and parameters and
-    exits 0; it used to start a world node that waited for agents for 180 s."""
-    from pathlib import Path
-    r = subprocess.run([str(Path(swarm_cmd).with_name(exe)), '--help'], capture_output=True, text=True, timeout=60)
-    assert r.returncode == 0, r.stderr
-    assert r.stdout.startswith(f'usage: {exe}') and param in r.stdout, r.stdout
-
-
 def test_run_and_record_refuse_unwritable_outputs_before_starting(tmp_path):
     """One line and exit 2 before any process starts (they were tracebacks; a bad --record
     path failed the run only once the recorder had started)."""
@@ -154,7 +142,8 @@ def test_live_verbs_refuse_a_negative_or_nonnumeric_wait(args):
 def test_rk4_reference_run_does_not_overwrite_the_zoh_run(tmp_path):
     for extra in ((), ('--integrator', 'rk4')):
         r = subprocess.run([sys.executable, '-m', 'swarm_tools.cli', 'simulate', 'global_alignment', '--duration', '2',
-                            '--quiet', '--no-figure', *extra], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+                            '--quiet', '--no-figure', *extra],
+                           capture_output=True, text=True, timeout=120, cwd=tmp_path)
         assert r.returncode == 0, r.stderr
     zoh = np.load(tmp_path / 'runs' / 'global_alignment-seed0' / 'trajectory.npz')['r']
     rk4 = np.load(tmp_path / 'runs' / 'global_alignment-seed0-rk4' / 'trajectory.npz')['r']

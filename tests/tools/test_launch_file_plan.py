@@ -155,7 +155,7 @@ def test_launch_actions_are_the_processes_swarm_run_starts(case, tmp_path, monke
     if case == 'containers_and_view':
         box = plan.actions[2]
         assert box.kwargs['arguments'] == ['--no-services', 'agent_0', 'agent_1', 'agent_2', 'agent_3']
-        assert box.kwargs['name'] is None and Path(box.kwargs['executable']).name == 'swarm_agents'
+        assert box.kwargs['name'] is None and Path(box.kwargs['executable']).name == 'swarm_agent_container'
         assert plan.actions[-1].kwargs['cmd'][1:] == ['view', '--port', '0']
         assert plan.run.params['/world']['clock_every'] == 10 and plan.run.scn.seed == 3
 

@@ -1,4 +1,4 @@
-"""The world's pure helpers, without ROS: parsing its inputs (swarm_world.inputs), the
+"""The world's pure helpers, without ROS: parsing its inputs (swarm_world.parsing), the
 realtime schedule (swarm_world.realtime), per-step checks and progress
 (swarm_world.observe) and the wall-clock decisions (swarm_world.wallclock)."""
 from __future__ import annotations
@@ -8,14 +8,14 @@ import json
 import numpy as np
 import pytest
 
-from swarm_core import metrics as M
-from swarm_core.faults import Fault, FaultTimeline
-from swarm_core.frenet import quaternion_from_heading
-from swarm_world.inputs import fault_request, format_points, leader_flags, parse_geometry, parse_point, parse_points
+from swarm_core.analysis import metrics as M
+from swarm_core.faults.agents import Fault, FaultTimeline
+from swarm_core.model.frenet import quaternion_from_heading
+from swarm_ros.msg_checks import NewestStates
 from swarm_world.lockstep import decision_valid
 from swarm_world.markers import markers_every
 from swarm_world.observe import Observer
-from swarm_ros.msg_checks import NewestStates
+from swarm_world.parsing import fault_request, format_points, leader_flags, parse_geometry, parse_point, parse_points
 from swarm_world.realtime import CLOCK_TICK_MAX, CLOCK_TICK_MIN, RealtimeSchedule, clock_tick, newest_view
 from swarm_world.wallclock import StallWatch, StartWatch
 
@@ -227,6 +227,7 @@ def test_markers_bytes_decode_to_the_arrows_trails_target_and_barrier():
     barrier; rclpy writes the decoded message back to as many bytes (the same layout)."""
     from rclpy.serialization import deserialize_message, serialize_message
     from visualization_msgs.msg import Marker, MarkerArray
+
     from swarm_world.markers import LEADER_COLOUR, PALETTE, Trails, markers_message
     trails = Trails(4, 2)
     rng = np.random.default_rng(3)
@@ -254,4 +255,4 @@ def test_markers_bytes_decode_to_the_arrows_trails_target_and_barrier():
         target, barrier = ma.markers[-2:]
         assert (target.type, target.pose.position.x, target.pose.position.y) == (Marker.SPHERE, 1.0, -2.0)
         assert [(p.x, p.y) for p in barrier.points] == [(0, 0), (1, 0), (0, 1), (0, 0)]
-    assert [(p.x, p.y) for p in tr[0].points] == [tuple(trails.of(0)[k, :2]) for k in range(2)]
+    assert [(p.x, p.y) for p in tr[0].points] == [tuple(trails.trail(0)[k, :2]) for k in range(2)]

@@ -1,13 +1,13 @@
 """The world's lockstep barrier and trajectory record, without ROS (swarm_world.lockstep,
-swarm_core.trajectory): what a step needs, when it is complete, what goes out, and faults."""
+swarm_core.engine.trajectory): what a step needs, when it is complete, what goes out, and faults."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from swarm_core.faults import Fault, FaultTimeline
-from swarm_core.frenet import quaternion_from_heading
-from swarm_core.trajectory import TrajectoryRecorder, unwrap_headings
+from swarm_core.engine.trajectory import TrajectoryRecorder, unwrap_headings
+from swarm_core.faults.agents import Fault, FaultTimeline
+from swarm_core.model.frenet import quaternion_from_heading
 from swarm_ros.layouts import AgentStates, States, Step
 from swarm_world.lockstep import LockstepBarrier
 

@@ -1,4 +1,4 @@
-"""Robot agents against a stand-in for diff_drive_controller (tests/diff_drive_standin.py):
+"""Robot agents against a stand-in for diff_drive_controller (tests/fakes/diff_drive_standin.py):
 three agent processes drive three stand-in robots in realtime and form one swarm; cut one
 robot's odometry (its controller process stopped) and its agent stops it (zero cmd_vel, a
 ``robot_stopped`` event) and lets it go when the odometry comes back."""
@@ -15,9 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.ros
+from tests.helpers import FAKES
 
-HERE = Path(__file__).resolve().parent
 NAMES = ['agent_0', 'agent_1', 'agent_2']
 L = V0 = 0.2          # L / v0 = 1: a model second is a robot second (and, here, a wall second)
 
@@ -27,7 +26,7 @@ def _scenario_file(path, dt, duration, length_scale, cruise_speed):
     returns (path, the scenario loaded from it)."""
     import yaml
 
-    from swarm_core.scenario import load
+    from swarm_core.scenario.loader import load
     path.write_text(yaml.safe_dump({
         'name': path.stem, 'dt': dt, 'duration': duration,
         'agents': {'positions': [[0, 0], [1.5, 0], [0.75, 1.3]], 'headings': {'rule': 'cone', 'half_width': 0.5}},
@@ -38,8 +37,8 @@ def _scenario_file(path, dt, duration, length_scale, cruise_speed):
 
 def _start_agents(processes, scn, tmp_path):
     """Agent processes on the wall clock (no world: the sim clock is the system clock)."""
-    from swarm_tools.node_params import node_parameters, write_params_file
-    from swarm_tools.robot_plan import apply_robots
+    from swarm_tools.run.params import node_parameters, write_params_file
+    from swarm_tools.run.robots import apply_robots
     params = node_parameters(scn, 'robots3', 'realtime')
     apply_robots(params, scn, {nm: 'external' for nm in NAMES}, 'realtime')
     agents = {k: dict(v, use_sim_time=False) for k, v in params.items() if k.endswith('/agent')}
@@ -93,8 +92,8 @@ def _start_together(ex, probe, seen, start_robots, tmp_path):
     Returns the wall time each agent said robot_resumed."""
     from std_msgs.msg import String
 
-    from conftest import spin_for
     from swarm_ros import protocol as P
+    from tests.helpers import spin_for
     gate = probe.create_publisher(String, P.EVENTS, P.qos_latched(100))
     readers = gate.get_subscription_count()
 
@@ -102,7 +101,8 @@ def _start_together(ex, probe, seen, start_robots, tmp_path):
         for nm in NAMES:
             gate.publish(String(data=json.dumps({'t': 0.0, 'kind': kind, 'agent': nm})))
     fault('freeze')
-    up = lambda: all(_said(seen, 'robot_stopped', nm) for nm in NAMES)  # noqa: E731  (each agent ticks)
+    def up():                                           # each agent ticks
+        return all(_said(seen, 'robot_stopped', nm) for nm in NAMES)
     assert spin_for(ex, lambda: up() and gate.get_subscription_count() >= readers + len(NAMES), 60.0), (
         [(e.get('agent'), e['kind']) for e in seen['events']], _logs(tmp_path))
     spin_for(ex, lambda: False, 0.5)                    # the latched freezes delivered
@@ -119,14 +119,14 @@ def _start_together(ex, probe, seen, start_robots, tmp_path):
 
 def test_three_agents_drive_standin_robots_and_stop_without_odometry(tmp_path, processes, rclpy_context):
     from swarm_ros.rosutil import make_executor
-    from conftest import spin_for
+    from tests.helpers import spin_for
     _, scn = _scenario_file(tmp_path / 'robots3.yaml', 0.1, 1000.0, L, V0)
     probe, seen = _probe(rclpy_context)
     ex = make_executor(rclpy_context)
     ex.add_node(probe)
     _start_agents(processes, scn, tmp_path)
     robots, went = _start_together(ex, probe, seen, lambda: {
-        nm: processes.start([sys.executable, HERE / 'diff_drive_standin.py', nm],
+        nm: processes.start([sys.executable, FAKES / 'diff_drive_standin.py', nm],
                             stdout=open(tmp_path / f'{nm}-robot.log', 'w'),
                             stderr=open(tmp_path / f'{nm}-robot.err', 'w'))
         for nm in NAMES}, tmp_path)
@@ -152,7 +152,8 @@ def test_three_agents_drive_standin_robots_and_stop_without_odometry(tmp_path, p
     os.killpg(robots['agent_0'].pid, signal.SIGSTOP)
     t_cut = time.monotonic()
     try:
-        stopped = lambda: _said(seen, 'robot_stopped', 'agent_0', n_events)  # noqa: E731
+        def stopped():
+            return _said(seen, 'robot_stopped', 'agent_0', n_events)
         assert spin_for(ex, lambda: bool(stopped()), 10.0), seen['events'][n_events:]
         assert 'odometry' in stopped()[0]['reason'] and 'old' in stopped()[0]['reason']
         spin_for(ex, lambda: False, 1.0)
@@ -218,13 +219,13 @@ def test_lockstep_mixed_swarm_with_perfect_robots_follows_the_kinematic_run(tmp_
     rounding of metres and back (x·L/L), and each robot got one command per step, stamped t_n."""
     import rclpy
 
-    from conftest import spin_for
-    from swarm_core.engine import simulate
-    from swarm_core.trajectory import Trajectory
+    from swarm_core.engine.reference import simulate
+    from swarm_core.engine.trajectory import Trajectory
     from swarm_ros.rosutil import make_executor
-    from swarm_tools.launch import build_nodes
-    from swarm_tools.node_params import node_parameters
-    from swarm_tools.robot_plan import apply_robots
+    from swarm_tools.run.launch import build_nodes
+    from swarm_tools.run.params import node_parameters
+    from swarm_tools.run.robots import apply_robots
+    from tests.helpers import spin_for
     path, scn = _scenario_file(tmp_path / 'mixed3.yaml', 0.05, 3.0, 0.3, 0.15)
     out = tmp_path / 'run'
     params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
@@ -248,11 +249,11 @@ def test_lockstep_mixed_swarm_with_perfect_robots_follows_the_kinematic_run(tmp_
 
 
 def test_a_robot_agent_needs_its_scale(rclpy_context):
-    from conftest import overrides
     from swarm_agent.agent_node import AgentNode
-    from swarm_core.scenario import load
+    from swarm_core.scenario.loader import load
     from swarm_ros.rosutil import ParameterError
-    from swarm_tools.node_params import agent_parameters
+    from swarm_tools.run.params import agent_parameters
+    from tests.helpers import overrides
     prm = dict(agent_parameters(load('homotopy_global'), 0, 'lockstep'), robot='external')
     with pytest.raises(ParameterError, match='length_scale and cruise_speed'):
         AgentNode('agent', namespace='agent_0', context=rclpy_context, parameter_overrides=overrides(prm))
@@ -266,9 +267,9 @@ def test_swarm_run_robots_external_drives_standins(per, robots, tmp_path, proces
     Also two robot agents and a kinematic one in one agent container (``per`` 3)."""
     import subprocess
 
-    from swarm_core.trajectory import Trajectory
+    from swarm_core.engine.trajectory import Trajectory
     path, _ = _scenario_file(tmp_path / 'robots3.yaml', 0.1, 8.0, 0.3, 0.15)
-    processes.start([sys.executable, HERE / 'diff_drive_standin.py', *NAMES], stdout=subprocess.DEVNULL)
+    processes.start([sys.executable, FAKES / 'diff_drive_standin.py', *NAMES], stdout=subprocess.DEVNULL)
     out = tmp_path / 'run'
     run = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--robots', 'external:' + ','.join(robots),
                            '--agents-per-process', str(per), '--out', out, '--no-figure'],
@@ -295,12 +296,12 @@ def test_pause_event_stops_the_robot_and_bad_odometry_never_moves_the_agent(tmp_
     from nav_msgs.msg import Odometry
     from std_msgs.msg import String
 
-    from conftest import overrides, spin_for
     from swarm_agent.agent_node import AgentNode
     from swarm_ros import protocol as P
     from swarm_ros.rosutil import make_executor
-    from swarm_tools.node_params import agent_parameters
-    from swarm_tools.robot_plan import robot_parameters
+    from swarm_tools.run.params import agent_parameters
+    from swarm_tools.run.robots import robot_parameters
+    from tests.helpers import overrides, spin_for
     _, scn = _scenario_file(tmp_path / 'one.yaml', 0.1, 100.0, L, V0)
     prm = dict(agent_parameters(scn, 0, 'realtime'), agent_names=['agent_0'], use_sim_time=False,
                **robot_parameters(scn.spec.robots, 'external', 'realtime'))
@@ -355,8 +356,7 @@ def test_pause_event_stops_the_robot_and_bad_odometry_never_moves_the_agent(tmp_
 
 
 def test_standin_rate_limiter_bounds_acceleration_then_velocity():
-    sys.path.insert(0, str(HERE))
-    from diff_drive_standin import limited
+    from tests.fakes.diff_drive_standin import limited
     assert limited(1.0, 0.0, 0.1, 0.22, 0.5) == pytest.approx(0.05)      # 0.5 m/s² over 0.1 s
     assert limited(1.0, 0.2, 0.1, 0.22, 0.5) == pytest.approx(0.22)      # then the velocity bound
     assert limited(-3.0, 0.0, 0.1, math.nan, math.nan) == -3.0            # NaN: no limit

@@ -2,18 +2,14 @@
 
 With 200 agents the commander looks at 64 steering topics per tick (``CommandWatch``), all of
 them only for a while after a new node appeared.  ``ros2 topic pub --once`` (the faithful
-emulation of the Jazzy tool in ``emulate_topic_pub.py``, its own DDS participant) still takes
+emulation of the Jazzy tool in ``tests/fakes/emulate_topic_pub.py``, its own DDS participant) still takes
 effect on the first try, on λ and on steering topics of agents far apart in the round robin.
 """
 import sys
 import threading
 
-import pytest
-
-from conftest import ROOT, spin_for
-from emulate_topic_pub import main as topic_pub_once
-
-pytestmark = pytest.mark.ros
+from tests.fakes.emulate_topic_pub import main as topic_pub_once
+from tests.helpers import ROOT, spin_for
 
 
 def test_topic_pub_once_reaches_a_200_agent_commander(tmp_path, rclpy_context):
@@ -42,8 +38,8 @@ def test_topic_pub_once_reaches_a_200_agent_commander(tmp_path, rclpy_context):
             t = threading.Thread(target=topic_pub_once, args=([topic, 'std_msgs/msg/Float64', f'{{data: {value}}}'],),
                                  kwargs={'context': Context()})
             t.start()
-            assert spin_for(ex, lambda: not t.is_alive(), 120), topic
-            assert spin_for(ex, lambda: len(cmd.pending) > n, 30), topic
+            assert spin_for(ex, lambda t=t: not t.is_alive(), 120), topic
+            assert spin_for(ex, lambda n=n: len(cmd.pending) > n, 30), topic
             got = cmd.pending[n:]
             assert len(got) == 1 and got[0]['value'] == value, (topic, got)
             if agent is not None:

@@ -1,4 +1,4 @@
-"""The swarm metrics (swarm_core.metrics) on small cases whose values are worked out by hand.
+"""The swarm metrics (swarm_core.analysis.metrics) on small cases whose values are worked out by hand.
 
 Each value below is written out in the comment next to it, so that a metric that computes
 something else (a sum instead of a mean, an inverted test) fails here.
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from swarm_core import metrics as M
+from swarm_core.analysis import metrics as M
 
 # the barrier of these tests: the square 0 ≤ x, y ≤ 4
 SQUARE = [[0, 0], [4, 0], [4, 4], [0, 4]]

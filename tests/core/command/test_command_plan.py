@@ -4,16 +4,16 @@ import json
 import numpy as np
 import pytest
 
-from swarm_core.engine import simulate
-from swarm_core.scenario import load
-from swarm_core.command_plan import CHOOSE_RISE, check_command, read_commands
+from swarm_core.command.plan import CHOOSE_RISE, check_command, read_commands
+from swarm_core.engine.reference import simulate
+from swarm_core.scenario.loader import load
 
 
 def test_check_command_names_the_bad_field():
     assert check_command(dict(command='lambda', value=1, ramp=0), 3)['shape'] == 'smoothstep'
     for bad, word in [(dict(command='lambda', value=1.5), 'λ'), (dict(command='lambda', value=float('nan')), 'finite'),
-                      (dict(command='lambda', value=0.5, ramp=-1), 'ramp'), (dict(command='steer', agent=3, value=0.1), 'agent'),
-                      (dict(command='fly', value=1), 'command')]:
+                      (dict(command='lambda', value=0.5, ramp=-1), 'ramp'),
+                      (dict(command='steer', agent=3, value=0.1), 'agent'), (dict(command='fly', value=1), 'command')]:
         with pytest.raises(ValueError, match=word):
             check_command(bad, 3)
 

@@ -1,4 +1,4 @@
-"""The study fast path (swarm_core.fast) against the reference engine, and the study outputs a
+"""The study fast path (swarm_core.engine.compiled) against the reference engine, and the study outputs a
 data scientist reads (runs.parquet next to runs.csv).  Pure: no ROS."""
 from __future__ import annotations
 
@@ -11,13 +11,18 @@ import numpy as np
 import pytest
 import yaml
 
-from swarm_core import engine, fast, metrics, scenario
 from swarm_core import study as st
-from swarm_core.study_tables import _cell_str
+from swarm_core.analysis import metrics
+from swarm_core.engine import compiled as fast
+from swarm_core.engine import reference as engine
+from swarm_core.scenario import loader as scenario
+from swarm_core.study.tables import _cell_str
 
 #: the shipped scenarios the reference runs instead (and why: `fast.fallback_reason`)
 FALLBACK = {'homotopy_reunion': 'reunion', 'leader_failover': 'faults or failover',
-            'leader_no_failover': 'faults or failover'}
+            'leader_no_failover': 'faults or failover',
+            # laws of the Law interface run on the reference engine
+            'spl_parallel': 'law spl_parallel', 'spl_circular': 'law spl_circular', 'flock_to_circle': 'law blend'}
 
 
 def _max_diff(a, b):
@@ -114,7 +119,7 @@ def test_dense_metric_samples_equal_the_per_sample_loop():
 
 def test_agent_processes_do_not_import_numba():
     code = ('import sys, swarm_agent.agent_core, swarm_agent.container_core, swarm_world.lockstep, '
-            'homotopy_commander.commander_node, swarm_core.engine\n'
-            'print(sorted(m for m in sys.modules if m.startswith(("numba", "swarm_core.fast", "pyarrow"))))')
+            'homotopy_commander.commander_node, swarm_core.engine.reference\n'
+            'print(sorted(m for m in sys.modules if m.startswith(("numba", "swarm_core.engine.compiled", "pyarrow"))))')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == '[]'

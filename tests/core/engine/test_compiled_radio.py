@@ -1,18 +1,19 @@
-"""The radio model in the study fast path (swarm_core.fast, fast_kernels) against the reference engine
-(swarm_core.comms in swarm_core.engine).  Pure: no ROS."""
+"""The radio model in the study fast path (swarm_core.engine.compiled, fast_kernels) against the reference engine
+(swarm_core.faults.radio in swarm_core.engine.reference).  Pure: no ROS."""
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-from swarm_core import comms, engine, fast, fast_kernels, scenario
 from swarm_core import study as st
-from swarm_core.frenet import frame_from_quaternion
-
-ROOT = Path(__file__).resolve().parents[1]
+from swarm_core.engine import compiled as fast
+from swarm_core.engine import compiled_kernels as fast_kernels
+from swarm_core.engine import reference as engine
+from swarm_core.faults import radio as comms
+from swarm_core.model.frenet import frame_from_quaternion
+from swarm_core.scenario import loader as scenario
+from tests.helpers import ROOT
 
 #: every shipped scenario and example with a radio model
 RADIO_SCENARIOS = [s for s in scenario.shipped_scenarios() + sorted(str(p) for p in (ROOT / 'examples').glob('*.yaml'))

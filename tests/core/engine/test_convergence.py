@@ -3,8 +3,9 @@ over t = 1000, so outcomes are compared, not positions): each scenario at its ow
 it ships with) against dt/2 and against RK4 at its dt.  Slow: several full runs."""
 import pytest
 
-from swarm_core import engine, scenario
-from swarm_core.analysis import analyse
+from swarm_core.analysis.outputs import analyse
+from swarm_core.engine import reference as engine
+from swarm_core.scenario import loader as scenario
 
 pytestmark = pytest.mark.slow
 

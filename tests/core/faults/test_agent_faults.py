@@ -1,20 +1,27 @@
-"""Faults, leader failover and reunion in the pure core (swarm_core.faults, no ROS)."""
+"""Faults, leader failover and reunion in the pure core (swarm_core.faults.agents, no ROS)."""
 import copy
 
 import numpy as np
 import pytest
 
 from swarm_agent.agent_core import AgentCore
-from swarm_core import outcomes
-from swarm_core.engine import simulate
-from swarm_core.faults import (Fault, FaultTimeline, alive_control, elect_successor, followers_of, reunion_law,
-                               track_slots)
+from swarm_core.analysis import outcomes
+from swarm_core.analysis.outputs import analyse
+from swarm_core.command.plan import CommandPlan
+from swarm_core.command.schedules import ConstantSteering
+from swarm_core.engine.reference import simulate
+from swarm_core.faults.agents import (
+    Fault,
+    FaultTimeline,
+    alive_control,
+    elect_successor,
+    followers_of,
+    reunion_law,
+    track_slots,
+)
 from swarm_core.laws import LawConfig, swarm_control
-from swarm_core.frenet import frame_from_quaternion, heading_frame
-from swarm_core.scenario import ScenarioError, load, parse
-from swarm_core.schedules import ConstantSteering
-from swarm_core.command_plan import CommandPlan
-from swarm_core.analysis import analyse
+from swarm_core.model.frenet import frame_from_quaternion, heading_frame
+from swarm_core.scenario.loader import ScenarioError, load, parse
 
 BASE = dict(name='faulty', seed=1, dt=0.05, duration=3.0,
             agents=dict(positions=[[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]),
@@ -338,7 +345,7 @@ def test_rendezvous_point_is_the_centroid_at_switch_on_and_adds_the_target_term(
     moved = scn.pos0 + 5.0
     plan.update(6.0, moved, c, s)
     np.testing.assert_allclose(plan.rendezvous_now[0], scn.pos0.mean(axis=0))    # fixed, not tracking
-    from swarm_core.faults import reunion_law
+    from swarm_core.faults.agents import reunion_law
     law, target = reunion_law(scn.law, None, plan.rendezvous_now)
     from swarm_core.laws import target_term
     u = swarm_control(moved, c, s, np.arange(6), law, target=target)

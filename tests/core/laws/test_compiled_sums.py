@@ -1,4 +1,4 @@
-"""The compiled pair sums of large swarms (swarm_core.large_swarms) against the reference
+"""The compiled pair sums of large swarms (swarm_core.laws.compiled_sums) against the reference
 (`laws.swarm_control` dense/sparse numpy paths) on n = 3,000, where the reference is still
 affordable: equal to 1e-9 (they add the same terms in another order), for every coupling;
 and the batch engine takes them only from COMPILED_LIMIT agents on."""
@@ -8,9 +8,9 @@ import sys
 import numpy as np
 import pytest
 
-from swarm_core import large_swarms
-from swarm_core.frenet import PairGains, heading_frame
-from swarm_core.laws import LawConfig, swarm_control
+from swarm_core.laws import LawConfig, PairGains, swarm_control
+from swarm_core.laws import compiled_sums as large_swarms
+from swarm_core.model.frenet import heading_frame
 
 pytestmark = pytest.mark.skipif(not large_swarms.available(), reason='numba is not installed')
 
@@ -55,8 +55,8 @@ def test_compiled_equals_the_reference_to_1e_9(law, lam):
 
 
 def test_engine_takes_the_compiled_path_only_for_large_swarms():
-    from swarm_core.engine import SwarmStepper
-    from swarm_core.scenario import parse
+    from swarm_core.engine.reference import SwarmStepper
+    from swarm_core.scenario.loader import parse
     def stepper(n, **kw):
         return SwarmStepper(parse(dict(name='big', dt=0.05, duration=1.0, law=dict(kind='global'),
                                        agents=dict(count=n, positions={'rule': 'grid', 'spacing': 1.5}))), **kw)
@@ -69,7 +69,7 @@ def test_engine_takes_the_compiled_path_only_for_large_swarms():
 
 def test_agent_processes_do_not_import_numba():
     """What an agent process imports (its core, the laws, the radio, faults) leaves numba out."""
-    code = ('import sys, swarm_agent.agent_core, swarm_core.laws, swarm_core.comms, swarm_core.engine; '
-            'print("numba" in sys.modules)')
+    code = ('import sys, swarm_agent.agent_core, swarm_core.laws.control, swarm_core.faults.radio, '
+            'swarm_core.engine.reference; print("numba" in sys.modules)')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == 'False'

@@ -1,5 +1,5 @@
-"""One declaration of the law's parameters (swarm_core.law_parameters) drives the scenario
-schema, the agent's ROS parameters and `LawConfig`; one check of λ (swarm_core.inputs) is the
+"""One declaration of the law's parameters (swarm_core.laws.parameters) drives the scenario
+schema, the agent's ROS parameters and `LawConfig`; one check of λ (swarm_core.checks) is the
 one every boundary uses."""
 from __future__ import annotations
 
@@ -9,12 +9,11 @@ import math
 import numpy as np
 import pytest
 
-from swarm_core.command_plan import check_command
-from swarm_core.frenet import PairGains
-from swarm_core.inputs import LAMBDA_BOUND, Bound, InputError
-from swarm_core.law_parameters import LAW_TABLE
-from swarm_core.laws import LAW_PARAMETERS, LawConfig
-from swarm_core.scenario import BarrierSpec, LawSpec, ScenarioError, TargetSpec, parse
+from swarm_core.checks import LAMBDA_BOUND, Bound, InputError
+from swarm_core.command.plan import check_command
+from swarm_core.laws import LAW_PARAMETERS, LawConfig, PairGains
+from swarm_core.laws.parameters import LAW_TABLE
+from swarm_core.scenario.loader import BarrierSpec, LawSpec, ScenarioError, TargetSpec, parse
 
 BASE = dict(name='t', dt=0.1, duration=1.0, agents=dict(count=3))
 SQUARE = [[0, 0], [1, 0], [1, 1], [0, 1]]
@@ -75,8 +74,8 @@ def test_schema_and_ros_choices_are_the_same(p):
 
 
 def test_reunion_coupling_and_gain_are_q0_and_the_target_gain():
-    from swarm_core.law_parameters import LAW_PARAMETER
-    from swarm_core.scenario import ReunionSpec
+    from swarm_core.laws.parameters import LAW_PARAMETER
+    from swarm_core.scenario.loader import ReunionSpec
     for key, name in (('coupling', 'q0'), ('gain', 'target_gain')):
         b = LAW_PARAMETER[name].bound
         assert getattr(ReunionSpec(at=0, **{'for': 1, key: b.hi}), key) == b.hi

@@ -5,10 +5,11 @@ import warnings
 import numpy as np
 import pytest
 
-from swarm_core import frenet as model, laws, pair_sums
-from swarm_core.laws import LawConfig, swarm_control
-from swarm_core.frenet import PairGains, heading_frame
-
+from swarm_core import laws
+from swarm_core.laws import LawConfig, PairGains, pair_sums, swarm_control
+from swarm_core.laws.control import barrier_term
+from swarm_core.model import frenet as model
+from swarm_core.model.frenet import heading_frame
 
 # ------------------------------------------------------------------ pair term by hand
 
@@ -93,7 +94,8 @@ def _law_loop(pos, th, law, lam, leaders, steering, target, barrier):
     n = len(th)
     g = law.gains
     w = law.cutoff_radius
-    c = lambda rho, q: 1.0 if rho < w else q  # noqa: E731  (eq. 8)
+    def c(rho, q):                                      # eq. 8
+        return 1.0 if rho < w else q
     lam_e, q0 = law.effective_lambda_q0(lam)
     out = np.zeros(n)
     lead_idx = [i for i in range(n) if leaders[i]] if law.uses_leaders else []
@@ -296,13 +298,13 @@ def test_barrier_term_turns_away_only_while_ahead():
     pos = np.array([[0.0, 0.0]])
     ahead_left = np.array([[2.0, 1.0]])
     behind_left = np.array([[-2.0, 1.0]])
-    u_ahead = laws.barrier_term(pos, c, s, ahead_left, law)[0]
+    u_ahead = barrier_term(pos, c, s, ahead_left, law)[0]
     assert u_ahead < 0                                          # turn right, away from it
-    assert laws.barrier_term(pos, c, s, behind_left, law)[0] == 0.0
+    assert barrier_term(pos, c, s, behind_left, law)[0] == 0.0
     literal = LawConfig(kind='target', barrier_gain=5.0, barrier_mode='literal')
-    assert laws.barrier_term(pos, c, s, behind_left, literal)[0] > 0   # the literal reading turns back
+    assert barrier_term(pos, c, s, behind_left, literal)[0] > 0   # the literal reading turns back
     far = np.array([[10.0, 0.0]])
-    assert laws.barrier_term(pos, c, s, far, law)[0] == 0.0      # not sensed beyond w
+    assert barrier_term(pos, c, s, far, law)[0] == 0.0      # not sensed beyond w
 
 
 @pytest.mark.parametrize('kind,lam', [('local', 0.0), ('homotopy', 0.7), ('leader_following', 1.0), ('target', 0.0)])
@@ -310,9 +312,8 @@ def test_neighbour_list_equals_whole_table_with_coincident_agents(kind, lam):
     """The pair-list path (KD-tree neighbours within w, summed with np.bincount) gives the
     dense result, coincident agents included, and one agent with its own list gets its batch
     value bit for bit."""
-    from swarm_core.engine import neighbour_pairs
-
-    from conftest import pairs_of_one
+    from swarm_core.engine.reference import neighbour_pairs
+    from tests.helpers import pairs_of_one
     rng = np.random.default_rng(9)
     n = 200
     pos = rng.uniform(-15, 15, (n, 2))

@@ -4,10 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from swarm_core import engine, scenario
-from swarm_core.integrate import rk4_step, zoh_step
+from swarm_core.engine import reference as engine
 from swarm_core.laws import swarm_control
-from swarm_core.frenet import heading_frame
+from swarm_core.model.frenet import heading_frame
+from swarm_core.model.integrate import rk4_step, zoh_step
+from swarm_core.scenario import loader as scenario
 
 
 def test_zoh_is_exact_for_constant_curvature():
@@ -97,9 +98,8 @@ def test_kdtree_neighbour_search_equals_all_pairs():
     np.testing.assert_allclose(u_tree, u_all, rtol=0, atol=1e-14)   # other summation order
     assert len(pairs[0]) < n * (n - 1) / 5
     # one agent with its own neighbour list adds the same terms in the same order
-    from swarm_core.pair_sums import sparse_coupling
-
-    from conftest import pairs_of_one
+    from swarm_core.laws.pair_sums import sparse_coupling
+    from tests.helpers import pairs_of_one
     assert sparse_coupling(n, scn.law, 0.0)
     for k in (0, 17, 299):
         one = swarm_control(pos, c, s, np.array([k]), scn.law, pairs=pairs_of_one(pairs, k))
@@ -109,7 +109,7 @@ def test_kdtree_neighbour_search_equals_all_pairs():
 def _per_agent_run(scn, steps):
     """What a swarm of agent nodes does: each agent computes only its own u from the table of
     states it received (frames through the quaternion) and integrates only itself."""
-    from swarm_core.frenet import frame_from_quaternion, quaternion_from_heading
+    from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
     pos, th = scn.pos0.copy(), scn.theta0.copy()
     plan = scn.command_plan()
     n = len(th)
@@ -141,7 +141,8 @@ def _per_agent_run(scn, steps):
 def test_agent_by_agent_equals_batch_exactly(name, extra):
     """The premise of lockstep determinism: agents computing alone reproduce the batch run."""
     import yaml
-    from swarm_core.scenario import resolve
+
+    from swarm_core.scenario.loader import resolve
     data = yaml.safe_load(resolve(name)[0])
     data.update(extra)
     data['leaders'] = data.get('leaders') or {}

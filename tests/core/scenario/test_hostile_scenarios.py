@@ -10,8 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarm_core import scenario, simulate_cli
-from swarm_core.scenario import ScenarioError, load, parse
+from swarm_core.scenario import loader as scenario
+from swarm_core.scenario.loader import ScenarioError, load, parse
+from swarm_tools import simulate as simulate_cli
 
 BASE = dict(name='t', dt=0.1, duration=1.0, agents=dict(count=3))
 
@@ -141,7 +142,8 @@ def test_swarm_run_parameters_grow_linearly_and_agents_are_limited(tmp_path):
 
     import yaml
 
-    from swarm_tools import launch, node_params
+    from swarm_tools.run import launch
+    from swarm_tools.run import params as node_params
 
     def params_size(n):
         scn = parse(dict(name='big', agents=dict(count=n)), 'x.yaml')
@@ -149,7 +151,7 @@ def test_swarm_run_parameters_grow_linearly_and_agents_are_limited(tmp_path):
         path = node_params.write_params_file(params, tmp_path / f'p{n}.yaml')
         return params, path
 
-    (p1, f1), (p4, f4) = params_size(250), params_size(1000)
+    (_, f1), (p4, f4) = params_size(250), params_size(1000)
     assert f4.stat().st_size < 4.6 * f1.stat().st_size          # O(N²) gives ~16×
     doc = yaml.safe_load(f4.read_text())
     shared = doc[node_params.AGENTS_SECTION]['ros__parameters']

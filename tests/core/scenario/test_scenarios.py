@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 import yaml
 
-from swarm_core import engine, scenario
-from swarm_core.metrics import Barrier
-from swarm_core.analysis import analyse
+from swarm_core.analysis.metrics import Barrier
+from swarm_core.analysis.outputs import analyse
+from swarm_core.engine import reference as engine
+from swarm_core.scenario import loader as scenario
 
 SHIPPED = ['global_alignment', 'homotopy_global', 'homotopy_local', 'target_barrier',
            'leader_failover', 'leader_no_failover', 'homotopy_reunion']
@@ -114,8 +115,8 @@ def test_partial_run_is_kept_on_interrupt():
 def test_a_run_shorter_than_its_checks_leaves_them_not_judged():
     """homotopy_global to t = 20: its windows (t = 300-600) and the end are not reached; an
     interrupted run judges nothing about the end; what a short run settles still counts."""
-    from swarm_core.analysis import behaviour_ok
-    from swarm_core.simulate_cli import sweep_table
+    from swarm_core.analysis.outputs import behaviour_ok
+    from swarm_tools.simulate import sweep_table
     scn = scenario.load('homotopy_global', duration=20)
     _, checks = analyse(engine.simulate(scn), scenario=scn)
     assert checks['one_cluster_at']['passed'] is None and checks['split_between']['passed'] is None
@@ -131,7 +132,7 @@ def test_a_run_shorter_than_its_checks_leaves_them_not_judged():
     # settled by what ran: a second cluster inside a one-cluster window fails at once
     series = dict(t=np.arange(0.0, 21.0), clusters=np.r_[np.ones(15, int), [2] * 6],
                   one_leader_per_cluster=np.zeros(21, bool))
-    from swarm_core.outcomes import evaluate
+    from swarm_core.analysis.outcomes import evaluate
     got = evaluate({'one_cluster_at': [10, 300]}, series, scn=full)
     assert got['one_cluster_at']['passed'] is False and behaviour_ok(got) is False
 

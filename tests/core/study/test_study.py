@@ -1,4 +1,4 @@
-"""Parameter studies (swarm_core.study, `swarm sweep --set`): the same table for every
+"""Parameter studies (swarm_core.study.runner, `swarm sweep --set`): the same table for every
 executor, resuming an interrupted study, and one clear error for a bad --set (no ROS)."""
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from swarm_core import simulate_cli
 from swarm_core import study as st
+from swarm_tools import simulate as simulate_cli
 
 VENV_BIN = Path(sys.executable).parent
 
@@ -179,7 +179,9 @@ def test_a_check_whose_window_starts_after_the_run_is_not_judged():
     """fig4_spacing stops at t = 320: homotopy_local's stays_split_from: 600 cannot be judged
     (it was a failure: an empty window)."""
     import numpy as np
-    from swarm_core import outcomes, scenario
+
+    from swarm_core.analysis import outcomes
+    from swarm_core.scenario import loader as scenario
     scn = scenario.load('homotopy_local', duration=320)
     series = {'t': np.arange(0.0, 321.0), 'clusters': np.ones(321, int)}
     res = outcomes.evaluate({'stays_split_from': 600, 'one_cluster_from': 400}, series, None, scn)

@@ -9,27 +9,22 @@ the test's own ROS_DOMAIN_ID; the robot world on MuJoCo."""
 import time
 
 import numpy as np
-import pytest
+import rclpy
+from std_msgs.msg import Float64MultiArray
 
-pytestmark = pytest.mark.ros
-
-rclpy = pytest.importorskip('rclpy')
-pytest.importorskip('mujoco')
-
-from std_msgs.msg import Float64MultiArray  # noqa: E402
-
-from swarm_core.frenet import quaternion_from_heading  # noqa: E402
-from swarm_core.scenario import load  # noqa: E402
-from swarm_core.trajectory import Trajectory  # noqa: E402
-from swarm_ros import protocol as P  # noqa: E402
-from swarm_ros.layouts import RobotStates  # noqa: E402
-from swarm_ros.rosutil import make_executor  # noqa: E402
-from swarm_tools.launch import build_nodes, robots_nodes  # noqa: E402
-from swarm_tools.node_params import node_parameters  # noqa: E402
-from swarm_tools.robot_plan import apply_robots  # noqa: E402
-from swarm_tools.robot_world import add_robot_world  # noqa: E402
-
-from conftest import short_homotopy  # noqa: E402
+from swarm_core.engine.trajectory import Trajectory
+from swarm_core.model.frenet import quaternion_from_heading
+from swarm_core.scenario.loader import load
+from swarm_ros import protocol as P
+from swarm_ros.layouts import RobotStates
+from swarm_ros.rosutil import make_executor
+from swarm_tools.run.launch import build_nodes, robots_nodes
+from swarm_tools.run.params import node_parameters
+from swarm_tools.run.robots import (
+    add_robot_world,
+    apply_robots,
+)
+from tests.helpers import short_homotopy
 
 ROBOTS = {'length_scale': 0.3, 'cruise_speed': 0.15, 'frame': 'odom'}
 
@@ -77,7 +72,7 @@ def test_a_robot_world_matched_after_the_first_commands_still_gets_them(tmp_path
         # the world starts without the robot world (the test reports t_0): each agent sends its
         # command of step 0, and the world waits for the robots' poses of t_1
         assert spin_both([ex], lambda: all(a.step == 1 for a in agents), 60)
-        assert world.lock.cur == 1 and not world.lock.complete()
+        assert world.driver.lock.cur == 1 and not world.driver.lock.complete()
         late = robots_nodes(params, late_ctx)
         late_ex = make_executor(late_ctx)
         late_ex.add_node(late[0])

@@ -5,22 +5,18 @@ import json
 
 import numpy as np
 import pytest
+import rclpy
+from geometry_msgs.msg import TwistStamped
+from nav_msgs.msg import Odometry
+from std_msgs.msg import Float64MultiArray
 
-pytestmark = pytest.mark.ros
-
-rclpy = pytest.importorskip('rclpy')
-from geometry_msgs.msg import TwistStamped  # noqa: E402
-from nav_msgs.msg import Odometry  # noqa: E402
-from std_msgs.msg import Float64MultiArray  # noqa: E402
-
-from swarm_core.scenario import load  # noqa: E402
-from swarm_robots import mujoco_world_node as M  # noqa: E402
-from swarm_robots.run_setup import SUMMARY_FILE  # noqa: E402
-from swarm_ros import protocol as P  # noqa: E402
-from swarm_ros.layouts import Step  # noqa: E402
-from swarm_ros.rosutil import make_executor  # noqa: E402
-
-from conftest import overrides, short_homotopy, spin_for  # noqa: E402
+from swarm_core.scenario.loader import load
+from swarm_robots import mujoco_world_node as M
+from swarm_robots.world_setup import SUMMARY_FILE
+from swarm_ros import protocol as P
+from swarm_ros.layouts import Step
+from swarm_ros.rosutil import make_executor
+from tests.helpers import overrides, short_homotopy, spin_for
 
 
 class FakeWorld:
@@ -108,7 +104,8 @@ def test_lockstep_hold_on_messages(robots_node, rclpy_context, tmp_path):
     alive[3] = False
     steps.publish(_raw(step(scn, 0, alive)))
     cmd['agent_1'].publish(command(0.0, 0.15))
-    stamped = lambda topic, t: [m for m in got.get(topic, []) if abs(P.stamp_to_time(m.header.stamp) - t) < 1e-9]  # noqa: E731
+    def stamped(topic, t):
+        return [m for m in got.get(topic, []) if abs(P.stamp_to_time(m.header.stamp) - t) < 1e-9]
     assert spin_for(ex, lambda: stamped(odom1, scn.dt) and stamped(M.odom_topic('agent_3'), scn.dt), 10)
     assert node.world.time == pytest.approx(scn.dt * 2.0)
     assert node.world.commands == [(0.0, 0, 0.15, 0.0)]
@@ -236,7 +233,7 @@ def drive(ctx, path, steps, tag):
                 m.twist.angular.z = 2.84 if k == 1 else 0.5 * np.sin(0.1 * n)     # robot 1 at ω_max
                 cmd[k].publish(m)
             t = round((n + 1) * dt, 9)
-            assert spin_for(ex, lambda: len(got.get(t, {})) == 2, 10), n
+            assert spin_for(ex, lambda t=t: len(got.get(t, {})) == 2, 10), n
         return [got[round((n + 1) * dt, 9)] for n in range(steps)], node.summary(), node.world.time
     finally:
         peer.destroy_node()

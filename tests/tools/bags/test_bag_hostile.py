@@ -10,66 +10,21 @@ import sys
 import numpy as np
 import pytest
 
-from swarm_core import engine, scenario
-
-SCN = """
-name: six
-dt: 0.1
-duration: 8
-agents:
-  positions: [[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]
-law: {kind: global}
-"""
+from swarm_core.engine import reference as engine
+from swarm_core.scenario import loader as scenario
+from tests.helpers import SIX_GLOBAL, odom_cdr, write_states_bag
 
 
 @pytest.fixture(scope='module')
 def traj(tmp_path_factory):
     f = tmp_path_factory.mktemp('scn') / 'six.yaml'
-    f.write_text(SCN)
+    f.write_text(SIX_GLOBAL)
     return engine.simulate(scenario.load(str(f)))
-
-
-def _odom(name, t_ns, x, y, qz, qw, u):
-    from nav_msgs.msg import Odometry
-    from rclpy.serialization import serialize_message
-    m = Odometry()
-    m.header.stamp.sec, m.header.stamp.nanosec = divmod(int(t_ns), 1_000_000_000)
-    m.header.frame_id = 'world'
-    m.child_frame_id = name
-    m.pose.pose.position.x, m.pose.pose.position.y = float(x), float(y)
-    m.pose.pose.orientation.z, m.pose.pose.orientation.w = float(qz), float(qw)
-    m.twist.twist.angular.z = float(u)
-    return serialize_message(m)
-
-
-def write_bag(traj, path, *, hostile=False, flush_every=None):
-    """The run's states as the agents publish them (+ hostile extras), one per step and agent."""
-    from swarm_core.frenet import quaternion_from_heading
-    from swarm_tools.bag import BagWriter, qos_dict
-    w = BagWriter(path, flush_interval=3600)
-    w.add_topic('/swarm/states', 'nav_msgs/msg/Odometry', [qos_dict(history=1, depth=10, reliability=1, durability=2)])
-    qz, qw = quaternion_from_heading(traj.theta)
-    base = 1_700_000_000 * 10**9
-    for s in range(len(traj.t)):
-        t_ns = int(round(traj.t[s] * 1e9))
-        for k, name in enumerate(traj.names):
-            w.write('/swarm/states', _odom(name, t_ns, traj.r[s, k, 0], traj.r[s, k, 1], qz[s, k], qw[s, k],
-                                           traj.u[s, k]), base + s * 1_000_000 + k)
-        if hostile and s == 10:
-            log = base + s * 1_000_000 + 100
-            w.write('/swarm/states', _odom('agent_2', t_ns, np.nan, 0, 0, 1, 0), log)        # NaN
-            w.write('/swarm/states', _odom('agent_3', t_ns, np.inf, 0, 0, 1, 0), log + 1)    # inf
-            w.write('/swarm/states', _odom('agent_4', 10**18, 0, 0, 0, 1, 0), log + 2)      # year 2001
-            w.write('/swarm/states', _odom('ghost', t_ns, 500, 500, 0, 1, 0), log + 3)       # a 7th agent
-            w.write('/swarm/states', _odom('b/../c d', t_ns, 1, 1, 0, 1, 0), log + 4)
-        if flush_every and s % flush_every == 0:
-            w.maybe_flush(force=True)
-    return w
 
 
 def test_message_class_imports_only_installed_interface_types(tmp_path, monkeypatch):
     """A type name from the graph or a bag's schema imported any module it named."""
-    from swarm_tools.record import message_class
+    from swarm_tools.bags.record import message_class
     pkg = tmp_path / 'evil_pkg' / 'msg'
     pkg.mkdir(parents=True)
     (tmp_path / 'evil_pkg' / '__init__.py').write_text('')
@@ -86,15 +41,16 @@ def test_message_class_imports_only_installed_interface_types(tmp_path, monkeypa
 def test_bag_recover_rewrites_a_truncated_bag(traj, tmp_path, swarm_cmd):
     """A killed recorder's bag cannot be opened by mcap's default (seeking) reader;
     `swarm bag recover` writes one that can, with every message of the complete chunks."""
+    from mcap.exceptions import McapError
     from mcap.reader import make_reader
     full = tmp_path / 'full.mcap'
-    w = write_bag(traj, full, flush_every=7)       # the last steps stay in the open chunk
+    w = write_states_bag(traj, full, flush_every=7)       # the last steps stay in the open chunk
     w._fh.flush()
     size_open = full.stat().st_size          # everything flushed so far, no summary: as killed
     w.close()
     cut = tmp_path / 'cut.mcap'
     cut.write_bytes(full.read_bytes()[:size_open - 7])     # cut inside the last chunk
-    with pytest.raises(Exception):
+    with pytest.raises(McapError):
         with open(cut, 'rb') as fh:
             list(make_reader(fh).iter_messages())
     out = tmp_path / 'fixed.mcap'
@@ -118,7 +74,7 @@ def test_bag_recover_rewrites_a_truncated_bag(traj, tmp_path, swarm_cmd):
 def test_report_leaves_out_bad_states(traj, tmp_path, swarm_cmd):
     """NaN, inf, absurd stamps and unknown senders crashed the report or made a 7th agent."""
     bag = tmp_path / 'hostile.mcap'
-    write_bag(traj, bag, hostile=True).close()
+    write_states_bag(traj, bag, hostile=True).close()
     r = subprocess.run([swarm_cmd, 'report', bag, '--out', tmp_path / 'rep', '--no-figure'],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
@@ -144,11 +100,11 @@ def test_a_damaged_chunk_costs_only_that_chunk(traj, tmp_path, swarm_cmd, where)
     """One flipped byte mid-bag made `report` and `bag recover` drop every later chunk.
     ``data``: a byte inside a chunk's compressed records (its CRC fails); ``length``: the
     chunk's record length (the framing: the read goes on at the next indexed chunk)."""
-    from swarm_tools.bag import iter_messages
-    from swarm_tools.bag_recover import recover
-    from swarm_tools.report import read_run
+    from swarm_tools.bags.mcap_io import iter_messages
+    from swarm_tools.bags.recover import recover
+    from swarm_tools.bags.report import read_run
     bag = tmp_path / 'bag.mcap'
-    write_bag(traj, bag, flush_every=7).close()
+    write_states_bag(traj, bag, flush_every=7).close()
     total = len(list(iter_messages(bag)))
     chunks = _chunks(bag)
     assert len(chunks) >= 8
@@ -184,10 +140,10 @@ def test_report_takes_the_roster_from_the_run_announcement(traj, tmp_path, capsy
     """A bag with many fake `agent_N` senders (a few states each, more of them than the run's
     agents) reported each as an agent; the run's /swarm/run announcement names the roster."""
     from swarm_ros.runinfo import run_json
-    from swarm_tools import report
-    from swarm_tools.bag import qos_dict
+    from swarm_tools.bags import report
+    from swarm_tools.bags.mcap_io import qos_dict
     bag = tmp_path / 'spoofed.mcap'
-    w = write_bag(traj, bag)
+    w = write_states_bag(traj, bag)
     latched = [qos_dict(history=1, depth=1, reliability=1, durability=1)]
     w.add_topic('/swarm/run', 'std_msgs/msg/String', latched)
     w.write('/swarm/run', _string(run_json('1a2b3c4d', 'six', 'lockstep', traj.names, 1.0)), 1)
@@ -195,7 +151,8 @@ def test_report_takes_the_roster_from_the_run_announcement(traj, tmp_path, capsy
     base = 2_000_000_000 * 10**9
     for i in range(300):
         for s in range(3):
-            w.write('/swarm/states', _odom(f'agent_{100 + i}', int(traj.t[s] * 1e9), i, i, 0, 1, 0), base + 3 * i + s)
+            state = odom_cdr(f'agent_{100 + i}', int(traj.t[s] * 1e9), i, i, 0, 1, 0)
+            w.write('/swarm/states', state, base + 3 * i + s)
     w.close()
     assert report.main([str(bag), '--out', str(tmp_path / 'rep'), '--no-figure']) == 0
     doc = json.loads((tmp_path / 'rep' / 'metrics.json').read_text())
@@ -208,12 +165,11 @@ def test_report_takes_the_roster_from_the_run_announcement(traj, tmp_path, capsy
 def test_play_republishes_only_the_projects_types(traj, tmp_path):
     """A second /swarm/states channel with schema os/msg/system was played as Odometry; a
     project topic of another type (here /swarm/lambda as String) is not the project's."""
-    from swarm_tools.bag import qos_dict
-    from swarm_tools.play import foreign_lines
-    from swarm_tools.bag import bag_topics
-    from swarm_tools.record import swarm_type
+    from swarm_tools.bags.mcap_io import bag_topics, qos_dict
+    from swarm_tools.bags.play import foreign_lines
+    from swarm_tools.bags.record import swarm_type
     bag = tmp_path / 'mixed.mcap'
-    w = write_bag(traj, bag)
+    w = write_states_bag(traj, bag)
     sid = w._w.register_schema('os/msg/system', 'ros2msg', b'string cmd')
     cid = w._w.register_channel('/swarm/states', 'cdr', sid, {})
     for k in range(5):

@@ -1,33 +1,21 @@
 """The shipped `ros2 bag record` QoS override file (src/swarm_tools/config/record_qos_overrides.yaml)
-read as rosbag2 reads it, checked against what the swarm's publishers offer, and used by a
-rosbag2 recorder emulation (tests/rosbag2_record.py: discovery, QoS adaptation, overrides as
-rosbag2 Jazzy does them; see its docstring) on a lockstep run: every /swarm/states message of
-every agent is received.
+read as rosbag2 reads it (the reader of the emulation tests/fakes/rosbag2_record.py) and checked
+against what the swarm's publishers offer.  The emulated recorder with the file on a run:
+tests/tools/bags/ros/test_bag_qos_recorder.py.
 """
 from __future__ import annotations
 
-import json
-import os
-import signal
-import subprocess
-import sys
-from pathlib import Path
+from tests.helpers import ROOT
 
-import pytest
-
-from conftest import short_homotopy
-
-ROOT = Path(__file__).resolve().parents[1]
 OVERRIDES = ROOT / 'src' / 'swarm_tools' / 'config' / 'record_qos_overrides.yaml'
-EMULATION = ROOT / 'tests' / 'rosbag2_record.py'
 
 
 def test_overrides_match_what_the_publishers_offer():
     """An override asking for more than the publishers offer would match none of them."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 
-    from rosbag2_record import overrides_from_yaml
     from swarm_ros import protocol as P
+    from tests.fakes.rosbag2_record import overrides_from_yaml
 
     got = overrides_from_yaml(OVERRIDES.read_text())
     offered = {P.STATES: P.qos_latched(P.STATES_DEPTH), P.CLOCK: P.qos_reliable(P.STEP_DEPTH)}
@@ -38,33 +26,3 @@ def test_overrides_match_what_the_publishers_offer():
         assert want.reliability == ReliabilityPolicy.RELIABLE == have.reliability, topic
         assert want.durability == have.durability, topic
     assert got[P.STATES].durability == DurabilityPolicy.TRANSIENT_LOCAL
-
-
-@pytest.mark.ros
-def test_rosbag2_style_recorder_with_overrides_loses_no_state(ros_domain, processes, swarm_cmd, tmp_path):
-    """`ros2 bag record -a --qos-profile-overrides-path FILE` started before a lockstep
-    `swarm run --state-readers 1`: each agent's states of steps 0..last all arrive.  (The run has fewer states
-    than the override's depth; what a slower recorder loses in a long run is measured by
-    scripts/bench_bag_qos.py.)"""
-    steps, dt = 120, 0.05
-    scn = short_homotopy(tmp_path / 'scn.yaml', duration=steps * dt, lam='{kind: constant, value: 0.0}', at=1000.0)
-    rec = processes.start([sys.executable, EMULATION, '--qos-profile-overrides-path', OVERRIDES],
-                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                          env=dict(os.environ, PYTHONPATH=str(ROOT / 'tests')))
-    assert 'ready' in rec.stderr.readline()
-    # --state-readers 1: the agents' first states wait for the recorder's reader (a short run
-    # is over before a recorder that has not yet discovered an agent's writer could match it)
-    run = processes.start([swarm_cmd, 'run', scn, '--mode', 'lockstep', '--no-figure', '--state-readers', '1',
-                           '--out', tmp_path / 'run'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                          text=True)
-    out = processes.communicate(run, timeout=600)
-    assert run.returncode == 0, out[-3000:]
-    os.killpg(rec.pid, signal.SIGINT)
-    report = json.loads(processes.communicate(rec, timeout=60).strip().splitlines()[-1])
-    assert report['requested']['/swarm/states'] == {'depth': 1000, 'reliability': 'reliable',
-                                                    'durability': 'transient_local'}
-    assert len(report['states']) == 6, sorted(report['states'])
-    for name, stamps in report['states'].items():
-        got = sorted({round(s / (dt * 1e9)) for s in stamps})
-        assert got[-1] >= steps and got == list(range(got[-1] + 1)), \
-            (name, got[-1], sorted(set(range(got[-1] + 1)) - set(got)))

@@ -1,19 +1,13 @@
-"""The DDS set-up of a run: profiles, the discovery server, agent lists (pure), and a small
-run through a discovery server that `swarm lambda` and a stock-tool graph listing reach."""
-import os
-import signal
+"""The DDS set-up of a run (`swarm_tools.run.dds`), without a run: the profiles (the large-n
+UDP one too), the discovery server, agent lists and bad options.  Runs through them:
+tests/e2e/test_dds_runs.py."""
 import subprocess
-import sys
 import xml.etree.ElementTree as ET
 
-import numpy as np
 import pytest
 
-from swarm_core.trajectory import Trajectory
-from swarm_tools import dds
-from swarm_tools.launch import parse_agents
-
-from conftest import Lines, short_homotopy
+from swarm_tools.run import dds
+from swarm_tools.run.launch import parse_agents
 
 NS = '{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}'
 
@@ -78,7 +72,8 @@ def test_agent_lists_and_addresses():
 def test_join_and_run_reject_bad_options(swarm_cmd):
     for args, word in ((['join', 'homotopy_global', '--agents', '0-99', '--server', '127.0.0.1:5'], 'outside'),
                        (['join', 'homotopy_global', '--agents', '1', '--server', 'nowhere'], 'ADDRESS:PORT'),
-                       (['run', 'homotopy_global', '--remote-agents', '2', '--discovery', 'simple'], 'discovery server'),
+                       (['run', 'homotopy_global', '--remote-agents', '2', '--discovery', 'simple'],
+                        'discovery server'),
                        (['run', 'homotopy_global', '--interface', 'eth0'], '--interface'),
                        (['run', 'homotopy_global', '--interface', '192.0.2.1'], 'not an address of this host'),
                        (['join', 'homotopy_global', '--agents', '1', '--server', '127.0.0.1:5',
@@ -87,65 +82,18 @@ def test_join_and_run_reject_bad_options(swarm_cmd):
         assert r.returncode == 2 and word in r.stderr, (args, r.stderr)
 
 
-# `ros2 topic list --no-daemon` (ros2cli jazzy: ros2topic/verb/list.py with
-# ros2cli/node/direct.py): a DirectNode named with the hidden prefix '_ros2cli' spins for
-# DEFAULT_TIMEOUT = 0.5 s, then prints get_topic_names_and_types(); no waiting for a match.
-# The test runs it as a user would: again, as a new process, until the topic shows or it gives up.
-TOPIC_LIST = """
-import time, rclpy
-rclpy.init()
-node = rclpy.create_node('_ros2cli_direct_node', start_parameter_services=False)
-end = time.monotonic() + 0.5
-while time.monotonic() < end:
-    rclpy.spin_once(node, timeout_sec=0.05)
-print('\\n'.join(sorted(t for t, _ in node.get_topic_names_and_types())))
-"""
-
-
-def topic_list(env, tries):
-    """Topics a fresh `ros2 topic list --no-daemon` shows, at the first try that lists
-    /swarm/states (at most ``tries``); the last listing otherwise."""
-    out = ''
-    for _ in range(tries):
-        out = subprocess.run([sys.executable, '-c', TOPIC_LIST], env=env, capture_output=True,
-                             text=True, timeout=60).stdout
-        if '/swarm/states' in out:
-            break
-    return out
-
-
-@pytest.mark.ros
-def test_run_through_a_discovery_server(tmp_path, ros_domain, processes, swarm_cmd):
-    """A lockstep run with --discovery server: the launcher prints the line a shell needs; with
-    it `swarm lambda` reaches the commander (λ changes in the published trajectory) and a stock
-    topic listing as a super client sees the run; a listing through another discovery server, or
-    with simple discovery on the same domain, does not (a run with its own server is apart)."""
-    path = short_homotopy(tmp_path / 'short.yaml', duration=4000, lam='{kind: constant, value: 0.0}', at=5)
-    out = tmp_path / 'run'
-    p = processes.start([swarm_cmd, 'run', path, '--discovery', 'server', '--out', out, '--no-figure',
-                         '--progress-every', '1'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    lines = Lines(p)
-    assert lines.wait_for('[world] t=', 180), ''.join(lines.lines)
-    line = next(ln for ln in lines.lines if 'export ROS_DISCOVERY_SERVER=' in ln)
-    shell = dict(os.environ)                  # the test's shell: its domain, LOCALHOST range
-    for kv in line.split('export ', 1)[1].split():
-        k, v = kv.split('=', 1)
-        shell[k] = v
-    assert shell['ROS_SUPER_CLIENT'] == 'TRUE' and shell['ROS_DISCOVERY_SERVER'].startswith('127.0.0.1:')
-    listed = topic_list(shell, 10)
-    assert '/swarm/states' in listed and '/lockstep/step' in listed, listed
-    # apart: another discovery server's super client, and simple discovery, see none of it
-    other = dds.DiscoveryServer('127.0.0.1')
-    other.start(lambda label, args, env, **kw: processes.start(args, env=env, **kw), dict(os.environ), tmp_path)
-    assert '/swarm/states' not in topic_list(dict(shell, ROS_DISCOVERY_SERVER=other.locator), 2)
-    plain = {k: v for k, v in shell.items() if k not in ('ROS_DISCOVERY_SERVER', 'ROS_SUPER_CLIENT')}
-    assert '/swarm/states' not in topic_list(plain, 2)
-    # swarm lambda, from that shell
-    cli = subprocess.run([swarm_cmd, 'lambda', '1.0'], env=shell, capture_output=True, text=True, timeout=90)
-    assert cli.returncode == 0, cli.stdout + cli.stderr
-    assert lines.wait_for('λ=1.000', 180), ''.join(lines.lines[-20:])
-    p.send_signal(signal.SIGINT)
-    assert lines.wait(p, 60) == 130
-    got = Trajectory.load(out / 'trajectory.npz')
-    assert got.lam[0] == 0.0 and got.lam[-1] == 1.0
-    assert np.all(np.diff(got.lam) >= 0)
+def test_udp_profile_is_written_for_large_runs(tmp_path):
+    env = dds.environment(98, tmp_path, base={'ROS_DOMAIN_ID': '5'})
+    xml = (tmp_path / 'fastdds_loopback.xml').read_text()
+    assert env['FASTRTPS_DEFAULT_PROFILES_FILE'] == str(tmp_path / 'fastdds_loopback.xml')
+    assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SYSTEM_DEFAULT'
+    assert '<maxInitialPeersRange>130</maxInitialPeersRange>' in xml
+    # small runs get the profile too (no shared memory); 'localhost' is rmw_fastrtps' own range
+    (tmp_path / 'x').mkdir()
+    small = dds.environment(8, tmp_path / 'x', base={})
+    assert small['FASTRTPS_DEFAULT_PROFILES_FILE'] == str(tmp_path / 'x' / 'fastdds_loopback.xml')
+    assert '<useBuiltinTransports>false</useBuiltinTransports>' in (tmp_path / 'x' / 'fastdds_loopback.xml').read_text()
+    shm = dds.environment(8, tmp_path / 'y', base={}, choice='localhost')
+    assert shm['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST' and 'FASTRTPS_DEFAULT_PROFILES_FILE' not in shm
+    own = dds.environment(8, tmp_path / 'z', base={'FASTRTPS_DEFAULT_PROFILES_FILE': '/my.xml'})
+    assert own['FASTRTPS_DEFAULT_PROFILES_FILE'] == '/my.xml'        # the user's profile is kept

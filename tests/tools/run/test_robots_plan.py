@@ -4,10 +4,10 @@ import json
 
 import pytest
 
-from swarm_core.scenario import load
-from swarm_robots.run_setup import SUMMARY_FILE
-from swarm_tools import launch
-from swarm_tools.robot_world import read_summary
+from swarm_core.scenario.loader import load
+from swarm_robots.world_setup import SUMMARY_FILE
+from swarm_tools.run import launch
+from swarm_tools.run.robots import read_summary
 
 
 @pytest.fixture

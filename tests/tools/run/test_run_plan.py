@@ -4,8 +4,8 @@ import sys
 
 import pytest
 
-from swarm_core.scenario import load
-from swarm_tools import join, launch
+from swarm_core.scenario.loader import load
+from swarm_tools.run import join, launch
 
 
 @pytest.fixture
@@ -172,7 +172,7 @@ def test_join_starts_the_robot_agents_the_run_announces(tmp_path):
 
 def test_plan_module_has_no_ros_import():
     import subprocess
-    code = ('import sys; from swarm_core.scenario import load; from swarm_tools import launch; '
+    code = ('import sys; from swarm_core.scenario.loader import load; from swarm_tools.run import launch; '
             "a = launch._parser().parse_args(['global_alignment', '--agents-per-process', '2']); "
             "launch.plan(a, load('global_alignment'), 'global_alignment'); "
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('rclpy', 'rosidl_runtime_py')))")

@@ -4,10 +4,6 @@ from __future__ import annotations
 import subprocess
 import time
 
-import pytest
-
-pytestmark = pytest.mark.ros
-
 STEPS, AGENTS, DT = 30, 3, 0.05
 
 
@@ -16,7 +12,7 @@ def _bag(path):
     from nav_msgs.msg import Odometry
     from rclpy.serialization import serialize_message
 
-    from swarm_tools.bag import BagWriter, qos_dict
+    from swarm_tools.bags.mcap_io import BagWriter, qos_dict
 
     raws = []
     with BagWriter(path) as w:

@@ -15,9 +15,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pytest
-
-pytestmark = pytest.mark.ros
 
 N_AGENTS = 4
 STEPS = 60
@@ -117,7 +114,7 @@ def _on_disk(out, want, counts=False):
     """True once the (possibly unfinished) file at ``out`` holds ``want`` {topic: count}."""
     from collections import Counter
 
-    from swarm_tools.bag import iter_messages
+    from swarm_tools.bags.mcap_io import iter_messages
     got = Counter()
     path = out / f'{out.name}_0.mcap' if out.is_dir() else out     # --out DIR: DIR/DIR_0.mcap
     if path.is_file():
@@ -160,7 +157,7 @@ def test_recorded_run_reads_back_with_two_readers(rclpy_context, processes, swar
     from rclpy.serialization import serialize_message
     from rosbags.highlevel import AnyReader
 
-    from swarm_tools.bag import parse_odometry
+    from swarm_tools.bags.mcap_io import parse_odometry
 
     out = tmp_path / 'run.mcap'
     t_start = time.time_ns()
@@ -232,8 +229,8 @@ def test_recorded_run_reads_back_with_two_readers(rclpy_context, processes, swar
 def test_bag_metadata_as_rosbag2_writes_it(rclpy_context, processes, swarm_cmd, tmp_path):
     from mcap.reader import make_reader
 
-    from swarm_tools.bag import parse_qos_yaml
-    from swarm_tools.msgdefs import SEPARATOR
+    from swarm_tools.bags.mcap_io import parse_qos_yaml
+    from swarm_tools.bags.msgdefs import SEPARATOR
 
     out = tmp_path / 'meta.mcap'
     rc, stdout, stderr, _ = _record(rclpy_context, processes, swarm_cmd, out, 5,
@@ -289,8 +286,8 @@ def test_bag_directory_as_rosbag2_lays_it_out(rclpy_context, processes, swarm_cm
     from rosbags.highlevel import AnyReader
     from rosbags.rosbag2 import Reader
 
-    from swarm_tools import report
-    from swarm_tools.bag import resolve_bag
+    from swarm_tools.bags import report
+    from swarm_tools.bags.mcap_io import resolve_bag
 
     out = tmp_path / 'dirbag'
     steps = 20
@@ -318,7 +315,7 @@ def test_bag_directory_as_rosbag2_lays_it_out(rclpy_context, processes, swarm_cm
 
 
 def _share(pkg, name):
-    from swarm_tools.msgdefs import share_dirs
+    from swarm_tools.bags.msgdefs import share_dirs
     for d in share_dirs():
         f = d / pkg / 'msg' / f'{name}.msg'
         if f.is_file():
@@ -328,7 +325,7 @@ def _share(pkg, name):
 
 def test_sigkill_leaves_finished_chunks(rclpy_context, processes, swarm_cmd, tmp_path):
     """A recorder killed with SIGKILL: no summary, but every chunk it finished reads."""
-    from swarm_tools.bag import iter_messages
+    from swarm_tools.bags.mcap_io import iter_messages
 
     out = tmp_path / 'killed.mcap'
     steps = 40
@@ -402,7 +399,7 @@ def test_recorder_started_before_the_run(rclpy_context, processes, swarm_cmd, tm
     from rosbags.highlevel import AnyReader
     from std_msgs.msg import Float64
 
-    from swarm_tools.bag import parse_qos_yaml
+    from swarm_tools.bags.mcap_io import parse_qos_yaml
 
     out = tmp_path / 'first.mcap'
     rec = _start_recorder(processes, swarm_cmd, out)
@@ -451,7 +448,7 @@ def _channel_qos(path, topic):
 
 def test_state_gap_count():
     """The recorder's count of states DDS never delivered (no ROS needed)."""
-    from swarm_tools.record import Recorder
+    from swarm_tools.bags.record import Recorder
 
     rec = Recorder.__new__(Recorder)
     dt = 50_000_000
@@ -470,8 +467,8 @@ def test_recorder_that_falls_behind_loses_no_state(rclpy_context, tmp_path):
     from rclpy.executors import SingleThreadedExecutor
 
     from swarm_ros import protocol as P
-    from swarm_tools.bag import BagWriter
-    from swarm_tools.record import SWARM_TOPICS, Recorder, TopicFilter
+    from swarm_tools.bags.mcap_io import BagWriter
+    from swarm_tools.bags.record import SWARM_TOPICS, Recorder, TopicFilter
 
     agents, states = 30, P.STATES_DEPTH
     rec_node = rclpy.create_node('swarm_recorder', context=rclpy_context)
@@ -513,8 +510,8 @@ def test_recorder_recheck_asks_for_the_offers_only_when_a_publisher_is_unmatched
     from rclpy.qos import QoSProfile, ReliabilityPolicy
     from std_msgs.msg import Float64
 
-    from swarm_tools.bag import BagWriter
-    from swarm_tools.record import Recorder, TopicFilter
+    from swarm_tools.bags.mcap_io import BagWriter
+    from swarm_tools.bags.record import Recorder, TopicFilter
 
     rec_node = rclpy.create_node('swarm_recorder', context=rclpy_context)
     writer = BagWriter(tmp_path / 'recheck.mcap')
@@ -553,8 +550,8 @@ def test_recorder_presubscribes_the_agents_steering_topics(rclpy_context, tmp_pa
     from std_msgs.msg import Float64
 
     from swarm_ros import protocol as P
-    from swarm_tools.bag import BagWriter
-    from swarm_tools.record import SWARM_TOPICS, Recorder, TopicFilter, parse_args, presubscribed
+    from swarm_tools.bags.mcap_io import BagWriter
+    from swarm_tools.bags.record import SWARM_TOPICS, Recorder, TopicFilter, parse_args, presubscribed
 
     assert parse_args(['--out', 'x.mcap', '--agents', 'agent_0', 'agent_1']).agents == ['agent_0', 'agent_1']
     topics = presubscribed(['agent_0', 'agent_1'])

@@ -15,9 +15,7 @@ from collections import defaultdict
 import numpy as np
 import pytest
 
-from conftest import short_homotopy
-
-pytestmark = pytest.mark.ros
+from tests.helpers import short_homotopy
 
 
 @pytest.fixture
@@ -40,8 +38,8 @@ def test_recorded_lockstep_run(recorded_run, swarm_cmd, tmp_path):
     from mcap_ros2.reader import read_ros2_messages
     from rosbags.highlevel import AnyReader
 
-    from swarm_core.trajectory import Trajectory
-    from swarm_core.frenet import yaw_from_quaternion
+    from swarm_core.engine.trajectory import Trajectory
+    from swarm_core.model.frenet import yaw_from_quaternion
 
     bag, live_dir, text = recorded_run
     assert 'lost: 0' in text, text

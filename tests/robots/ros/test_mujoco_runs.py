@@ -1,19 +1,18 @@
 """End-to-end: `swarm run --robots mujoco`: the agents drive differential-drive robots of the
 run's MuJoCo world through cmd_vel and odometry, in lockstep (deterministic: the same run twice
-gives the same trajectories), with λ raised mid-run (the swarm splits), and mixed with kinematic
-agents (one swarm).  Every process a test starts is gone after it (`processes`)."""
+gives the same trajectories), with λ raised mid-run (the swarm splits), mixed with kinematic
+agents (one swarm), with a frozen and a killed robot agent, and equal to the study engine on
+robots (`swarm_robots.engine`) bit for bit.  Every process a test starts is gone after it
+(`processes`)."""
 import json
 import subprocess
 
 import numpy as np
 import pytest
 
-from swarm_core.metrics import cluster_labels
-from swarm_core.trajectory import Trajectory
-
-from conftest import Lines, short_homotopy
-
-pytestmark = pytest.mark.ros
+from swarm_core.analysis.metrics import cluster_labels
+from swarm_core.engine.trajectory import Trajectory
+from tests.helpers import Lines, short_homotopy
 
 #: L = 0.3 m per model unit at v0 = 0.15 m/s (a TurtleBot3 Burger's top speed is 0.22 m/s):
 #: r0 = 0.45 m, w = 1.2 m; one model second is 2 robot seconds
@@ -39,7 +38,7 @@ def test_lockstep_six_robots_repeatable_and_split_by_lambda(tmp_path, ros_domain
     """Two short ROS runs (12 s) are equal, and equal the robot engine of studies
     (`swarm_robots.engine`) bit for bit; the split by λ is then checked on the engine's run of
     the same scenario to t = 60 (600 robot steps, a few CPU seconds instead of two ROS runs)."""
-    from swarm_core import scenario
+    from swarm_core.scenario import loader as scenario
     from swarm_robots.engine import simulate as robot_simulate
     path = short_homotopy(tmp_path / 'robots.yaml', robots=ROBOTS, **dict(SPLIT, duration=12))
     a, metrics, lines = run(processes, swarm_cmd, path, tmp_path / 'a', '--robots', 'mujoco')
@@ -107,3 +106,58 @@ def test_robot_agents_in_one_container_equal_lone_processes(tmp_path, ros_domain
     speed = np.linalg.norm(np.diff(one.r, axis=0), axis=2) / (one.t[1] - one.t[0])
     assert speed[0, :4].max() < 0.5 and np.abs(speed[:, 4:] - 1.0).max() < 1e-5   # robots and points
     assert np.abs(one.u).max() > 0.01                                              # the law steered
+
+
+
+def test_a_lockstep_robot_run_with_a_freeze_and_a_kill(tmp_path, ros_domain, processes, swarm_cmd):
+    """`swarm run --robots mujoco` with a frozen and a killed robot agent: the run goes on
+    through both; the robot world learns of the kill from its event, so it does not wait the
+    hold's time-out for the killed agent's command (the world kills right after a step went
+    out); the frozen agent's rows hold its state, the killed agent's are NaN from its step."""
+    path = short_homotopy(tmp_path / 'faults.yaml', robots=ROBOTS, duration=8, lam='{kind: constant, value: 0}',
+                          at=1, faults=[{'at': 2, 'freeze': 'agent_1', 'for': 2.0}, {'at': 5, 'kill': 'agent_4'}])
+    out = tmp_path / 'r'
+    p = processes.start([swarm_cmd, 'run', str(path), '--out', str(out), '--no-figure', '--robots', 'mujoco'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
+    text = ''.join(lines.lines)
+    assert 'agent_4 killed' in text and 'no command from' not in text, text[-3000:]
+    tr = Trajectory.load(out / 'trajectory.npz')
+    dt = tr.t[1] - tr.t[0]
+    kill, freeze = round(5 / dt), round(2 / dt)
+    assert np.isnan(tr.r[kill:, 4]).all() and np.isfinite(tr.r[:kill, 4]).all()
+    held = tr.r[freeze:2 * freeze, 1]
+    assert (held == tr.r[freeze, 1]).all() and (tr.r[2 * freeze + 2, 1] != tr.r[freeze, 1]).all()
+    assert np.isfinite(tr.r[:, [0, 1, 2, 3, 5]]).all()
+
+
+# ------------------------------------------------------------------ the study engine against the run
+@pytest.mark.parametrize('per', [[], ['--agents-per-process', '3']], ids=['processes', 'containers'])
+def test_the_robot_engine_equals_the_lockstep_run(per, tmp_path, ros_domain, processes, swarm_cmd):
+    """`swarm run --robots mujoco:agent_0-agent_2` (lockstep: the robot world reports the robot
+    agents' poses) and the engine, bit for bit; the three robot agents alone in their own
+    processes, or sharing one container (the kinematic three in another)."""
+    from swarm_core.engine.trajectory import unwrap_headings
+    from swarm_core.model.frenet import quaternion_from_heading, yaw_from_quaternion
+    from swarm_core.scenario import loader as scenario
+    from swarm_robots.engine import simulate as robot_simulate
+    path = short_homotopy(tmp_path / 'robots.yaml', robots=ROBOTS, duration=10,
+                          lam='{kind: tanh_window, rise_at: 4, fall_at: 1000, tau: 2}', at=2, curvature=0.05)
+    p = processes.start([swarm_cmd, 'run', str(path), '--out', str(tmp_path / 'r'), '--no-figure',
+                         '--robots', 'mujoco:agent_0-agent_2', *per],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
+    ros = Trajectory.load(tmp_path / 'r' / 'trajectory.npz')
+    scn = scenario.load(str(path))
+    ours = robot_simulate(scn, 'half')
+    np.testing.assert_array_equal(ros.r, ours.r)
+    np.testing.assert_array_equal(ros.u, ours.u)
+    np.testing.assert_array_equal(ros.lam, ours.lam)
+    # the ROS run records headings as its messages carry them (a quaternion), unwrapped in time
+    np.testing.assert_array_equal(ros.theta, unwrap_headings(
+        yaw_from_quaternion(*quaternion_from_heading(ours.theta)), scn.theta0))
+    robots = json.loads((tmp_path / 'r' / 'metrics.json').read_text())['summary']['robots']
+    for k in ('robots', 'contacts', 'turn_limit_seconds', 'limit_seconds'):
+        assert robots[k] == ours.meta['robots'][k]

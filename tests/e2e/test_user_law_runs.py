@@ -1,0 +1,165 @@
+"""Laws as plug-ins over ROS: a user's law from examples/laws/ in `swarm run` lockstep (a
+process per agent, and agent containers) equals `swarm simulate`; a law reading the sim time
+gets the batch engine's t; a blend split by `swarm lambda` live ends in the circular formation;
+a law that fails stops the run with one line and the steps done saved, and one that cannot be
+used stops `swarm run` before any process starts."""
+import re
+import subprocess
+import time
+
+import numpy as np
+import pytest
+import yaml
+
+from swarm_core.engine.reference import simulate
+from swarm_core.engine.trajectory import Trajectory
+from swarm_core.scenario.loader import load
+from tests.helpers import ROOT, Lines, faulty_law_scenario
+
+ALIGNMENT = ROOT / 'examples' / 'alignment.yaml'
+
+
+def run_swarm(processes, swarm_cmd, path, out, *options, timeout=300):
+    """`swarm run PATH --out OUT --no-figure OPTIONS`: (exit code, its lines, wall s)."""
+    t0 = time.monotonic()
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', *options],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    code = lines.wait(p, timeout)
+    return code, ''.join(lines.lines), time.monotonic() - t0
+
+
+@pytest.mark.parametrize('per', [1, 3], ids=['processes', 'containers'])
+def test_a_user_law_lockstep_equals_simulate(per, tmp_path, ros_domain, processes, swarm_cmd):
+    out = tmp_path / 'run'
+    code, text, _ = run_swarm(processes, swarm_cmd, ALIGNMENT, out, '--duration', '20',
+                              '--agents-per-process', str(per))
+    assert code == 0, text[-3000:]
+    got = Trajectory.load(out / 'trajectory.npz')
+    ref = simulate(load(str(ALIGNMENT), duration=20))
+    assert got.r.shape == ref.r.shape == (201, 6, 2)
+    assert np.abs(got.r - ref.r).max() <= 1e-9
+    assert np.abs(got.u - ref.u).max() <= 1e-9
+    assert np.abs(got.theta - ref.theta).max() <= 1e-9
+    assert np.abs(ref.u).max() > 0.01                         # the law steered
+
+
+TIME_LAW = '''\
+import numpy as np
+
+from swarm_core.laws import Law, param
+
+
+class Sway(Law):
+    """Every agent turns with sin(ω t): a law that reads the sim time of its view."""
+    omega = param(0.7, lo=0.0, hi=10.0, doc='rad per sim s')
+
+    def control(self, view):
+        return np.full(view.receivers.size, 0.2 * np.sin(self.omega * view.t) + 0.01 * view.receivers)
+'''
+
+
+def test_a_law_reads_the_same_sim_time_in_ros_lockstep(tmp_path, ros_domain, processes, swarm_cmd):
+    (tmp_path / 'sway.py').write_text(TIME_LAW)
+    path = tmp_path / 'sway.yaml'
+    path.write_text(yaml.safe_dump({'name': 'sway', 'seed': 0, 'dt': 0.1, 'duration': 8.0, 'agents': {'count': 4},
+                                    'law': {'kind': 'sway.py:Sway', 'omega': 0.9}}))
+    out = tmp_path / 'run'
+    code, text, _ = run_swarm(processes, swarm_cmd, path, out, '--agents-per-process', '2')
+    assert code == 0, text[-3000:]
+    got = Trajectory.load(out / 'trajectory.npz')
+    ref = simulate(load(str(path)))
+    np.testing.assert_array_equal(got.u, ref.u)               # u = f(t): the same t, bit for bit
+    assert np.abs(got.r - ref.r).max() <= 1e-9
+
+
+FLOCK_TO_CIRCLE = 'flock_to_circle'
+
+
+def centre_spread(r, theta, omega0):
+    """Largest distance of an agent's circle centre c_k = r_k + i e^{iθ_k}/ω0 from their mean."""
+    c = r[..., 0] + 1j * r[..., 1] + 1j * np.exp(1j * theta) / omega0
+    return np.abs(c - c.mean(axis=-1, keepdims=True)).max(axis=-1)
+
+
+def test_a_blend_split_by_swarm_lambda_ends_in_the_circle(tmp_path, ros_domain, processes, swarm_cmd):
+    """flock_to_circle at λ = 0 throughout, λ raised live with `swarm lambda 1`: the flock of
+    the paper's global law turns into the SPL circle (centres together, radius 1/ω0)."""
+    from swarm_core.scenario.loader import read_yaml
+    data, _ = read_yaml(FLOCK_TO_CIRCLE)
+    data.pop('expect', None)
+    data.update(duration=60.0, **{'lambda': {'kind': 'constant', 'value': 0.0}})
+    path = tmp_path / 'flock_to_circle_live.yaml'
+    path.write_text(yaml.safe_dump(data))
+    omega0 = data['law']['to']['omega0']
+    out = tmp_path / 'run'
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--in-process', '--mode', 'realtime',
+                         '--rtf', '2', '--progress-every', '5'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    at_10 = re.compile(r'\[world\] t=\s*(\d+\.\d+)')
+    assert lines.wait_for(lambda ln: (m := at_10.match(ln)) is not None and float(m.group(1)) >= 10, 120), \
+        ''.join(lines.lines[-30:])
+    cmd = subprocess.run([swarm_cmd, 'lambda', '1', '--ramp', '2'], capture_output=True, text=True, timeout=60)
+    assert cmd.returncode == 0, cmd.stdout + cmd.stderr
+    assert lines.wait(p, 120) == 0, ''.join(lines.lines[-30:])
+    got = Trajectory.load(out / 'trajectory.npz')
+    spread = centre_spread(got.r, got.theta, omega0)
+    before = got.lam == 0.0
+    assert before[:50].all() and got.lam[-1] == 1.0
+    assert spread[before].min() > 2.0                         # a flock: no common circle
+    assert spread[-1] < 0.2 / omega0                          # one circle ...
+    radius = np.abs(got.r[-1, :, 0] + 1j * got.r[-1, :, 1] - (got.r[-1, :, 0] + 1j * got.r[-1, :, 1]
+                                                                + 1j * np.exp(1j * got.theta[-1]) / omega0).mean())
+    assert np.all(np.abs(radius * omega0 - 1.0) < 0.2)        # ... of radius 1/ω0
+
+
+PROBLEM = {'Raises': 'raised RuntimeError: boom after t = 5',
+           'WrongShape': 'returned shape (2,), want (1,): one u per receiver',
+           'NotFinite': 'returned a non-finite u (nan)'}
+
+
+@pytest.mark.parametrize('cls, options', [
+    ('Raises', ()),
+    ('Raises', ('--agents-per-process', '3')),
+    ('Raises', ('--mode', 'realtime')),
+    ('WrongShape', ('--in-process',)),
+    ('NotFinite', ('--mode', 'realtime', '--in-process')),
+], ids=['raises-processes', 'raises-containers', 'raises-realtime', 'shape-in-process', 'nan-realtime-in-process'])
+def test_a_law_that_fails_stops_the_run_with_one_line(cls, options, tmp_path, ros_domain, processes, swarm_cmd):
+    path = faulty_law_scenario(tmp_path, f'faulty.py:{cls}', duration=30.0)
+    out = tmp_path / 'run'
+    code, text, wall = run_swarm(processes, swarm_cmd, path, out, *options, timeout=180)
+    assert code == 1, text[-3000:]
+    problem = PROBLEM[cls] if '--agents-per-process' not in options else PROBLEM[cls].replace('(2,), want (1,)',
+                                                                                           '(4,), want (3,)')
+    said = [ln for ln in text.splitlines() if 'faulty.py' in ln]
+    assert len(said) == 1, text[-3000:]
+    assert said[0].startswith(f'swarm run: law {tmp_path / "faulty.py"}:{cls} {problem} (at t = 5'), said
+    assert said[0].endswith('; stopping the run')
+    assert 'Traceback' not in text and 'Exception in' not in text, text[-3000:]
+    got = Trajectory.load(out / 'trajectory.npz')
+    assert 4.9 <= got.t[-1] <= 6.0 and np.isfinite(got.r).all()      # the steps done, not the 30 s
+    summary = yaml.safe_load((out / 'metrics.json').read_text())['summary']
+    assert problem in summary['stopped'] and summary['interrupted']
+    assert wall < 90, wall
+
+
+@pytest.mark.parametrize('kind, law, text', [
+    ('faulty.py:NotALaw', {}, 'NotALaw is not a law'),
+    ('broken.py:Sway', {}, 'broken.py does not import: NameError'),
+    ('faulty.py:Raises', {'gain': 2.0}, 'parameter gain = 2.0 is outside [0, 1]'),
+    ('start.py:Raises', {}, 'raised ZeroDivisionError: division by zero (at t = 0, on the initial state)'),
+])
+def test_a_law_that_cannot_be_used_stops_swarm_run_before_it_starts(kind, law, text, tmp_path, ros_domain,
+                                                                     processes, swarm_cmd):
+    path = faulty_law_scenario(tmp_path, kind, **law)
+    (tmp_path / 'broken.py').write_text('oops\n')
+    (tmp_path / 'start.py').write_text('from swarm_core.laws import Law\n\nclass Raises(Law):\n'
+                                       '    def control(self, view):\n        return 1 / 0\n')
+    out = tmp_path / 'run'
+    code, said, wall = run_swarm(processes, swarm_cmd, path, out, timeout=60)
+    lines = said.strip().splitlines()
+    assert code == 2 and len(lines) == 1, said
+    assert lines[0].startswith(f'swarm run: {path}: law ') and text in lines[0], lines
+    assert not (out / 'trajectory.npz').exists() and wall < 30     # nothing started
