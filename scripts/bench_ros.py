@@ -127,7 +127,7 @@ def role(pid: int) -> str:
     except OSError:
         return '?'
     text = b' '.join(cmd).decode(errors='replace')
-    for key, name in (('swarm_agents', 'container'), ('swarm_agent', 'agent'), ('swarm_world', 'world'),
+    for key, name in (('swarm_agent_container', 'container'), ('swarm_agent', 'agent'), ('swarm_world', 'world'),
                       ('homotopy_commander', 'commander'), (' record', 'recorder'), (' run', 'launcher')):
         if key in text:
             return name

@@ -2,7 +2,7 @@
 """How often does ``ros2 topic pub --once`` reach the commander? (a measurement, not a test)
 
 Starts ``swarm run SCENARIO --mode MODE [--record BAG]``, then runs the Jazzy emulation
-``tests/emulate_topic_pub.py`` (a fresh process, so a fresh DDS participant, each try) TRIES
+``tests/fakes/emulate_topic_pub.py`` (a fresh process, so a fresh DDS participant, each try) TRIES
 times on ``/swarm/lambda`` and on ``/agent_0/steering``, each with a new value, and counts the
 tries that the commander took (its log line naming the value, within --wait s).
 
@@ -21,7 +21,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
-EMULATION = ROOT / 'tests' / 'emulate_topic_pub.py'
+EMULATION = ROOT / 'tests' / 'fakes' / 'emulate_topic_pub.py'
 
 
 def main() -> int:
@@ -57,8 +57,8 @@ def main() -> int:
             for k in range(a.tries):
                 v = 0.31 + 0.02 * k if label == 'lambda' else 0.0011 * (k + 1)
                 t0 = time.monotonic()
-                subprocess.run([sys.executable, str(EMULATION), topic, 'std_msgs/msg/Float64', f'{{data: {v}}}'],
-                               env=env, stdout=subprocess.DEVNULL, timeout=120)
+                subprocess.run([sys.executable, str(EMULATION), '--once', topic, 'std_msgs/msg/Float64',
+                                f'{{data: {v}}}'], env=env, stdout=subprocess.DEVNULL, timeout=120)
                 took = time.monotonic() - t0
                 want = fmt.format(v)
                 end = time.monotonic() + a.wait

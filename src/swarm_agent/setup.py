@@ -20,5 +20,5 @@ setup(
     description='AgentNode: one swarm agent as an rclpy node integrating its own Frenet frame.',
     license='Apache-2.0',
     entry_points={'console_scripts': ['swarm_agent = swarm_agent.agent_node:main',
-                                  'swarm_agents = swarm_agent.container_node:main']},
+                                  'swarm_agent_container = swarm_agent.container_node:main']},
 )

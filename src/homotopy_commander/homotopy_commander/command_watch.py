@@ -6,7 +6,7 @@ there is one steering topic per agent: looking at every topic every tick costs a
 tick at 1,000 agents in an empty graph, and a query costs more the more endpoints the graph
 holds.  `CommandWatch` bounds that:
 
-- the fixed topics (λ and the set-point) are looked at every tick;
+- the fixed topics (λ; the set-point has a reader from the start) are looked at every tick;
 - a swarm of up to ``per_tick`` agents has every steering topic looked at every tick;
 - in a bigger one, ``turn`` steering topics a tick, in turn (1,000 agents: every 250 ticks);
 - topics whose reader exists (``reading``) every tick too (up to ``per_tick`` of them, in turn

@@ -6,7 +6,9 @@ Runs the scenario's `swarm_core.command.plan.CommandPlan` (the batch engine runs
 - realtime: a timer at 1/dt (sim time) decides from the newest states, read from the agent
   processes' batches (``/swarm/agent_states``: one message per process and tick).
 It publishes the λ in force on ``/swarm/lambda``, ``/<leader>/steering`` (both reliable,
-transient-local) and ``/swarm/leaders`` (latched).
+transient-local) and ``/swarm/leaders`` (latched), for the record and the tools; what the
+agents and the world act on is its decision: ``/lockstep/decision`` relayed in each step
+(lockstep), ``/swarm/decision`` every tick (realtime; `layouts.RealtimeDecision`).
 
 Live commands (docs/commands.md), each applied at the next step the commander decides and
 published with that step on ``/swarm/events`` (``kind: command``; ``swarm simulate
@@ -19,9 +21,15 @@ published with that step on ``/swarm/events`` (``kind: command``; ``swarm simula
   becomes the constant curvature (the agent becomes a leader if it was not);
 - the parameters ``lambda``, ``ramp`` and ``steering.<agent>`` (``ros2 param set /commander
   lambda 1.0``): checked in the on-set callback, applied in the post-set callback.
-The commander is the only node that reads the command topics with the VOLATILE durability of
-``ros2 topic pub``; agents, world and recorder read the transient-local λ and steering the
-commander publishes, so a one-shot publisher's single match is always the commander.
+The commander is the only node of a run that reads ``/swarm/lambda`` and ``/<agent>/steering``
+with the VOLATILE durability of ``ros2 topic pub`` (agents and world read the decision; a
+recorder reads the commander's transient-local output), so a one-shot publisher's single
+match is always the commander, and no node of the run has a reader that a stock publisher's
+default QoS cannot match (which would log an incompatible-QoS warning).
+
+Every input topic's reader exists from the start (``ros2 node info /commander`` lists them),
+but the readers of ``/swarm/lambda`` and ``/<agent>/steering``: each is made once a writer of
+another node is seen there (`_watch_commands` says why).
 λ outside [0, 1] or not finite, a non-finite steering value, an unknown agent: rejected with
 one log line, nothing changes.
 
@@ -34,7 +42,6 @@ plan's events (leaders chosen, failover, leader lost, rendezvous on/off, command
 from __future__ import annotations
 
 import json
-import math
 import sys
 import time
 
@@ -50,9 +57,9 @@ from swarm_core.command.plan import check_command
 from swarm_core.faults.agents import event_names
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_ros import protocol as P
-from swarm_ros.layouts import Decision, ProcessStates, States
+from swarm_ros.layouts import Decision, ProcessStates, RealtimeDecision, States
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, ProcessSenders, RejectLog, check_agent_states, decoded
-from swarm_ros.rosutil import declare, gid_key, run_node, steady_clock, when_matched
+from swarm_ros.rosutil import declare, gid_key, require_sim_clock, run_node, steady_clock, when_matched
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
 
@@ -89,6 +96,8 @@ class CommanderNode(Node):
         super().__init__(node_name, namespace=namespace, context=context, cli_args=cli_args,
                          parameter_overrides=parameter_overrides)
         self._declare_parameters()
+        if self.mode == 'realtime':
+            require_sim_clock(self, "the realtime commander's program runs on the world's sim clock (/clock) from 0")
         self.names = list(self.scn.names)
         self.n = len(self.names)
         self.row = {nm: i for i, nm in enumerate(self.names)}
@@ -137,8 +146,9 @@ class CommanderNode(Node):
         d('lambda', self.lam, 'set λ: the commander ramps to it over `ramp` s from the next step '
           '(holds the last set-point)', lo=LAMBDA_BOUND.lo, hi=LAMBDA_BOUND.hi)
         for nm in self.names:
-            d(f'steering.{nm}', math.nan, f'set the steering s_k of {nm} (it becomes a leader) from the next '
-              'step; NaN = the scenario\'s program', finite=False)
+            d(f'steering.{nm}', 0.0, f'set the steering s_k (a curvature) of {nm} from the next step: it '
+              'becomes a leader and its program this constant; holds the value set last (0.0 until set: not '
+              f'the s_k in force, which is on {P.steering_topic(nm)})', lo=STEERING_BOUND.lo, hi=STEERING_BOUND.hi)
         self.add_pre_set_parameters_callback(self._pre_set)
         self.add_on_set_parameters_callback(self._check_params)
         self.add_post_set_parameters_callback(self._apply_params)
@@ -158,26 +168,32 @@ class CommanderNode(Node):
         # publisher id here, so the commander recognises its own publications by value: its own
         # messages come back in order (one FIFO per topic, kept while the reader exists)
         self.own_sent = {}
-        self.commands = {P.LAMBDA: CommandReader(P.LAMBDA, Float64, self._on_lambda, P.LAMBDA),
-                         SETPOINT: CommandReader(SETPOINT, Float64MultiArray, self._on_setpoint)}
+        self.commands = {P.LAMBDA: CommandReader(P.LAMBDA, Float64, self._on_lambda, P.LAMBDA)}
         for nm in self.names:
             self.commands[nm] = CommandReader(P.steering_topic(nm), Float64,
                                               lambda msg, nm=nm: self._on_steering(nm, msg), nm)
-        # λ and the set-point every tick, the steering topics in turn (every one every tick up
-        # to 64 agents), and those a node other than the swarm's writes, for a while after it appeared
+        # λ every tick, the steering topics in turn (every one every tick up to 64 agents), and
+        # those a node other than the swarm's writes, for a while after it appeared
         me = (self.get_name(), self.get_namespace())
-        self.watch = CommandWatch([P.LAMBDA, SETPOINT], self.names,
+        self.watch = CommandWatch([P.LAMBDA], self.names,
                                   ours=lambda nd: nd == me or of_swarm(nd, self.row))
         self.command_key = {c.topic: key for key, c in self.commands.items()}
         self.reading = set()         # keys of the commands whose reader exists
         self.create_timer(COMMAND_POLL, self._watch_commands, clock=steady_clock())
+        # the set-point is the commander's own topic, read from the start: its writer (`swarm
+        # lambda`, `Swarm.set_lambda`) waits for this reader, then for its acknowledgement
+        self.create_subscription(Float64MultiArray, SETPOINT, self._on_setpoint, P.qos_reliable())
 
     def _start_lockstep(self):
         self.last_decision = None
+        self.joined = False
+        self.early_states = None     # the newest /lockstep/states that came before we joined
         self.pub_decision = self.create_publisher(Float64MultiArray, P.LOCK_DECISION, P.qos_latched())
+        # read from the start (an input of the node from its start), taken once joined
+        self.create_subscription(Float64MultiArray, P.LOCK_STATES, self._on_states, P.qos_latched(), raw=True)
         if self.wait_for_recorder:
-            # join the lockstep (the world waits for it) only once the recorder's readers
-            # of λ, steering and decisions matched: the first of those messages are volatile
+            # decide (the world waits for our decisions) only once the recorder's readers of
+            # λ, steering and decisions matched, so that it records the first of them
             when_matched(self, self._recorder_matched, self._join_lockstep, P.RECORDER_MATCH_WAIT,
                          f'the recorder has not matched {P.LAMBDA}, {P.LOCK_DECISION} and every steering topic')
         else:
@@ -190,14 +206,19 @@ class CommanderNode(Node):
         self.last_seen = np.full(self.n, -np.inf)
         self.create_subscription(Float64MultiArray, P.AGENT_STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)),
                                  raw=True)
+        # what the agents and the world act on (never /swarm/lambda or steering: a user's command
+        # there is for the commander alone); a reader that joins late gets the newest
+        self.pub_rt_decision = self.create_publisher(Float64MultiArray, P.DECISION, P.qos_latched())
         self.timer = self.create_timer(self.dt, self._on_tick)
 
     def _recorder_matched(self):
-        # readers: λ — the agents, the recorder; steering — the agent, the recorder; decisions —
-        # the world, the recorder
-        return (self.pub_lambda.get_subscription_count() >= self.n + 1
+        # readers: λ and steering — the recorder (and our own command reader, if one exists: it
+        # matches our writer too); decisions — the world, the recorder
+        def others(key, pub):
+            return pub.get_subscription_count() - (self.commands[key].sub is not None)
+        return (others(P.LAMBDA, self.pub_lambda) >= 1
                 and self.pub_decision.get_subscription_count() >= 2
-                and all(p.get_subscription_count() >= 2 for p in self.pub_steer.values()))
+                and all(others(nm, p) >= 1 for nm, p in self.pub_steer.items()))
 
     def _watch_commands(self):
         """Make a command topic's reader when a writer of another node appears on it (again
@@ -208,7 +229,10 @@ class CommanderNode(Node):
         side before the reader's side knows the writer, and the reader then drops the sample
         (the tool has exited 0.1 s later, so it is never repaired).  A reader made after this
         participant discovered the writer is paired with it when it is made, before the tool
-        can see it: the first sample is always taken.
+        can see it: the first sample is always taken.  That is why these two command topics
+        have no reader from the start, as the node's other inputs have: against a reader that
+        existed before it, the Jazzy ``ros2 topic pub --once`` lost its sample in 1 of 45 tries
+        (one where the tool had to wait for discovery; docs/commands.md).
 
         One graph query per topic looked at: `CommandWatch` picks which (all of them in a swarm
         of up to 64 agents; in a bigger one those a new node writes, asked by node for 2 s after
@@ -251,7 +275,11 @@ class CommanderNode(Node):
             c.writers = writers
 
     def _join_lockstep(self):
-        self.create_subscription(Float64MultiArray, P.LOCK_STATES, self._on_states, P.qos_latched(), raw=True)
+        """Take part: decide on the states that came before (if any), and on every one from now."""
+        self.joined = True
+        raw, self.early_states = self.early_states, None
+        if raw is not None:
+            self._on_states(raw)
 
     def _send(self, topic, pub, value):
         fifo = self.own_sent.setdefault(topic, [])
@@ -378,6 +406,9 @@ class CommanderNode(Node):
             self.get_logger().info(f'leaders: {", ".join(leaders)}')
 
     def _on_states(self, raw):
+        if not self.joined:
+            self.early_states = raw
+            return
         s = decoded(States, raw, self.run_id, self.reject, 'states-decode')
         if s is None:
             return
@@ -390,10 +421,7 @@ class CommanderNode(Node):
         cos_t, sin_t = frame_from_quaternion(s.qz, s.qw)
         pos = np.stack([s.x, s.y], axis=1)
         lam, flags, steering = self.decide(s.t, pos, cos_t, sin_t, heard=s.alive, step=s.n)
-        slots = np.full(self.n, -1)
-        for sl, i in self.plan.slots.items():
-            slots[i] = sl
-        raw_out = Decision(s.n, s.t, lam, flags, steering, slots, self.plan.rendezvous_now).to_cdr(self.run_id)
+        raw_out = Decision(s.n, s.t, lam, flags, steering, self.slots(), self.plan.rendezvous_now).to_cdr(self.run_id)
         self.pub_decision.publish(raw_out)
         self.last_decision = (s.n, raw_out)
         self.publish_outputs(lam, flags, steering, force=(s.n % self.publish_every == 0))
@@ -423,7 +451,16 @@ class CommanderNode(Node):
             heard = heard if heard.any() else None
         cos_t, sin_t = frame_from_quaternion(self.quat[:, 0], self.quat[:, 1])    # all at once, per tick
         lam, flags, steering = self.decide(t, self.pos, cos_t, sin_t, heard=heard)
+        self.pub_rt_decision.publish(RealtimeDecision(P.step_of(t, self.dt), t, lam, flags, steering, self.slots(),
+                                                      self.plan.rendezvous_now).to_cdr(self.run_id))
         self.publish_outputs(lam, flags, steering, force=True)
+
+    def slots(self):
+        """Each agent's leader slot (−1: none), as the decisions carry them."""
+        slots = np.full(self.n, -1)
+        for sl, i in self.plan.slots.items():
+            slots[i] = sl
+        return slots
 
 
 def main(argv=None):

@@ -30,7 +30,7 @@ import numpy as np
 
 from swarm_core.faults.agents import alive_control, reunion_law
 from swarm_core.faults.radio import Beliefs, CommModel, belief_controls
-from swarm_core.laws import LawConfig
+from swarm_core.laws import LawConfig, LawError, failed_at
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.model.integrate import zoh_step
 from swarm_core.robot_units import reported_heading
@@ -129,8 +129,8 @@ class AgentCore:
         self.beliefs = Beliefs([self.index], self.n)
 
     def comms_control(self, step, x, y, qz, qw, u_sent, lam, is_leader, steering_own,
-                      target=None, barrier=None, alive=None, rendezvous=None):
-        """u of this agent at ``step`` from what its radio delivers of the step's table
+                      target=None, barrier=None, alive=None, rendezvous=None, t=None):
+        """u of this agent at ``step`` (sim time ``t``) from what its radio delivers of the step's table
         (x, y, qz, qw, u_sent: arrays of length N, the states of t_step as sent).
 
         alive (N,) bool, faults: agents out of the table send nothing (the relay still carries
@@ -141,8 +141,11 @@ class AgentCore:
         self.beliefs.receive(step, arrival, xy[:, 0], xy[:, 1], np.asarray(qz, float), np.asarray(qw, float),
                              np.asarray(u_sent, float), alive=alive)
         law, target = reunion_law(self.law, target, rendezvous)
-        return float(belief_controls(law, self.beliefs, step, self.comms, self.pos, self.theta, lam,
-                                     is_leader, [float(steering_own)], target, barrier)[0])
+        try:
+            return float(belief_controls(law, self.beliefs, step, self.comms, self.pos, self.theta, lam,
+                                         is_leader, [float(steering_own)], target, barrier, t=t)[0])
+        except LawError as err:       # the process stops on it (`swarm_ros.rosutil.run_node`)
+            raise failed_at(err, t) from None
 
     # -- what the agent publishes
     @property
@@ -153,16 +156,20 @@ class AgentCore:
         return self._quat
 
     def control(self, x, y, qz, qw, lam, is_leader, steering_own, target=None, barrier=None,
-                alive=None, rendezvous=None, row=None):
-        """u of this agent from the table (arrays of length N in agent-index order).
+                alive=None, rendezvous=None, row=None, t=None):
+        """u of this agent from the table (arrays of length N in agent-index order) at sim time
+        ``t`` (what a `Law`'s view reads: lockstep the step's n·dt, realtime the clock's now).
 
         alive (N,) bool: only these rows are in the table (this agent must be one);
         rendezvous: the reunion of this step (`faults.reunion_law`), or None; row: this agent's
         row in the table (default: its index; realtime: its row among the agents it knows)."""
         k = self.index if row is None else int(row)
         pos, cos_t, sin_t = received_table(x, y, qz, qw, [k], [self])
-        u = alive_control(pos, cos_t, sin_t, [k], self.law, lam, is_leader, [float(steering_own)], target,
-                          barrier, alive=alive, rendezvous=rendezvous)
+        try:
+            u = alive_control(pos, cos_t, sin_t, [k], self.law, lam, is_leader, [float(steering_own)], target,
+                              barrier, alive=alive, rendezvous=rendezvous, t=t)
+        except LawError as err:       # the process stops on it (`swarm_ros.rosutil.run_node`)
+            raise failed_at(err, t) from None
         return float(u[0])
 
     def _own_frame(self):

@@ -5,9 +5,11 @@ leader flags, s_k, target, barrier of that step), computes u with the core law, 
 publishes its next state on ``/swarm/states``.
 Realtime: a timer at the control rate (1/dt in sim time) uses the newest states of agents
 within w (all agents when the law couples globally), read from the agent processes' batches
-on ``/swarm/agent_states``, the newest ``/swarm/lambda``, ``/swarm/leaders``, its ``steering``
-topic, ``/world/target`` and ``/world/barrier``; it publishes its state on ``/swarm/states``
-and, alone, in its own batch.
+on ``/swarm/agent_states``, the commander's newest decision on ``/swarm/decision`` (λ, the
+leaders, its s_k), ``/world/target`` and ``/world/barrier``; it publishes its state on
+``/swarm/states`` and, alone, in its own batch.
+No agent reads ``/swarm/lambda`` or its ``steering`` topic: a user's command there is for the
+commander alone (docs/commands.md).
 Bad inputs are rejected with one log line naming them; no NaN ever enters the state.
 
 An agent with a robot (parameter ``robot``: external, mujoco) reads its pose from the robot's
@@ -19,10 +21,10 @@ faults); the mode's own work is done by its driver, `LockstepDriver` or `Realtim
 (``node.driver``; `DRIVERS` maps the parameter ``mode`` to the class).  A driver declares its
 parameters, takes the mode's own input (`on_input`), and says how a radio change applies.
 
-In an agent container (``swarm_agents``, `swarm_agent.container_node`) the node is built with
-``contained=True``: it keeps its name, parameters, logger, ``steering`` subscription and
-``/swarm/states`` publisher, and the container feeds it the inputs its agents share (the step
-relay, ``/swarm/agent_states``, λ, leaders, target, barrier, events) from one subscription each.
+In an agent container (``swarm_agent_container``, `swarm_agent.container_node`) the node is built with
+``contained=True``: it keeps its name, parameters, logger and ``/swarm/states`` publisher, and
+the container feeds it the inputs its agents share (the step relay, ``/swarm/agent_states``,
+the commander's decision, target, barrier, events) from one subscription each.
 
 Communication model (parameter ``comms``: the scenario's ``comms`` section as JSON, '' = a
 perfect radio; see swarm_core.faults.radio): the agent applies it on its receive side.  Lockstep: from
@@ -41,29 +43,32 @@ import sys
 
 import numpy as np
 from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from std_msgs.msg import Float64
+from std_msgs.msg import String
 
 from swarm_agent.agent_core import AgentCore, roster_index
 from swarm_agent.drivers import DRIVERS, MODES
-from swarm_agent.process_io import shared_inputs
+from swarm_agent.process_io import decision_leaders, shared_inputs
 from swarm_agent.robot_driver import ROBOT_DRIVERS, declare_robot
 from swarm_core.checks import DT_BOUND, LAMBDA_BOUND, STEERING_BOUND
+from swarm_core.command.plan import is_kind, law_with
 from swarm_core.faults.radio import CommModel, change_from_event
-from swarm_core.laws import LAW_PARAMETERS, LawConfig
+from swarm_core.laws import DEFAULTS, KINDS, Blend, LawError, default_law, from_flat_parameters, parameter_specs
 from swarm_core.robot_units import ROBOT_KINDS
 from swarm_core.scenario.loader import noise_rng
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import RejectLog, check_barrier, new_sender_tag
+from swarm_ros.layouts import RealtimeDecision
+from swarm_ros.msg_checks import RejectLog, check_barrier, decoded, new_sender_tag
 from swarm_ros.rosutil import ParameterError, declare, run_node
 from swarm_ros.runinfo import declare_run_id
 
 
 class AgentNode(Node):
     """What every agent node has, whatever its mode: its name and parameters, its `AgentCore`,
-    the ``/swarm/states`` publisher, the inputs every mode reads (λ, steering, leaders, target,
-    barrier, /swarm/events: the radio and, contained, faults).  The mode's own work is its
+    the ``/swarm/states`` publisher, the inputs every mode reads (target, barrier,
+    /swarm/events: the radio and, contained, faults; realtime: the commander's decision).  The mode's own work is its
     driver's (`DRIVERS`)."""
 
     def __init__(self, node_name='agent', *, namespace=None, context=None, parameter_overrides=None,
@@ -100,9 +105,6 @@ class AgentNode(Node):
         self.u_history = []      # (step, u) for tests (bounded)
 
         self.pub = self.create_publisher(Odometry, P.STATES, P.qos_latched(P.STATES_DEPTH))
-        # transient-local: the commander's λ and steering in force, never a user's one-shot
-        # command (that one is for the commander only; docs/commands.md)
-        self.create_subscription(Float64, 'steering', self._on_steering, P.qos_latched(10))
         self.driver = driver_class(self.mode, self.robot)(self, **mode_parameters[self.mode], **self.robot_parameters)
         if self.radio_on:
             self.driver.radio_started()
@@ -112,46 +114,75 @@ class AgentNode(Node):
         self.sender_tag = new_sender_tag()     # who we are on /swarm/states (protocol.SENDER_TAG_INDEX)
         self.serialize_state = P.OdometryWriter(self.agent_name, tag=self.sender_tag)
         self.own = None          # (sec, nanosec, x, y, qz, qw, u) last published
+        self.pub_events = None   # /swarm/events, made at the first live law change (`publish_event`)
         self.driver.start()
+        # live parameters, as in ros2/demos (set_parameters_callback.py) and the commander:
+        # pre-set adjusts the request, on-set checks it, post-set applies it
+        self.add_pre_set_parameters_callback(self._pre_set)
+        self.add_on_set_parameters_callback(self._check_params)
+        self.add_post_set_parameters_callback(self._apply_params)
 
     def _declare_parameters(self):
         """Declare every parameter (those of every mode too); the agent's own go on self."""
         ns = self.get_namespace().strip('/')
         d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
-        self.agent_name = d('agent_name', ns or 'agent_0', 'agent name (child_frame_id of its states)')
-        self.roster = list(d('agent_names', [''], 'names of all agents in agent-index order (the table order)'))
-        self.index = d('agent_index', -1, "this agent's row in agent_names (-1: look the name up)", lo=-1, hi=100000)
-        leader = d('leader', False, 'leader (true) or follower until /swarm/leaders says otherwise')
-        pose = (d('x', 0.0, 'initial x position'), d('y', 0.0, 'initial y position'),
-                d('theta', 0.0, 'initial heading θ (rad)'))
+        # read once at the start (read_only: `ros2 param set` is refused); the law's parameters
+        # but its kind are live, and the realtime driver's (docs/ros-graph.md, "Parameters")
+        self.agent_name = d('agent_name', ns or 'agent_0', 'agent name (child_frame_id of its states)', read_only=True)
+        self.roster = list(d('agent_names', [''], 'names of all agents in agent-index order (the table order)',
+                             read_only=True))
+        self.index = d('agent_index', -1, "this agent's row in agent_names (-1: look the name up)", lo=-1, hi=100000,
+                       read_only=True)
+        leader = d('leader', False, 'leader (true) or follower until the commander decides', read_only=True)
+        pose = (d('x', 0.0, 'initial x position', read_only=True), d('y', 0.0, 'initial y position', read_only=True),
+                d('theta', 0.0, 'initial heading θ (rad)', read_only=True))
         self.law = self._declare_law()
         self.dt = d('dt', 0.05, 'control period / integration step (sim s)', lo=DT_BOUND.lo, hi=DT_BOUND.hi,
                     read_only=True)
-        self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=MODES)
-        noise = (d('noise_position', 0.0, 'uniform noise half-width on x, y per step', lo=0.0, hi=1e6),
-                 d('noise_heading', 0.0, 'uniform noise half-width on θ per step', lo=0.0, hi=1e6))
-        seed = d('seed', 0, 'scenario seed (noise stream)', lo=0, hi=2**31 - 1)
-        mode_parameters = {mode: driver.declare(self) for mode, driver in DRIVERS.items()}
+        self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=MODES, read_only=True)
+        noise = (d('noise_position', 0.0, 'uniform noise half-width on x, y per step', lo=0.0, hi=1e6, read_only=True),
+                 d('noise_heading', 0.0, 'uniform noise half-width on θ per step', lo=0.0, hi=1e6, read_only=True))
+        seed = d('seed', 0, 'scenario seed (noise stream)', lo=0, hi=2**31 - 1, read_only=True)
         self.robot = d('robot', 'none', 'none: a kinematic point; external or mujoco: drive a robot through '
-                       '/<agent>/cmd_vel from /<agent>/odom (swarm_agent.robot_driver)', choices=ROBOT_KINDS)
+                       '/<agent>/cmd_vel from /<agent>/odom (swarm_agent.robot_driver)', choices=ROBOT_KINDS,
+                       read_only=True)
+        mode_parameters = {mode: driver.declare(self) for mode, driver in DRIVERS.items()}
         self.robot_parameters = {}
         if self.robot != 'none':
             self.robot_parameters = declare_robot(self)
-        comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect)")
+        comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect; "
+                  'changes during a run: swarm drop, swarm partition)', read_only=True)
         self.run_id = declare_run_id(self, 'lockstep steps of another run are rejected')
         return leader, pose, noise, seed, mode_parameters, comms
 
     def _declare_law(self):
-        defaults = LawConfig().parameters()          # one place for the defaults: the core's types
-        law = {}
-        for name, (text, limits) in LAW_PARAMETERS.items():
-            if isinstance(limits, tuple) and isinstance(limits[0], str):
-                law[name] = declare(self, name, defaults[name], text, choices=limits)
-            elif limits is None:
-                law[name] = declare(self, name, defaults[name], text)
-            else:
-                law[name] = declare(self, name, defaults[name], text, lo=limits[0], hi=limits[1])
-        return LawConfig.from_parameters(law)
+        """The law's parameters: its kind (``law``; a blend's ``from.law``, ``to.law`` too), then
+        every parameter of that law with its range and description (`laws.parameter_specs`)."""
+        values = {}
+
+        def kinds(prefix=''):
+            values[prefix + 'law'] = declare(
+                self, prefix + 'law', DEFAULTS['law'], f'control law{" (" + prefix[:-1] + ")" if prefix else ""}: '
+                f'{", ".join(KINDS)}, or a user\'s FILE.py:Class or module:Class (docs/laws.md)', read_only=True)
+            if values[prefix + 'law'] == Blend.kind:
+                kinds(prefix + 'from.')
+                kinds(prefix + 'to.')
+        try:
+            kinds()
+            template = default_law(values)
+            for name, (default, text, limits) in parameter_specs(template).items():
+                if name.endswith('law') and name in values:
+                    continue
+                if isinstance(limits, tuple) and isinstance(limits[0], str):
+                    values[name] = declare(self, name, default, text, choices=limits)
+                elif limits is None:
+                    values[name] = declare(self, name, default, text)
+                else:
+                    values[name] = declare(self, name, default, text, lo=limits[0], hi=limits[1])
+            self.law_values = values
+            return from_flat_parameters(values)
+        except LawError as err:
+            raise ParameterError(f'parameter law: {err}') from None
 
     def _radio(self, comms, seed):
         try:
@@ -161,6 +192,58 @@ class AgentNode(Node):
             return CommModel.from_config(cfg, self.roster, self.dt, seed)
         except (ValueError, TypeError, KeyError) as err:
             raise ParameterError(f'parameter comms: {err}') from None
+
+    # ------------------------------------------------------------ live parameters
+    def _live_law(self, name):
+        return name in self.law_values and not is_kind(name)
+
+    def _pre_set(self, params):
+        """``ros2 param set /agent_0/agent alpha 1`` sends an integer: make it the declared double."""
+        return [Parameter(p.name, value=float(p.value))
+                if p.type_ == Parameter.Type.INTEGER and self.has_parameter(p.name)
+                and isinstance(self.get_parameter(p.name).value, float) else p for p in params]
+
+    def _check_params(self, params):
+        """Refuse what cannot take effect: the clock (chosen at the start) and a law change its
+        law does not accept (`law_with`); read-only parameters rclpy refuses itself."""
+        changes = {p.name: p.value for p in params if self._live_law(p.name)}
+        for p in params:
+            if p.name == 'use_sim_time':
+                return SetParametersResult(successful=False, reason="use_sim_time: the agent's clock is chosen at "
+                                           'the start (restart the agent to change it)')
+        if changes:
+            try:
+                law_with(self.law, changes)
+            except ValueError as err:
+                return SetParametersResult(successful=False, reason=str(err))
+        return SetParametersResult(successful=True)
+
+    def _apply_params(self, params):
+        """A law change takes effect at the agent's next step: in lockstep the step it holds
+        (its next u), announced on /swarm/events as a ``command`` event (the world writes it to
+        events.jsonl; ``swarm simulate --replay`` applies it at that step); in realtime at the
+        next control period.  The realtime driver's parameters take effect at its next tick."""
+        changes = {p.name: p.value for p in params if self._live_law(p.name)}
+        for p in params:
+            if p.name in self.driver.live_parameters:
+                setattr(self.driver, p.name, p.value)
+        if not changes:
+            return
+        self.law = self.core.law = law_with(self.law, changes)
+        self.law_values.update(changes)
+        lockstep = self.mode == 'lockstep'
+        step = self.core.step if lockstep else P.step_of(self._now(), self.dt)
+        self.publish_event(dict(t=step * self.dt if lockstep else self._now(), kind='command', command='law',
+                                agent=self.agent_name, parameters=changes, step=step))
+        self.get_logger().info(f'law: {", ".join(f"{k}={v!r}" for k, v in changes.items())} from step {step}')
+
+    def publish_event(self, ev):
+        """One event of this agent on /swarm/events (its writer is made at the first: one DDS
+        endpoint less per agent in a run that never changes a law; transient-local, so the
+        world's reader gets it once matched)."""
+        if self.pub_events is None:
+            self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
+        self.pub_events.publish(String(data=json.dumps(dict(ev, node='agent'))))
 
     # ------------------------------------------------------------ output
     def publish_state(self, u=None):
@@ -179,27 +262,29 @@ class AgentNode(Node):
             del self.u_history[:5000]
 
     # ------------------------------------------------------------ inputs of every mode
-    def _on_lambda(self, msg):
-        v = msg.data
-        if not LAMBDA_BOUND.ok(v):
-            self.reject('lambda', f'{P.LAMBDA}: {LAMBDA_BOUND.error(v)}')
-            return
-        self.lam = v
+    def _on_decision(self, raw):
+        """Realtime: the commander's decision of a tick (serialized ``/swarm/decision``)."""
+        d = decoded(RealtimeDecision, raw, self.run_id, self.reject, 'decision')
+        if d is not None:
+            self.take_decision(d)
 
-    def _on_steering(self, msg):
-        v = msg.data
-        if not STEERING_BOUND.ok(v):
-            self.reject('steer', f'{self.agent_name}: {STEERING_BOUND.error(v)}')
+    def take_decision(self, d, leaders=None):
+        """λ, the leaders and this agent's s_k of decision ``d`` (a `RealtimeDecision`; a
+        container decodes it once and gives each agent the ``leaders`` set, `decision_leaders`),
+        each checked on its own: a bad value is refused with one line and the rest is taken."""
+        if len(d.flags) != self.n:
+            self.reject('decision-n', f'{P.DECISION} with {len(d.flags)} agents (the roster has {self.n})')
             return
-        self.steering = v
-
-    def _on_leaders(self, msg):
-        names = [s.strip() for s in msg.data.split(',') if s.strip()]
-        unknown = [s for s in names if s not in self.row]
-        if unknown:
-            self.reject('leaders', f'{P.LEADERS} {msg.data[:80]!r}: unknown agent {unknown[0][:40]!r}')
-            return
-        self.leaders = set(names)
+        if LAMBDA_BOUND.ok(d.lam):
+            self.lam = float(d.lam)
+        else:
+            self.reject('lambda', f'{P.DECISION}: {LAMBDA_BOUND.error(d.lam)}')
+        s = float(d.steering[self.index])
+        if STEERING_BOUND.ok(s):
+            self.steering = s
+        else:
+            self.reject('steer', f'{P.DECISION} for {self.agent_name}: {STEERING_BOUND.error(s)}')
+        self.leaders = decision_leaders(d, self.roster, self.leaders) if leaders is None else leaders
 
     def _on_target(self, msg):
         p = (msg.point.x, msg.point.y)
@@ -272,7 +357,7 @@ def driver_class(mode: str, robot: str):
 
 
 def main(argv=None):
-    return run_node(AgentNode, 'swarm_agent', argv)
+    return run_node(AgentNode, 'swarm_agent', argv, fatal=(LawError,))    # a law that failed: one line
 
 
 if __name__ == '__main__':

@@ -28,6 +28,7 @@ import numpy as np
 
 from swarm_agent.agent_core import received_table
 from swarm_core.faults.agents import alive_control
+from swarm_core.laws import LawError, failed_at
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.model.integrate import zoh_step
 
@@ -87,8 +88,17 @@ class ContainerCore:
         self.n = self.cores[0].n
         self.rows = np.array([c.index for c in self.cores], dtype=np.intp)
         self.dead = [False] * len(self.cores)
-        law = self.cores[0].law
-        self.one_law = all(c.law == law and c.dt == self.cores[0].dt for c in self.cores)
+        self._laws = self._one_law = None
+
+    @property
+    def one_law(self) -> bool:
+        """Do all the agents have one law (and dt)?  Looked at again when an agent's law
+        changed (a live parameter set: `AgentCore.law` is then a new object)."""
+        laws = [c.law for c in self.cores]
+        if self._laws is None or any(a is not b for a, b in zip(laws, self._laws)):
+            self._laws = laws
+            self._one_law = all(c.law == laws[0] and c.dt == self.cores[0].dt for c in self.cores)
+        return self._one_law
 
     def kill(self, j: int):
         """Agent j (position in the container) is dead: it never computes or speaks again."""
@@ -146,15 +156,18 @@ class ContainerCore:
         if not self.one_law or any(c.comms is not None for c in cores):
             # a radio model (each agent its own beliefs) or different laws: one call per agent
             return [c.comms_control(s.n, s.x, s.y, s.qz, s.qw, s.u, s.lam, s.flags, s.steering[c.index],
-                                    s.target, s.barrier, alive=alive, rendezvous=s.rendezvous)
+                                    s.target, s.barrier, alive=alive, rendezvous=s.rendezvous, t=s.t)
                     if c.comms is not None else
                     c.control(s.x, s.y, s.qz, s.qw, s.lam, s.flags, s.steering[c.index], s.target,
-                              s.barrier, alive=s.alive, rendezvous=s.rendezvous)
+                              s.barrier, alive=s.alive, rendezvous=s.rendezvous, t=s.t)
                     for c in cores]
         idx = self.rows[go]
         pos, cos_t, sin_t = received_table(s.x, s.y, s.qz, s.qw, idx, cores)
-        u = alive_control(pos, cos_t, sin_t, idx, cores[0].law, s.lam, s.flags, np.asarray(s.steering, float)[idx],
-                          s.target, s.barrier, alive=s.alive, rendezvous=s.rendezvous)
+        try:
+            u = alive_control(pos, cos_t, sin_t, idx, cores[0].law, s.lam, s.flags, np.asarray(s.steering, float)[idx],
+                              s.target, s.barrier, alive=s.alive, rendezvous=s.rendezvous, t=s.t)
+        except LawError as err:       # the process stops on it (`swarm_ros.rosutil.run_node`)
+            raise failed_at(err, s.t) from None
         return [float(v) for v in u]
 
     def advance(self, go, us):

@@ -1,16 +1,16 @@
-"""swarm_agents: an agent container — several agents of the swarm in one process.
+"""swarm_agent_container: an agent container — several agents of the swarm in one process.
 
-Usage: ``swarm_agents [--no-services] AGENT [AGENT ...] --ros-args --params-file FILE``
+Usage: ``swarm_agent_container [--no-services] AGENT [AGENT ...] --ros-args --params-file FILE``
 (``swarm run --agents-per-process K`` starts it; ``--no-services``: the agent nodes have no
 parameter services, type-description service or /rosout writer, see ``--agent-services``). Every
-agent is its own rclpy node ``/AGENT/agent`` (its own parameters from FILE, logger, ``steering``
-subscription and ``/swarm/states`` publisher), as an agent process would be. What the agents
+agent is its own rclpy node ``/AGENT/agent`` (its own parameters from FILE, logger and
+``/swarm/states`` publisher), as an agent process would be. What the agents
 share is done once per process, on a host node ``/agent_container_<first index>``: one
 subscription each to the step relay (lockstep: decoded once, the controls of all agents from one
 law call, see `swarm_agent.container_core`; the agents' new states go to the world in ONE
 ``/lockstep/agent_states`` message), ``/swarm/agent_states`` (realtime: the other processes'
-batches of states, one table of the states heard, checked once), λ, leaders, target, barrier and
-``/swarm/events``, and one sim clock.
+batches of states, one table of the states heard, checked once; and the commander's decision,
+``/swarm/decision``: λ, leaders, s_k), target, barrier and ``/swarm/events``, and one sim clock.
 Realtime: ONE timer at the control rate drives all the agents (`process_io.realtime_tick`: one
 law call for the agents that hear perfectly, one batched move, each agent publishing its state,
 and their new states in ONE ``/swarm/agent_states`` message); an agent with a radio model hears
@@ -46,6 +46,7 @@ from swarm_agent.process_io import (
     CLOCKS,
     AgentStatesWriter,
     LeaderMask,
+    decision_leaders,
     decode_batch,
     realtime_tick,
     shared_inputs,
@@ -54,8 +55,10 @@ from swarm_agent.process_io import (
 )
 from swarm_agent.realtime_core import Continued, HeardStates
 from swarm_agent.robot_driver import OdometryHold
-from swarm_core.checks import LAMBDA_BOUND
-from swarm_ros.msg_checks import batch_states
+from swarm_core.laws import LawError
+from swarm_ros import protocol as P
+from swarm_ros.layouts import RealtimeDecision
+from swarm_ros.msg_checks import batch_states, decoded
 from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node
 
 
@@ -68,7 +71,8 @@ class AgentContainer(Node):
         names = list(names if names is not None else AGENT_NAMES)
         services = SERVICES[0] if services is None else services
         if not names:
-            raise ParameterError('swarm_agents: name at least one agent (swarm_agents AGENT [AGENT ...])')
+            raise ParameterError('swarm_agent_container: name at least one agent '
+                                 '(swarm_agent_container AGENT [AGENT ...])')
         agent_overrides = agent_overrides or {}
         self.agents = [AgentNode('agent', namespace=nm, context=context, contained=True, services=services,
                                  parameter_overrides=agent_overrides.get(nm)) for nm in names]
@@ -78,9 +82,9 @@ class AgentContainer(Node):
         self.mode = first.mode
         self.n = first.n
         if any(a.mode != self.mode or a.roster != first.roster for a in self.agents):
-            raise ParameterError('swarm_agents: the agents of a container need the same mode and agent_names')
+            raise ParameterError('swarm_agent_container: the agents of a container need the same mode and agent_names')
         self.lockstep_clock = declare(self, 'lockstep_clock', 'step', "lockstep: the agents' sim time from each "
-                                      'step message (step) or from /clock (topic)', choices=CLOCKS)
+                                      'step message (step) or from /clock (topic)', choices=CLOCKS, read_only=True)
         self.reject = RejectLog(self.get_logger())
         self.lock = ContainerCore([a.core for a in self.agents])
         for j, a in enumerate(self.agents):
@@ -135,17 +139,19 @@ class AgentContainer(Node):
         handler.__name__ = name
         return handler
 
-    def _on_lambda(self, msg):
-        """λ comes every control period: checked once and set on every agent (one that must
-        be refused goes to each agent, which logs it as it would alone)."""
-        if LAMBDA_BOUND.ok(msg.data):
-            for a in self.agents:
-                a.lam = msg.data
-        else:
-            for a in self.agents:
-                a._on_lambda(msg)
+    def _on_decision(self, raw):
+        """Realtime: the commander's decision comes every control period: decoded once, its
+        leaders made a set once, taken by every agent (each checks its values as it would alone)."""
+        first = self.agents[0]
+        d = decoded(RealtimeDecision, raw, first.run_id, self.reject, 'decision')
+        if d is None or len(d.flags) != first.n:
+            if d is not None:
+                self.reject('decision-n', f'{P.DECISION} with {len(d.flags)} agents (the roster has {first.n})')
+            return
+        leaders = decision_leaders(d, first.roster, first.leaders)
+        for a in self.agents:
+            a.take_decision(d, leaders)
 
-    _on_leaders = _fan('_on_leaders')
     _on_target = _fan('_on_target')
     _on_barrier = _fan('_on_barrier')
     _on_event = _fan('_on_event')
@@ -198,7 +204,7 @@ class AgentContainer(Node):
 
 AGENT_NAMES: list = []
 SERVICES = [True]
-#: ``swarm_agents --no-services AGENT ...``: the agent nodes without parameter services,
+#: ``swarm_agent_container --no-services AGENT ...``: the agent nodes without parameter services,
 #: type-description service and /rosout (see `container_core.agent_services`)
 NO_SERVICES = '--no-services'
 
@@ -208,7 +214,8 @@ def main(argv=None):
     own = remove_ros_args(list(args))[1:]
     SERVICES[0] = NO_SERVICES not in own
     AGENT_NAMES[:] = [a for a in own if a not in ('-h', '--help', NO_SERVICES)]
-    return run_node(AgentContainer, 'swarm_agents', args, more_nodes=lambda c: c.agents)
+    return run_node(AgentContainer, 'swarm_agent_container', args, more_nodes=lambda c: c.agents,
+                    fatal=(LawError,))        # a law that failed: one line
 
 
 if __name__ == '__main__':

@@ -17,7 +17,7 @@ from swarm_agent.process_io import (
     step_message,
     step_time,
 )
-from swarm_agent.realtime_core import Continued, HeardStates
+from swarm_agent.realtime_core import CATCH_UP_MAX, Continued, HeardStates
 from swarm_core.faults.radio import StreamRadio
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, Senders, batch_states, check_values, refused
@@ -29,18 +29,22 @@ class LockstepDriver:
     `ContainerCore` of one; contained: the container decides for all its agents and calls
     `lockstep_outcome`)."""
 
+    #: the parameters of this mode that ``ros2 param set`` changes during a run (the others are read-only)
+    live_parameters = ()
+
     @staticmethod
     def declare(node):
-        """This mode's parameters (every agent node declares those of every mode)."""
+        """This mode's parameters (every agent node declares those of every mode): read once at
+        the start."""
         return dict(
             state_subscribers=declare(
                 node, 'state_subscribers', 0, 'lockstep: publish the first state only once this many readers '
                 'of /swarm/states have matched (1 = the recorder; the world reads /lockstep/agent_states)',
-                lo=0, hi=100000),
+                lo=0, hi=100000, read_only=True),
             lockstep_clock=declare(
                 node, 'lockstep_clock', 'step', 'lockstep: sim time from each step message (step: no /clock '
                 "reader) or from /clock (topic); in a container its host node's parameter applies",
-                choices=CLOCKS))
+                choices=CLOCKS, read_only=True))
 
     def __init__(self, node, state_subscribers, lockstep_clock):
         self.node = node
@@ -119,19 +123,25 @@ class RealtimeDriver:
     container sends the batch and the states it heard perfectly are the container's
     (`HeardStates`)."""
 
+    #: the parameters of this mode that ``ros2 param set`` changes during a run (next tick on)
+    live_parameters = ('stale_after', 'catch_up_limit', 'future_tolerance')
+
     @staticmethod
     def declare(node):
-        """This mode's parameters (every agent node declares those of every mode)."""
+        """This mode's parameters (every agent node declares those of every mode): live in
+        realtime (`live_parameters`), read-only in lockstep, where nothing reads them."""
+        fixed = node.mode != 'realtime'
+        robot = fixed or node.robot != 'none'     # a robot agent takes its pose each tick: no catch-up
         return dict(
             stale_after=declare(node, 'stale_after', 2.0, 'realtime: ignore neighbour states older than this '
-                                '(sim s)', lo=0.0, hi=1e9),
+                                '(sim s)', lo=0.0, hi=1e9, read_only=fixed),
             catch_up_limit=declare(
                 node, 'catch_up_limit', 4, 'realtime: most control periods the agent integrates (u held) after '
                 'its process was stopped (SIGSTOP ... SIGCONT); a late tick of a running process integrates '
-                'every period that passed', lo=1, hi=10**6),
+                f'every period that passed (up to {CATCH_UP_MAX})', lo=1, hi=CATCH_UP_MAX, read_only=robot),
             future_tolerance=declare(
                 node, 'future_tolerance', FUTURE_TOLERANCE, 'realtime: reject neighbour states stamped more '
-                'than this many sim s ahead of this clock', lo=0.0, hi=1e9))
+                'than this many sim s ahead of this clock', lo=0.0, hi=1e9, read_only=fixed))
 
     def __init__(self, node, stale_after, catch_up_limit, future_tolerance):
         self.node = node
@@ -151,6 +161,13 @@ class RealtimeDriver:
     def start(self):
         node = self.node
         if not node.contained:
+            now = node._now()
+            if now > CATCH_UP_MAX * node.dt:     # no sim clock: its time starts at the first reading
+                node.t = now
+                node.get_logger().info(
+                    f'realtime: the clock reads {now:.3f} s at the start (use_sim_time is '
+                    f'{node.get_parameter("use_sim_time").value}; in a swarm run the agents follow the world\'s '
+                    '/clock from 0): this agent\'s time starts there')
             self.lock = ContainerCore([node.core])
             self.batch = AgentStatesWriter(node, realtime=True)
             self.process_tag = self.batch.tag
@@ -212,7 +229,7 @@ class RealtimeDriver:
         node = self.node
         own, rows, flags = self.table(now, heard)
         return node.core.control(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], node.lam, flags, node.steering,
-                                 node.target, node.barrier, row=own)
+                                 node.target, node.barrier, row=own, t=now)
 
 
 #: the modes of an agent node (parameter ``mode``) and the class that drives each

@@ -10,12 +10,14 @@ import math
 import numpy as np
 from geometry_msgs.msg import PointStamped, PolygonStamped
 from rclpy.time import Time
-from std_msgs.msg import Float64, Float64MultiArray, String
+from std_msgs.msg import Float64MultiArray, String
 
-from swarm_agent.realtime_core import advance_periods, due_periods, shared_controls
+from swarm_agent.realtime_core import CATCH_UP_MAX, advance_periods, due_periods, shared_controls
+from swarm_core.laws import LawError
 from swarm_ros import protocol as P
 from swarm_ros.layouts import AgentStates, ProcessStates, Step
 from swarm_ros.msg_checks import batch_ok, decoded, new_sender_tag
+from swarm_ros.rosutil import fail
 
 #: lockstep: where an agent's sim time comes from (parameter ``lockstep_clock``)
 CLOCKS = ('step', 'topic')
@@ -25,10 +27,13 @@ def shared_inputs(node, on_input):
     """(type, topic, callback, QoS, raw) of the subscriptions whose messages every agent of a
     process reads alike (a container makes each once and hands the messages to its agents;
     `node` is the agent or the container); ``on_input`` takes the mode's own input (lockstep:
-    the step relay; realtime: the processes' batches of states, /swarm/agent_states)."""
-    subs = [(Float64, P.LAMBDA, node._on_lambda, P.qos_latched(10), False),      # the λ in force
-            (String, P.LEADERS, node._on_leaders, P.qos_latched(), False),
-            (PointStamped, P.TARGET, node._on_target, P.qos_latched(), False),
+    the step relay; realtime: the processes' batches of states, /swarm/agent_states).
+
+    λ, the leaders and s_k come with the commander's decision: in each step message (lockstep),
+    on /swarm/decision (realtime).  No agent reads /swarm/lambda or /<agent>/steering: what a
+    user publishes there is a command for the commander alone, and a reader there that a stock
+    ``ros2 topic pub`` cannot match would log an incompatible-QoS warning (docs/ros-graph.md)."""
+    subs = [(PointStamped, P.TARGET, node._on_target, P.qos_latched(), False),
             (PolygonStamped, P.BARRIER, node._on_barrier, P.qos_latched(), False),
             (String, P.EVENTS, node._on_event, P.qos_latched(100), False)]
     if node.mode == 'lockstep':
@@ -36,7 +41,15 @@ def shared_inputs(node, on_input):
     else:
         subs.append((Float64MultiArray, P.AGENT_STATES, on_input,  # `decode_batch`
                      P.qos_latched(max(50, 4 * node.n)), True))
+        subs.append((Float64MultiArray, P.DECISION, node._on_decision, P.qos_latched(), True))
     return subs
+
+
+def decision_leaders(d, roster, leaders):
+    """The leader names of decision ``d``: ``leaders`` (the set held) if they are the same, so
+    that a set only changes when the leaders do (`LeaderMask` keys on it)."""
+    now = {roster[i] for i in np.flatnonzero(d.flags)}
+    return leaders if now == leaders else now
 
 
 class AgentStatesWriter:
@@ -82,7 +95,12 @@ def step_message(raw, lock, agents, reject, batch):
     if s is None:
         return None
     said = []
-    for j, kind, detail in lock.on_step(s):
+    try:
+        outcomes = lock.on_step(s)
+    except LawError as err:         # the agents' law failed: the process stops with one line
+        fail(err)
+        return None
+    for j, kind, detail in outcomes:
         agents[j].driver.lockstep_outcome(kind, detail, s)
         if kind in ('moved', 'repeat'):
             said.append(agents[j])
@@ -128,15 +146,23 @@ def realtime_tick(agents, lock, heard, leader_mask, batch, continued):
     `due_periods`), not by one dt per call: a /clock jump may cover two periods and fire the timer
     once (it catches up), or fire it again at the same time (nothing moves, so no two states
     share a stamp); after the process was stopped (``continued``, a `Continued`) by at most
-    each agent's ``catch_up_limit`` periods.  The agents that hear perfectly and are fresh in ``heard`` get their u from
-    one law call; the others (a radio model) one each.  Then one batched move, one state
-    published by each agent that moved, and their states in one message (``batch``, an
+    each agent's ``catch_up_limit`` periods; more than `CATCH_UP_MAX` periods behind (a clock
+    that started before the agent or jumped) an agent's time restarts at the clock (one line).
+    The agents that hear perfectly and are fresh in ``heard`` get their u from one law call;
+    the others (a radio model) one each.  Then one batched move, one state published by each
+    agent that moved, and their states in one message (``batch``, an
     `AgentStatesWriter`).  ``lock``: the agents' `ContainerCore`; ``leader_mask``: a `LeaderMask`
     of the roster."""
     a0 = agents[0]
     now = a0._now()
     limits = [a.driver.catch_up_limit for a in agents] if continued() else None
     moving, follow = due_periods(now, [a.t for a in agents], a0.dt, [a.halted is not None for a in agents], limits)
+    behind = [agents[j] for j, _ in follow if agents[j].halted is None]   # over CATCH_UP_MAX periods: no late tick
+    if behind:
+        who = 'this agent' if len(agents) == 1 else f'{len(behind)} agents ({behind[0].agent_name}, ...)'
+        a0.get_logger().warning(
+            f'realtime: the clock reads {now:.3f} s, {now - behind[0].t:.3f} s past the state of {who} (over '
+            f'{CATCH_UP_MAX} periods: a clock that started before the agent or jumped); its time restarts there')
     for j, t_new in follow:
         agents[j].t = t_new
     if not moving:
@@ -145,14 +171,18 @@ def realtime_tick(agents, lock, heard, leader_mask, batch, continued):
     shared = [j for j, _, _ in moving if not agents[j].radio_on and lock.one_law
               and agents[j].driver.stale_after == stale and now - heard.t[agents[j].index] <= stale]
     us = {}
-    if shared:
-        mask = leader_mask(a0.leaders)
-        u = shared_controls([agents[j].core for j in shared], heard, now, stale, a0.lam, mask,
-                            [agents[j].steering for j in shared], a0.target, a0.barrier)
-        us.update(zip(shared, u))
-    for j, _, _ in moving:
-        if j not in us:
-            us[j] = agents[j].driver.control(now, heard)
+    try:
+        if shared:
+            mask = leader_mask(a0.leaders)
+            u = shared_controls([agents[j].core for j in shared], heard, now, stale, a0.lam, mask,
+                                [agents[j].steering for j in shared], a0.target, a0.barrier)
+            us.update(zip(shared, u))
+        for j, _, _ in moving:
+            if j not in us:
+                us[j] = agents[j].driver.control(now, heard)
+    except LawError as err:         # the agents' law failed: the process stops with one line
+        fail(err)
+        return
     go = [j for j, _, _ in moving]
     for j in go:
         if not math.isfinite(us[j]):

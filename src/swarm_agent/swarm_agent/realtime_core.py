@@ -22,6 +22,7 @@ import numpy as np
 
 from swarm_agent.agent_core import catch_up, received_table
 from swarm_core.faults.agents import alive_control
+from swarm_core.laws import LawError, failed_at
 from swarm_ros.msg_checks import NewestStates
 
 
@@ -64,27 +65,39 @@ def shared_controls(cores, heard: HeardStates, now, stale_after, lam, leader_mas
     at = np.searchsorted(rows, own[order])
     pos, cos_t, sin_t = received_table(states[:, 0], states[:, 1], states[:, 2], states[:, 3], at,
                                        [cores[j] for j in order])
-    u_sorted = alive_control(pos, cos_t, sin_t, at, cores[0].law, lam, leader_mask[rows],
-                             np.asarray(steering, float)[order], target, barrier)
+    try:
+        u_sorted = alive_control(pos, cos_t, sin_t, at, cores[0].law, lam, leader_mask[rows],
+                                 np.asarray(steering, float)[order], target, barrier, t=now)
+    except LawError as err:           # the process stops on it (`swarm_ros.rosutil.run_node`)
+        raise failed_at(err, now) from None
     u = np.empty(len(cores))
     u[order] = u_sorted
     return u
 
 
+#: the most control periods an agent integrates in one tick (`due_periods`).  A larger gap
+#: between its state and the clock is no late tick: the clock started long before the agent
+#: (the system clock without use_sim_time, or a run it joined late) or jumped; the agent's time
+#: restarts at the clock instead (billions of periods in one callback hung the process)
+CATCH_UP_MAX = 1000
+
+
 def due_periods(now, times, dt, halted, limits=None):
     """([(j, periods, t_new)], [(j, t_new)]): the agents (positions j) that move at ``now`` (at
-    least one period since their state of time ``times[j]``, `catch_up`), and the ``halted``
-    ones (a fault froze or killed them) whose time follows the clock without a move, so that a
-    frozen agent resumes with one period, not with its whole pause.
+    least one period since their state of time ``times[j]``, `catch_up`), and the agents whose
+    time follows the clock without a move: the ``halted`` ones (a fault froze or killed them),
+    so that a frozen agent resumes with one period, not with its whole pause, and those more
+    than `CATCH_UP_MAX` periods behind the clock (their time restarts at it).
 
     Every period that passed is flown (u held): a late tick of a starved process never loses
-    sim time, so the agents fly at unit speed however late their process ticks.  Only after
-    the process itself was stopped (SIGSTOP ... SIGCONT, `Continued`) does each agent move at
-    most ``limits[j]`` periods (its ``catch_up_limit``) and restart its time at ``now``."""
+    sim time, so the agents fly at unit speed however late their process ticks (up to
+    `CATCH_UP_MAX` periods).  Only after the process itself was stopped (SIGSTOP ... SIGCONT,
+    `Continued`) does each agent move at most ``limits[j]`` periods (its ``catch_up_limit``)
+    and restart its time at ``now``."""
     moving, follow = [], []
     for j, t in enumerate(times):
         periods, t_new = catch_up(now, t, dt, math.inf if limits is None else limits[j])
-        if halted[j]:
+        if halted[j] or periods > CATCH_UP_MAX:
             if periods:
                 follow.append((j, t_new))
         elif periods:

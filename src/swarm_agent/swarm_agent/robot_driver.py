@@ -45,6 +45,7 @@ from std_msgs.msg import String
 
 from swarm_agent.drivers import LockstepDriver, RealtimeDriver
 from swarm_agent.process_io import AgentStatesWriter, step_message, step_time
+from swarm_core.laws import LawError
 from swarm_core.robot_units import (
     CMD_TYPES,
     ROBOT_FRAMES,
@@ -56,7 +57,7 @@ from swarm_core.robot_units import (
     yaw_of_quaternion,
 )
 from swarm_ros import protocol as P
-from swarm_ros.rosutil import ParameterError, declare
+from swarm_ros.rosutil import ParameterError, declare, fail
 
 #: the robot's clock: the swarm's sim clock (a simulator on /clock, lockstep) or the system
 #: clock (real robots; their controllers stamp and time out in wall time)
@@ -71,7 +72,7 @@ def _default(name):
 
 def declare_robot(node) -> dict:
     """A robot agent's parameters (declared only when ``robot`` is not none)."""
-    d = lambda *a, **k: declare(node, *a, **k)  # noqa: E731
+    d = lambda *a, **k: declare(node, *a, read_only=True, **k)  # noqa: E731 - read once at the start
     p = dict(
         length_scale=d('length_scale', 0.0, 'robot: L, metres per model unit (the scenario\'s robots: section)',
                        lo=0.0, hi=1e6),
@@ -127,8 +128,9 @@ class RobotLink:
             pose = f'{ns}/odom ({robot_frame} frame, {robot_clock} clock)'
         else:
             pose = f'the robot world\'s reports ({P.LOCK_ROBOT_STATES})'
+        r0 = getattr(getattr(node.law, 'gains', None), 'r0', None)      # the paper's law's spacing, if any
         node.get_logger().info(f'robot on {ns}/cmd_vel ({cmd_type}), pose from {pose}; '
-                               + self.units.describe(node.law.cutoff_radius, node.law.gains.r0))
+                               + self.units.describe(node.law.cutoff_radius, r0))
 
     # -- time
     def robot_now(self) -> float:
@@ -315,6 +317,8 @@ class LockstepMujocoDriver(LockstepDriver):
 class RealtimeRobotDriver(RealtimeDriver):
     """Realtime with a robot (module docstring)."""
 
+    live_parameters = ('stale_after', 'future_tolerance')     # no catch-up: the robot's pose each tick
+
     def __init__(self, node, stale_after, catch_up_limit, future_tolerance, **robot):
         super().__init__(node, stale_after, catch_up_limit, future_tolerance)
         self.link = RobotLink(node, False, **robot)
@@ -352,8 +356,13 @@ class RealtimeRobotDriver(RealtimeDriver):
         if link.check(paused=node.halted is not None):
             link.publish_cmd(0.0, 0.0, stamp)
         else:
-            u = node.core.control(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], node.lam, flags, node.steering,
-                                  node.target, node.barrier, row=own)
+            try:
+                u = node.core.control(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], node.lam, flags,
+                                      node.steering, node.target, node.barrier, row=own, t=now)
+            except LawError as err:     # the law failed: the robot stops, the process with one line
+                link.publish_cmd(0.0, 0.0, stamp)
+                fail(err)
+                return
             if not math.isfinite(u):
                 node.reject('u-nan', f'non-finite control u={u}; holding u=0')
                 u = 0.0

@@ -42,7 +42,7 @@ from swarm_robots.world_setup import (
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RobotStates, Step
 from swarm_ros.msg_checks import RejectLog, decoded
-from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
+from swarm_ros.rosutil import ParameterError, declare, require_sim_clock, run_node, steady_clock
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
 
@@ -52,6 +52,9 @@ METRICS_TOPIC = '/robots/metrics'
 REPEAT_AFTER = 0.5
 #: realtime: wall s between physics ticks
 TICK = 0.01
+#: realtime: the most robot s of physics one tick runs (a clock far ahead is caught up over
+#: several ticks, each a few ms per robot: SIGINT and the other callbacks are never held up)
+TICK_ADVANCE_MAX = 1.0
 
 
 def odom_topic(agent: str) -> str:
@@ -127,6 +130,8 @@ class RobotsNode(Node):
                               '(swarm run: half the world\'s missing_timeout)', lo=0.1, hi=1e6)
         self.run_id = declare_run_id(self, 'lockstep step messages of another run are refused')
         self.scn = declare_scenario(self)
+        if self.mode == 'realtime':
+            require_sim_clock(self, 'realtime robots follow the sim clock (/clock) from 0')
         try:
             self.sec = robots_section(self.scn)
         except ValueError as err:
@@ -217,7 +222,8 @@ class RobotsNode(Node):
 
     def _tick(self):
         """Realtime: the physics up to the sim clock's robot time, odometry when due."""
-        self.asked = advance_to(self.world, self.asked, self.pacer.target(self.get_clock().now().nanoseconds * 1e-9))
+        self.asked = advance_to(self.world, self.asked, self.pacer.target(self.get_clock().now().nanoseconds * 1e-9),
+                                TICK_ADVANCE_MAX)
         if self.pacer.odom_due(self.world.time, time.monotonic()):
             self.publish_odometry(self.units.model_time(self.world.time))
 

@@ -168,12 +168,15 @@ class TurnLimitClock:
         return getattr(self.world, name)
 
 
-def advance_to(world, asked: float, target: float) -> float:
+def advance_to(world, asked: float, target: float, limit: float = math.inf) -> float:
     """Advance ``world`` from robot time ``asked`` (the sum of what it was asked so far) to
-    ``target``; returns the new sum.  The physics may round each advance to whole controller
-    periods and keeps the remainder, so it is asked the exact differences, never ``target``
-    minus its rounded clock (which would add each rounding again)."""
+    ``target``, by at most ``limit`` robot s (the rest on later calls: no callback runs the
+    physics for an unbounded time); returns the new sum.  The physics may round each advance
+    to whole controller periods and keeps the remainder, so it is asked the exact
+    differences, never ``target`` minus its rounded clock (which would add each rounding again)."""
     if target > asked:
+        if target - asked > limit:
+            target = asked + limit
         world.advance(target - asked)
         return target
     return asked

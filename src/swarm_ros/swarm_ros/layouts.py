@@ -31,6 +31,7 @@ import numpy as np
 
 from swarm_ros.protocol import (
     AGENT_STATES,
+    DECISION,
     LOCK_AGENT_STATES,
     LOCK_DECISION,
     LOCK_ROBOT_STATES,
@@ -367,6 +368,13 @@ class Decision(Packed):
     rendezvous: Any          # the reunion of step n or None
 
 
+@declare(DECISION, *Decision.LAYOUT.fields)
+@dataclasses.dataclass(eq=False)
+class RealtimeDecision(Decision):
+    """Realtime: the commander's decision of each tick (``n``: the step of its time ``t``), for
+    the agents (λ, leaders, each one's s_k) and the world (λ and leaders recorded)."""
+
+
 @declare(LOCK_STEP, Field('n', kind='whole'), Field('t'), Field('N', kind='count'), Field('M', kind='count'),
          Field('lam'), Field('flags', 'N', 'flag'), Field('steering', 'N'), Field('x', 'N'), Field('y', 'N'),
          Field('qz', 'N'), Field('qw', 'N'), Field('u', 'N'), Field('alive', 'N', 'flag'),
@@ -390,4 +398,4 @@ class Step(Packed):
     rendezvous: Any
 
 
-MESSAGES = (AgentStates, RobotStates, ProcessStates, States, Decision, Step)
+MESSAGES = (AgentStates, RobotStates, ProcessStates, States, Decision, RealtimeDecision, Step)

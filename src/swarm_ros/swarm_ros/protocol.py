@@ -31,6 +31,10 @@ LOCK_AGENT_STATES = '/lockstep/agent_states'
 LOCK_ROBOT_STATES = '/lockstep/robot_states'
 #: realtime: one message per agent process and tick with its agents' new states (`layouts.ProcessStates`)
 AGENT_STATES = '/swarm/agent_states'
+#: realtime: the commander's decision of each tick (λ, leaders, s_k: `layouts.RealtimeDecision`), what
+#: the agents and the world read; /swarm/lambda and /<agent>/steering are for the record and for
+#: commands, which only the commander reads (docs/ros-graph.md, docs/commands.md)
+DECISION = '/swarm/decision'
 #: publisher depth of /swarm/agent_states (transient-local): a late reader gets each process's
 #: newest states (the first ones included while the run starts)
 AGENT_STATES_DEPTH = 10

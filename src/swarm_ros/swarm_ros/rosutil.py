@@ -11,8 +11,6 @@ import sys
 import threading
 import time
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-
 from swarm_ros.msg_checks import RejectLog  # noqa: F401  (the nodes' rejection log lives with the checks)
 
 
@@ -23,6 +21,7 @@ class ParameterError(ValueError):
 def declare(node, name, default, description, lo=None, hi=None, choices=None, finite=True, read_only=False):
     """Declare a parameter with a description (and a range); return its validated value.
     ``read_only``: a value read once at the start, which ``ros2 param set`` may not change."""
+    from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
     from rclpy.exceptions import ParameterException
     desc = ParameterDescriptor(description=description, read_only=read_only)
     if isinstance(default, bool):
@@ -49,6 +48,15 @@ def declare(node, name, default, description, lo=None, hi=None, choices=None, fi
     if choices and value not in choices:
         raise ParameterError(f'parameter {name}: {value!r} is not one of {", ".join(choices)}')
     return value
+
+
+def require_sim_clock(node, what):
+    """A node whose program runs on the world's sim clock from 0 (a realtime commander, the
+    realtime robots) refuses the system clock: ParameterError (one line) unless use_sim_time."""
+    if not node.get_parameter('use_sim_time').value:
+        now = node.get_clock().now().nanoseconds * 1e-9
+        raise ParameterError(f'parameter use_sim_time: false, but {what} (the system clock reads {now:.0f} s): '
+                             'set use_sim_time:=true')
 
 
 def gid_key(gid) -> bytes:
@@ -122,6 +130,51 @@ def when_matched(node, matched, then, limit, what):
 
 #: wall seconds a node's ROS teardown may take before the process exits without it
 TEARDOWN_LIMIT = 10.0
+#: after SIGINT / SIGTERM: wall seconds a running callback may take to return, and then the
+#: teardown, before the process exits without them (`ExitWatch`): a node stops within a second
+STOP_LIMIT = 0.5
+STOPPED_TEARDOWN_LIMIT = 0.4
+
+
+def _stderr_line(logger_name, text):
+    """One log-like line straight to fd 2 (no logging lock: the main thread may hold it)."""
+    os.write(2, f'[WARN] [{time.time():.9f}] [{logger_name}]: {text}\n'.encode(errors='replace'))
+
+
+class ExitWatch:
+    """The last resort of a node process after SIGINT / SIGTERM (`run_node`): a thread woken
+    by the signal itself (`signal.set_wakeup_fd`: the C handler writes the signal number to a
+    pipe, whatever the main thread is doing) gives the spin `STOP_LIMIT` s to return (a
+    callback that runs on is not waited for) and ends the process with one line saying so
+    (``os._exit(128 + signal)``).  ``returned()``: the spin has returned, the node stops
+    normally (its teardown has its own limit).  Main thread only (else a no-op)."""
+
+    def __init__(self, logger_name, limit=STOP_LIMIT):
+        self.logger_name = logger_name
+        self.limit = limit
+        self.done = threading.Event()
+        self.old_fd = None
+        if threading.current_thread() is not threading.main_thread():
+            return
+        r, w = os.pipe()
+        os.set_blocking(w, False)
+        self.old_fd = signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+        threading.Thread(target=self._watch, args=(r,), name='exit-watch', daemon=True).start()
+
+    def _watch(self, r):
+        stop = (signal.SIGINT, signal.SIGTERM)
+        while True:
+            got = [b for b in os.read(r, 64) if b in stop]
+            if got:
+                break
+        if self.done.wait(self.limit):
+            return
+        _stderr_line(self.logger_name, f'{signal.Signals(got[0]).name}: a callback still runs {self.limit:g} s '
+                     'later: exiting without it (no cleanup)')
+        os._exit(128 + got[0])
+
+    def returned(self):
+        self.done.set()
 
 
 def wants_help(argv) -> bool:
@@ -220,8 +273,61 @@ def settle_garbage():
     gc.freeze()
 
 
+#: exit code of a node process stopped by an error of the run itself (`run_node` ``fatal``: a law
+#: that failed); its one line goes to the file `EXIT_NOTES` names, where a launcher reads it
+FATAL_EXIT = 3
+#: environment variable: a directory for the line of a node that stops with `FATAL_EXIT` (the
+#: launcher says it once for all its agents); unset: the node logs it
+EXIT_NOTES = 'SWARM_EXIT_NOTES'
+
+
+#: the error that stops this process (`fail`), at most one
+_FAILED = []
+
+
+def fail(err) -> None:
+    """Stop this node process on ``err``, an error of the run itself (a law that failed), from
+    a callback: `run_node`'s spin ends, the one line is said (`fatal_note`) and the process
+    exits with `FATAL_EXIT`.  (Raised on, it would reach the executor, which logs a traceback.)"""
+    if not _FAILED:
+        _FAILED.append(err)
+
+
+def failure():
+    """The error `fail` was given in this process, or None."""
+    return _FAILED[0] if _FAILED else None
+
+
+def fatal_note(logger, err) -> None:
+    """The one line of a node that stops on ``err`` (`run_node` ``fatal``): into a file of the
+    directory `EXIT_NOTES` names, else (or if that fails) logged as an error."""
+    where = os.environ.get(EXIT_NOTES)
+    if where:
+        try:
+            tmp = os.path.join(where, f'.{os.getpid()}.tmp')
+            with open(tmp, 'w') as fh:
+                fh.write(str(err))
+            os.replace(tmp, os.path.join(where, f'{os.getpid()}.txt'))
+            return
+        except OSError:
+            pass
+    logger.error(str(err))
+
+
+def read_fatal_note(where) -> str | None:
+    """The first line a node left in ``where`` (`fatal_note`), or None."""
+    try:
+        names = sorted(n for n in os.listdir(where) if n.endswith('.txt'))
+        for name in names:
+            with open(os.path.join(where, name)) as fh:
+                return fh.read().strip()
+    except OSError:
+        return None
+    return None
+
+
 def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, on_stop=None,
-             more_nodes=None) -> int:
+             more_nodes=None, fatal=()) -> int:
     """The ``main()`` of a node executable: init rclpy from ``argv``, build ``node_class()``
     (a bad parameter -> one error line, exit 2), spin until ``done(node)`` or SIGINT / SIGTERM,
     clean up; returns ``exit_code(node)`` (default 0).  ``-h`` / ``--help``: the usage and the
@@ -230,8 +336,13 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
     SIGINT / SIGTERM only set a flag that the spin loop checks (at least every 0.1 s): a
     callback that is running finishes (rclpy's own handler shut the context down under it, and
     every node logged a traceback on Ctrl-C), then ``on_stop(node)`` runs (e.g. the world
-    saves the steps done so far) and the node is cleaned up.  ``more_nodes(node)``: further
-    nodes the node holds (an agent container's agents), spun by the same executor."""
+    saves the steps done so far) and the node is cleaned up (in `STOPPED_TEARDOWN_LIMIT` s); a
+    callback still running `STOP_LIMIT` s after the signal is not waited for (`ExitWatch`), so a
+    node stops within a second whatever its callbacks do.  ``more_nodes(node)``: further
+    nodes the node holds (an agent container's agents), spun by the same executor.
+    ``fatal``: exception classes that end the node with one line and `FATAL_EXIT`, not a
+    traceback (an agent's law that failed: the launcher stops the run, `fatal_note`), as
+    `fail` called in a callback does."""
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
@@ -240,6 +351,7 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
         print(node_help(node_class, logger_name))
         return 0
     stop, wake, _ = stop_on_signals()
+    watch = ExitWatch(logger_name)
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     ctx = rclpy.get_default_context()
     try:
@@ -254,8 +366,15 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
         ex.add_node(other)
     settle_garbage()
     profile = profiler()
-    spin_until(ex, ctx, (lambda: bool(stop) or done(node)) if done is not None else (lambda: bool(stop)),
-               wake=wake)
+    failed = None
+    try:
+        spin_until(ex, ctx, lambda: bool(stop) or bool(_FAILED) or (done is not None and done(node)), wake=wake)
+    except fatal as err:
+        failed = err
+    failed = failed or failure()
+    if failed is not None:
+        fatal_note(node.get_logger(), failed)
+    watch.returned()
     if profile is not None:
         profile(f'{logger_name}-{node.get_name()}')
     if stop and on_stop is not None:
@@ -263,17 +382,16 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
     reject = getattr(node, 'reject', None)
     if reject is not None and reject.summary():
         node.get_logger().info(reject.summary())
-    code = exit_code(node) if exit_code is not None else 0
+    code = FATAL_EXIT if failed is not None else exit_code(node) if exit_code is not None else 0
     # a DDS teardown that never returns (seen with Fast DDS after a peer process was SIGKILLed)
     # must not keep a finished node alive: its work is done and saved, so exit anyway
+    limit = STOPPED_TEARDOWN_LIMIT if stop else TEARDOWN_LIMIT   # after a signal: stop within a second
 
     def give_up():
-        rclpy.logging.get_logger(logger_name).warning(
-            f'shutdown took more than {TEARDOWN_LIMIT:g} s: exiting without it')
+        _stderr_line(logger_name, f'shutdown took more than {limit:g} s: exiting without it')
         sys.stdout.flush()
-        sys.stderr.flush()
         os._exit(code)
-    watchdog = threading.Timer(TEARDOWN_LIMIT, give_up)
+    watchdog = threading.Timer(limit, give_up)
     watchdog.daemon = True
     watchdog.start()
     node.destroy_node()

@@ -34,7 +34,7 @@ def valid_run_id(text: str) -> bool:
 def declare_run_id(node, what: str) -> str:
     """Declare a node's ``run_id`` parameter (``what``: what the node does with it) and return it;
     ParameterError for one that is not 1-32 letters, digits, _ or -."""
-    run_id = declare(node, 'run_id', '', f"this run's id (swarm run sets it; '' = none): {what}")
+    run_id = declare(node, 'run_id', '', f"this run's id (swarm run sets it; '' = none): {what}", read_only=True)
     if not valid_run_id(run_id):
         raise ParameterError(f'parameter run_id: {run_id!r} is not 1-32 letters, digits, _ or -')
     return run_id

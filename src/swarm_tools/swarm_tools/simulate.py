@@ -14,9 +14,10 @@ import numpy as np
 
 from swarm_core import study as st
 from swarm_core.analysis.outputs import analyse, check_output_dir, dumps, summary_of, write_failed, write_outputs
-from swarm_core.command.plan import read_commands
+from swarm_core.command.plan import law_timeline, read_commands
 from swarm_core.engine import reference as engine
 from swarm_core.files import write_atomic
+from swarm_core.laws import LawError, LawFailed
 from swarm_core.scenario import loader as scenario
 
 
@@ -74,6 +75,7 @@ def _replay_or_exit(path, scn) -> dict:
         if len(raw) > MAX_REPLAY_BYTES:
             raise ValueError(f'more than {MAX_REPLAY_BYTES} bytes')
         commands = read_commands(raw.decode('utf-8').splitlines(), scn.names)
+        law_timeline(commands, scn.law, len(scn.names))          # an agent's law changes: each must fit its law
         late = [s for s in commands if s > scn.steps]
         if late:
             raise ValueError(f'a command at step {late[0]} is after the last step {scn.steps}')
@@ -113,7 +115,8 @@ def simulate_main(argv) -> int:
     p.add_argument('--no-figure', action='store_true', help='skip the PNG figure')
     p.add_argument('--quiet', action='store_true', help='no progress output')
     p.add_argument('--replay', metavar='EVENTS.jsonl', help=(
-        "re-apply a run's live commands (the 'command' events of its events.jsonl) at their steps"))
+        "re-apply a run's live commands (the 'command' events of its events.jsonl: λ, steering, an "
+        "agent's law parameters) at their steps"))
     _engine_option(p)
     a = p.parse_args(argv)
     if a.record_every < 1:
@@ -131,8 +134,11 @@ def simulate_main(argv) -> int:
         print(f'swarm simulate: {src}, {len(scn.names)} agents, law {scn.law.kind}, '
               f'dt {scn.dt}, t = 0..{scn.duration:g} ({scn.steps} steps), seed {scn.seed}', file=sys.stderr)
     commands = _replay_or_exit(a.replay, scn) if a.replay else None
-    traj = _simulator(a.engine)(scn, record_every=a.record_every, commands=commands,
-                                progress=_Progress(f'{scn.name} seed {scn.seed}', not a.quiet))
+    try:
+        traj = _simulator(a.engine)(scn, record_every=a.record_every, commands=commands,
+                                    progress=_Progress(f'{scn.name} seed {scn.seed}', not a.quiet))
+    except LawFailed as err:        # the steps done are saved, with one line
+        return _law_failed(err, out, scn, a.no_figure)
     if not a.quiet and traj.meta.get('fallback'):
         print(f'swarm simulate: the fast engine does not cover this run ({traj.meta["fallback"]}): '
               'the reference engine ran it', file=sys.stderr)
@@ -159,12 +165,38 @@ def simulate_main(argv) -> int:
     return 130 if interrupted else 0
 
 
+def _law_failed(err, out, scn, no_figure) -> int:
+    """A law that failed during ``swarm simulate``: one line, the steps done saved; exit 1."""
+    traj = err.trajectory
+    sys.stderr.write('\n' if sys.stderr.isatty() else '')      # (after a progress bar)
+    if traj is None or not len(traj.t):
+        print(f'swarm simulate: {err}; nothing saved', file=sys.stderr)
+        return 1
+    try:
+        series, checks = analyse(traj, scenario=scn)
+        write_outputs(out, scn, traj, series, checks, figure=not no_figure)
+    except OSError as e:
+        print(write_failed('swarm simulate', out, e), file=sys.stderr)
+        return 1
+    print(f'swarm simulate: {err}; the steps done (t = 0..{traj.t[-1]:g}) are in {out}/trajectory.npz, '
+          'metrics.json', file=sys.stderr)
+    return 1
+
+
 class SweepInterrupted(KeyboardInterrupt):
     """Ctrl-C during a sweep; ``results`` holds the seeds that finished (in seed order)."""
 
     def __init__(self, results):
         super().__init__()
         self.results = results
+
+
+class SweepFailed(SweepInterrupted):
+    """A seed's law failed (`LawError`): the sweep stops as on Ctrl-C, with that line."""
+
+    def __init__(self, message, results):
+        super().__init__(results)
+        self.message = message
 
 
 _STOP = None      # in a sweep's worker processes: set when the sweep is interrupted
@@ -192,6 +224,8 @@ def _sweep_one(args):
         series, checks = analyse(traj, scenario=scn)
     except KeyboardInterrupt:
         return dict(seed=seed, interrupted=True)
+    except LawError as err:        # a law that failed: the sweep stops (`SweepFailed`)
+        return dict(seed=seed, failed=str(err))
     finally:
         signal.signal(signal.SIGINT, old)
     s = summary_of(scn, traj, series, checks)
@@ -204,7 +238,8 @@ def sweep(name, seeds, jobs=1, progress=True, **over):
 
     Ctrl-C (SIGINT to this process or to its whole group) stops the seeds still running
     (each at its next step) and raises `SweepInterrupted` with the results of the seeds
-    that had finished; an interrupted seed is not counted."""
+    that had finished; an interrupted seed is not counted.  A seed whose law fails stops the
+    others the same way and raises `SweepFailed` naming it."""
     seed_list = list(range(seeds)) if isinstance(seeds, int) else list(seeds)
     work = [(name, s, over) for s in seed_list]
     results = []
@@ -212,6 +247,8 @@ def sweep(name, seeds, jobs=1, progress=True, **over):
     def take(r):
         if r.get('interrupted'):
             raise KeyboardInterrupt
+        if r.get('failed'):
+            raise SweepFailed(f'{name} seed {r["seed"]}: {r["failed"]}', results)
         results.append(r)
         if progress:
             print(f'  {name} seed {r["seed"]}: {"ok" if r["ok"] else "FAILED"} '
@@ -224,7 +261,7 @@ def sweep(name, seeds, jobs=1, progress=True, **over):
             try:
                 for f in futures:
                     take(f.result())
-            except KeyboardInterrupt:
+            except KeyboardInterrupt as why:
                 stop.set()
                 for f in futures:
                     f.cancel()
@@ -233,11 +270,13 @@ def sweep(name, seeds, jobs=1, progress=True, **over):
                         os.kill(child.pid, signal.SIGINT)         # end the running seeds now
                     except ProcessLookupError:
                         pass
-                raise SweepInterrupted(results) from None
+                raise (why if isinstance(why, SweepFailed) else SweepInterrupted(results)) from None
     else:
         try:
             for w in work:
                 take(_sweep_one(w))
+        except SweepFailed:
+            raise
         except KeyboardInterrupt:
             raise SweepInterrupted(results) from None
     return results
@@ -328,6 +367,9 @@ def sweep_main(argv) -> int:
         t0 = time.perf_counter()
         try:
             res = sweep(name, seeds, jobs=a.jobs, **over)
+        except SweepFailed as stop:
+            print(f'swarm sweep: {stop.message}; the sweep stops', file=sys.stderr)
+            return 1
         except SweepInterrupted as stop:
             res, interrupted = stop.results, True
         note = f' INTERRUPTED after {len(res)} of {a.seeds} seeds' if interrupted else ''
@@ -398,6 +440,10 @@ def study_main(p, a) -> int:
                                     progress=not a.quiet, engine=a.engine)
     except KeyboardInterrupt:
         interrupted = True
+    except LawError as err:             # a run's law failed: the runs done stay cached
+        print(f'swarm sweep: {err}; the study stops (the runs done are cached in {out / "cache"})',
+              file=sys.stderr)
+        return 1
     except OSError as err:              # the cache (a full or read-only disk)
         print(write_failed('swarm sweep', out, err), file=sys.stderr)
         return 1

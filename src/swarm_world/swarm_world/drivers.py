@@ -23,19 +23,17 @@ from pathlib import Path
 
 import numpy as np
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Float64, Float64MultiArray, String
+from std_msgs.msg import Float64MultiArray
 
 from swarm_core.analysis import metrics as M
-from swarm_core.checks import LAMBDA_BOUND
 from swarm_core.files import write_atomic
 from swarm_ros import protocol as P
-from swarm_ros.layouts import AgentStates, Decision, ProcessStates, RobotStates
+from swarm_ros.layouts import AgentStates, Decision, ProcessStates, RealtimeDecision, RobotStates
 from swarm_ros.msg_checks import NewestStates, ProcessSenders, batch_ok, check_agent_states, decoded
 from swarm_ros.rosutil import ParameterError
 from swarm_world.lateness import TIMING_FILE, Lateness, behind_line, timing_line
 from swarm_world.lockstep import LockstepBarrier, RobotPoseJoin, comms_schedule, decision_valid
 from swarm_world.markers import stamp
-from swarm_world.parsing import leader_flags
 from swarm_world.realtime import RealtimeSchedule, clock_tick, newest_view
 from swarm_world.wallclock import StallWatch, StartWatch
 
@@ -285,14 +283,14 @@ class RealtimeDriver:
         return clock_tick(self.node.dt, self.rtf)
 
     def create_endpoints(self):
-        """The states of the agent processes, λ and the leaders in."""
+        """The states of the agent processes and the commander's decisions (λ, leaders) in."""
         node = self.node
         # one message per agent process and tick; not /swarm/states (docs/ros-graph.md)
         self.sub_states = node.create_subscription(Float64MultiArray, P.AGENT_STATES, self.on_states,
                                                    P.qos_latched(max(100, 4 * node.n)), raw=True)
-        node.create_subscription(Float64, P.LAMBDA, self.on_lambda, P.qos_latched(10))  # the commander's
-        # the leaders as the commander announces them (lockstep: in each decision)
-        node.create_subscription(String, P.LEADERS, self.on_leaders, P.qos_latched())
+        # the commander's decision of each tick (not /swarm/lambda, where a user's command is for
+        # the commander alone; lockstep: in each decision)
+        node.create_subscription(Float64MultiArray, P.DECISION, self.on_decision, P.qos_latched(), raw=True)
 
     # ------------------------------------------------------------ inputs
     def on_states(self, raw):
@@ -318,17 +316,17 @@ class RealtimeDriver:
         """name -> (t, x, y, qz, qw, u) of the agents heard (for inspection)."""
         return self.heard.by_name(self.node.names)
 
-    def on_lambda(self, msg):
-        """/swarm/lambda (the commander's λ) → the λ recorded, if it is a λ."""
-        if LAMBDA_BOUND.ok(msg.data):
-            self.node.lam_now = msg.data
-
-    def on_leaders(self, msg):
-        """/swarm/leaders (comma-separated names) → the leader flags recorded."""
+    def on_decision(self, raw):
+        """The commander's decision of a tick (serialized /swarm/decision) → the λ and the leader
+        flags recorded with the states from now on, if it is a decision of this roster."""
         node = self.node
-        node.leaders_now, unknown = leader_flags(msg.data, node.row)
-        if unknown:
-            node.reject('leaders', f'{P.LEADERS}: unknown agent(s) {", ".join(unknown)}')
+        d = decoded(RealtimeDecision, raw, node.run_id, node.reject, 'decision')
+        if d is None:
+            return
+        if not decision_valid(d.lam, d.flags, d.steering, node.n):
+            node.reject('decision', f'{P.DECISION} of t={d.t:g}: λ={d.lam}, non-finite or wrong size')
+            return
+        node.lam_now, node.leaders_now = float(d.lam), np.array(d.flags, bool)
 
     def on_event(self, ev):
         """An event of another node: follow the commander's leader slots."""

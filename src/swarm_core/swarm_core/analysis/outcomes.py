@@ -24,6 +24,18 @@ assert them.  Checks:
                                   |turn rate − s| ≤ tolerance·|s|; the turn rate is the slope
                                   of the group's mean heading (a line fit).  Without a leader
                                   the subswarm flies straight (turn rate ≈ 0) and fails.
+- ``circular_formation: {at, omega0, spread_below, turn_rate_within}``  (needs the trajectory)
+                                  the Sepulchre-Paley-Leonard circular formation at the sample
+                                  nearest ``at``: the centres c_k = r_k + i e^{iθ_k}/ω0 gather,
+                                  max_k |c_k − mean c|·ω0 < spread_below (relative to the radius
+                                  1/ω0), and every agent turns at ω0, max_k |u_k − ω0| <
+                                  turn_rate_within (rad per unit time); ``omega0`` defaults to
+                                  the ω0 of the scenario's spl_circular law (or a blend's).
+                                  t_formed: from when both held at every sample up to ``at``.
+- ``splay_state: {at, below}``    (needs the trajectory) the phases are evenly spread: at the
+                                  sample nearest ``at``, max over m = 1..N−1 of
+                                  |(1/N) Σ_j e^{imθ_j}| (= m |p_mθ|) < below; harmonic: that m,
+                                  t_splay: from when it held at every sample up to ``at``.
 Dead agents (NaN rows) are left out of every sample (metrics.time_series).
 
 A run that ends before the scenario's duration (``--duration``, Ctrl-C) cannot settle every
@@ -33,11 +45,14 @@ intrusion or a second cluster inside a window that must have one cluster).
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from swarm_core.analysis.metrics import cluster_labels
+from swarm_core.laws.spl import CircularFormation
 
-TRAJECTORY_CHECKS = ('follows_program',)
+TRAJECTORY_CHECKS = ('follows_program', 'circular_formation', 'splay_state')
 
 
 def _window(series, a, b):
@@ -133,7 +148,101 @@ def lost_leader_group(traj, w, slot=None, agent=None):
     return None, [], None
 
 
+def circular_law_omega0(law):
+    """ω0 of a spl_circular law, or of the first one in a blend (the to-law first); None if none."""
+    for side in (law, getattr(law, 'to_law', None), getattr(law, 'from_law', None)):
+        if isinstance(side, CircularFormation):
+            return float(side.omega0)
+    return None
+
+
+def circle_centres(r, theta, omega0):
+    """c_k = r_k + i e^{iθ_k}/ω0, the centre of the circle agent k would fly at u_k = ω0."""
+    return r[..., 0] + 1j * r[..., 1] + 1j * np.exp(1j * theta) / omega0
+
+
+#: the history of `circular_formation` and `splay_state` (t_formed, t_splay) is judged on at
+#: most this many samples up to ``at`` (evenly spaced; the sample nearest ``at`` always)
+HISTORY_SAMPLES = 2000
+
+
+def _history(traj, at):
+    """Sample indices up to the one nearest ``at`` (the last), at most HISTORY_SAMPLES + 1."""
+    i = int(np.argmin(np.abs(traj.t - at)))
+    idx = np.arange(0, i + 1, max(1, -(-(i + 1) // HISTORY_SAMPLES)))
+    return idx if idx[-1] == i else np.append(idx, i)
+
+
+def circular_formation_series(traj, omega0, idx):
+    """(spread, turn rate error) of the samples ``idx``: max_k |c_k − mean c|·ω0 and
+    max_k |u_k − ω0| over the agents alive at each sample (NaN where none is)."""
+    r, th, u = traj.r[idx], traj.theta[idx], traj.u[idx]
+    alive = np.isfinite(r).all(axis=2) & np.isfinite(th)
+    c = circle_centres(np.where(alive[..., None], r, 0.0), np.where(alive, th, 0.0), omega0)
+    n = alive.sum(axis=1)
+    with np.errstate(all='ignore'), warnings.catch_warnings():
+        warnings.simplefilter('ignore', RuntimeWarning)       # samples with nobody alive: NaN
+        mean = np.where(alive, c, 0.0).sum(axis=1) / n
+        spread = np.nanmax(np.where(alive, np.abs(c - mean[:, None]), np.nan), axis=1) * omega0
+        turn = np.nanmax(np.where(alive & np.isfinite(u), np.abs(u - omega0), np.nan), axis=1)
+    return spread, turn
+
+
+def splay_order_series(traj, idx):
+    """(order, harmonic) of the samples ``idx``: max over m = 1..N−1 of |(1/N) Σ_j e^{imθ_j}|
+    over the N agents alive at each sample, and the lowest m where it is largest (0 for N < 2)."""
+    th = traj.theta[idx]
+    alive = np.isfinite(traj.r[idx]).all(axis=2) & np.isfinite(th)
+    n = alive.sum(axis=1)
+    m = np.arange(1, th.shape[1])
+    order, worst = np.zeros(len(idx)), np.zeros(len(idx), dtype=int)
+    if not m.size:
+        return order, worst
+    block = max(1, 1_000_000 // (m.size * th.shape[1]))
+    for a in range(0, len(idx), block):
+        z = np.exp(1j * m[None, :, None] * np.where(alive, th, 0.0)[a:a + block, None, :])
+        with np.errstate(all='ignore'):
+            val = np.abs((z * alive[a:a + block, None, :]).sum(axis=2)) / n[a:a + block, None]
+        val = np.where(m[None, :] < n[a:a + block, None], val, -np.inf)   # m = 1..N−1 of the alive
+        top = val.max(axis=1)
+        order[a:a + block] = np.maximum(top, 0.0)
+        first = np.argmax(val >= top[:, None] - 1e-12, axis=1)        # the lowest m of a tie
+        worst[a:a + block] = np.where(n[a:a + block] >= 2, m[first], 0)
+    return order, worst
+
+
+def _held_from(t, ok):
+    """The first t from which ``ok`` holds at every sample to the last given; None if not at the last."""
+    if not ok.size or not ok[-1]:
+        return None
+    bad = np.flatnonzero(~ok)
+    return round(float(t[bad[-1] + 1] if bad.size else t[0]), 6)
+
+
+def _sig(x, digits=4):
+    """``x`` to ``digits`` significant digits (the small numbers these checks report)."""
+    return float(f'{float(x):.{digits}g}')
+
+
 def check_trajectory(name, arg, traj, scn):
+    if name == 'circular_formation':
+        omega0 = arg.get('omega0')
+        if omega0 is None:
+            omega0 = None if scn is None else circular_law_omega0(scn.law)
+        if omega0 is None:
+            raise ValueError('circular_formation: give omega0 (the law is not spl_circular nor a blend with one)')
+        omega0 = float(omega0)
+        idx = _history(traj, arg['at'])
+        spread, turn = circular_formation_series(traj, omega0, idx)
+        ok = (spread < arg['spread_below']) & (turn < arg['turn_rate_within'])
+        return bool(ok[-1]), {'spread': _sig(spread[-1]), 'turn_rate_error': _sig(turn[-1]),
+                              'omega0': omega0, 't_formed': _held_from(traj.t[idx], ok)}
+    if name == 'splay_state':
+        idx = _history(traj, arg['at'])
+        order, worst = splay_order_series(traj, idx)
+        ok = order < arg['below']
+        return bool(ok[-1]), {'order': _sig(order[-1]), 'harmonic': int(worst[-1]),
+                              't_splay': _held_from(traj.t[idx], ok)}
     if name == 'follows_program':
         slot = int(arg.get('slot', 0))
         progs = scn.spec.leaders.programs or list(scn.spec.leaders.fixed.values())
@@ -172,6 +281,8 @@ def needs_until(name, arg, duration):
         return float(arg)
     if name == 'follows_program':
         return float(arg['to'])
+    if name in ('circular_formation', 'splay_state'):
+        return float(arg['at'])
     if name in ('stays_split_from', 'one_cluster_from'):
         return max(float(arg), float(duration))     # a run that ends before t0 cannot judge it
     return float(duration)

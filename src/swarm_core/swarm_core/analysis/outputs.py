@@ -16,6 +16,7 @@ import numpy as np
 from swarm_core.analysis import metrics, outcomes
 from swarm_core.analysis.plots import plot_run
 from swarm_core.files import write_atomic
+from swarm_core.laws import LawConfig, law_mapping
 
 
 def analyse(traj, cutoff_radius=None, *, target=None, barrier=None, scenario=None, dt=None,
@@ -105,6 +106,8 @@ def summary_of(scn, traj, series, checks) -> dict:
                interrupted=bool(traj.meta.get('interrupted', False)),
                wall_seconds=round(traj.meta.get('wall_seconds', 0.0), 3))
     out['agents'] = len(scn.names)
+    if traj.meta.get('stopped'):
+        out['stopped'] = traj.meta['stopped']      # why the run ended early: a law that failed
     if traj.meta.get('events'):
         out['events'] = traj.meta['events']        # faults, failover, reunion (faults.py)
     if traj.meta.get('comms'):
@@ -149,8 +152,10 @@ def write_outputs(out_dir, scn, traj, series, checks, figure=True, extra=None):
     out.mkdir(parents=True, exist_ok=True)
     traj.save(out / 'trajectory.npz')
     summary = summary_of(scn, traj, series, checks)
-    doc = dict(summary=summary, series={k: v for k, v in series.items()},
-               parameters=scn.spec.model_dump(mode='json', by_alias=True), **(extra or {}))
+    parameters = scn.spec.model_dump(mode='json', by_alias=True)
+    if not isinstance(scn.law, LawConfig):          # a law of another kind: its own section
+        parameters['law'] = law_mapping(scn.law)
+    doc = dict(summary=summary, series={k: v for k, v in series.items()}, parameters=parameters, **(extra or {}))
     write_atomic(out / 'metrics.json', dumps(doc))
     if figure and len(traj.t) > 1:
         plot_run(traj, series, out / f'{scn.label}.png',

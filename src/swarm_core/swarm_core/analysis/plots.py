@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial import ConvexHull
 
 from swarm_core.files import atomic_path
 
@@ -16,6 +15,7 @@ def plot_run(traj, series, path, *, title: str = '', w: float = 4.0, target=None
     traj: a `engine.Trajectory`; series: `metrics.time_series` of it (needs t, clusters)."""
     import matplotlib
     import matplotlib.pyplot as plt
+    from scipy.spatial import ConvexHull
     matplotlib.use('Agg')
 
     n = traj.r.shape[1]

@@ -22,21 +22,35 @@ from swarm_core.command.schedules import (
     SteeringProgram,
 )
 from swarm_core.faults.agents import Failover, elect_successor, followers_of
+from swarm_core.laws import LawError, flat_parameters, from_flat_parameters, parameter_specs
 
 # ---------------------------------------------------------------- live commands
 
-COMMANDS = ('lambda', 'steer')
+#: the plan's commands (λ, steering) and an agent's law change (`law_with`; the engine applies it)
+COMMANDS = ('lambda', 'steer', 'law')
+#: at most this many parameters in one law command
+MAX_LAW_CHANGES = 64
 
 
 def check_command(cmd: dict, n_agents: int) -> dict:
     """A live command, validated and normalised (ValueError names the bad field):
     ``{'command': 'lambda', 'value': λ (LAMBDA_BOUND), 'ramp': s (RAMP_BOUND), 'shape':
-    RAMP_SHAPES}`` or ``{'command': 'steer', 'agent': index, 'value': s_k (STEERING_BOUND)}``;
-    other keys are kept."""
+    RAMP_SHAPES}``, ``{'command': 'steer', 'agent': index, 'value': s_k (STEERING_BOUND)}`` or
+    ``{'command': 'law', 'agent': index, 'parameters': {name: value}}`` (an agent's law
+    parameters set live; their values are checked against its law by `law_with`); other keys
+    are kept."""
     out = dict(cmd)
     kind = out.get('command')
     if not isinstance(kind, str) or kind not in COMMANDS:
         raise ValueError(f'command {kind!r}: one of {", ".join(COMMANDS)}')
+    if kind == 'law':
+        changes = out.get('parameters')
+        if not isinstance(changes, dict) or not 0 < len(changes) <= MAX_LAW_CHANGES or not all(
+                isinstance(k, str) and isinstance(v, (bool, int, float, str)) for k, v in changes.items()):
+            raise ValueError(f'law command: parameters must be a mapping of 1 to {MAX_LAW_CHANGES} names to '
+                             f'numbers, booleans or strings, got {str(changes)[:80]}')
+        out['agent'] = _agent_index(out.get('agent'), 'law', n_agents)
+        return out
     out['value'] = (LAMBDA_BOUND if kind == 'lambda' else STEERING_BOUND).check(out.get('value'))
     if kind == 'lambda':
         out['ramp'] = RAMP_BOUND.check(out.get('ramp', 0.0))
@@ -44,10 +58,71 @@ def check_command(cmd: dict, n_agents: int) -> dict:
         if not isinstance(out['shape'], str) or out['shape'] not in RAMP_SHAPES:
             raise ValueError(f'ramp shape {out["shape"]!r}: one of {", ".join(RAMP_SHAPES)}')
     else:
-        agent = out.get('agent')
-        if isinstance(agent, bool) or not isinstance(agent, (int, np.integer)) or not 0 <= agent < n_agents:
-            raise ValueError(f'steer agent {agent!r}: not an agent index in [0, {n_agents})')
-        out['agent'] = int(agent)
+        out['agent'] = _agent_index(out.get('agent'), 'steer', n_agents)
+    return out
+
+
+def _agent_index(agent, kind, n_agents) -> int:
+    if isinstance(agent, bool) or not isinstance(agent, (int, np.integer)) or not 0 <= agent < n_agents:
+        raise ValueError(f'{kind} agent {agent!r}: not an agent index in [0, {n_agents})')
+    return int(agent)
+
+
+def is_kind(name: str) -> bool:
+    """Is flat law parameter ``name`` a law's kind (``law``, a blend's ``from.law``...)?  A kind
+    names the law's parameters: it is fixed for the run."""
+    return name == 'law' or name.endswith('.law')
+
+
+def law_with(law, changes: dict):
+    """``law`` with some of its flat parameters (`laws.flat_parameters`: alpha, eta, ...,
+    cutoff_radius, a blend's from.alpha...) set to new values: an agent's law after a live
+    change (``ros2 param set /agent_0/agent alpha 0.5``; replayed from its ``law`` command).
+    ValueError names a bad change: not a parameter of the law, its kind (fixed), or a value of
+    the wrong type or out of its range (the agent node declares the same ranges)."""
+    flat = flat_parameters(law)
+    specs = parameter_specs(law)
+    out = dict(flat)
+    for name, v in changes.items():
+        if name not in flat or is_kind(name):
+            raise ValueError(f'law parameter {name!r}: not a parameter of law {law.kind} that may change '
+                             f'(those: {", ".join(k for k in flat if not is_kind(k))})')
+        was, limits = flat[name], specs[name][2]
+        if isinstance(was, bool) or isinstance(was, str):
+            if type(v) is not type(was) or (limits and isinstance(was, str) and v not in limits):
+                raise ValueError(f'law parameter {name}: {v!r} is not ' + (
+                    f'one of {", ".join(limits)}' if isinstance(was, str) and limits else f'a {type(was).__name__}'))
+        else:
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f'law parameter {name}: {v!r} is not a finite number')
+            if isinstance(was, int) and v != int(v):
+                raise ValueError(f'law parameter {name}: {v!r} is not an integer')
+            v = int(v) if isinstance(was, int) else float(v)
+            if limits is not None and not limits[0] <= v <= limits[1]:
+                raise ValueError(f'law parameter {name}: {v!r} is outside [{limits[0]:g}, {limits[1]:g}]')
+        out[name] = v
+    try:
+        return from_flat_parameters(out)
+    except (LawError, TypeError, ValueError) as err:
+        raise ValueError(f'law parameters {", ".join(changes)}: {err}') from None
+
+
+def law_timeline(commands: dict, law, n_agents: int) -> dict:
+    """{step: [(agent index, law, changes)]}: what the ``law`` commands among ``commands`` ({step:
+    [command, ...]}, `read_commands`) make of each agent's law (all start with ``law``), in
+    step order: from that step on the agent's u comes from its new law.  ValueError names the
+    step of a bad one (`law_with`)."""
+    current, out = {}, {}
+    for step in sorted(commands):
+        for cmd in commands[step]:
+            if cmd.get('command') != 'law':
+                continue
+            k = _agent_index(cmd.get('agent'), 'law', n_agents)
+            try:
+                current[k] = law_with(current.get(k, law), cmd['parameters'])
+            except ValueError as err:
+                raise ValueError(f'law command at step {step}: {err}') from None
+            out.setdefault(step, []).append((k, current[k], dict(cmd['parameters'])))
     return out
 
 
@@ -125,8 +200,10 @@ class CommandPlan:
             if not isinstance(self.schedule, LiveSchedule):
                 self.schedule = LiveSchedule(self.schedule)
             self.schedule.set_point(t, cmd['value'], cmd['ramp'], cmd['shape'])
-        else:
+        elif cmd['command'] == 'steer':
             self.leaders[cmd['agent']] = ConstantSteering(cmd['value'])
+        else:
+            raise ValueError(f'command {cmd["command"]}: an agent\'s, not the plan\'s (`law_timeline`)')
         return dict(cmd, t=t, kind='command')
 
     @property
@@ -240,9 +317,9 @@ def read_commands(lines, names) -> dict:
         if isinstance(step, bool) or not isinstance(step, int) or step < 0:
             raise ValueError(f'line {k}: command without a step ≥ 0 (step={step!r})')
         cmd = {key: v for key, v in ev.items() if key not in ('t', 'kind', 'step', 'node')}
-        if cmd.get('command') == 'steer':
+        if cmd.get('command') in ('steer', 'law'):
             if not isinstance(cmd.get('agent'), str) or cmd['agent'] not in row:
-                raise ValueError(f'line {k}: steer command for unknown agent {cmd.get("agent")!r}')
+                raise ValueError(f'line {k}: {cmd["command"]} command for unknown agent {cmd.get("agent")!r}')
             cmd['agent'] = row[cmd['agent']]
         try:
             out.setdefault(step, []).append(check_command(cmd, len(names)))

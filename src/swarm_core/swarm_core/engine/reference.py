@@ -17,9 +17,11 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
+from swarm_core.command.plan import law_timeline
 from swarm_core.engine.trajectory import Trajectory
 from swarm_core.faults.agents import alive_control, event_names, reunion_law
 from swarm_core.faults.radio import Beliefs, belief_controls, delay_stats
+from swarm_core.laws import LawError, LawFailed
 from swarm_core.laws.compiled_sums import COMPILED, COMPILED_LIMIT
 from swarm_core.laws.compiled_sums import available as compiled_available
 from swarm_core.laws.pair_sums import DENSE_LIMIT, sparse_coupling
@@ -56,6 +58,10 @@ class SwarmStepper:
         self.scn = scn
         self.commands = commands or {}      # live commands to replay: step → [command, ...]
         self.law = scn.law
+        # agents' live law changes (`law_timeline`): step → [(agent, law, changes)]; then `laws` holds each
+        # agent's law and `law_groups` [(law, agent indices)] (None: every agent has `law`)
+        self.law_changes = law_timeline(self.commands, self.law, len(scn.names))
+        self.laws = self.law_groups = None
         self.integrator = integrator or scn.spec.integrator
         if self.integrator not in ('zoh', 'rk4'):
             raise ValueError(f'integrator must be zoh or rk4, got {self.integrator!r}')
@@ -84,25 +90,67 @@ class SwarmStepper:
         self.events = []
         self._init_comms()
 
-    def _pairs(self, pos, lam):
+    def _pairs(self, pos, lam, law=None):
         """None (all pairs, dense), the KD-tree pairs within w where only those carry weight, or
-        from COMPILED_LIMIT agents on 'compiled' (`large_swarms`, to rounding)."""
+        from COMPILED_LIMIT agents on 'compiled' (`large_swarms`, to rounding); ``law``: the
+        receivers' (default the run's)."""
+        law = self.law if law is None else law
         if self._compiled and len(pos) >= COMPILED_LIMIT:
             return COMPILED
-        if self._always_dense or self.law.couples_globally(lam):
+        if self._always_dense or law.couples_globally(lam):
             return None
-        if self.neighbour_search == 'auto' and not sparse_coupling(len(pos), self.law, lam):
+        if self.neighbour_search == 'auto' and not sparse_coupling(len(pos), law, lam):
             return None
-        return neighbour_pairs(pos, self.law.cutoff_radius)
+        return neighbour_pairs(pos, law.cutoff_radius)
 
     def control(self, t, pos, theta, lam, is_leader, steering, frame=None):
+        if self.law_groups is not None:
+            return self._grouped_control(t, pos, theta, lam, is_leader, steering, frame)
         if self.comms is not None:
-            return self._comms_control(pos, theta, lam, is_leader, steering)
+            return self._comms_control(pos, theta, lam, is_leader, steering, t=t)
         cos_t, sin_t = heading_frame(theta) if frame is None else frame
         # faults: the table holds only the agents heard this step, in index order
         return alive_control(pos, cos_t, sin_t, self.receivers, self.law, lam, is_leader, steering, self.target,
                              self.barrier, alive=None if self.faults.all_alive else self.faults.alive,
-                             rendezvous=self.plan.rendezvous_now, pairs=lambda p: self._pairs(p, lam))
+                             rendezvous=self.plan.rendezvous_now, pairs=lambda p: self._pairs(p, lam), t=t)
+
+    def _grouped_control(self, t, pos, theta, lam, is_leader, steering, frame):
+        """u after live law changes: one law call per group of agents that share a law (each
+        receiver's sum is its own, so an agent node gets the same u with its law alone)."""
+        u = np.zeros(self.n)
+        steering = np.zeros(self.n) if steering is None else np.asarray(steering, float)
+        if self.comms is None:
+            cos_t, sin_t = heading_frame(theta) if frame is None else frame
+        for law, rows in self.law_groups:
+            if self.comms is not None:
+                u[rows] = self._comms_control(pos, theta, lam, is_leader, steering, law, rows, t=t)[rows]
+                continue
+            u[rows] = alive_control(pos, cos_t, sin_t, rows, law, lam, is_leader, steering[rows], self.target,
+                                    self.barrier, alive=None if self.faults.all_alive else self.faults.alive,
+                                    rendezvous=self.plan.rendezvous_now,
+                                    pairs=lambda p, law=law: self._pairs(p, lam, law), t=t)
+        return u
+
+    def _change_laws(self):
+        """Apply the law changes of this step (`law_changes`) and regroup the agents by law."""
+        changes = self.law_changes.get(self.step_index)
+        if not changes:
+            return
+        if self.laws is None:
+            self.laws = [self.law] * self.n
+        for k, law, parameters in changes:           # the event as the agent node publishes it
+            self.laws[k] = law
+            self.events.append(dict(t=self.step_index * self.dt, kind='command', command='law',
+                                    agent=self.scn.names[k], parameters=parameters, step=self.step_index))
+        groups = []
+        for k, law in enumerate(self.laws):
+            for g in groups:
+                if g[0] == law:
+                    g[1].append(k)
+                    break
+            else:
+                groups.append((law, [k]))
+        self.law_groups = [(law, np.array(rows, dtype=np.intp)) for law, rows in groups]
 
     def inputs(self):
         """t, λ, leader flags (n,), steering (n,) for the current step (the commander's job),
@@ -112,8 +160,9 @@ class SwarmStepper:
         names = self.scn.names
         for ev in self.faults.apply(self.step_index, self.plan.slots):
             self.events.append(ev)
-        lam, leaders, steering = self.plan.update(t, self.pos, *frame, heard=self.faults.alive,
-                                                  commands=self.commands.get(self.step_index, ()))
+        self._change_laws()
+        commands = [c for c in self.commands.get(self.step_index, ()) if c['command'] != 'law']
+        lam, leaders, steering = self.plan.update(t, self.pos, *frame, heard=self.faults.alive, commands=commands)
         for ev in self.plan.events:
             if ev['kind'] == 'command':
                 ev = dict(ev, step=self.step_index)
@@ -180,7 +229,9 @@ class SwarmStepper:
         self.u_prev = np.zeros(self.n)          # u held over the step that ended at t_n (sent with the state)
         self._comms_step = -1
 
-    def _comms_control(self, pos, theta, lam, is_leader, steering):
+    def _comms_control(self, pos, theta, lam, is_leader, steering, law=None, rows=None, t=None):
+        """u through the radio (all agents with the run's law, or ``rows`` with ``law``) at
+        sim time ``t``."""
         n = self.step_index
         alive = self.faults.alive           # faults: the dead and the frozen neither send nor listen
         if self._comms_step != n:               # the radio delivers once per step
@@ -190,9 +241,14 @@ class SwarmStepper:
                                  alive=None if self.faults.all_alive else alive)
             self._comms_step = n
         s = np.zeros(self.n) if steering is None else np.asarray(steering, dtype=float)
-        law, target = reunion_law(self.law, self.target, self.plan.rendezvous_now)
+        law, target = reunion_law(self.law if law is None else law, self.target, self.plan.rendezvous_now)
+        active = None if self.faults.all_alive else np.asarray(alive, bool)
+        if rows is not None:
+            mine = np.zeros(self.n, bool)
+            mine[rows] = True
+            active = mine if active is None else active & mine
         return belief_controls(law, self.beliefs, n, self.comms, pos, self.own_headings(theta), lam, is_leader, s,
-                               target, self.barrier, active=None if self.faults.all_alive else alive)
+                               target, self.barrier, active=active, t=t)
 
     def own_headings(self, theta):
         """The headings a radio model's law takes as the agents' own: their true ones here
@@ -229,6 +285,7 @@ def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int 
     report_every = max(1, steps // 100)
     recorded = 0
     interrupted = False
+    failed = None
     try:
         for i in range(steps + 1):
             t, lam, is_leader, steering, frame = stepper.inputs()
@@ -252,6 +309,9 @@ def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int 
                 progress(i, steps)
     except KeyboardInterrupt:      # keep what was computed: the caller saves a partial run
         interrupted = True
+    except LawError as err:        # a law that failed: LawFailed with the steps done
+        failed = LawFailed(f'{err} (at t = {i * scn.dt:g}, step {i})', t=i * scn.dt)
+        interrupted = True
     if progress is not None and not interrupted:
         progress(steps, steps)
     meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration,
@@ -260,5 +320,10 @@ def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int 
                 interrupted=interrupted, events=stepper.events)
     if stepper.comms is not None:
         meta['comms'] = stepper.comms_stats()
-    return Trajectory(scn.names, t_rec[:recorded], r_rec[:recorded], th_rec[:recorded],
+    traj = Trajectory(scn.names, t_rec[:recorded], r_rec[:recorded], th_rec[:recorded],
                       u_rec[:recorded], lam_rec[:recorded], lead_rec[:recorded], meta)
+    if failed is not None:
+        meta['stopped'] = str(failed)
+        failed.trajectory = traj
+        raise failed
+    return traj

@@ -296,7 +296,7 @@ def reunion_law(law, target, rdv):
 
 
 def alive_control(pos, cos_t, sin_t, receivers, law, lam, is_leader, steering, target=None, barrier=None,
-                  alive=None, rendezvous=None, pairs=None):
+                  alive=None, rendezvous=None, pairs=None, t=None):
     """u of the agents ``receivers`` (agent indices, ascending) at one step (eq. 4, 9-16).
 
     pos (N, 2), cos_t, sin_t, is_leader (N,): the states of all agents in index order (a
@@ -304,14 +304,15 @@ def alive_control(pos, cos_t, sin_t, receivers, law, lam, is_leader, steering, t
     bool or None (all): the table holds only the agents alive, in index order; receivers not
     alive get u = 0.  rendezvous: the reunion of the step (`reunion_law`).  pairs: None (sum
     over the whole table) or a function of the table's positions giving its neighbour pairs
-    (`laws.swarm_control`).  Receivers are rows of the same table whoever asks, so the batch
-    engine and every agent get the same u bit for bit."""
+    (`laws.swarm_control`).  t: the sim time of the step, for a `Law`'s view.  Receivers are
+    rows of the same table whoever asks, so the batch engine and every agent get the same u bit
+    for bit."""
     law, target = reunion_law(law, target, rendezvous)
     receivers = np.asarray(receivers, dtype=np.intp)
     if alive is None or np.count_nonzero(alive) == len(alive):
         return swarm_control(pos, cos_t, sin_t, receivers, law, lambda_=float(lam), is_leader=is_leader,
                              steering=steering, target=target, barrier=barrier,
-                             pairs=None if pairs is None else pairs(pos))
+                             pairs=None if pairs is None else pairs(pos), t=t)
     rows = np.flatnonzero(alive)
     heard = np.asarray(alive, bool)[receivers]
     p = np.asarray(pos, float)[rows]
@@ -320,5 +321,5 @@ def alive_control(pos, cos_t, sin_t, receivers, law, lam, is_leader, steering, t
                              np.searchsorted(rows, receivers[heard]), law, lambda_=float(lam),
                              is_leader=None if is_leader is None else np.asarray(is_leader, bool)[rows],
                              steering=None if steering is None else np.asarray(steering, float)[heard],
-                             target=target, barrier=barrier, pairs=None if pairs is None else pairs(p))
+                             target=target, barrier=barrier, pairs=None if pairs is None else pairs(p), t=t)
     return u

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from swarm_core.laws.base import Law
 from swarm_core.laws.compiled_sums import compiled_moments
 from swarm_core.laws.config import LawConfig
 from swarm_core.laws.pair_sums import _combine, _pair_sum_sparse, _pair_sums_dense, nearest_leader
@@ -64,9 +65,13 @@ def barrier_term(pos_k, cos_k, sin_k, barrier, law: LawConfig):
 
 
 
-def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
-                  is_leader=None, steering=None, target=None, barrier=None, pairs=None, nearest=None):
-    """Curvature controls u_k of the receivers (eq. 4, 9, 10-14, 15, 16).
+def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig | Law, *, lambda_=0.0,
+                  is_leader=None, steering=None, target=None, barrier=None, pairs=None, nearest=None, t=None):
+    """Curvature controls u_k of the receivers (eq. 4, 9, 10-14, 15, 16), or of any `Law`.
+
+    Every engine calls a law here.  A `Law` (shipped, a blend or a user's) gets a view of the
+    table (`Law.evaluate`, which checks what it returns); the paper's law (`LawConfig`) runs
+    the code below, with its compiled paths.
 
     pos (N, 2), cos_t, sin_t (N,): the table of agent states (frames from
     `swarm_core.model.frenet.heading_frame` or `frame_from_quaternion`).
@@ -82,9 +87,13 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: LawConfig, *, lambda_=0.0,
     nearest (K,): with pairs, each receiver's nearest leader l(k) as a table row (−1: none),
     where the table is not one shared view of the swarm (`comms.belief_controls`); default:
     `pair_sums.nearest_leader` on the table.
+    t: the sim time, for a `Law`'s view (the paper's law does not read it).
     The same inputs in the same mode give bit-identical results whatever K is, which is what
     makes an agent node's u equal the batch engine's.
     """
+    if not isinstance(law, LawConfig):
+        return law.evaluate(pos, cos_t, sin_t, receivers, lambda_=lambda_, is_leader=is_leader, steering=steering,
+                            t=t, target=target, barrier=barrier, pairs=pairs, nearest=nearest)
     pos = np.asarray(pos, dtype=float)
     receivers = np.asarray(receivers, dtype=np.intp)
     n_recv = receivers.size

@@ -16,7 +16,6 @@ from typing import Annotated, Literal, Optional, Union, get_args
 import numpy as np
 import yaml
 from pydantic import ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
-from scipy.spatial import ConvexHull
 
 from swarm_core.checks import InputError, check_run_size
 from swarm_core.command.plan import CommandPlan
@@ -30,8 +29,8 @@ from swarm_core.command.spec import (
 )
 from swarm_core.faults.agents import Fault, FaultTimeline, Rendezvous
 from swarm_core.faults.radio import CommModel
-from swarm_core.laws import LawConfig
-from swarm_core.laws.parameters import LAW_PARAMETER, LAW_TABLE
+from swarm_core.laws import Blend, LawConfig, LawError, make_law, swarm_control
+from swarm_core.laws.parameters import LAW_KINDS, LAW_PARAMETER, LAW_TABLE
 from swarm_core.robot_units import RobotsSpec
 from swarm_core.scenario.placement import AGENT_NAME, AgentsSpec, initial_conditions  # noqa: F401  (AGENT_NAME: report.py)
 from swarm_core.schema import (
@@ -91,6 +90,7 @@ class BarrierSpec(Strict):
     @field_validator('points')
     @classmethod
     def _convex(cls, pts):
+        from scipy.spatial import ConvexHull
         p = np.asarray(pts, dtype=float)
         span = float(np.ptp(p, axis=0).max())
         d = p[1:] - p[0]
@@ -229,6 +229,21 @@ class FollowsProgram(Strict):
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
 
 
+class CircularFormationAt(Strict):
+    """Sepulchre-Paley-Leonard circular formation at ``at`` (outcomes.py): centres within
+    spread_below/ω0 of their mean, every |u_k − ω0| < turn_rate_within; ω0: the law's if omitted."""
+    at: NonNeg
+    omega0: Optional[Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)]] = None
+    spread_below: Positive
+    turn_rate_within: Positive
+
+
+class SplayStateAt(Strict):
+    """The splay state at ``at`` (outcomes.py): max_{1≤m<N} |(1/N) Σ_j e^{imθ_j}| < below."""
+    at: NonNeg
+    below: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)]
+
+
 class ExpectSpec(Strict):
     """The checks of outcomes.py, each with its argument's type (a window is [a, b], a ≤ b)."""
     one_cluster_at: Optional[Window] = None
@@ -243,6 +258,8 @@ class ExpectSpec(Strict):
     split_at: Optional[NonNeg] = None
     one_cluster_from: Optional[NonNeg] = None
     follows_program: Optional[FollowsProgram] = None
+    circular_formation: Optional[CircularFormationAt] = None
+    splay_state: Optional[SplayStateAt] = None
 
     @model_validator(mode='after')
     def _windows(self):
@@ -486,6 +503,50 @@ def law_config(spec: ScenarioSpec) -> LawConfig:
     return LawConfig.from_parameters({p.name: value(p) for p in LAW_TABLE})
 
 
+def _law_of_another_kind(data: dict, source: str):
+    """The `Law` of a ``law:`` section whose kind is not one of the paper's (a shipped law,
+    a blend, a user's file or module), checked; None for the paper's law, whose section the
+    schema checks.  The section is then left to the schema at its defaults."""
+    section = data.get('law')
+    if not isinstance(section, dict) or section.get('kind', LAW_KINDS[0]) in LAW_KINDS:
+        return None
+    path = Path(source)
+    try:
+        law = make_law(section, base_dir=path.parent if path.is_file() else None)
+    except LawError as err:
+        raise ScenarioError(f'{source}: {err}') from None
+    data['law'] = {}
+    return law
+
+
+#: the paper's law parameters set by the target: and barrier: sections (not the law: section)
+WORLD_KEYS = tuple(p.name for p in LAW_TABLE if p.section != 'law')
+
+
+def _with_world_terms(law, spec):
+    """``law`` with the target and barrier gains of the scenario's sections in each paper's
+    law it holds (a blend's from or to), as the paper's law alone has them."""
+    if isinstance(law, Blend):
+        return Blend(_with_world_terms(law.from_law, spec), _with_world_terms(law.to_law, spec))
+    if isinstance(law, LawConfig):
+        world = law_config(spec).parameters()
+        return LawConfig.from_parameters({**law.parameters(), **{k: world[k] for k in WORLD_KEYS}})
+    return law
+
+
+def _try_law(scn, source):
+    """Evaluate a law other than the paper's once on the initial state (t = 0, λ of t = 0, no
+    leaders yet), so that a law that raises, returns the wrong shape or a non-finite u there
+    is refused with the scenario, before anything runs: ScenarioError naming the law."""
+    th = scn.theta0
+    try:
+        lam = float(scn.command_plan().schedule.value(0.0))
+        swarm_control(scn.pos0, np.cos(th), np.sin(th), np.arange(len(th)), scn.law, lambda_=lam,
+                      target=scn.target, barrier=scn.barrier, t=0.0)
+    except LawError as err:
+        raise ScenarioError(f'{source}: {err} (at t = 0, on the initial state)') from None
+
+
 def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
     """Validate a scenario mapping; ``overrides`` (seed, duration, dt) replace its fields."""
     if not isinstance(data, dict):
@@ -494,11 +555,14 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
     for key, val in overrides.items():
         if val is not None:
             data[key] = val
+    plugin = _law_of_another_kind(data, source)
     try:
         spec = ScenarioSpec.model_validate(data)
     except ValidationError as err:
         raise ScenarioError(f'{source}: {_format_error(err)}') from None
-    law = law_config(spec)
+    law = law_config(spec) if plugin is None else _with_world_terms(plugin, spec)
+    if plugin is not None and spec.reunion:
+        raise ScenarioError(f'{source}: reunion: the rendezvous changes the paper\'s law, not law {plugin.kind}')
     names = list(spec.agents.names) if spec.agents.names else None
     for who in spec.leaders.fixed:
         known = names or [f'agent_{i}' for i in range(spec.agents.count)]
@@ -518,7 +582,10 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
             raise ScenarioError(f'{source}: {err}') from None
         if spec.integrator != 'zoh' and spec.comms.model_dump() != CommsSpec().model_dump():
             raise ScenarioError(f'{source}: comms: a communication model needs integrator zoh')
-    return Scenario(spec=spec, names=names, pos0=pos0, theta0=theta0, law=law, source=source)
+    scn = Scenario(spec=spec, names=names, pos0=pos0, theta0=theta0, law=law, source=source)
+    if plugin is not None:
+        _try_law(scn, source)
+    return scn
 
 
 _Loader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)     # libyaml when there (4x faster)

@@ -28,6 +28,9 @@ from pydantic import BaseModel
 
 from swarm_core.analysis.outputs import analyse, summary_of
 from swarm_core.engine import registry
+from swarm_core.laws import LawError
+from swarm_core.laws.parameters import LAW_KINDS
+from swarm_core.laws.plugins import law_code_hash
 from swarm_core.robot_units import ROBOT_SETS
 from swarm_core.scenario import loader as scenario
 from swarm_core.scenario import placement
@@ -125,7 +128,11 @@ def validate(study: Study) -> None:
 
 
 def _known(data: dict, dotted: str) -> bool:
-    """Is ``dotted`` a field the scenario model has (a section may be absent from the file)?"""
+    """Is ``dotted`` a field the scenario model has (a section may be absent from the file)?
+    Under a ``law:`` of another kind than the paper's, the law checks its own fields."""
+    law = data.get('law')
+    if dotted.startswith('law.') and isinstance(law, dict) and law.get('kind', LAW_KINDS[0]) not in LAW_KINDS:
+        return True
     model = scenario.ScenarioSpec
     for part in dotted.split('.'):
         if part.isdigit():
@@ -231,6 +238,9 @@ def tasks(study: Study, version: str | None = None, engine: str = 'fast') -> lis
         on = ROBOTS_ENGINE if study.robot_set(cell) is not None else engine
         tag = {'fast': version, 'reference': f'{version}-reference'}.get(on) or \
             f'{version}-robots-{code_version("swarm_robots")}-{study.robot_set(cell)}'
+        laws = law_code_hash(data.get('law'), Path(study.source).parent if Path(study.source).is_file() else None)
+        if laws:            # a user's law: a change to its file is a change of the code
+            tag = f'{tag}-law-{laws}'
         for seed in study.seeds:
             out.append(Task(run_key(base, cell, seed, tag), ci, cell, seed, data, study.source, version, on,
                             study.robot_set(cell)))
@@ -248,13 +258,18 @@ def _num(v):
 
 
 def run_task(task: Task) -> dict:
-    """Simulate one run and return its row's results (checks and metrics; no wall time)."""
+    """Simulate one run and return its row's results (checks and metrics; no wall time); a law
+    that failed: ``{'key', 'failed': its line}`` (`run_study` raises it in the caller, so that no
+    worker logs a traceback)."""
     if task.version and task.version != code_version():
         raise RuntimeError(f'this worker runs swarm_core {code_version()}, the study needs {task.version}: '
                            'install the same project version on every worker')
     scn = scenario.parse(task.data, task.source, seed=task.seed)
     simulate = registry.engine(task.engine)
-    traj = simulate(scn, task.robot_set) if task.engine == ROBOTS_ENGINE else simulate(scn)
+    try:
+        traj = simulate(scn, task.robot_set) if task.engine == ROBOTS_ENGINE else simulate(scn)
+    except LawError as err:
+        return {'key': task.key, 'failed': str(err)}
     series, checks = analyse(traj, scenario=scn)
     s = summary_of(scn, traj, series, checks)
     row = {'ok': s['behaviour_ok']}
@@ -357,7 +372,8 @@ def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, v
     ``engine``: 'fast' (default) or 'reference' (`ENGINES`); each has its own cache keys.
     ``scheduler``: None for local processes (``jobs``), else a Dask address or ``local:N``.
     ``on_result(counts)`` is called after each finished run is cached.  Ctrl-C
-    (KeyboardInterrupt) leaves the finished runs in the cache and propagates."""
+    (KeyboardInterrupt) leaves the finished runs in the cache and propagates; so does a
+    run's law that failed (`LawError` naming it and the time)."""
     from tqdm import tqdm
     cache = Cache(cache_dir)
     all_tasks = tasks(study, version, engine)
@@ -372,6 +388,8 @@ def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, v
         if todo:
             it = _dask_map(todo, scheduler) if scheduler else _local_map(todo, jobs)
             for out in it:
+                if 'failed' in out:
+                    raise LawError(out['failed'])
                 t = by_key[out['key']]
                 cache.put(t.key, {'cell': t.cell, 'seed': t.seed, 'result': out['result'],
                                   'wall': out['wall']})

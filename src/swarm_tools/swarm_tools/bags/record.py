@@ -114,6 +114,7 @@ SWARM_TYPES = {
     '/lockstep/agent_states': 'std_msgs/msg/Float64MultiArray',
     '/lockstep/robot_states': 'std_msgs/msg/Float64MultiArray',
     '/swarm/agent_states': 'std_msgs/msg/Float64MultiArray',
+    '/swarm/decision': 'std_msgs/msg/Float64MultiArray',
 }
 
 
@@ -190,6 +191,7 @@ class Recorder:
         self.skipped: set[str] = set()
         self.states: dict[str, set] = {}
         self.write_error: OSError | None = None      # the disk is full or gone: the recording ends
+        self.said_commands = False   # the line about commands' writers (`_events`) was said
         for topic, (type_name, durability) in (presubscribe or {}).items():
             if wanted(topic):
                 self._subscribe(topic, type_name, request_qos([qos_dict(reliability=1, durability=durability)]))
@@ -215,7 +217,22 @@ class Recorder:
         self.failed.setdefault(topic, 0)
         self.sub_type[topic] = type_name
         self.subs[topic] = self.node.create_subscription(
-            cls, topic, self._callback(topic), qos, raw=True)
+            cls, topic, self._callback(topic), qos, raw=True, event_callbacks=self._events(topic))
+
+    def _events(self, topic):
+        """λ and steering (`command_topic`): a command's writer (volatile: ``ros2 topic pub``,
+        ``swarm steer``) does not match the reader of the commander's transient-local output, by
+        design; said once in one info line, not as rclpy's incompatible-QoS warning per writer."""
+        if not command_topic(topic):
+            return None
+        from rclpy.event_handler import SubscriptionEventCallbacks
+
+        def incompatible(_status):
+            if not self.said_commands:
+                self.said_commands = True
+                self.log(f'swarm record: a command on {topic} (a volatile writer) is recorded as a command event '
+                         f'on {P.EVENTS}; {P.LAMBDA} and the steering topics keep what the commander publishes')
+        return SubscriptionEventCallbacks(incompatible_qos=incompatible)
 
     def _register(self, topic, infos=None):
         """Create the bag channel (once) with the offers known now."""

@@ -216,8 +216,14 @@ class Bridge:
             return
         infos = [i for i in self.node.get_publishers_info_by_topic(topic) if not self._own(i)]
         qos = request_qos(offered_profiles([i for i in infos if i.topic_type == self.types[topic]]))
+        events = None
+        if client_topic(topic):
+            # λ and steering: the reader of the commander's transient-local output does not
+            # match a command's volatile writer (ours, ros2 topic pub's), by design: no warning
+            from rclpy.event_handler import SubscriptionEventCallbacks
+            events = SubscriptionEventCallbacks(incompatible_qos=lambda _status: None)
         self.subs[topic] = self.node.create_subscription(
-            message_class(self.types[topic]), topic, self._callback(topic), qos, raw=True)
+            message_class(self.types[topic]), topic, self._callback(topic), qos, raw=True, event_callbacks=events)
 
     def _unread(self, topic):
         sub = self.subs.pop(topic, None)

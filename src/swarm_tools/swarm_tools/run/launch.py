@@ -1,7 +1,7 @@
 """``swarm run``: a scenario as ROS 2 nodes — every agent, the world and the commander as
 separate OS processes (default) or all in one process and one executor (``--in-process``).
 With ``--agents-per-process K`` the agents run K to a process (agent containers,
-``swarm_agents``; each agent still its own node), see docs/scale.md.
+``swarm_agent_container``; each agent still its own node), see docs/scale.md.
 
 The launcher writes one parameter file for all nodes (agents get their name, roster, initial
 state, law and gains, w, dt; world and commander get the scenario reference), starts the
@@ -50,8 +50,17 @@ import numpy as np
 from swarm_agent.container_core import agent_services, agents_per_process, split_agents
 from swarm_core.analysis.outputs import analyse, check_output_dir, write_atomic, write_failed, write_outputs
 from swarm_core.engine.trajectory import Trajectory
+from swarm_core.laws import LawError
 from swarm_robots.world_setup import SUMMARY_FILE
-from swarm_ros.rosutil import ParameterError, make_executor, settle_garbage, spin_until, stop_on_signals
+from swarm_ros.rosutil import (
+    EXIT_NOTES,
+    ParameterError,
+    failure,
+    make_executor,
+    settle_garbage,
+    spin_until,
+    stop_on_signals,
+)
 from swarm_ros.runinfo import new_run_id, robots_text
 from swarm_tools.bags.mcap_io import bag_complete
 from swarm_tools.bags.report import read_run, rebuild_trajectory
@@ -96,10 +105,11 @@ def robots_nodes(params: dict, context) -> list:
         Parameter(k, value=v) for k, v in params[ROBOTS_NODE].items()])]
 
 
-def run_in_process(params: dict, domain_id=None) -> int:
+def run_in_process(params: dict, domain_id=None, stopped_by=None) -> int:
     """Every node in one executor until the world is done.  SIGINT / SIGTERM (main thread
     only) set a flag the spin loop checks, so no callback is cut off; the world then saves
-    the steps done (exit 130)."""
+    the steps done (exit 130).  A law that fails (`LawError`) stops the run with one line
+    (appended to ``stopped_by``), the steps done saved (exit 1)."""
     import rclpy
     from rclpy.context import Context
     from rclpy.signals import SignalHandlerOptions
@@ -118,10 +128,19 @@ def run_in_process(params: dict, domain_id=None) -> int:
         for nd in [world, commander, *agents, *robots]:
             ex.add_node(nd)
         settle_garbage()
-        spin_until(ex, ctx, lambda: world.done or bool(stop), wake=wake)
-        code = 0 if world.done and world.failed is None else (1 if world.failed else 130)
-        if code == 130:
-            world.save_partial()            # Ctrl-C: keep the steps done
+        failed = None
+        try:
+            spin_until(ex, ctx, lambda: world.done or bool(stop) or failure() is not None, wake=wake)
+        except LawError as err:     # (the agents' callbacks `fail` with it; any other path)
+            failed = err
+        failed = failed or failure()
+        if failed is not None:
+            print(f'swarm run: {failed}; stopping the run', file=sys.stderr, flush=True)
+            if stopped_by is not None:
+                stopped_by.append(str(failed))
+        code = 0 if world.done and world.failed is None else (1 if world.failed or failed else 130)
+        if code == 130 or failed:
+            world.save_partial()            # Ctrl-C or a law that failed: keep the steps done
         for nd in robots:
             nd.finish()
         for nd in [world, commander, *agents, *robots]:
@@ -282,6 +301,7 @@ class RunPlan:
     ignored: list = field(default_factory=list)     # options the run ignores, one line each
     robots: dict = field(default_factory=dict)      # {agent: robot kind} (`run.robots`)
     robots_line: str | None = None                  # the scale to the robots, said at start
+    stopped: str | None = None                      # why the run stopped early (a law that failed)
 
     @property
     def processes(self) -> int:
@@ -416,7 +436,9 @@ def execute(run: RunPlan) -> tuple[int, float]:
     if run.in_process:
         for line in run.ignored:
             print(f'swarm run: {line}', file=sys.stderr)
-        code = run_in_process(run.params)
+        stopped_by = []
+        code = run_in_process(run.params, stopped_by=stopped_by)
+        run.stopped = stopped_by[0] if stopped_by else None
     else:
         code = _run_processes(run)
     return code, time.monotonic() - t0
@@ -433,10 +455,12 @@ class ProcessPlan:
     specs: list                 # `processes.ProcessSpec` of each process, in start order
 
 
-def plan_processes(run: RunPlan, workdir: Path) -> ProcessPlan:
+def plan_processes(run: RunPlan, workdir: Path, notes: bool = False) -> ProcessPlan:
     """What a ``--processes`` run starts, with its parameters file and DDS profile written to
     ``workdir``: `swarm run` (`run_processes`) and ``ros2 launch swarm_tools swarm.launch.py``
-    (`swarm_tools.run.launch_description`) both start these.  `NotStarted` if the DDS set-up fails."""
+    (`swarm_tools.run.launch_description`) both start these.  `NotStarted` if the DDS set-up fails.
+    ``notes``: the processes leave the line of a law that failed in ``workdir``/notes
+    (`rosutil.fatal_note`, which `run_processes` says), not in their log."""
     pid_file = Path(workdir) / 'pids.json'
     params = dict(run.params, **{'/world': dict(run.params['/world'], pid_file=str(pid_file))})
     pfile = write_params_file(params, Path(workdir) / 'params.yaml')
@@ -446,19 +470,25 @@ def plan_processes(run: RunPlan, workdir: Path) -> ProcessPlan:
                               server=server.locator if server else None)
     except (ValueError, OSError) as err:
         raise NotStarted(str(err)) from None
+    if notes:
+        (Path(workdir) / 'notes').mkdir(exist_ok=True)
+        env = dict(env, **{EXIT_NOTES: str(Path(workdir) / 'notes')})
     specs = process_specs(pfile, env, run.groups, run.services, robots=ROBOTS_NODE in params, foxglove=run.foxglove)
     return ProcessPlan(params=params, params_file=pfile, pid_file=pid_file, env=env, server=server, specs=specs)
 
 
 def _run_processes(run: RunPlan) -> int:
     with tempfile.TemporaryDirectory(prefix='swarm_run_') as tmp:
-        procs = plan_processes(run, Path(tmp))
+        procs = plan_processes(run, Path(tmp), notes=True)
         if run.remote:
             print(f'swarm run: waiting for {len(run.remote)} agents from other hosts: swarm join '
                   f'{run.join[0]} --server {procs.server.locator}{run.join[1]}', flush=True)
-        return run_processes(procs.params, procs.params_file, procs.specs, procs.env, record=run.record,
+        stopped_by = []
+        code = run_processes(procs.params, procs.params_file, procs.specs, procs.env, record=run.record,
                              out_dir=run.out, pid_file=procs.pid_file, events_file=run.events_file,
-                             server=procs.server)
+                             server=procs.server, notes=procs.env.get(EXIT_NOTES), stopped_by=stopped_by)
+        run.stopped = stopped_by[0] if stopped_by else None
+        return code
 
 
 def finish(run: RunPlan, code: int, wall: float) -> int:
@@ -468,7 +498,9 @@ def finish(run: RunPlan, code: int, wall: float) -> int:
         write_run_outputs(run, code, wall)
     elif code != 0:
         print(f'swarm run: stopped (code {code}) after {wall:.1f} s', file=sys.stderr, flush=True)
-        if not run.in_process and not salvage(run.scn, run.out, run.record, run.mode, wall, figure=run.figure) \
+        if run.in_process and run.stopped and run.traj_file.exists():     # a law failed: the steps done
+            write_run_outputs(run, code, wall)
+        elif not run.in_process and not salvage(run.scn, run.out, run.record, run.mode, wall, figure=run.figure) \
                 and run.traj_file.exists():             # the world's own record is the longer one
             write_run_outputs(run, code, wall)
     if code == 0 and run.record and not run.in_process and not bag_complete(run.record):
@@ -491,7 +523,9 @@ def write_run_outputs(run: RunPlan, code: int, wall: float) -> None:
         traj = Trajectory.load(run.traj_file)
         traj.meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration, source='ros',
                          mode=run.mode, wall_seconds=wall, events=read_events(run.events_file),
-                         interrupted=code == 130, robots=read_summary(out))
+                         interrupted=code == 130 or run.stopped is not None, robots=read_summary(out))
+        if run.stopped:
+            traj.meta['stopped'] = run.stopped
         series, checks = analyse(traj, scenario=scn)
         timing = read_timing(out) if run.mode == 'realtime' else None
         summary = write_outputs(out, scn, traj, series, checks, figure=run.figure,

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import yaml
 
+from swarm_core.laws import flat_parameters
 from swarm_core.scenario.loader import ScenarioError, load
 from swarm_ros.scenario_params import scenario_parameters
 
@@ -46,7 +47,7 @@ def agent_parameters(scn, i: int, mode: str) -> dict:
     noise = scn.spec.noise
     return dict(agent_name=scn.names[i], agent_index=i, agent_names=list(scn.names), leader=False,
                 x=float(scn.pos0[i, 0]), y=float(scn.pos0[i, 1]), theta=float(scn.theta0[i]),
-                **scn.law.parameters(), dt=scn.dt, mode=mode,
+                **flat_parameters(scn.law), dt=scn.dt, mode=mode,
                 noise_position=float(noise.position), noise_heading=float(noise.heading),
                 seed=int(scn.seed), use_sim_time=True,
                 comms=json.dumps(scn.comms_config()) if scn.comms_config() is not None else '')

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from swarm_core.files import write_atomic
 from swarm_ros import protocol as P
+from swarm_ros.rosutil import FATAL_EXIT, read_fatal_note
 from swarm_tools.run import dds
 from swarm_tools.run.params import write_params_file
 
@@ -149,7 +150,7 @@ def wait_until_ready(proc, marker: str, timeout: float) -> bool:
 
 #: the package of each executable the launcher starts (``ros2 run PKG EXE``)
 EXE_PACKAGE = {'swarm': 'swarm_tools', 'swarm_world': 'swarm_world', 'swarm_agent': 'swarm_agent',
-               'swarm_agents': 'swarm_agent',
+               'swarm_agent_container': 'swarm_agent',
                'homotopy_commander': 'homotopy_commander', 'swarm_robots': 'swarm_robots'}
 
 
@@ -226,7 +227,7 @@ def _node(label, exe, params_file, env, **kw) -> ProcessSpec:
 
 def agent_specs(groups, params_file=None, env=None, services=True) -> list:
     """The agent processes: ``swarm_agent`` for a group of one (label: the agent's name; node
-    ``agent`` in the agent's namespace), the container ``swarm_agents`` for more (label:
+    ``agent`` in the agent's namespace), the container ``swarm_agent_container`` for more (label:
     ``agents[a..b]``; ``services`` False: its agent nodes without services,
     `container_core.agent_services`)."""
     lean = () if services else ('--no-services',)
@@ -237,8 +238,8 @@ def agent_specs(groups, params_file=None, env=None, services=True) -> list:
             out.append(_node(g[0], 'swarm_agent', params_file, env, name='agent', namespace=f'/{g[0]}',
                              members=tuple(g), vital=False))
         else:
-            out.append(_node(f'agents[{g[0]}..{g[-1]}]', 'swarm_agents', params_file, env, arguments=(*lean, *g),
-                             members=tuple(g), vital=False))
+            out.append(_node(f'agents[{g[0]}..{g[-1]}]', 'swarm_agent_container', params_file, env,
+                             arguments=(*lean, *g), members=tuple(g), vital=False))
     return out
 
 
@@ -329,12 +330,14 @@ def start_recorder(sup, record, env, params: dict, params_file) -> bool:
 
 
 def run_processes(params: dict, params_file: Path, specs, env, record=None, out_dir=None,
-                  pid_file=None, events_file=None, server=None) -> int:
+                  pid_file=None, events_file=None, server=None, notes=None, stopped_by=None) -> int:
     """Start ``specs`` (`process_specs`: world, commander, robots, agents, view) and watch them
     until the world ends.  ``server``: a `dds.DiscoveryServer` started first, stopped with the
     rest; ``record``: the recorder, started (and waited for) before the nodes; ``env``: the
     environment of both.  An agent process that exits is not a run failure; any other process
-    that exits stops the run (exit 1)."""
+    that exits stops the run (exit 1), and so does an agent process that exits with
+    `FATAL_EXIT` (its law failed): its line (from the directory ``notes``, `rosutil.fatal_note`)
+    is said once and appended to ``stopped_by``; the world then saves the steps done."""
     code = 1
     gone = set()
     with supervised('swarm run', first=('record',)) as (sup, stopped):
@@ -365,6 +368,14 @@ def run_processes(params: dict, params_file: Path, specs, env, record=None, out_
                 code = rc
                 break
             dead = [k for k, p in sup.procs.items() if p.poll() is not None and k != 'world' and k not in gone]
+            fatal = [k for k in dead if k in members and sup.procs[k].returncode == FATAL_EXIT]
+            if fatal:
+                line = (read_fatal_note(notes) if notes else None) or f'{fatal[0]}: its law failed'
+                print(f'swarm run: {line}; stopping the run', file=sys.stderr, flush=True)
+                if stopped_by is not None:
+                    stopped_by.append(line)
+                code = 1
+                break
             for k in [k for k in dead if k in members]:
                 gone.add(k)
                 print(exit_line(by_label[k], sup.procs[k].returncode, events_file), file=sys.stderr, flush=True)
