@@ -3,7 +3,7 @@
 to the offers, depth 10) and with the shipped override file
 (src/swarm_tools/config/record_qos_overrides.yaml: depth 1000).
 
-The recorder is the rosbag2 emulation tests/rosbag2_record.py (a Python callback: slower per
+The recorder is the rosbag2 emulation tests/fakes/rosbag2_record.py (a Python callback: slower per
 message than rosbag2's C++, so its depth-10 losses are an upper bound).  Each repetition runs
 both variants one after the other on the same machine (`swarm run SCENARIO --mode lockstep`,
 one process per node, started after the recorder said it was ready).  "lost" counts, per
@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT / 'scripts'))
 from bench_ros import claim_domain, loadavg  # noqa: E402
 
 OVERRIDES = ROOT / 'src' / 'swarm_tools' / 'config' / 'record_qos_overrides.yaml'
-EMULATION = ROOT / 'tests' / 'rosbag2_record.py'
+EMULATION = ROOT / 'tests' / 'fakes' / 'rosbag2_record.py'
 BIN = Path(sys.executable).parent
 
 

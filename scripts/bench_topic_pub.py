@@ -32,9 +32,9 @@ def main() -> int:
     p.add_argument('--tries', type=int, default=20)
     p.add_argument('--wait', type=float, default=10.0, help='wall s to wait for the commander per try')
     a = p.parse_args()
-    sys.path.insert(0, str(ROOT / 'tests'))
-    from conftest import _claim_domain  # a ROS_DOMAIN_ID no other run or test uses meanwhile
-    domain, lock = _claim_domain()
+    # a ROS_DOMAIN_ID no other run or test uses meanwhile (the project's pytest plugin's lock files)
+    from swarm_tools.pytest_plugin import claim_domain
+    domain, lock = claim_domain()
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                RMW_IMPLEMENTATION='rmw_fastrtps_cpp', PYTHONUNBUFFERED='1')
     tmp = Path(tempfile.mkdtemp(prefix='bench_topic_pub_'))

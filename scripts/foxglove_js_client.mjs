@@ -1,7 +1,7 @@
 // A check of the live view with Foxglove's own JavaScript libraries (the ones the Foxglove app
 // uses): @foxglove/ws-protocol's FoxgloveClient, @foxglove/rosmsg's ros2msg parser and
 // @foxglove/rosmsg2-serialization's CDR reader and writer.  Not part of the pytest suite (it needs
-// npm); tests/test_foxglove.py checks the same with Python.
+// npm); tests/e2e/test_foxglove_live_view.py checks the same with Python.
 //
 //   mkdir -p /tmp/fgjs && (cd /tmp/fgjs && npm install @foxglove/ws-protocol @foxglove/rosmsg \
 //       @foxglove/rosmsg2-serialization ws)

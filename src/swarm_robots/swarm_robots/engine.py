@@ -17,7 +17,7 @@ Each step n (model time t_n = n·dt):
    row of the table (`swarm_core.robot_units.reported_heading`), as the agent node does.
 
 So a run here equals the ROS lockstep run with the same robots bit for bit
-(tests/test_robot_engine.py).  Not covered (refused): faults (a killed robot agent's robot
+(tests/robots/ros/test_mujoco_runs.py).  Not covered (refused): faults (a killed robot agent's robot
 rolls on until its controller's timeout, in wall time) and the RK4 integrator (the agent nodes
 step ZOH).  The agents' odometry guard is not modelled: physics never jumps as it rejects.
 

@@ -16,7 +16,8 @@ waypoint steering, rk4, live commands, more than DENSE_LIMIT agents.
 The kernels form each receiver's pair sums as the reference does (`pair_sums._pair_sums_dense`
 and `_combine`: the same moments, products and numpy's pairwise summation order; with a radio
 `_pair_sums_sparse`: the believed senders one after the other), so they agree with the
-reference to rounding (tests/test_fast.py, tests/test_fast_radio.py: 1e-9 to t = 50).
+reference to rounding (tests/core/engine/test_compiled_engine.py, test_compiled_radio.py: 1e-9
+to t = 50).
 Compiled once per machine (``cache=True`` keeps the machine code in __pycache__); no ROS
 process imports this module.
 """

@@ -17,7 +17,9 @@ the parameters file, the DDS environment, the processes), and gives a `LaunchRun
 - ``started`` / ``exited`` / ``shutting_down``: what the launch file calls from its
   OnProcessStart / OnProcessExit / OnShutdown handlers.  Once every agent process runs their pids
   go to the world's ``pid_file`` (faults) and ``pids.json`` in the output directory; an agent
-  process that exits is reported as `swarm run` reports it, any other process stops the run; when
+  process that exits is reported as `swarm run` reports it, any other process stops the run, and
+  so does an agent process whose law failed (exit `rosutil.FATAL_EXIT`: its one line, left in
+  the run's notes directory, ``SWARM_EXIT_NOTES`` in every process's environment); when
   the world exits, the outputs are written by `launch.finish` as `swarm run` writes them
   (metrics.json, the figure, run.json, from the trajectory.npz the world wrote).
 
@@ -38,6 +40,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from swarm_ros.rosutil import EXIT_NOTES, FATAL_EXIT, read_fatal_note
 from swarm_tools.run import launch
 from swarm_tools.run.launch import NotStarted
 from swarm_tools.run.processes import ProcessSpec, exit_line, write_pids
@@ -207,6 +210,8 @@ class LaunchRun:
     def exited(self, label: str, returncode: int) -> tuple[list[str], bool]:
         """(lines to say, stop the run?) when the process ``label`` has exited.  The world's
         exit ends the run: the outputs are written (`launch.finish`, its code in ``result``).
+        An agent process whose law failed (`FATAL_EXIT`) stops the run with its line, as
+        `processes.run_processes` does (``run.stopped``: the world then saves the steps done).
         After a stop, only the world's exit matters (as `swarm run` waits for it)."""
         self.ended.add(label)
         if label == 'world':
@@ -217,6 +222,11 @@ class LaunchRun:
         if self.code is not None or self.result is not None:
             return [], False
         spec = self.specs[label]
+        if label in self.members and returncode == FATAL_EXIT:
+            notes = self.procs.env.get(EXIT_NOTES)
+            line = (read_fatal_note(notes) if notes else None) or f'{label}: its law failed'
+            self.run.stopped, self.code = line, 1
+            return [f'swarm run: {line}; stopping the run'], True
         if not spec.vital:
             return [exit_line(spec, returncode, self.run.events_file)], False
         self.code = 1
@@ -262,7 +272,7 @@ def prepare(values: Mapping[str, str], workdir=None) -> LaunchRun:
     work = Path(tempfile.mkdtemp(prefix='swarm_launch_')) if own else Path(workdir)
     try:
         work.mkdir(parents=True, exist_ok=True)
-        procs = launch.plan_processes(run, work)
+        procs = launch.plan_processes(run, work, notes=True)       # as `swarm run` plans them
     except BaseException:
         if own:
             shutil.rmtree(work, ignore_errors=True)

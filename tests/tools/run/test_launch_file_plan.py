@@ -17,10 +17,11 @@ from pathlib import Path
 
 import pytest
 
+from swarm_ros.rosutil import EXIT_NOTES, FATAL_EXIT
 from swarm_tools.run import launch, processes
 from swarm_tools.run import launch_description as ld
+from tests.helpers import ROOT
 
-ROOT = Path(__file__).resolve().parents[2]
 LAUNCH_FILE = ROOT / 'src' / 'swarm_tools' / 'launch' / 'swarm.launch.py'
 
 
@@ -254,6 +255,31 @@ def test_the_event_handlers_do_what_swarm_run_does(tmp_path, monkeypatch, capsys
     assert seen == [(plan.run, 1)] and plan.result == 1 and plan.failed
     plan.close()
     assert not plan.workdir.exists()
+
+
+def test_an_agent_whose_law_failed_stops_the_run_as_swarm_run_does(tmp_path, monkeypatch):
+    """Every process is told of the run's notes directory (SWARM_EXIT_NOTES); an agent process
+    that exits with FATAL_EXIT (its law failed) left its one line there: said once, the run stops
+    (code 1) and the outputs say why (``run.stopped``), as `processes.run_processes` does."""
+    monkeypatch.setattr(launch, 'finish', lambda run, code, wall: code)
+    plan = ld.prepare(dict(scenario='homotopy_global', out=str(tmp_path / 'out')))
+    notes = Path(plan.procs.env[EXIT_NOTES])
+    assert notes.is_dir() and notes.parent == plan.workdir
+    assert all(a.kwargs['env'][EXIT_NOTES] == str(notes) for a in plan.actions)
+    (notes / '4242.txt').write_text('agent_2: the law failed: boom\n')
+    lines, stop = plan.exited('agent_2', FATAL_EXIT)
+    assert stop and lines == ['swarm run: agent_2: the law failed: boom; stopping the run']
+    assert plan.code == 1 and plan.run.stopped == 'agent_2: the law failed: boom'
+    assert plan.exited('agent_3', FATAL_EXIT) == ([], False)          # said once
+    plan.shutting_down()
+    assert plan.exited('world', 130) == ([], True) and plan.result == 1 and plan.failed
+    plan.close()
+    assert not plan.workdir.exists()
+    # no line left: the agent is named
+    bare = ld.prepare(dict(scenario='homotopy_global', out=str(tmp_path / 'out2')))
+    assert bare.exited('agent_0', FATAL_EXIT) == (['swarm run: agent_0: its law failed; stopping the run'], True)
+    assert bare.exited('commander', 0) == ([], False) and bare.code == 1
+    bare.close()
 
 
 def test_a_shutdown_is_a_ctrl_c_unless_the_run_has_ended(tmp_path, monkeypatch):
