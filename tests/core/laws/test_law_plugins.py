@@ -161,18 +161,18 @@ def test_a_paper_law_in_a_blend_keeps_the_target_and_barrier_of_the_scenario():
 # ------------------------------------------------------------------ a law that cannot be used
 
 @pytest.mark.parametrize('kind, law, text', [
-    ('broken.py:Alignment', {}, "law 'broken.py:Alignment': broken.py does not import: SyntaxError"),
-    ('missing.py:Alignment', {}, "law 'missing.py:Alignment': no file "),
-    ('faulty.py:Nobody', {}, "law 'faulty.py:Nobody': faulty.py has no Nobody"),
-    ('faulty.py:NotALaw', {}, "law 'faulty.py:NotALaw': NotALaw is not a law (a subclass of swarm_core.laws.Law)"),
-    ('no_such_module:Law', {}, "law 'no_such_module:Law': module no_such_module does not import"),
+    ('broken.py:Alignment', {}, "law.kind 'broken.py:Alignment': broken.py does not import: SyntaxError"),
+    ('missing.py:Alignment', {}, "law.kind 'missing.py:Alignment': no file "),
+    ('faulty.py:Nobody', {}, "law.kind 'faulty.py:Nobody': faulty.py has no Nobody"),
+    ('faulty.py:NotALaw', {}, "law.kind 'faulty.py:NotALaw': NotALaw is not a law (a subclass of swarm_core.laws.Law)"),
+    ('no_such_module:Law', {}, "law.kind 'no_such_module:Law': module no_such_module does not import"),
     ('faulty.py:Raises', {'gain': 5}, 'faulty.py:Raises: parameter gain = 5 is outside [0, 1]'),
     ('faulty.py:Raises', {'gain': 'high'}, "faulty.py:Raises: parameter gain must be a number, got 'high'"),
     ('faulty.py:Raises', {'gian': 0.2}, "faulty.py:Raises: unknown parameter 'gian' (its parameters: cutoff_radius, "
                                         "gain)"),
     ('faulty.py:Raises', {'cutoff_radius': 0}, 'faulty.py:Raises: parameter cutoff_radius = 0 is outside'),
     ('spl_parallel', {'phase_gain': 1000}, 'law spl_parallel: parameter phase_gain = 1000 is outside [-100, 100]'),
-    ('flocking', {}, "law 'flocking': not a law kind (global, local"),
+    ('flocking', {}, "law.kind 'flocking': not a law kind (global, local"),
 ])
 def test_a_law_that_cannot_be_used_is_one_line_before_the_run(tmp_path, capsys, kind, law, text):
     path = faulty_law_scenario(tmp_path, kind, **law)

@@ -13,7 +13,8 @@ from swarm_core.engine import reference as engine
 from swarm_core.scenario import loader as scenario
 
 SHIPPED = ['global_alignment', 'homotopy_global', 'homotopy_local', 'target_barrier',
-           'leader_failover', 'leader_no_failover', 'homotopy_reunion']
+           'leader_failover', 'leader_no_failover', 'homotopy_reunion',
+           'spl_parallel', 'spl_circular', 'flock_to_circle']
 #: checks a shipped scenario is meant to fail: leader_no_failover is the contrast to
 #: leader_failover (without a successor the lost leader's subswarm does not keep its program)
 CONTRAST = {'leader_no_failover': {'follows_program'}}

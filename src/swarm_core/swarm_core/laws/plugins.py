@@ -47,41 +47,42 @@ def _law_file(kind: str, path: Path):
         spec.loader.exec_module(module)
     except Exception as err:   # a law file that does not import: named in one line
         sys.modules.pop(mod_name, None)
-        raise LawError(f'law {kind!r}: {path.name} does not import: {type(err).__name__}: {err}') from None
+        raise LawError(f'law.kind {kind!r}: {path.name} does not import: {type(err).__name__}: {err}') from None
     _FILES[path] = (stamp, module)
     return module
 
 
-def law_class(kind: str, base_dir=None) -> type[Law]:
+def law_class(kind: str, base_dir=None, field: str = 'law') -> type[Law]:
     """The `Law` subclass a kind names: a shipped one, ``FILE.py:Class`` (relative to
     ``base_dir``) or ``module:Class``.  LawError names the kind and the problem."""
     if kind in SHIPPED:
         return SHIPPED[kind]
-    where, sep, name = kind.rpartition(':')
-    if not sep or not where or not name.isidentifier():
-        raise LawError(f'law {kind!r}: not a law kind ({", ".join(KINDS)}) nor FILE.py:Class nor module:Class')
-    if where.endswith('.py'):
-        path = Path(where)
+    source, sep, name = kind.rpartition(':')
+    if not sep or not source or not name.isidentifier():
+        raise LawError(f'{field}.kind {kind!r}: not a law kind ({", ".join(KINDS)}) nor FILE.py:Class nor module:Class')
+    if source.endswith('.py'):
+        path = Path(source)
         if not path.is_absolute() and base_dir is not None:
             path = Path(base_dir) / path
         path = path.resolve()
         if not path.is_file():
-            raise LawError(f'law {kind!r}: no file {path}')
+            raise LawError(f'{field}.kind {kind!r}: no file {path}')
         module = _law_file(kind, path)
         kind_name = f'{path}:{name}'
     else:
         try:
-            module = importlib.import_module(where)
+            module = importlib.import_module(source)
         except Exception as err:   # a module that does not import: named in one line
-            raise LawError(f'law {kind!r}: module {where} does not import: {type(err).__name__}: {err}') from None
+            raise LawError(f'{field}.kind {kind!r}: module {source} does not import: '
+                           f'{type(err).__name__}: {err}') from None
         kind_name = kind
     cls = getattr(module, name, None)
     if cls is None:
-        raise LawError(f'law {kind!r}: {where} has no {name}')
+        raise LawError(f'{field}.kind {kind!r}: {source} has no {name}')
     if not (isinstance(cls, type) and issubclass(cls, Law)) or cls is Law:
-        raise LawError(f'law {kind!r}: {name} is not a law (a subclass of swarm_core.laws.Law)')
+        raise LawError(f'{field}.kind {kind!r}: {name} is not a law (a subclass of swarm_core.laws.Law)')
     if issubclass(cls, Blend):
-        raise LawError(f'law {kind!r}: a blend is named as kind: blend')
+        raise LawError(f'{field}.kind {kind!r}: a blend is named as kind: blend')
     cls.kind = kind_name
     return cls
 
@@ -155,7 +156,7 @@ def make_law(mapping, base_dir=None, where: str = 'law'):
             raise LawError(f'{where}: a blend has exactly from: <law> and to: <law>'
                            + (f' (unknown key {extra[0]!r})' if extra else ''))
         return Blend(make_law(rest['from'], base_dir, f'{where}.from'), make_law(rest['to'], base_dir, f'{where}.to'))
-    cls = law_class(kind, base_dir)
+    cls = law_class(kind, base_dir, where)
     try:
         return cls(**rest)
     except LawError:
