@@ -161,5 +161,5 @@ def test_a_law_that_cannot_be_used_stops_swarm_run_before_it_starts(kind, law, t
     code, said, wall = run_swarm(processes, swarm_cmd, path, out, timeout=60)
     lines = said.strip().splitlines()
     assert code == 2 and len(lines) == 1, said
-    assert lines[0].startswith(f'swarm run: {path}: law ') and text in lines[0], lines
+    assert lines[0].startswith(f'swarm run: {path}: law') and text in lines[0], lines
     assert not (out / 'trajectory.npz').exists() and wall < 30     # nothing started

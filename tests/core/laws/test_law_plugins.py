@@ -275,3 +275,14 @@ def test_swarm_control_checks_what_a_law_returns():
         swarm_control(pos, np.ones(3), np.zeros(3), np.arange(3), Ragged())
     assert swarm_control(pos, np.ones(3), np.zeros(3), np.arange(3), LawConfig(kind='global')).shape == (3,)
     assert make_law({'kind': 'global'}) == LawConfig(kind='global')
+
+
+def test_the_law_in_docs_is_the_example_file():
+    """docs/laws.md shows examples/laws/alignment.py's law line for line (blank lines aside:
+    the file keeps the lint's), so the documented law is the one the tests run."""
+    import re
+    doc = (ROOT / 'docs' / 'laws.md').read_text()
+    shown = re.search(r'```python\n(.*?)```', doc, re.S).group(1)
+    src = (ROOT / 'examples' / 'laws' / 'alignment.py').read_text()
+    code = src[src.index('import numpy'):]
+    assert [ln for ln in shown.splitlines() if ln.strip()] == [ln for ln in code.splitlines() if ln.strip()]
