@@ -68,7 +68,7 @@ def test_a_robot_whose_agent_is_killed_in_a_step_already_sent_is_not_waited_for(
     h.on_command(0, 0.0, 0.1, 0.0)
     h.on_command(2, 0.0, 0.1, 0.0)
     assert h.run() == [] and h.waiting_for() == [1]
-    h.lose(1)                                        # ... and killed before it commanded it
+    h.stop_awaiting(1)                                        # ... and killed before it commanded it
     assert h.run() == [pytest.approx(DT)] and h.waiting_for() == [0, 2]
     h.on_step(1, np.ones(6, bool))
     assert h.waiting_for() == [0, 2]

@@ -132,7 +132,7 @@ class AgentContainer(Node):
         if s is not None and self.lockstep_clock == 'step':
             step_time(self.agents, s)
 
-    def _fan(name):                             # noqa: N805 - builds a method
+    def _to_every_agent(name):                             # noqa: N805 - builds a method
         def handler(self, msg):
             for a in self.agents:
                 getattr(a, name)(msg)
@@ -152,10 +152,10 @@ class AgentContainer(Node):
         for a in self.agents:
             a.take_decision(d, leaders)
 
-    _on_target = _fan('_on_target')
-    _on_barrier = _fan('_on_barrier')
-    _on_event = _fan('_on_event')
-    del _fan
+    _on_target = _to_every_agent('_on_target')
+    _on_barrier = _to_every_agent('_on_barrier')
+    _on_event = _to_every_agent('_on_event')
+    del _to_every_agent
 
     def _start_realtime(self):
         """One table of the states heard and one batch writer for all the agents; one timer for

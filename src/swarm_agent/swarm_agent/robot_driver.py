@@ -333,9 +333,9 @@ class RealtimeRobotDriver(RealtimeDriver):
             self.process_tag = self.batch.tag
             self.timer = node.create_timer(node.dt, self.on_tick)
         node.publish_state()
-        self._said()
+        self._share_own_state()
 
-    def _said(self):
+    def _share_own_state(self):
         """Its newest state into its table and to the other processes."""
         node = self.node
         self.heard.hear(node.agent_name, (node.t, *node.own[2:]))
@@ -372,7 +372,7 @@ class RealtimeRobotDriver(RealtimeDriver):
         node.step = P.step_of(now, node.dt)
         node.t = now
         node.publish_state()
-        self._said()
+        self._share_own_state()
 
 
 #: the drivers of a robot agent, by mode, or by (mode, robot kind) (`agent_node.driver_class`)

@@ -190,7 +190,7 @@ class RobotsNode(Node):
         except ValueError:
             return
         if isinstance(ev, dict) and ev.get('kind') == 'kill' and ev.get('agent') in self.agents:
-            self.hold.lose(self.agents.index(ev['agent']))
+            self.hold.stop_awaiting(self.agents.index(ev['agent']))
             self._advance()
 
     # ------------------------------------------------------------ physics and outputs

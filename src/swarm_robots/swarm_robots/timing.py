@@ -79,7 +79,7 @@ class RobotsLockstep:
     def ready(self) -> bool:
         return not self.waiting_for()
 
-    def lose(self, k: int) -> None:
+    def stop_awaiting(self, k: int) -> None:
         """Robot ``k``'s agent was killed (its kill event): its command is not awaited from the
         held step on.  The world kills an agent right after it sends a step, so the agent may
         die before it commands that step; without this the step would wait for the hold's

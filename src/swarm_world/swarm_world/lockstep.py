@@ -294,7 +294,7 @@ class LockstepBarrier:
             if ev['kind'] == 'kill':
                 acts.append(('signal', i, 'kill'))
                 self.stop_pending.discard(i)
-                self.rec.lose(i, k)
+                self.rec.mark_lost(i, k)
             elif ev['kind'] == 'freeze':
                 self.rec.freeze(i, self.faults.frozen_at[i], self.faults.frozen_until[i])
                 held = self.rec.held.get(i)
@@ -319,8 +319,8 @@ class LockstepBarrier:
         """Give up on the agents whose state has not come: they are lost (event ``lost``)."""
         acts, gone = [], self.missing()
         for i in gone:
-            self.faults.lose(i)
-            self.rec.lose(i, self.cur)
+            self.faults.mark_lost(i)
+            self.rec.mark_lost(i, self.cur)
             acts.append(('event', dict(t=self.cur * self.dt, step=self.cur, kind='lost', agent=self.names[i])))
         if self.deserted():
             return acts + self._fail(f'no state from {", ".join(self.names[i] for i in gone)} (dropped): every '

@@ -84,7 +84,7 @@ class TrajectoryRecorder:
     def record_decision(self, k, lam, leaders):
         self.lam[k], self.leader[k] = lam, leaders
 
-    def lose(self, i, k):
+    def mark_lost(self, i, k):
         """Agent i is gone from step k on: its u is unknown from u_{k-1}."""
         if k > 0:
             self.u[k - 1:, i] = np.nan

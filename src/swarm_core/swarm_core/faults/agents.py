@@ -139,7 +139,7 @@ class FaultTimeline:
             _ = self.alive                     # the property recomputes _alive and _all_alive
         return self._all_alive
 
-    def lose(self, i: int):
+    def mark_lost(self, i: int):
         """Agent i is gone without a scheduled fault (the world gave up waiting for it)."""
         self.dead[i] = True
         self.frozen_until[i] = -1

@@ -29,7 +29,7 @@ def pair(dx, dy, cj, sj, partner, w2, far, gain, alpha, ar02, target, normalised
 
 
 @nb.njit(inline='always', fastmath=FASTMATH)
-def add6(acc, t):
+def add_moments(acc, t):
     """The six moment sums ``acc`` plus one pair's six terms ``t`` (`pair`), in that order."""
     return acc[0] + t[0], acc[1] + t[1], acc[2] + t[2], acc[3] + t[3], acc[4] + t[4], acc[5] + t[5]
 
@@ -43,7 +43,7 @@ def all_pairs(x, y, cos_t, sin_t, w2, far, partner, gain, alpha, ar02, target, n
         a = b = hx = hy = c = s = 0.0
         xk, yk, fk, pk, gk = x[k], y[k], far[k], partner[k], gain[k]
         for j in range(n):
-            a, b, hx, hy, c, s = add6((a, b, hx, hy, c, s), pair(
+            a, b, hx, hy, c, s = add_moments((a, b, hx, hy, c, s), pair(
                 xk - x[j], yk - y[j], cos_t[j], sin_t[j], j == pk, w2, fk, gk, alpha, ar02, target, normalised))
         m[0, k], m[1, k], m[2, k], m[3, k], m[4, k], m[5, k] = a, b, hx, hy, c, s
     return m
@@ -89,7 +89,7 @@ def cell_pairs(x, y, cos_t, sin_t, w, far, partner, gain, alpha, ar02, target, n
                 lo = np.searchsorted(sorted_key, first)
                 hi = np.searchsorted(sorted_key, first + 3)
             for jj in range(lo, hi):
-                a, b, hx, hy, c, s = add6((a, b, hx, hy, c, s), pair(
+                a, b, hx, hy, c, s = add_moments((a, b, hx, hy, c, s), pair(
                     xk - xs[jj], yk - ys[jj], cs[jj], ss[jj], jj == pk, w * w, fk, gk, alpha, ar02, target, normalised))
         m[0, k], m[1, k], m[2, k], m[3, k], m[4, k], m[5, k] = a, b, hx, hy, c, s
     return m

@@ -122,7 +122,7 @@ class FaultSpec(Strict):
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
 
     @model_validator(mode='after')
-    def _one(self):
+    def _exactly_one(self):
         if (self.kill is None) == (self.freeze is None):
             raise ValueError('give exactly one of kill: AGENT or freeze: AGENT')
         if self.freeze is not None and self.for_ is None:
