@@ -8,7 +8,6 @@ from __future__ import annotations
 import contextlib
 import copy
 import os
-import re
 import subprocess
 import threading
 import time
@@ -285,9 +284,15 @@ PACKAGES = ['homotopy_commander', 'swarm_agent', 'swarm_core', 'swarm_robots', '
 
 
 def console_scripts(pkg) -> list[str]:
-    """The console_scripts names a package's setup.py declares."""
-    text = (ROOT / 'src' / pkg / 'setup.py').read_text()
-    return sorted(re.findall(r"'([A-Za-z0-9_]+) = [A-Za-z0-9_.]+:[A-Za-z0-9_]+'", text))
+    """The console_scripts names a package's setup.py declares (not its other entry points,
+    such as swarm_robots' engine in the group swarm_core.engines)."""
+    import ast
+    tree = ast.parse((ROOT / 'src' / pkg / 'setup.py').read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.keyword) and node.arg == 'entry_points':
+            groups = ast.literal_eval(node.value)
+            return sorted(spec.split('=')[0].strip() for spec in groups.get('console_scripts', []))
+    return []
 
 
 
