@@ -25,7 +25,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / 'scripts'))
-from bench_ros import claim_domain, loadavg  # noqa: E402
+from bench_ros import claim_domain, loadavg
 
 OVERRIDES = ROOT / 'src' / 'swarm_tools' / 'config' / 'record_qos_overrides.yaml'
 EMULATION = ROOT / 'tests' / 'fakes' / 'rosbag2_record.py'

@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_ros import claim_domain, loadavg, scenario_file  # noqa: E402
+from bench_ros import claim_domain, loadavg, scenario_file
 
 
 def agent_counts(text):

@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_ros import DEFAULT_SWARM, Run, claim_domain, loadavg, on_signal, scenario_file  # noqa: E402
+from bench_ros import DEFAULT_SWARM, Run, claim_domain, loadavg, on_signal, scenario_file
 
 
 def parse_cases(text):

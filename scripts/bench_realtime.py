@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import bench_ros as B  # noqa: E402
+import bench_ros as B
 
 #: the on-time share a run must reach (swarm_world.lateness.ON_TIME_TARGET)
 TARGET = 0.99

@@ -24,7 +24,7 @@ from pathlib import Path
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import bench_ros  # noqa: E402
+import bench_ros
 
 #: the scale of the robots (scenario section robots:)
 ROBOTS = {'length_scale': 0.3, 'cruise_speed': 0.15}

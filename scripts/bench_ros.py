@@ -418,12 +418,12 @@ def markdown(results) -> str:
             '|---|---|---|---|---|---|---|---|---|---|---|---|']
     for r in results['runs']:
         rss = r.get('rss_mib', {})
-        f = lambda k, rss=rss: str(rss.get(k, {}).get('median', '—'))  # noqa: E731
+        f = lambda k, rss=rss: str(rss.get(k, {}).get('median', '—'))
         how = {'processes': 'processes', 'in-process': 'one process', 'full': 'homotopy_global t=1000 + bag',
                'no-agent-clock': 'processes, /clock every 10^6 steps'}[r['kind']]
         sps = r.get('steps_per_s', '—') if r['exit_code'] == 0 else f"failed ({r['exit_code']})"
         cpu = r.get('cpu_ms_per_step', {})
-        c = lambda k, cpu=cpu: str(cpu.get(k, '—'))  # noqa: E731
+        c = lambda k, cpu=cpu: str(cpu.get(k, '—'))
         cpus = (f"{c('agent') if 'agent' in cpu else c('container')} / {c('world')} / {c('commander')} / {c('total')}"
                 if r['kind'] != 'in-process' else f"one process: {c('total')}")
         ag = 'agent' if 'agent' in rss or 'container' not in rss else 'container'

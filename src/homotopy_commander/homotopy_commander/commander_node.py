@@ -123,7 +123,7 @@ class CommanderNode(Node):
     def _declare_parameters(self):
         """The scenario (`declare_scenario`, as the world), the commander's own parameters
         and the run id."""
-        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
+        d = lambda *a, **k: declare(self, *a, **k)
         self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=('lockstep', 'realtime'))
         self.ramp = d('ramp', 20.0, 'ramp duration (sim s) of a λ set-point from /swarm/lambda or the '
                       'lambda parameter (0 = jump)', lo=RAMP_BOUND.lo, hi=RAMP_BOUND.hi)
@@ -142,7 +142,7 @@ class CommanderNode(Node):
     def _declare_live_parameters(self):
         """``lambda`` and ``steering.<agent>``: set during the run (docs/commands.md); checked
         in the on-set callback, applied in the post-set one."""
-        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
+        d = lambda *a, **k: declare(self, *a, **k)
         d('lambda', self.lam, 'set λ: the commander ramps to it over `ramp` s from the next step '
           '(holds the last set-point)', lo=LAMBDA_BOUND.lo, hi=LAMBDA_BOUND.hi)
         for nm in self.names:

@@ -125,7 +125,7 @@ class AgentNode(Node):
     def _declare_parameters(self):
         """Declare every parameter (those of every mode too); the agent's own go on self."""
         ns = self.get_namespace().strip('/')
-        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
+        d = lambda *a, **k: declare(self, *a, **k)
         # read once at the start (read_only: `ros2 param set` is refused); the law's parameters
         # but its kind are live, and the realtime driver's (docs/ros-graph.md, "Parameters")
         self.agent_name = d('agent_name', ns or 'agent_0', 'agent name (child_frame_id of its states)', read_only=True)

@@ -58,8 +58,8 @@ from swarm_agent.robot_driver import OdometryHold
 from swarm_core.laws import LawError
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RealtimeDecision
-from swarm_ros.msg_checks import batch_states, decoded
-from swarm_ros.rosutil import ParameterError, RejectLog, declare, run_node
+from swarm_ros.msg_checks import RejectLog, batch_states, decoded
+from swarm_ros.rosutil import ParameterError, declare, run_node
 
 
 class AgentContainer(Node):
@@ -132,7 +132,7 @@ class AgentContainer(Node):
         if s is not None and self.lockstep_clock == 'step':
             step_time(self.agents, s)
 
-    def _to_every_agent(name):                             # noqa: N805 - builds a method
+    def _to_every_agent(name):                             # builds a method of the class
         def handler(self, msg):
             for a in self.agents:
                 getattr(a, name)(msg)

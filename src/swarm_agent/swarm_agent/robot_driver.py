@@ -72,7 +72,7 @@ def _default(name):
 
 def declare_robot(node) -> dict:
     """A robot agent's parameters (declared only when ``robot`` is not none)."""
-    d = lambda *a, **k: declare(node, *a, read_only=True, **k)  # noqa: E731 - read once at the start
+    d = lambda *a, **k: declare(node, *a, read_only=True, **k)  # read once at the start
     p = dict(
         length_scale=d('length_scale', 0.0, 'robot: L, metres per model unit (the scenario\'s robots: section)',
                        lo=0.0, hi=1e6),

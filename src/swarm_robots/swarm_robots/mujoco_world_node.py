@@ -121,7 +121,7 @@ class RobotsNode(Node):
             f'{self.sec.cruise_speed:g} m/s, {self.scale:g} robot s per model s')
 
     def _declare_parameters(self):
-        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
+        d = lambda *a, **k: declare(self, *a, **k)
         self.mode = d('mode', 'lockstep', 'lockstep or realtime', choices=('lockstep', 'realtime'))
         chosen = d('robots', '', "the agents with a robot, comma-separated ('': every agent)")
         self.output_dir = d('output_dir', '', f'where to write {SUMMARY_FILE} at the end ("": nowhere)')

@@ -11,8 +11,6 @@ import sys
 import threading
 import time
 
-from swarm_ros.msg_checks import RejectLog  # noqa: F401  (the nodes' rejection log lives with the checks)
-
 
 class ParameterError(ValueError):
     """A bad start-up parameter; the message is one line naming it."""

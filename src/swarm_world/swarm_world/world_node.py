@@ -97,7 +97,7 @@ class WorldNode(Node):
         """The world's parameters (`parameters.WORLD`: those every mode shares kept as
         attributes), the run id, the scenario (`declare_scenario`) and its movable target and
         barrier; returns the mode's own parameters (`parameters.MODE_PARAMETERS`) for its driver."""
-        d = lambda *a, **k: declare(self, *a, **k)  # noqa: E731
+        d = lambda *a, **k: declare(self, *a, **k)
         values = {nm: d(nm, default, text, **lim) for nm, (default, text, lim) in WORLD.items()}
         own = {nm for names in MODE_PARAMETERS.values() for nm in names}
         for nm, value in values.items():

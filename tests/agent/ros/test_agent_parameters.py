@@ -140,7 +140,7 @@ def test_lockstep_every_parameter_takes_effect_at_the_next_step_or_is_refused(rc
         want = expected(law_with(before, {name: agent.get_parameter(name).value}))
         assert want != expected(before), name                  # the table makes every parameter matter
         assert step() == want, name                            # from the step it held
-        mine = lambda name=name: [e for e in events if name in e.get('parameters', {})]  # noqa: E731
+        mine = lambda name=name: [e for e in events if name in e.get('parameters', {})]
         assert spin_for(ex, mine, 10), name
         ev = mine()[-1]
         assert (ev['kind'], ev['command'], ev['agent'], ev['step'], ev['node']) == ('command', 'law', 'agent_0',

@@ -32,7 +32,7 @@ from swarm_core.faults.radio import CommModel
 from swarm_core.laws import Blend, LawConfig, LawError, make_law, swarm_control
 from swarm_core.laws.parameters import LAW_KINDS, LAW_PARAMETER, LAW_TABLE
 from swarm_core.robot_units import RobotsSpec
-from swarm_core.scenario.placement import AGENT_NAME, AgentsSpec, initial_conditions  # noqa: F401  (AGENT_NAME: report.py)
+from swarm_core.scenario.placement import AgentsSpec, initial_conditions
 from swarm_core.schema import (
     Finite,
     NonNeg,

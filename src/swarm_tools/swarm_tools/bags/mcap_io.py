@@ -41,7 +41,7 @@ from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
 from swarm_core.files import open_regular, write_atomic
-from swarm_core.scenario.loader import AGENT_NAME
+from swarm_core.scenario.placement import AGENT_NAME
 from swarm_ros.protocol import RUN, cdr_byte_order, cdr_string, cdr_to_odometry_full
 from swarm_ros.runinfo import describe, parse_run
 from swarm_tools.bags.msgdefs import has_leading_stamp, message_definition

@@ -30,7 +30,8 @@ from swarm_core.engine.trajectory import Trajectory
 from swarm_core.files import atomic_path
 from swarm_core.laws import LawConfig
 from swarm_core.model.frenet import yaw_from_quaternion
-from swarm_core.scenario.loader import AGENT_NAME, BarrierSpec
+from swarm_core.scenario.loader import BarrierSpec
+from swarm_core.scenario.placement import AGENT_NAME
 from swarm_tools.bags.mcap_io import (
     announced_roster,
     iter_messages,

@@ -402,7 +402,7 @@ def main(argv=None) -> int:
     stop, wake, restore = stop_on_signals()
     rclpy.init(args=None, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('swarm_view', enable_rosout=False, start_parameter_services=False)
-    log = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
+    log = lambda s: print(s, file=sys.stderr, flush=True)
     try:
         try:
             bridge = Bridge(node, factory, log=log)
