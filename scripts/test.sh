@@ -13,6 +13,8 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh || exit $?
 # the lint gate first (ruff.toml): a finding fails the run before any test starts
 .venv/bin/ruff check --quiet . || { echo "ruff check found the problems above (ruff.toml); fix them first"; exit 1; }
+# the ROS shards' weights: shard 1 runs beside the pure tests from the start, shard 2 after them
+SHARDS=5,3
 work=$(mktemp -d "${TMPDIR:-/tmp}/swarm-tests.XXXXXX")
 trap 'rm -rf "$work"' EXIT
 
@@ -22,7 +24,7 @@ rest() {        # the pure tests, then ROS shard 2; each one's pid (for a stop) 
   wait $!
   echo $? >"$work/pure.rc"
   [ -e "$work/stop" ] && return
-  .venv/bin/python -m pytest -q -p no:cacheprovider -m ros --shard 2/2 "$@" >"$work/ros2.log" 2>&1 &
+  .venv/bin/python -m pytest -q -p no:cacheprovider -m ros --shard 2/2:$SHARDS "$@" >"$work/ros2.log" 2>&1 &
   echo $! >"$work/pid"
   wait $!
   echo $? >"$work/ros2.rc"
@@ -30,7 +32,7 @@ rest() {        # the pure tests, then ROS shard 2; each one's pid (for a stop) 
 rest "$@" &
 bg=$!
 trap 'touch "$work/stop"; kill -INT "$(cat "$work/pid" 2>/dev/null)" 2>/dev/null; wait $bg; rm -rf "$work"; exit 130' INT TERM
-.venv/bin/python -m pytest -q -p no:cacheprovider -m ros --shard 1/2 "$@"
+.venv/bin/python -m pytest -q -p no:cacheprovider -m ros --shard 1/2:$SHARDS "$@"
 ros1_rc=$?
 wait $bg
 echo "---- the ROS tests, shard 2"

@@ -30,10 +30,11 @@ VENV_BIN = Path(sys.executable).parent
 
 
 def pytest_addoption(parser):
-    parser.addoption('--shard', default=None, metavar='I/K', help=(
+    parser.addoption('--shard', default=None, metavar='I/K[:W1,...,WK]', help=(
         'run only shard I of K (1-based): the selected tests\' files dealt out by their number of '
-        'tests, the largest first, each to the shard with the fewest (scripts/test.sh runs the ROS '
-        'tests as two shards; each test claims its own ROS_DOMAIN_ID, so shards run side by side)'))
+        'tests, the largest first, each to the shard with the fewest for its weight W (default: all '
+        '1; scripts/test.sh runs the ROS tests as two shards, the one beside the pure tests larger; '
+        'each test claims its own ROS_DOMAIN_ID, so shards run side by side)'))
 
 
 def ros_by_folder(path: Path) -> bool | None:
@@ -71,16 +72,19 @@ def take_shard(config, items):
     if not shard:
         return
     try:
-        i, k = (int(v) for v in shard.split('/'))
-        assert 1 <= i <= k
+        which, _, weights = shard.partition(':')
+        i, k = (int(v) for v in which.split('/'))
+        weight = [float(w) for w in weights.split(',')] if weights else [1.0] * k
+        assert 1 <= i <= k and len(weight) == k and min(weight) > 0
     except (ValueError, AssertionError):
-        raise pytest.UsageError(f'--shard {shard}: want I/K with 1 <= I <= K') from None
+        raise pytest.UsageError(f'--shard {shard}: want I/K with 1 <= I <= K, then optionally :W1,...,WK '
+                                '(K positive weights)') from None
     count = {}
     for item in items:
         count[item.path] = count.get(item.path, 0) + 1
     load, mine = [0] * k, set()
     for path in sorted(count, key=lambda f: (-count[f], str(f))):
-        j = load.index(min(load))
+        j = min(range(k), key=lambda s: ((load[s] + count[path]) / weight[s], s))
         load[j] += count[path]
         if j == i - 1:
             mine.add(path)
