@@ -24,15 +24,41 @@ _LOCK_DIR = Path(os.environ.get('SWARM_DOMAIN_LOCK_DIR', '/tmp/homotopy-swarm-do
 _start = itertools.count((os.getpid() * 7) % 100)
 
 
+#: seconds an id rests after its last user let it go: the participants of that user's killed
+#: processes stay in discovery until their lease ends, and a new user would see their endpoints
+QUARANTINE = 30.0
+
+
+def _released_at(f) -> float:
+    """When the id's last user let it go (0: never used)."""
+    f.seek(0)
+    try:
+        return float(f.read().strip() or 0.0)
+    except ValueError:
+        return 0.0
+
+
+def release_domain(f) -> None:
+    """Let the id of lock file ``f`` go, noting when (`QUARANTINE`)."""
+    f.seek(0)
+    f.truncate()
+    f.write(f'{time.time():.3f}')
+    f.flush()
+    f.close()
+
+
 def claim_domain():
-    """(domain id, open lock file) of a free id; the id is ours until the file is closed."""
+    """(domain id, open lock file) of a free id that has rested `QUARANTINE` s since its last
+    user; the id is ours until `release_domain` (or the file is closed)."""
     _LOCK_DIR.mkdir(parents=True, exist_ok=True)
     first = next(_start)
     for attempt in range(3 * 100):
         dom = 1 + (first + attempt) % 100
-        f = open(_LOCK_DIR / f'{dom}.lock', 'a')
+        f = open(_LOCK_DIR / f'{dom}.lock', 'a+')
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            if time.time() - _released_at(f) < QUARANTINE:
+                raise OSError('resting')
         except OSError:
             f.close()
             if attempt % 100 == 99:
@@ -46,7 +72,7 @@ def claim_domain():
 def ros_domain(monkeypatch, request):
     """A fresh ROS_DOMAIN_ID for this test, localhost-only discovery; returns the id."""
     dom, lock = claim_domain()
-    request.addfinalizer(lock.close)
+    request.addfinalizer(lambda: release_domain(lock))
     monkeypatch.setenv('ROS_DOMAIN_ID', str(dom))
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     monkeypatch.delenv('ROS_STATIC_PEERS', raising=False)
