@@ -57,6 +57,23 @@ RECORDER_MATCH_WAIT = 30.0
 #: falls behind, or a datagram repaired late, still finds the sample
 STEP_DEPTH = 100
 
+#: the lockstep critical path of one step, in order: agents → world → commander → world → agents
+CRITICAL_PATH = (LOCK_AGENT_STATES, LOCK_STATES, LOCK_DECISION, LOCK_STEP)
+
+
+def lockstep_messages(n: int, writers: int, *, clock_every: int = 1, publish_every: int = 10,
+                      view_every: int = 20) -> dict:
+    """Messages per lockstep step on each topic (docs/ros-graph.md, The lockstep cycle): ``n``
+    agents in ``writers`` agent processes (each a writer of /lockstep/agent_states), the
+    world's ``clock_every`` and ``view_every``, the commander's ``publish_every``.  The
+    leaders, the steering topics and /swarm/events carry messages only when something changes;
+    a topic not listed carries none per step."""
+    per = {LOCK_AGENT_STATES: writers, LOCK_STATES: 1, LOCK_DECISION: 1, LOCK_STEP: 1,
+           STATES: n, CLOCK: 1 / clock_every, LAMBDA: 1 / publish_every}
+    if view_every:
+        per.update({METRICS: 1 / view_every, MARKERS: 1 / view_every})
+    return per
+
 
 def qos_latched(depth: int = 1):
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
