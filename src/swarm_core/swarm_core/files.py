@@ -1,5 +1,6 @@
 """Writing output files safely: a failed write (full disk, Ctrl-C) leaves no partial or 0-byte
-file, and no write follows a symbolic link or replaces anything but a regular file.
+file, and no write follows a symbolic link or replaces anything but a regular file.  Reading an
+input file (`read_regular`) takes only a regular file of a bounded size.
 
 Every writer of outputs goes through here: `atomic_open` (a file written whole),
 `atomic_path` (the same for writers that need a file name: matplotlib, animations) and
@@ -29,6 +30,35 @@ def _refuse(mode: int, path):
         kind = next((k for test, k in _KINDS if test(mode)), 'not a file')
         raise OSError(errno.EEXIST, f'{kind} is there, not a regular file: not written through '
                                     'or replaced', str(path))
+
+
+def read_regular(path, max_bytes: int) -> bytes:
+    """The bytes of the regular file ``path`` (a symbolic link is followed to one), read only if
+    it holds at most ``max_bytes``: an input (a scenario, a study, a robot description) is never
+    read whole before its size is known.  OSError naming what is there instead (a directory, a
+    FIFO, a device such as /dev/zero: opened without blocking, never read or waited on);
+    ValueError for a larger file, its text the size found (``3000000 bytes``)."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            kind = next((k for test, k in _KINDS if test(st.st_mode)), 'not a file')
+            raise OSError(errno.EINVAL, f'{kind}, not a regular file', str(path))
+        if st.st_size > max_bytes:
+            raise ValueError(f'{st.st_size} bytes')
+        os.set_blocking(fd, True)
+        chunks, size = [], 0
+        while size <= max_bytes:                   # (a file may grow while it is read)
+            chunk = os.read(fd, max_bytes + 1 - size)
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    finally:
+        os.close(fd)
+    if size > max_bytes:
+        raise ValueError(f'more than {max_bytes} bytes')
+    return b''.join(chunks)
 
 
 def check_replaceable(path):

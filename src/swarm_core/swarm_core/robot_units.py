@@ -10,9 +10,12 @@ robot (`RobotUnits`):
 - a robot pose (metres, yaw) is x/L, y/L, yaw in model units, after the start-pose transform
   when each robot's odometry starts at (0, 0, 0) in its own ``odom`` frame (`RobotUnits.to_model`).
 
-`RobotsSpec` is the scenario's ``robots:`` section.  `SafetyGuard` decides when a robot agent
-stops its robot (stale odometry, no neighbour in radio range) and resumes it, and which
-odometry it rejects (not finite, or a jump physics does not allow), with rate-limited reasons.
+`RobotsSpec` is the scenario's ``robots:`` section, `DESCRIPTION_FIELDS` the fields of the robot
+description it may name (`swarm_robots.description`): the limits of both are here, in one place
+(`ROBOTS_BOUNDS`, `MAX_ROBOT_STEP`, `DESCRIPTION_FIELDS`; docs/robots.md, "Limits").
+`SafetyGuard` decides when a robot agent stops its robot (stale odometry, no neighbour in radio
+range) and resumes it, and which odometry it rejects (not finite, or a jump physics does not
+allow), with rate-limited reasons.
 """
 from __future__ import annotations
 
@@ -21,11 +24,11 @@ from dataclasses import dataclass, field
 from typing import Literal, Optional
 
 import numpy as np
+from pydantic import PrivateAttr
 
-from swarm_core.schema import Length, NonNeg, Positive, Strict
+from swarm_core.checks import Bound, InputError
+from swarm_core.schema import Strict, checked
 
-#: TurtleBot3 Burger's largest turn rate (rad/s), the default ω_max
-DEFAULT_MAX_ANGULAR = 2.84
 #: what an agent's ``robot`` parameter may be: its own kinematic point, or a robot behind
 #: ``/<agent>/cmd_vel`` and ``/<agent>/odom`` (``mujoco``: the same on the agent's side)
 ROBOT_KINDS = ('none', 'external', 'mujoco')
@@ -38,20 +41,154 @@ ROBOT_FRAMES = ('odom', 'world')
 CMD_TYPES = ('TwistStamped', 'Twist')
 
 
+# ------------------------------------------------------------------ the limits (one place)
+
+@dataclass(frozen=True)
+class DescriptionField:
+    """One number of a robot description: the TurtleBot3 Burger's value and its limits."""
+    default: float
+    bound: Bound
+    off: bool = False            # 0 is allowed too, and means "none" (cmd_vel_timeout 0 disables it)
+
+    def check(self, value) -> None:
+        """InputError (the bound's one text) unless ``value`` is allowed."""
+        if self.off and isinstance(value, (int, float)) and not isinstance(value, bool) and value == 0:
+            return
+        if not self.bound.ok(value):
+            raise InputError(self.bound.error(value) + (' (or 0: none)' if self.off else ''))
+
+
+def _field(name, default, lo, hi, off=False):
+    return name, DescriptionField(default, Bound(name, lo, hi), off)
+
+
+#: a robot description's numbers (`swarm_robots.description.RobotDescription`; lengths in m,
+#: masses in kg, times in s): the TurtleBot3 Burger's value, which a description file leaves
+#: out, and the range that makes physical sense (a robot from a few millimetres to a few metres,
+#: from a gram to ten tonnes; limits that let it move at all: no acceleration, torque, wheel
+#: speed or grip of 1e-300)
+DESCRIPTION_FIELDS = dict([
+    _field('wheel_radius', 0.033, 1e-3, 1.0),
+    _field('wheel_separation', 0.160, 1e-3, 10.0),
+    _field('radius', 0.105, 1e-3, 10.0),                 # footprint (robot-robot contact)
+    _field('mass', 1.0, 1e-3, 1e4),                      # the whole robot, wheels included
+    _field('max_linear', 0.22, 1e-3, 100.0),             # m/s, linear.x.max_velocity
+    _field('max_angular', 2.84, 1e-3, 100.0),            # rad/s, angular.z.max_velocity
+    _field('max_linear_accel', 1.0, 1e-2, 1e3),          # m/s², linear.x.max_acceleration
+    _field('max_angular_accel', 12.5, 1e-2, 1e4),        # rad/s², angular.z.max_acceleration
+    _field('wheel_torque', 1.4, 1e-3, 1e4),              # N·m, each wheel motor's torque limit
+    _field('max_wheel_speed', 7.0, 1e-2, 1e4),           # rad/s, each wheel motor's speed limit
+    _field('friction', 0.8, 1e-2, 10.0),                 # wheel-ground sliding friction coefficient
+    _field('cmd_vel_timeout', 0.5, 0.02, 3600.0, off=True),   # longer than two controller periods
+    _field('wheel_mass', 0.0285, 1e-4, 1e3),             # each wheel (part of `mass`)
+    _field('caster_x', -0.081, -10.0, 10.0),             # the ball caster behind the wheel axle
+    _field('com_x', -0.032, -10.0, 10.0),                # the chassis' centre of mass from the axle
+])
+#: TurtleBot3 Burger's largest turn rate (rad/s), the default ω_max
+DEFAULT_MAX_ANGULAR = DESCRIPTION_FIELDS['max_angular'].default
+
+#: the numbers of the scenario's ``robots:`` section and the range of each that makes physical
+#: sense
+ROBOTS_BOUNDS = {b.name: b for b in (
+    Bound('length_scale', 1e-3, 1e3),          # L, m per model unit: a millimetre to a kilometre
+    Bound('cruise_speed', 1e-3, 100.0),        # v0, m/s: a millimetre per second to 100 m/s
+    Bound('max_angular', 1e-3, 100.0),         # ω_max, rad/s
+    Bound('odom_timeout', 1e-2, 3600.0),       # robot s: a controller period to an hour
+    Bound('neighbour_timeout', 1e-2, 3600.0),  # robot s
+    Bound('max_jump', 0.0, 1e3),               # m
+)}
+#: most robot seconds one step of the model may last (dt·L/v0): a robot gets one command per
+#: step, and the MuJoCo world runs this much physics for each step while the world waits
+MAX_ROBOT_STEP = 10.0
+
+
+def check_description(values: dict) -> None:
+    """InputError naming the field unless ``values`` (every field of `DESCRIPTION_FIELDS`) is a
+    robot that can be built: each number in its range, the wheels inside the footprint and
+    lighter than the robot, the caster and the centre of mass inside the footprint."""
+    for name, f in DESCRIPTION_FIELDS.items():
+        f.check(values[name])
+    v = values
+    if 2 * v['wheel_mass'] >= v['mass']:
+        raise InputError(f'wheel_mass: two wheels ({2 * v["wheel_mass"]} kg) must weigh less than the robot '
+                         f'(mass {v["mass"]} kg)')
+    if v['wheel_separation'] / 2 >= v['radius']:
+        raise InputError(f'wheel_separation: the wheels ({v["wheel_separation"]} m apart) must fit inside the '
+                         f'footprint (radius {v["radius"]} m)')
+    for name in ('caster_x', 'com_x'):
+        if abs(v[name]) >= v['radius']:
+            raise InputError(f'{name}: must lie inside the footprint (|{name}| < radius {v["radius"]} m)')
+
+
+def description_values(data, source: str = 'description') -> dict:
+    """Every field of a robot description: those of ``data`` (the mapping of field: value a
+    description file holds) over the Burger's, checked (`check_description`); InputError
+    naming ``source`` and the field.  An empty file (None) is the Burger."""
+    data = {} if data is None else data
+    if not isinstance(data, dict):
+        raise InputError(f'{source}: must be a mapping of field: value (got {type(data).__name__})')
+    unknown = sorted(str(k) for k in data if k not in DESCRIPTION_FIELDS)
+    if unknown:
+        raise InputError(f'{source}: {unknown[0]}: unknown field (known: {", ".join(sorted(DESCRIPTION_FIELDS))})')
+    values = {name: f.default for name, f in DESCRIPTION_FIELDS.items()} | data
+    try:
+        check_description(values)
+    except InputError as err:
+        raise InputError(f'{source}: {err}') from None
+    return values
+
+
 class RobotsSpec(Strict):
-    """The scenario's ``robots:`` section (see docs/robots.md)."""
-    length_scale: Length                          # L, metres per model unit
-    cruise_speed: Positive                        # v0, m/s
-    max_angular: Positive = DEFAULT_MAX_ANGULAR   # ω_max, rad/s
-    odom_timeout: Positive = 0.5                  # robot s: older odometry stops the robot
-    neighbour_timeout: Positive = 2.0             # robot s without a neighbour in radio range stops it
-    max_jump: NonNeg = 0.5                        # m a pose may move beyond v·Δt
+    """The scenario's ``robots:`` section (see docs/robots.md), each number in its range
+    (`ROBOTS_BOUNDS`)."""
+    length_scale: checked(ROBOTS_BOUNDS['length_scale'])                  # L, metres per model unit
+    cruise_speed: checked(ROBOTS_BOUNDS['cruise_speed'])                  # v0, m/s
+    max_angular: checked(ROBOTS_BOUNDS['max_angular']) = DEFAULT_MAX_ANGULAR     # ω_max, rad/s
+    odom_timeout: checked(ROBOTS_BOUNDS['odom_timeout']) = 0.5            # robot s: older odometry stops the robot
+    neighbour_timeout: checked(ROBOTS_BOUNDS['neighbour_timeout']) = 2.0  # robot s without a neighbour in range
+    max_jump: checked(ROBOTS_BOUNDS['max_jump']) = 0.5                    # m a pose may move beyond v·Δt
     frame: Literal['odom', 'world'] = 'odom'
     cmd_type: Literal['TwistStamped', 'Twist'] = 'TwistStamped'
     description: Optional[str] = None             # robot description YAML (default TurtleBot3 Burger)
+    _robot: Optional[dict] = PrivateAttr(default=None)        # the description's values, once read
 
     def units(self) -> 'RobotUnits':
         return RobotUnits(self.length_scale, self.cruise_speed, self.max_angular)
+
+    def take_description(self, data, source: str) -> None:
+        """Check the mapping ``data`` read from the description file ``source``
+        (`description_values`: InputError naming the field) and keep its values (`robot`)."""
+        self._robot = description_values(data, source)
+
+    def robot(self) -> dict:
+        """The values of the robot description: the file's once read (`take_description`, as
+        the scenario loader does), the Burger's when the section names none; ValueError for a
+        file named but not read."""
+        if self._robot is not None:
+            return self._robot
+        if self.description:
+            raise ValueError(f'robots.description {self.description}: not read (load the scenario with '
+                             'swarm_core.scenario.loader, which reads it)')
+        return {name: f.default for name, f in DESCRIPTION_FIELDS.items()}
+
+    def step_check(self, dt: float) -> str | None:
+        """A run of these robots at a step of ``dt`` model s: InputError if one step lasts
+        longer than `MAX_ROBOT_STEP` robot s; the warning line if it lasts longer than the
+        controller's ``cmd_vel_timeout`` (the robots brake in every step: one command per step),
+        else None."""
+        units = self.units()
+        step = units.robot_time(dt)
+        scale = (f'robots: a step of dt = {dt:g} model s lasts {step:.3g} robot s (L/v0 = {self.length_scale:g} m '
+                 f'/ {self.cruise_speed:g} m/s = {units.seconds_per_model_unit:.3g} s per model unit)')
+        if step > MAX_ROBOT_STEP:
+            raise InputError(f'{scale}: at most {MAX_ROBOT_STEP:g} robot s (raise cruise_speed, lower length_scale '
+                             'or dt)')
+        timeout = self.robot()['cmd_vel_timeout']
+        if timeout and step > timeout:
+            return (f'{scale}, longer than the controller\'s cmd_vel_timeout '
+                    f'{timeout:g} s: the robots brake in every step (lower dt, or give the robot description '
+                    'a longer cmd_vel_timeout)')
+        return None
 
 
 @dataclass
@@ -175,6 +312,11 @@ class RateLimit:
         return self.held.pop(key, 0)
 
 
+#: robot s over which the odometry guard bounds a walk (`SafetyGuard.odometry`): readings each
+#: within ``max_jump`` of the one before add up to at most ``max_jump`` beyond v·Δt in this long
+ODOM_WINDOW = 1.0
+
+
 @dataclass
 class Odom:
     """One accepted odometry reading: robot time it arrived, pose (m, yaw) as given."""
@@ -187,8 +329,10 @@ class Odom:
 class SafetyGuard:
     """When a robot agent stops its robot and when it lets it go again (times in robot s).
 
-    - `odometry` checks a reading: not finite, or farther from the last accepted one than
-      ``max_speed``·Δt + ``max_jump`` (m), and it is rejected (a reason; never fed to the law);
+    - `odometry` checks a reading: not finite, or farther than ``max_speed``·Δt + ``max_jump``
+      (m) from the last accepted one, or from the one accepted up to `ODOM_WINDOW` before (so
+      small jumps cannot add up: per second a walk gains at most ``max_jump`` on the speed
+      bound), and it is rejected (a reason; never fed to the law);
     - `neighbour` notes that a neighbour's state within radio range arrived;
     - `decide` gives ('stop', reason) when the newest accepted odometry is older than
       ``odom_timeout`` (or none came yet) or no neighbour was in range for ``neighbour_timeout``
@@ -203,6 +347,7 @@ class SafetyGuard:
         self.max_jump = float(max_jump)
         self.needs_neighbours = needs_neighbours
         self.last: Odom | None = None
+        self.anchor: Odom | None = None    # an accepted reading up to ODOM_WINDOW old
         self.heard = float(start)          # when a neighbour in range was last heard (start: grace)
         self.stopped: str | None = None    # the reason the robot is stopped, None while it drives
         self.started = False               # `decide` was called
@@ -212,18 +357,24 @@ class SafetyGuard:
         """Accept a reading at robot time t (None) or say why it is rejected."""
         if not all(math.isfinite(v) for v in (x, y, yaw)):
             why = f'odometry not finite: x={x!r}, y={y!r}, yaw={yaw!r}'
-        elif self.last is not None:
-            jump = math.hypot(x - self.last.x, y - self.last.y)
-            allowed = self.max_speed * max(0.0, t - self.last.t) + self.max_jump
-            why = (f'odometry jumped {jump:.3g} m in {t - self.last.t:.3g} s (at most {allowed:.3g} m)'
-                   if jump > allowed else None)
         else:
-            why = None
+            why = self._jump(self.last, t, x, y) or self._jump(self.anchor, t, x, y)
         if why is not None:
             self.rejected += 1
             return why
         self.last = Odom(t, x, y, yaw)
+        if self.anchor is None or t - self.anchor.t >= ODOM_WINDOW:
+            self.anchor = self.last
         return None
+
+    def _jump(self, since: Odom | None, t: float, x: float, y: float) -> str | None:
+        """Why (x, y) at t is farther from the reading ``since`` than ``max_speed``·Δt + ``max_jump``."""
+        if since is None:
+            return None
+        jump = math.hypot(x - since.x, y - since.y)
+        allowed = self.max_speed * max(0.0, t - since.t) + self.max_jump
+        return (f'odometry jumped {jump:.3g} m in {t - since.t:.3g} s (at most {allowed:.3g} m)'
+                if jump > allowed else None)
 
     def neighbour(self, t: float) -> None:
         self.heard = max(self.heard, t)

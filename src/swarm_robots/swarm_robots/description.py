@@ -22,11 +22,14 @@ slower than it was told.
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
-from pathlib import Path
 
-import yaml
+from swarm_core.checks import InputError
+from swarm_core.robot_units import DESCRIPTION_FIELDS, check_description, description_values
+from swarm_core.scenario.loader import ScenarioError, read_yaml_file
+
+#: each field's default, the Burger's (its limits: `swarm_core.robot_units.DESCRIPTION_FIELDS`)
+_BURGER = {name: f.default for name, f in DESCRIPTION_FIELDS.items()}
 
 
 class DescriptionError(ValueError):
@@ -36,77 +39,46 @@ class DescriptionError(ValueError):
 @dataclass(frozen=True)
 class RobotDescription:
     """A differential-drive robot; every length in m, mass in kg, time in s."""
-    wheel_radius: float = 0.033
-    wheel_separation: float = 0.160
-    radius: float = 0.105               # footprint (robot-robot contact) radius
-    mass: float = 1.0                   # the whole robot, wheels included
-    max_linear: float = 0.22            # m/s, the controller's linear.x.max_velocity
-    max_angular: float = 2.84           # rad/s, angular.z.max_velocity
-    max_linear_accel: float = 1.0       # m/s², linear.x.max_acceleration
-    max_angular_accel: float = 12.5     # rad/s², angular.z.max_acceleration
-    wheel_torque: float = 1.4           # N·m, each wheel motor's torque limit
-    max_wheel_speed: float = 7.0        # rad/s, each wheel motor's speed limit
-    friction: float = 0.8               # wheel-ground sliding friction coefficient
-    cmd_vel_timeout: float = 0.5        # s, the controller's cmd_vel_timeout (0 disables it)
-    wheel_mass: float = 0.0285          # kg, each wheel (part of `mass`)
-    caster_x: float = -0.081            # m, the ball caster behind the wheel axle
-    com_x: float = -0.032               # m, the chassis' centre of mass from the wheel axle
+    wheel_radius: float = _BURGER['wheel_radius']
+    wheel_separation: float = _BURGER['wheel_separation']
+    radius: float = _BURGER['radius']                   # footprint (robot-robot contact) radius
+    mass: float = _BURGER['mass']                       # the whole robot, wheels included
+    max_linear: float = _BURGER['max_linear']           # m/s, the controller's linear.x.max_velocity
+    max_angular: float = _BURGER['max_angular']         # rad/s, angular.z.max_velocity
+    max_linear_accel: float = _BURGER['max_linear_accel']       # m/s², linear.x.max_acceleration
+    max_angular_accel: float = _BURGER['max_angular_accel']     # rad/s², angular.z.max_acceleration
+    wheel_torque: float = _BURGER['wheel_torque']       # N·m, each wheel motor's torque limit
+    max_wheel_speed: float = _BURGER['max_wheel_speed']         # rad/s, each wheel motor's speed limit
+    friction: float = _BURGER['friction']               # wheel-ground sliding friction coefficient
+    cmd_vel_timeout: float = _BURGER['cmd_vel_timeout']         # s, the controller's (0 disables it)
+    wheel_mass: float = _BURGER['wheel_mass']           # kg, each wheel (part of `mass`)
+    caster_x: float = _BURGER['caster_x']               # m, the ball caster behind the wheel axle
+    com_x: float = _BURGER['com_x']                     # m, the chassis' centre of mass from the wheel axle
 
     def __post_init__(self):
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise DescriptionError(f'{f.name}: must be a number (got {value!r})')
-            if not math.isfinite(value):
-                raise DescriptionError(f'{f.name}: must be finite (got {value!r})')
-            if f.name in _SIGNED:
-                continue
-            if value < 0 or (value == 0 and f.name not in _MAY_BE_ZERO):
-                need = '>= 0' if f.name in _MAY_BE_ZERO else '> 0'
-                raise DescriptionError(f'{f.name}: must be {need} (got {value!r})')
-        if 2 * self.wheel_mass >= self.mass:
-            raise DescriptionError(f'wheel_mass: two wheels ({2 * self.wheel_mass} kg) must weigh '
-                                   f'less than the robot (mass {self.mass} kg)')
-        if self.wheel_separation / 2 >= self.radius:
-            raise DescriptionError(f'wheel_separation: the wheels ({self.wheel_separation} m apart) '
-                                   f'must fit inside the footprint (radius {self.radius} m)')
-        for name in ('caster_x', 'com_x'):
-            if abs(getattr(self, name)) >= self.radius:
-                raise DescriptionError(f'{name}: must lie inside the footprint '
-                                       f'(|{name}| < radius {self.radius} m)')
+        try:                        # each field in its range, the parts inside the footprint
+            check_description(dataclasses.asdict(self))
+        except InputError as e:
+            raise DescriptionError(str(e)) from None
 
     @classmethod
     def from_yaml(cls, path) -> 'RobotDescription':
-        """A description from a YAML mapping of field: value; fields left out keep the
-        TurtleBot3 Burger's values.  Raises `DescriptionError` naming the bad field."""
-        path = Path(path)
+        """A description from a YAML mapping of field: value, read with the limits of a
+        scenario file (size, no aliases, depth; a regular file); fields left out keep the
+        TurtleBot3 Burger's values.  Raises `DescriptionError` naming the file and the field."""
         try:
-            data = yaml.safe_load(path.read_text())
-        except OSError as e:
-            raise DescriptionError(f'{path}: cannot read ({e.strerror or e})') from None
-        except yaml.YAMLError as e:
-            raise DescriptionError(f'{path}: not YAML ({e})') from None
+            data = read_yaml_file(path, 'robot description')
+        except ScenarioError as e:
+            raise DescriptionError(str(e)) from None
         return cls.from_mapping({} if data is None else data, source=str(path))
 
     @classmethod
     def from_mapping(cls, data, source: str = 'description') -> 'RobotDescription':
         """A description from a mapping (see `from_yaml`)."""
-        if not isinstance(data, dict):
-            raise DescriptionError(f'{source}: must be a mapping of field: value '
-                                   f'(got {type(data).__name__})')
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(str(k) for k in data if k not in known)
-        if unknown:
-            raise DescriptionError(f'{source}: {unknown[0]}: unknown field '
-                                   f'(known: {", ".join(sorted(known))})')
         try:
-            return cls(**data)
-        except DescriptionError as e:
-            raise DescriptionError(f'{source}: {e}') from None
+            return cls(**description_values(data, source))
+        except InputError as e:
+            raise DescriptionError(str(e)) from None
 
-
-#: fields that are positions (any sign) and fields where 0 means "none"
-_SIGNED = frozenset({'caster_x', 'com_x'})
-_MAY_BE_ZERO = frozenset({'cmd_vel_timeout'})
 
 TURTLEBOT3_BURGER = RobotDescription()

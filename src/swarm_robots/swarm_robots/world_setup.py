@@ -6,6 +6,7 @@ import numpy as np
 
 from swarm_core.model.frenet import quaternion_from_heading
 from swarm_core.robot_units import odometry_quaternion, wrap_near, yaw_of_quaternion
+from swarm_core.scenario.loader import read_description
 from swarm_robots.description import TURTLEBOT3_BURGER, RobotDescription
 from swarm_robots.timing import TurnLimitClock
 
@@ -77,10 +78,21 @@ class OdometryPoses:
         return np.stack([x, y, *quaternion_from_heading(theta)])
 
 
-def robot_description(sec):
+def robot_description(sec) -> RobotDescription:
     """The robot description ``sec`` (the ``robots:`` section) names, default a TurtleBot3
-    Burger; OSError or ValueError if its file cannot be read."""
-    return RobotDescription.from_yaml(sec.description) if sec.description else TURTLEBOT3_BURGER
+    Burger.  The scenario loader has read its file, relative to the scenario, with the limits of
+    a scenario file, and checked it (`swarm_core.scenario.loader.read_description`): this
+    builds the robot of those values.  A section not loaded with a scenario reads its file
+    here, relative to the working directory.  ValueError (`ScenarioError`, `DescriptionError`)
+    naming the file and the field."""
+    if not sec.description:
+        return TURTLEBOT3_BURGER
+    try:
+        values = sec.robot()
+    except ValueError:                  # a section made without the loader: read it now
+        read_description(sec)
+        values = sec.robot()
+    return RobotDescription(**values)
 
 
 def turn_limit_clock(world, sec, description):

@@ -356,6 +356,8 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
         node = node_class()
     except ParameterError as err:
         rclpy.logging.get_logger(logger_name).error(str(err))
+        if os.environ.get(EXIT_NOTES):      # and for the launcher, which stops the run with it
+            fatal_note(rclpy.logging.get_logger(logger_name), err)
         rclpy.try_shutdown()
         return 2
     ex = make_executor(ctx)

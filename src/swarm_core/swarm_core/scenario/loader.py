@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import re
 from dataclasses import dataclass
 from importlib import resources
@@ -29,6 +30,7 @@ from swarm_core.command.spec import (
 )
 from swarm_core.faults.agents import Fault, FaultTimeline, Rendezvous
 from swarm_core.faults.radio import CommModel
+from swarm_core.files import read_regular
 from swarm_core.laws import Blend, LawConfig, LawError, make_law, swarm_control
 from swarm_core.laws.parameters import LAW_KINDS, LAW_PARAMETER, LAW_TABLE
 from swarm_core.robot_units import RobotsSpec
@@ -466,27 +468,30 @@ def shipped_scenarios() -> list[str]:
     return sorted(p.name[:-5] for p in root.iterdir() if p.name.endswith('.yaml'))
 
 
+def read_text(path, what: str = 'file', hint: str = '') -> str:
+    """The text of the input file ``path`` (a scenario, a study, a robot description) with the
+    limits of every YAML input: a regular file (a FIFO, a device or a directory is refused,
+    never read or waited on; `files.read_regular`) of at most `MAX_FILE_BYTES`, UTF-8.
+    ScenarioError naming ``path`` (``what`` it is; ``hint``: how to stay within the size)."""
+    try:
+        raw = read_regular(path, MAX_FILE_BYTES)
+    except FileNotFoundError:
+        raise ScenarioError(f'{path}: no such {what}') from None
+    except OSError as err:
+        raise ScenarioError(f'{path}: cannot read: {err.strerror or err}') from None
+    except ValueError as err:
+        raise ScenarioError(f'{path}: {err}; a {what} is at most {MAX_FILE_BYTES} bytes{hint}') from None
+    try:
+        return raw.decode('utf-8')
+    except UnicodeDecodeError as err:
+        raise ScenarioError(f'{path}: not UTF-8 text ({err.reason} at byte {err.start})') from None
+
+
 def resolve(name_or_path: str) -> tuple[str, str]:
     """(text, source) of a shipped scenario name or a YAML file path."""
     p = Path(name_or_path)
-    if p.suffix in ('.yaml', '.yml') or p.exists():
-        if not p.is_file():
-            raise ScenarioError(f'{name_or_path}: no such scenario file')
-        try:
-            size = p.stat().st_size
-            if size > MAX_FILE_BYTES:
-                raise ScenarioError(f'{name_or_path}: {size} bytes; a scenario file is at most '
-                                    f'{MAX_FILE_BYTES} bytes (give large swarms a placement rule)')
-            with open(p, 'rb') as fh:          # read at most the limit (a file may grow)
-                raw = fh.read(MAX_FILE_BYTES + 1)
-        except OSError as err:
-            raise ScenarioError(f'{name_or_path}: cannot read: {err.strerror or err}') from None
-        if len(raw) > MAX_FILE_BYTES:
-            raise ScenarioError(f'{name_or_path}: more than {MAX_FILE_BYTES} bytes')
-        try:
-            return raw.decode('utf-8'), str(p)
-        except UnicodeDecodeError as err:
-            raise ScenarioError(f'{name_or_path}: not UTF-8 text ({err.reason} at byte {err.start})') from None
+    if p.suffix in ('.yaml', '.yml') or p.exists() or p.is_symlink():
+        return read_text(p, 'scenario file', ' (give large swarms a placement rule)'), str(p)
     res = resources.files('swarm_core') / SCENARIO_DIR / f'{name_or_path}.yaml'
     if not res.is_file():
         raise ScenarioError(f'{name_or_path}: not a shipped scenario ({", ".join(shipped_scenarios())}) '
@@ -582,6 +587,10 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
             raise ScenarioError(f'{source}: {err}') from None
         if spec.integrator != 'zoh' and spec.comms.model_dump() != CommsSpec().model_dump():
             raise ScenarioError(f'{source}: comms: a communication model needs integrator zoh')
+    try:
+        read_description(spec.robots, Path(source).parent if Path(source).is_file() else None)
+    except ScenarioError as err:
+        raise ScenarioError(f'{source}: {err}') from None
     scn = Scenario(spec=spec, names=names, pos0=pos0, theta0=theta0, law=law, source=source)
     if plugin is not None:
         _try_law(scn, source)
@@ -610,7 +619,7 @@ def safe_yaml(text: str):
             nd, depth = stack.pop()
             if id(nd) in seen:
                 mark = nd.start_mark
-                raise yaml.composer.ComposerError(None, None, 'YAML aliases (*name) are not allowed in a scenario',
+                raise yaml.composer.ComposerError(None, None, 'YAML aliases (*name) are not allowed',
                                                   mark)
             if depth > MAX_YAML_DEPTH:
                 raise yaml.composer.ComposerError(None, None, f'nested deeper than {MAX_YAML_DEPTH} levels',
@@ -625,17 +634,49 @@ def safe_yaml(text: str):
         loader.dispose()
 
 
+def _yaml_of(text: str, source: str):
+    try:
+        return safe_yaml(text)
+    except yaml.YAMLError as err:
+        msg = ' '.join(str(err).split())
+        raise ScenarioError(f'{source}: not valid YAML: {msg[:300]}') from None
+
+
 def read_yaml(name_or_path: str):
     """(data, source) of a shipped scenario or a YAML file (a scenario or a study) with the
     limits of every YAML input: `MAX_FILE_BYTES`, no aliases, `MAX_YAML_DEPTH`."""
     text, source = resolve(name_or_path)
     if len(text) > MAX_FILE_BYTES:
         raise ScenarioError(f'{source}: more than {MAX_FILE_BYTES} bytes')
+    return _yaml_of(text, source), source
+
+
+def read_yaml_file(path, what: str = 'file'):
+    """The data of the YAML file ``path`` (``what`` it is: a robot description) with the
+    limits of every YAML input (`read_text`, `safe_yaml`); ScenarioError naming ``path``."""
+    return _yaml_of(read_text(path, what), str(path))
+
+
+def description_path(name: str, base_dir=None) -> Path:
+    """The file a ``robots: description:`` names: an absolute path as it is, a relative one
+    relative to ``base_dir``, the directory of the scenario that names it (None: a scenario
+    that is no file; the working directory)."""
+    p = Path(name)
+    return Path(os.path.abspath(p if p.is_absolute() or base_dir is None else Path(base_dir) / p))
+
+
+def read_description(robots: RobotsSpec, base_dir=None) -> None:
+    """Read and check the robot description the ``robots:`` section ``robots`` names (if any;
+    `description_path`) with the limits of every YAML input, and keep its values in the section
+    (`RobotsSpec.take_description`).  ScenarioError ``robots.description: FILE: ...`` naming
+    what is wrong (the file, or a field of it)."""
+    if robots is None or not robots.description:
+        return
+    path = description_path(robots.description, base_dir)
     try:
-        return safe_yaml(text), source
-    except yaml.YAMLError as err:
-        msg = ' '.join(str(err).split())
-        raise ScenarioError(f'{source}: not valid YAML: {msg[:300]}') from None
+        robots.take_description(read_yaml_file(path, 'robot description'), str(path))
+    except (ScenarioError, InputError) as err:
+        raise ScenarioError(f'robots.description: {err}') from None
 
 
 def load(name_or_path: str, **overrides) -> Scenario:

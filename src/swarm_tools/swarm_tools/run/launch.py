@@ -66,8 +66,8 @@ from swarm_tools.bags.mcap_io import bag_complete
 from swarm_tools.bags.report import read_run, rebuild_trajectory
 from swarm_tools.run import dds
 from swarm_tools.run.params import load_scenario, node_parameters, write_params_file
-from swarm_tools.run.processes import process_specs, read_events, run_processes
-from swarm_tools.run.robots import ROBOTS_NODE, add_robot_world, apply_robots, parse_robots, read_summary
+from swarm_tools.run.processes import REFUSED_EXIT, process_specs, read_events, run_processes
+from swarm_tools.run.robots import ROBOTS_NODE, add_robot_world, apply_robots, parse_robots, read_summary, robot_steps
 from swarm_world.lateness import TIMING_FILE, behind_line, timing_line
 
 #: most agents of one ``swarm run`` (each is an OS process, or a node of one executor);
@@ -183,7 +183,8 @@ def _parser():
     p.add_argument('--progress-every', type=float, default=50.0,
                    help='progress line every this many sim s (default 50)')
     p.add_argument('--missing-timeout', type=float, default=10.0, help=(
-        'lockstep: the world drops an agent whose state has not come after this many wall s (default 10)'))
+        'the world drops an agent whose state has not come after this many wall s (default 10; realtime: '
+        'an agent silent this long is lost)'))
     p.add_argument('--clock-every', type=int, default=1, metavar='K', help=(
         'lockstep: the world publishes /clock every K steps (default 1). Every node receives each '
         '/clock; K = 10 saves about a fifth of the CPU per step with 6-24 agent processes, and sim '
@@ -498,7 +499,9 @@ def finish(run: RunPlan, code: int, wall: float) -> int:
         write_run_outputs(run, code, wall)
     elif code != 0:
         print(f'swarm run: stopped (code {code}) after {wall:.1f} s', file=sys.stderr, flush=True)
-        if run.in_process and run.stopped and run.traj_file.exists():     # a law failed: the steps done
+        if code == REFUSED_EXIT:        # a node refused its parameters: nothing ran, nothing to save
+            pass
+        elif run.in_process and run.stopped and run.traj_file.exists():     # a law failed: the steps done
             write_run_outputs(run, code, wall)
         elif not run.in_process and not salvage(run.scn, run.out, run.record, run.mode, wall, figure=run.figure) \
                 and run.traj_file.exists():             # the world's own record is the longer one
@@ -563,6 +566,9 @@ def validate(a) -> RunPlan | None:
         prepare_outputs(run)
     except ValueError as err:
         raise NotStarted(str(err)) from None
+    brakes = robot_steps(run.scn, run.robots)        # (a step too long for the robots: refused in plan)
+    if brakes:
+        print(f'swarm run: WARNING: {brakes}', file=sys.stderr, flush=True)
     return run
 
 

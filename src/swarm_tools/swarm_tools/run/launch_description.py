@@ -43,7 +43,7 @@ from pathlib import Path
 from swarm_ros.rosutil import EXIT_NOTES, FATAL_EXIT, read_fatal_note
 from swarm_tools.run import launch
 from swarm_tools.run.launch import NotStarted
-from swarm_tools.run.processes import ProcessSpec, exit_line, write_pids
+from swarm_tools.run.processes import REFUSED_EXIT, ProcessSpec, exit_line, note_of, refusal_line, write_pids
 
 __all__ = ['NOT_OFFERED', 'ActionSpec', 'LaunchArgument', 'LaunchRun', 'NotStarted', 'action_spec',
            'launch_arguments', 'parse', 'prepare', 'run_argv']
@@ -227,6 +227,10 @@ class LaunchRun:
             line = (read_fatal_note(notes) if notes else None) or f'{label}: its law failed'
             self.run.stopped, self.code = line, 1
             return [f'swarm run: {line}; stopping the run'], True
+        refused = refusal_line(spec, returncode, note_of(self.procs.env.get(EXIT_NOTES), self.pids.get(label)))
+        if refused:                 # an agent that refused its parameters: as `run_processes` does
+            self.run.stopped, self.code = refused, REFUSED_EXIT
+            return [f'swarm run: {refused}; stopping the run'], True
         if not spec.vital:
             return [exit_line(spec, returncode, self.run.events_file)], False
         self.code = 1

@@ -294,6 +294,34 @@ def exit_line(spec: ProcessSpec, rc: int, events_file=None) -> str:
             'after its missing_timeout')
 
 
+#: the exit code of a node process that refused its parameters (`rosutil.run_node`: a bad
+#: start-up parameter, one line)
+REFUSED_EXIT = 2
+
+
+def note_of(notes, pid) -> str | None:
+    """The line the process ``pid`` left in the directory ``notes`` when it stopped on an error
+    or refused its parameters (`rosutil.fatal_note`), or None."""
+    if not notes or pid is None:
+        return None
+    try:
+        with open(Path(notes) / f'{pid}.txt') as fh:
+            return fh.read().strip() or None
+    except OSError:
+        return None
+
+
+def refusal_line(spec: ProcessSpec, rc: int, note: str | None = None) -> str | None:
+    """The line that stops the run at once when the agent process of ``spec`` has exited with
+    ``rc`` because it refused its parameters (`REFUSED_EXIT`; ``note``: its own line), else None.
+    Such an agent never joins, and a run cannot go on without it (lockstep waits for every agent,
+    realtime's world for all of them to start): the run stops, rather than wait out the world's
+    ``start_timeout``."""
+    if not spec.members or rc != REFUSED_EXIT:
+        return None
+    return f'{spec.label} refused its parameters: {note or f"exit code {rc} (its line is above)"}'
+
+
 def without_recorder(params: dict) -> dict:
     """``params`` for a run whose recorder is gone before the start: the world and the commander
     do not wait for it, and each agent waits for one state reader fewer."""
@@ -337,7 +365,9 @@ def run_processes(params: dict, params_file: Path, specs, env, record=None, out_
     environment of both.  An agent process that exits is not a run failure; any other process
     that exits stops the run (exit 1), and so does an agent process that exits with
     `FATAL_EXIT` (its law failed): its line (from the directory ``notes``, `rosutil.fatal_note`)
-    is said once and appended to ``stopped_by``; the world then saves the steps done."""
+    is said once and appended to ``stopped_by``; the world then saves the steps done.  An agent
+    process that refused its parameters stops the run at once (exit `REFUSED_EXIT`), with its
+    line (`refusal_line`)."""
     code = 1
     gone = set()
     with supervised('swarm run', first=('record',)) as (sup, stopped):
@@ -376,6 +406,19 @@ def run_processes(params: dict, params_file: Path, specs, env, record=None, out_
                     stopped_by.append(line)
                 code = 1
                 break
+            refused = [(k, refusal_line(by_label[k], sup.procs[k].returncode, note_of(notes, sup.procs[k].pid)))
+                       for k in dead if k in members and k not in gone]
+            refused = [(k, line) for k, line in refused if line]
+            if refused:
+                line = refused[0][1]
+                print(f'swarm run: {line}; stopping the run', file=sys.stderr, flush=True)
+                if stopped_by is not None:
+                    stopped_by.append(line)
+                code = REFUSED_EXIT
+                for k, p in sup.alive().items():     # SIGTERM: a node still importing ends without a
+                    if k != 'record':                 # traceback (SIGINT would raise in it); the rest stop
+                        p.send_signal(signal.SIGTERM)
+                break
             for k in [k for k in dead if k in members]:
                 gone.add(k)
                 print(exit_line(by_label[k], sup.procs[k].returncode, events_file), file=sys.stderr, flush=True)
@@ -387,8 +430,9 @@ def run_processes(params: dict, params_file: Path, specs, env, record=None, out_
             dead = [k for k in dead if k not in members and k != 'record']      # ... or the discovery server
             if dead:
                 k = dead[0]
-                print(f'swarm run: {k} exited with code {sup.procs[k].returncode}; stopping the run',
-                      file=sys.stderr, flush=True)
+                note = note_of(notes, sup.procs[k].pid)
+                print(f'swarm run: {k} exited with code {sup.procs[k].returncode}{f": {note}" if note else ""}; '
+                      'stopping the run', file=sys.stderr, flush=True)
                 code = 1
                 break
             time.sleep(0.05)

@@ -74,18 +74,30 @@ def robot_parameters(spec, kind: str, mode: str) -> dict:
                 robot_frame=spec.frame, cmd_type=spec.cmd_type)
 
 
+def robot_steps(scn, robots: dict) -> str | None:
+    """Whether the robots of ``robots`` ({name: kind}) can follow the steps of ``scn``
+    (`swarm_core.robot_units.RobotsSpec.step_check`): ValueError naming the scale if a step
+    lasts longer than `swarm_core.robot_units.MAX_ROBOT_STEP` robot s; the one warning line if
+    the robots brake in every step; None (also without robots, or without a ``robots:`` section,
+    which `apply_robots` refuses).  The scenario loader has checked the robot description."""
+    if not robots or scn.spec.robots is None:
+        return None
+    return scn.spec.robots.step_check(scn.dt)
+
+
 def apply_robots(params: dict, scn, robots: dict, mode: str) -> str | None:
     """Set the robot parameters of the agents in ``robots`` ({name: kind}) in ``params`` (every
     node's parameters); the line that says the scale (None without robots).  Realtime with
     external robots: the world's clock runs at v0/L model s per wall s, since a robot lives in
     wall time (``swarm join``: the run's world does that).  ValueError when the scenario has no
-    ``robots:`` section."""
+    ``robots:`` section or a step is too long for the robots (`robot_steps`)."""
     if not robots:
         return None
     spec = scn.spec.robots
     if spec is None:
         raise ValueError(f'--robots: the scenario {scn.name!r} has no robots: section '
                          '(length_scale, cruise_speed; see docs/robots.md)')
+    robot_steps(scn, robots)
     for nm, kind in robots.items():
         params[f'/{nm}/agent'].update(robot_parameters(spec, kind, mode))
     units = spec.units()
