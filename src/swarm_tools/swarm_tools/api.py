@@ -20,6 +20,7 @@ import atexit
 import json
 import os
 import signal
+import struct
 import subprocess
 import sys
 import tempfile
@@ -30,10 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
+from swarm_core.checks import MAX_TIME, Bound
 from swarm_core.engine.trajectory import Trajectory
 from swarm_core.model.frenet import yaw_from_quaternion
 from swarm_ros import protocol as P
 from swarm_ros import runinfo
+from swarm_ros.msg_checks import Senders, check_values, refused
+from swarm_ros.run_control import EventRefused, run_event
 from swarm_tools.live.client import Client, NoSwarm, SwarmError, TwoRuns, UnknownAgent
 from swarm_tools.live.view import metrics_numbers
 from swarm_tools.run.processes import die_with_parent
@@ -47,6 +51,20 @@ LOG_NAME = 'swarm_run.log'
 
 class WaitTimeout(SwarmError, TimeoutError):
     """`Swarm.wait_until`: the predicate was not true within the timeout."""
+
+
+#: how long `Swarm.start` listens for a run already on the domain before it starts its own (wall s):
+#: a new participant found a running swarm after 0.15-3 s on a busy 2-core machine
+BUSY_DISCOVERY = 4.0
+
+
+def check_timeout(name: str, value, none=False):
+    """A timeout (wall or sim seconds) given to a `Swarm` method, as a float: ValueError (an
+    `InputError`) naming the argument for one that is not a finite number in [0, `MAX_TIME`]
+    (NaN, ∞, negative, a bool or a string); None stays None where ``none`` allows it."""
+    if value is None and none:
+        return None
+    return Bound(name, 0.0, MAX_TIME).check(value)
 
 
 def run_argv(scenario, *, mode='lockstep', rtf=1.0, duration=None, out=None, agents_per_process=1,
@@ -76,14 +94,22 @@ class States:
 
 
 class _Observer:
-    """``/world/metrics``, ``/swarm/states`` and ``/swarm/events`` heard on a client's node."""
+    """``/world/metrics``, ``/swarm/states`` and ``/swarm/events`` heard on a client's node.
+    Each message is read defensively: one that cannot be read (malformed, a state that
+    `msg_checks.check_values` refuses, a second publisher of a name, an agent not in the run,
+    JSON that is too long or too deep) is counted in the client's ``reject`` log (one line per
+    kind, rate-limited) and dropped; the reader goes on."""
 
-    def __init__(self, client: Client):
+    def __init__(self, client: Client, swarm):
         from diagnostic_msgs.msg import DiagnosticArray
         from nav_msgs.msg import Odometry
         from std_msgs.msg import String
         node, self.lock = client.node, client.lock
+        self.reject = client.reject
+        self.swarm = swarm                       # its roster (`Swarm.agents`), once known
         self.metrics, self.states, self.events = None, {}, []
+        self.newest = {}                         # name → (t, x, y, qz, qw): `check_values`' table
+        self.senders = Senders()
         node.create_subscription(DiagnosticArray, P.METRICS, self._on_metrics, 10)
         node.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(P.STATES_DEPTH), raw=True)
         node.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
@@ -92,26 +118,42 @@ class _Observer:
         for st in msg.status:
             m = metrics_numbers({kv.key: kv.value for kv in st.values})
             if 'clusters' in m:
+                if not np.isfinite(m['clusters']):
+                    self.reject('metrics', f'{P.METRICS}: clusters={m["clusters"]!r}')
+                    continue
                 m['clusters'] = int(m['clusters'])
             with self.lock:
                 self.metrics = m
 
     def _on_state(self, raw):
-        _, name, sec, nsec, (x, y, _, _, qz, qw), _, wz, _ = P.cdr_to_odometry_full(raw)
+        try:
+            _, name, sec, nsec, pose, _, wz, tag = P.cdr_to_odometry_full(raw)
+        except (struct.error, IndexError, ValueError) as err:
+            self.reject('state-decode', f'{P.STATES}: a malformed message ({len(raw)} bytes: {err})')
+            return
         t = sec + nsec * 1e-9
+        roster = self.swarm.agents
+        why = check_values(name, t, pose, wz, roster if roster else (name,), self.newest)
+        if why is None:
+            why = self.senders.check(name, tag)
+        if refused(self.reject, why):
+            return
+        self.senders.accept(name, tag)
+        x, y, _, _, qz, qw = pose
+        self.newest[name] = (t, x, y, qz, qw)
         with self.lock:
-            old = self.states.get(name)
-            if old is None or old[0] <= t:
-                self.states[name] = (t, x, y, float(yaw_from_quaternion(qz, qw)), wz)
+            self.states[name] = (t, x, y, float(yaw_from_quaternion(qz, qw)), wz)
 
     def _on_event(self, msg):
+        """An event of this run (`run_control.run_event`: a forged one without the run's id
+        cannot satisfy a command's wait); others are counted."""
         try:
-            ev = json.loads(msg.data)
-        except ValueError:
+            ev = run_event(msg.data, self.swarm.run_id)
+        except EventRefused as err:
+            self.reject(err.kind, str(err))
             return
-        if isinstance(ev, dict):
-            with self.lock:
-                self.events.append(ev)
+        with self.lock:
+            self.events.append(ev)
 
 
 class Swarm:
@@ -122,18 +164,27 @@ class Swarm:
         self.client, self.run, self.proc = client, run, proc
         self.out = None if out is None else Path(out)
         self.log = [] if log is None else log       # what `swarm run` printed (started runs; `LOG_NAME`)
-        self._obs = _Observer(client)
+        self._obs = _Observer(client, self)
         client.follow_clock()
 
     # ------------------------------------------------------------ making one
     @classmethod
     def start(cls, scenario, mode='lockstep', rtf=1.0, duration=None, out=None, agents_per_process=1,
-              record=None, *, domain=None, start_timeout=180.0, echo=False, **overrides) -> 'Swarm':
+              record=None, *, domain=None, start_timeout=180.0, echo=False, busy_wait=BUSY_DISCOVERY,
+              **overrides) -> 'Swarm':
         """Start ``swarm run SCENARIO`` with these options (``overrides``: any other ``swarm
         run`` option as a keyword, e.g. ``seed=3``, ``no_figure=True``) on ``domain`` (None:
         ROS_DOMAIN_ID); ``out`` None: a new temporary directory.  Returns once the run has
         announced itself and its sim time runs; `SwarmError` (with what ``swarm run`` said) if
-        it ends or does not start within ``start_timeout`` wall s.  ``echo``: print its lines."""
+        it ends or does not start within ``start_timeout`` wall s, or naming the other run if
+        one is already on the domain (then nothing is started: that run's clients see nothing
+        of this one; ``busy_wait``: wall s to listen for one, 0 on a domain held for this run
+        alone, as the pytest plugin's).  ``echo``: print its lines."""
+        start_timeout = check_timeout('start_timeout', start_timeout)
+        busy_wait = check_timeout('busy_wait', busy_wait)
+        busy = _run_on_domain(domain, busy_wait) if busy_wait > 0 else None
+        if busy:
+            raise SwarmError(busy)
         out = Path(out if out is not None else tempfile.mkdtemp(prefix='swarm_api_')).resolve()
         argv = run_argv(scenario, mode=mode, rtf=rtf, duration=duration, out=out,
                         agents_per_process=agents_per_process, record=record, **overrides)
@@ -178,7 +229,11 @@ class Swarm:
         end = time.monotonic() + timeout
         while time.monotonic() < end:
             ok, run = started()
-            if ok:
+            if ok:              # the clock is this run's only if no other run is on the domain
+                Client.until(self.client.watch.heard_all, min(runinfo.ANNOUNCE_WAIT, max(0.0, end - time.monotonic())))
+                others = [r for rid, r in self.client.runs.items() if rid != run['run_id']]
+                if others:
+                    raise SwarmError(_busy_line(others, self.client.ctx.get_domain_id()))
                 self.run = run
                 return
             if self.proc.poll() is not None:
@@ -194,6 +249,7 @@ class Swarm:
         ``run_id``; ``out``: its output directory (for `trajectory`).  Waits up to ``wait``
         wall s for its announcement; `NoSwarm`, or `TwoRuns` when two share the domain and no
         ``run_id`` is given."""
+        wait = check_timeout('wait', wait)
         client = Client(domain, name='swarm_api')
         try:
             Client.until(lambda: (run_id in client.runs) if run_id else client.runs, wait)
@@ -258,6 +314,7 @@ class Swarm:
     def set_lambda(self, value: float, ramp: float = 20.0, *, wait: float = 10.0, timeout: float = 30.0) -> None:
         """Ramp λ to ``value`` over ``ramp`` sim s; returns once the commander has applied the
         set-point (its ``command`` event); without a commander, once λ is on ``/swarm/lambda``."""
+        wait, timeout = check_timeout('wait', wait), check_timeout('timeout', timeout)
         before = self._mark()
         if self._call(self.client.set_lambda, value, ramp, wait, prog='Swarm.set_lambda') != 'commander':
             return                      # no commander: λ went out on /swarm/lambda as it is
@@ -267,6 +324,7 @@ class Swarm:
     def steer(self, agent: str, curvature: float, *, wait: float = 10.0, timeout: float = 30.0) -> None:
         """Make ``agent`` a leader steering the constant ``curvature``; returns once the
         commander has applied it."""
+        wait, timeout = check_timeout('wait', wait), check_timeout('timeout', timeout)
         before = self._mark()
         name = self._call(self.client.steer, agent, curvature, wait, prog='Swarm.steer')
         self._taken(lambda ev: ev.get('kind') == 'command' and ev.get('command') == 'steer'
@@ -275,6 +333,7 @@ class Swarm:
 
     def kill(self, agent: str, *, wait: float = 10.0, timeout: float = 30.0) -> None:
         """Kill ``agent``; returns once the world has taken it out (its ``kill`` event)."""
+        wait, timeout = check_timeout('wait', wait), check_timeout('timeout', timeout)
         before = self._mark()
         name = self._call(self.client.fault, 'kill', agent, wait=wait, prog='Swarm.kill')
         self._taken(lambda ev: ev.get('kind') == 'kill' and ev.get('agent') == name, before,
@@ -282,6 +341,7 @@ class Swarm:
 
     def pause(self, agent: str, seconds: float, *, wait: float = 10.0, timeout: float = 30.0) -> None:
         """Freeze ``agent`` for ``seconds`` sim s; returns once the world has frozen it."""
+        wait, timeout = check_timeout('wait', wait), check_timeout('timeout', timeout)
         before = self._mark()
         name = self._call(self.client.fault, 'freeze', agent, seconds, wait=wait, prog='Swarm.pause')
         self._taken(lambda ev: ev.get('kind') == 'freeze' and ev.get('agent') == name, before,
@@ -290,10 +350,12 @@ class Swarm:
     def partition(self, *groups, wait: float = 10.0) -> float:
         """Groups of agent names that cannot hear each other (no groups: heal); returns the sim
         time it was stamped with, once every agent's reader has acknowledged it."""
+        wait = check_timeout('wait', wait)
         return self._call(self.client.partition, list(groups), wait, prog='Swarm.partition')[0]
 
     def drop(self, loss: float, duration=None, *, wait: float = 10.0) -> float:
         """Burst loss ``loss`` on every link for ``duration`` sim s (None: until changed)."""
+        wait = check_timeout('wait', wait)
         return self._call(self.client.drop, loss, duration, wait, prog='Swarm.drop')[0]
 
     # ------------------------------------------------------------ observation
@@ -328,6 +390,10 @@ class Swarm:
         ``on='states'``, ``states()``) and return that sample.  ``timeout``: sim seconds from
         now (read on ``/clock``); `WaitTimeout` when they pass, or after ``wall_timeout`` wall s
         (default 60 + 10 × timeout) if sim time stalls; `SwarmError` if the run ends first."""
+        timeout = check_timeout('timeout', timeout)
+        wall_timeout = check_timeout('wall_timeout', wall_timeout, none=True)
+        if on not in ('metrics', 'states'):
+            raise ValueError(f"on={on!r}: 'metrics' or 'states'")
         sample_of = {'metrics': self.metrics, 'states': self.states}[on]
         wall = 60.0 + 10.0 * timeout if wall_timeout is None else wall_timeout
         wall_end = time.monotonic() + wall
@@ -357,7 +423,8 @@ class Swarm:
         return self.proc is None or self.proc.poll() is None
 
     def wait(self, timeout=None) -> int:
-        """Wait for the run to end by itself (``timeout`` wall s); its exit code."""
+        """Wait for the run to end by itself (``timeout`` wall s, None: for ever); its exit code."""
+        timeout = check_timeout('timeout', timeout, none=True)
         if self.proc is None:
             raise SwarmError('Swarm.wait: an attached run is not ours to wait for')
         return self.proc.wait(timeout=timeout)
@@ -365,6 +432,7 @@ class Swarm:
     def stop(self, grace: float = 60.0):
         """Stop a started run as Ctrl-C does (SIGINT; the outputs are written), SIGKILL after
         ``grace`` wall s; its exit code (None for an attached run, which goes on)."""
+        grace = check_timeout('grace', grace)
         if self.proc is None:
             return None
         if self.proc.poll() is None:
@@ -416,6 +484,27 @@ class Swarm:
     def metrics_json(self) -> dict:
         """The run's metrics.json (its summary and series), after the run."""
         return json.loads(self._output('metrics.json').read_text())
+
+
+def _busy_line(runs, domain) -> str:
+    """The error of a `Swarm.start` on a domain where ``runs`` are already announced."""
+    return (f'Swarm.start: another swarm run is on ROS_DOMAIN_ID={domain} ('
+            + '; '.join(runinfo.describe(r) for r in runs)
+            + '): refusing to start one more (give each run its own ROS_DOMAIN_ID)')
+
+
+def _run_on_domain(domain, wait=BUSY_DISCOVERY):
+    """The error line if a run already announces itself on ``domain`` (None: ROS_DOMAIN_ID),
+    else None: listens ``wait`` wall s for a ``/swarm/run`` writer or a ``/world``
+    node, and then for every writer's announcement (at most `runinfo.ANNOUNCE_WAIT` s).  A
+    client of its own, closed before the run starts."""
+    with Client(domain, name='swarm_api_probe') as probe:
+        def seen():
+            return probe.node.count_publishers(P.RUN) > 0 or runinfo.has_world(probe.node)
+        if Client.until(seen, wait):
+            Client.until(lambda: probe.runs and probe.watch.heard_all(), runinfo.ANNOUNCE_WAIT)
+        runs = list(probe.runs.values())
+        return _busy_line(runs, probe.ctx.get_domain_id()) if runs else None
 
 
 def _read_lines(proc, path: Path, log: list, echo: bool):

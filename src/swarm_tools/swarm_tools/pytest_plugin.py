@@ -3,7 +3,8 @@
 
 ``ros_domain``  a ROS_DOMAIN_ID of the test's own (held with a lock file, so parallel pytest
     runs on one machine never share one), localhost-only discovery, set in os.environ for the
-    test (child processes inherit it); gives the id.
+    test (child processes inherit it); gives the id.  The ids it takes: ``--swarm-domains
+    LO-HI``, else the environment's ``SWARM_DOMAINS=LO-HI``, else 1-100 (`DOMAINS`).
 ``swarm``  a function ``swarm(scenario, **options)`` that starts `swarm_tools.api.Swarm` on the
     test's domain (``out`` defaults to a directory in tmp_path); after the test, passed or
     failed, every run it started is stopped and every process of it is gone.
@@ -21,12 +22,57 @@ import pytest
 # Domain ids 1..100 are safe on Linux (ports below the ephemeral range).  A test holds an
 # exclusive flock on <SWARM_DOMAIN_LOCK_DIR>/<id>.lock for as long as it uses the id.
 _LOCK_DIR = Path(os.environ.get('SWARM_DOMAIN_LOCK_DIR', '/tmp/homotopy-swarm-domains'))
-_start = itertools.count((os.getpid() * 7) % 100)
+_start = itertools.count((os.getpid() * 7) % 1000)
+
+#: the ids `claim_domain` takes by default (LO, HI, both included)
+DOMAINS = (1, 100)
+#: the environment variable that sets them (``LO-HI``; the option ``--swarm-domains`` wins)
+DOMAINS_ENV = 'SWARM_DOMAINS'
+#: the highest ROS_DOMAIN_ID there is (DDS ports past it do not fit)
+MAX_DOMAIN = 232
+_DOMAINS_KEY = pytest.StashKey()
+
+
+def domain_range(text, source: str) -> tuple:
+    """(LO, HI) of ``text``, ``LO-HI`` or one id; ValueError naming ``source`` (the option or
+    the variable) unless 0 ≤ LO ≤ HI ≤ `MAX_DOMAIN`."""
+    lo, sep, hi = str(text).strip().partition('-')
+    try:
+        lo, hi = int(lo), int(hi if sep else lo)
+    except ValueError:
+        raise ValueError(f'{source}={text!r}: want LO-HI, two ROS_DOMAIN_IDs (e.g. 1-100)') from None
+    if not 0 <= lo <= hi <= MAX_DOMAIN:
+        raise ValueError(f'{source}={text!r}: want 0 <= LO <= HI <= {MAX_DOMAIN}')
+    return lo, hi
+
+
+def domains(option=None) -> tuple:
+    """The ids to take: ``option`` (the text of ``--swarm-domains``) if given, else
+    `DOMAINS_ENV` if set, else `DOMAINS`."""
+    if option:
+        return domain_range(option, '--swarm-domains')
+    env = os.environ.get(DOMAINS_ENV, '').strip()
+    return domain_range(env, DOMAINS_ENV) if env else DOMAINS
+
+
+def pytest_addoption(parser):
+    parser.addoption('--swarm-domains', default=None, metavar='LO-HI', help=(
+        f'the ROS_DOMAIN_IDs the ros_domain fixture takes, LO to HI (default: ${DOMAINS_ENV}, else '
+        f'{DOMAINS[0]}-{DOMAINS[1]})'))
+
+
+def pytest_configure(config):
+    try:                                  # a bad range: one line, before any test
+        config.stash[_DOMAINS_KEY] = domains(config.getoption('swarm_domains', None))
+    except ValueError as err:
+        raise pytest.UsageError(str(err)) from None
 
 
 #: seconds an id rests after its last user let it go: the participants of that user's killed
 #: processes stay in discovery until their lease ends, and a new user would see their endpoints
 QUARANTINE = 30.0
+#: seconds `claim_domain` waits for a free id before it gives up
+CLAIM_WAIT = 2 * QUARANTINE
 
 
 def _released_at(f) -> float:
@@ -47,13 +93,20 @@ def release_domain(f) -> None:
     f.close()
 
 
-def claim_domain():
-    """(domain id, open lock file) of a free id that has rested `QUARANTINE` s since its last
-    user; the id is ours until `release_domain` (or the file is closed)."""
+def claim_domain(ids=None):
+    """(domain id, open lock file) of a free id among ``ids`` ((LO, HI); None: `domains`) that
+    has rested `QUARANTINE` s since its last user; the id is ours until `release_domain` (or
+    the file is closed).  Tries every id once a second, for up to `CLAIM_WAIT` s (a small range
+    of a CI's waits for its ids to rest)."""
+    lo, hi = domains() if ids is None else ids
+    size = hi - lo + 1
     _LOCK_DIR.mkdir(parents=True, exist_ok=True)
     first = next(_start)
-    for attempt in range(3 * 100):
-        dom = 1 + (first + attempt) % 100
+    end = time.monotonic() + CLAIM_WAIT
+    for attempt in itertools.count():
+        if attempt % size == 0 and attempt and time.monotonic() > end:
+            break
+        dom = lo + (first + attempt) % size
         f = open(_LOCK_DIR / f'{dom}.lock', 'a+')
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -61,17 +114,17 @@ def claim_domain():
                 raise OSError('resting')
         except OSError:
             f.close()
-            if attempt % 100 == 99:
+            if attempt % size == size - 1:
                 time.sleep(1.0)
             continue
         return dom, f
-    raise RuntimeError(f'no free ROS_DOMAIN_ID in 1..100 (locks in {_LOCK_DIR})')
+    raise RuntimeError(f'no free ROS_DOMAIN_ID in {lo}..{hi} (locks in {_LOCK_DIR})')
 
 
 @pytest.fixture
 def ros_domain(monkeypatch, request):
-    """A fresh ROS_DOMAIN_ID for this test, localhost-only discovery; returns the id."""
-    dom, lock = claim_domain()
+    """A fresh ROS_DOMAIN_ID for this test (of `domains`), localhost-only discovery; returns the id."""
+    dom, lock = claim_domain(request.config.stash.get(_DOMAINS_KEY, None))
     request.addfinalizer(lambda: release_domain(lock))
     monkeypatch.setenv('ROS_DOMAIN_ID', str(dom))
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
@@ -89,6 +142,7 @@ def swarm(ros_domain, tmp_path):
 
     def start(scenario, **options):
         options.setdefault('out', tmp_path / f'run{len(started)}')
+        options.setdefault('busy_wait', 0.0)        # the domain is this test's alone (`ros_domain`)
         run = Swarm.start(scenario, domain=ros_domain, **options)
         started.append(run)
         return run

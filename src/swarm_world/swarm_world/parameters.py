@@ -28,8 +28,9 @@ WORLD = {
                      dict(lo=1.0, hi=1e9)),
     'start_timeout': (180.0, 'give up if not everyone is discovered in this many wall s', dict(lo=1.0, hi=1e6)),
     'collision_distance': (0.01, 'pairs closer than this count as a collision', dict(lo=0.0, hi=1e6)),
-    'missing_timeout': (10.0, 'lockstep: drop an agent whose state has not come after this many wall s',
-                        dict(lo=0.1, hi=1e6)),
+    'missing_timeout': (10.0, 'lockstep: drop an agent whose state has not come after this many wall s; '
+                        'realtime: an agent (not frozen by a fault) that has sent no state for this many wall s '
+                        'is lost', dict(lo=0.1, hi=1e6)),
     'step_readers': (0, 'lockstep: readers of the step relay to wait for (one per agent process; 0: one per '
                      'agent)', dict(lo=0, hi=100000)),
     'clock_readers': (0, 'with wait_for_recorder: /clock readers to wait for (0: commander + recorder; '
@@ -51,5 +52,5 @@ WORLD = {
 MODE_PARAMETERS = {
     'lockstep': ('clock_every', 'stall_timeout', 'wait_for_recorder', 'step_timeout', 'start_timeout',
                  'missing_timeout', 'step_readers', 'clock_readers', 'robot_poses'),
-    'realtime': ('rtf', 'future_tolerance'),
+    'realtime': ('rtf', 'future_tolerance', 'missing_timeout'),
 }

@@ -1,9 +1,10 @@
 """The realtime world's schedule, without ROS: as the clock passes step k, the scheduled
-radio events and faults that are due, and when to refresh the view.
+radio events and faults that are due, and when to refresh the view; and which agents have
+gone silent for good (`SilenceWatch`: a process killed from outside is lost, as in lockstep).
 
 Returns actions in the lockstep barrier's vocabulary (`swarm_world.lockstep`):
-``('comms', k, event)``, ``('event', ev)`` and ``('signal', i, what)``.  Also the wall period of
-the world's tick (`clock_tick`)."""
+``('comms', k, event)``, ``('event', ev)``, ``('signal', i, what)`` and ``('fail', why)``.
+Also the wall period of the world's tick (`clock_tick`)."""
 from __future__ import annotations
 
 import math
@@ -12,6 +13,7 @@ import numpy as np
 
 from swarm_core.faults.agents import track_slots
 from swarm_core.model.frenet import yaw_from_quaternion
+from swarm_ros import protocol as P
 
 SIGNAL_OF = {'kill': 'kill', 'freeze': 'stop', 'resume': 'cont'}   # fault event → signal
 #: the realtime world ticks (and publishes /clock) at least this often, wall s ...
@@ -81,9 +83,65 @@ class RealtimeSchedule:
         """Follow the commander's leader slots from its events."""
         track_slots(self.slots, ev, self.row)
 
+    def lose(self, gone, last_t, dt, silent_for):
+        """Agents ``gone`` (rows) went silent (`SilenceWatch`): they are lost, as lockstep drops
+        its missing agents (`LockstepBarrier.drop_missing`), from the step after their newest
+        state (``last_t``: its sim time per row).  Returns (actions, {row: the step it is
+        gone from}): one ``lost`` event each, and ``fail`` if no agent is left."""
+        acts, since = [], {}
+        names = list(self.row)
+        for i in gone:
+            i = int(i)
+            k = P.step_of(float(last_t[i]), dt) + 1
+            self.faults.mark_lost(i)
+            since[i] = k
+            acts.append(('event', dict(t=k * dt, step=k, kind='lost', agent=names[i],
+                                       silent_for=round(float(silent_for), 3))))
+        if len(gone) and self.faults.dead.all():
+            acts.append(('fail', f'no state from {", ".join(names[int(i)] for i in gone)} for '
+                                 f'{silent_for:.1f} s (lost): every agent is lost or killed: no agent is '
+                                 'left, the run ends here'))
+        return acts, since
 
-def newest_view(heard):
+
+class SilenceWatch:
+    """Realtime: which agents have sent no state for ``timeout`` wall s (the world's
+    ``missing_timeout``, lockstep's time before it drops a missing agent).  An agent not
+    watched (dead, or frozen by a fault: its silence is the fault's) starts a new silence when it
+    is watched again; so does every agent after a gap in the world's own ticks longer than half
+    the timeout (a world that did not run cannot tell who was silent)."""
+
+    def __init__(self, n, timeout):
+        self.timeout = float(timeout)
+        self.last = np.zeros(int(n))          # wall time of each agent's newest state (or restart)
+        self.checked = None                   # wall time of the last `silent` call
+
+    def start(self, now):
+        """The run starts (every agent has been heard): each silence counts from ``now``."""
+        self.last[:] = now
+        self.checked = now
+
+    def heard(self, i, now):
+        """Agents ``i`` (rows) sent a state that was taken, at wall time ``now``."""
+        self.last[i] = now
+
+    def silent(self, now, watched):
+        """(rows of the watched agents silent for more than the timeout, the longest silence
+        among them in wall s).  ``watched``: (n,) bool."""
+        if self.checked is None:
+            return np.zeros(0, np.intp), 0.0
+        before, self.checked = self.checked, now
+        if now - before > self.timeout / 2:   # the world itself stood still: nobody's silence
+            self.last = np.where(self.last <= before, self.last + (now - before), self.last)
+        self.last[~watched] = now
+        quiet = now - self.last
+        gone = np.flatnonzero(watched & (quiet > self.timeout))
+        return gone, float(quiet[gone].max()) if gone.size else 0.0
+
+
+def newest_view(heard, keep=None):
     """Positions (m, 2) and headings (m,) of the agents heard (``heard``: a
-    `msg_checks.NewestStates`), in roster order."""
-    have = np.isfinite(heard.t)
+    `msg_checks.NewestStates`) and in ``keep`` ((n,) bool, None: all: not the dead ones), in
+    roster order."""
+    have = np.isfinite(heard.t) if keep is None else np.isfinite(heard.t) & keep
     return heard.state[have, :2], yaw_from_quaternion(heard.state[have, 2], heard.state[have, 3])

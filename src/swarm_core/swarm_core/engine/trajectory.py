@@ -69,6 +69,7 @@ class TrajectoryRecorder:
         self.leader = np.zeros((T, self.n), bool)
         self.freezes = []          # (agent index, k0, k1)
         self.held = {}             # frozen agent index → (step, (x, y, qz, qw), u)
+        self.lost = {}             # agent index → the step it is gone from (`mark_lost`)
 
     # ------------------------------------------------------------------ lockstep rows
     def record_states(self, k, mask, x, y, qz, qw):
@@ -85,7 +86,9 @@ class TrajectoryRecorder:
         self.lam[k], self.leader[k] = lam, leaders
 
     def mark_lost(self, i, k):
-        """Agent i is gone from step k on: its u is unknown from u_{k-1}."""
+        """Agent i is gone from step k on: its u is unknown from u_{k-1} (realtime: and its
+        state, not held from its last one)."""
+        self.lost[i] = min(int(k), self.lost.get(i, int(k)))
         if k > 0:
             self.u[k - 1:, i] = np.nan
 
@@ -136,6 +139,8 @@ class TrajectoryRecorder:
                 r[k, miss], theta[k, miss] = r[k - 1, miss], theta[k - 1, miss]
                 if not np.isfinite(lam[k]):       # no state recorded at step k
                     lam[k], leader[k] = lam[k - 1], leader[k - 1]
+            for i, k in self.lost.items():       # a lost agent is not held where it died
+                r[max(k, 0):, i], theta[max(k, 0):, i] = np.nan, np.nan
         for i, k0, k1 in self.freezes:           # a frozen agent holds its freeze-step state
             src = self.frozen_state(i, k0)
             if src is not None:

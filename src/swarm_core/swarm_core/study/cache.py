@@ -1,20 +1,26 @@
 """The study cache (no ROS): one JSON file per finished run, checked before it is used.
 
-A cached file is a row of the study's table only if it passes `check_row`: a mapping with the
-run's own cell and seed and a ``result`` of the row schema (`run_task`'s row: ``ok`` and every
-check True/False/None; every other value None, a bool or a finite number; cluster counts whole
-numbers from 1 to the run's agents; ``ok`` the verdict of the checks).  A file that fails
-(hand-edited, truncated, ``[]``, ``1e999``) is run again with one warning.  What the check
-cannot catch is a forged row that passes it (docs/studies.md)."""
+A cached file is a row of the study's table only if it is a regular file (not a symbolic
+link, a directory, a FIFO, a device or a socket: `Cache.read` never opens one, so a FIFO
+cannot hang the study) and passes `row_error`: a mapping with the run's own key, cell and seed
+and a ``result`` of the row schema (`run_task`'s row: ``ok`` and every check True/False/None;
+every other value None, a bool or a finite number; cluster counts whole numbers from 1 to the
+run's agents; ``ok`` the verdict of the checks).  An entry that fails (hand-edited, truncated,
+``[]``, ``1e999``, another key's file, a planted link) is run again with one warning; a result
+is written over a regular file only (`Cache.put`).  What the check cannot catch is a forged
+row that passes it (docs/studies.md)."""
 from __future__ import annotations
 
+import errno
 import json
 import math
 import numbers
+import os
+import stat
 from pathlib import Path
 
 from swarm_core.checks import json_value
-from swarm_core.files import write_atomic
+from swarm_core.files import _KINDS, write_atomic
 
 #: metrics taken from `analysis.summary_of` into every row
 ROW_METRICS = ('final_clusters', 'max_clusters', 'min_distance', 'final_polarisation',
@@ -43,11 +49,13 @@ def _verdict(checks: dict):
     return None if any(v is None for v in checks.values()) else True
 
 
-def row_error(doc, cell: dict, seed: int, agents: int):
-    """Why ``doc`` (a cached file's value) is not the row of the run (``cell``, ``seed``) of a
-    scenario with ``agents`` agents, or None if it is."""
+def row_error(doc, cell: dict, seed: int, agents: int, key=None):
+    """Why ``doc`` (a cached file's value) is not the row of the run (``cell``, ``seed``, cache
+    ``key`` if given) of a scenario with ``agents`` agents, or None if it is."""
     if not isinstance(doc, dict) or not isinstance(doc.get('result'), dict):
         return 'not a mapping with a result'
+    if key is not None and doc.get('key') != key:
+        return 'the file of another run (its key is not this one)'
     if doc.get('cell') != cell or doc.get('seed') != seed or isinstance(doc.get('seed'), bool):
         return 'the cell or seed of another run'
     res = doc['result']
@@ -84,14 +92,54 @@ class Cache:
     def path(self, key):
         return self.root / f'{key}.json'
 
-    def get(self, key):
-        """The file's JSON value; None if there is none or it is not JSON (or too long)."""
+    def read(self, key):
+        """(the entry's JSON value, None), (None, None) if there is no entry, or (None, why it
+        is not one): not a regular file (never opened: a FIFO would block; opened without
+        following a link and without blocking, so one planted meanwhile is refused too), not
+        readable, too long or not JSON."""
         p = self.path(key)
         try:
-            with open(p, encoding='utf-8') as fh:
-                return json_value(fh.read(MAX_ROW_CHARS + 1), MAX_ROW_CHARS)
-        except (OSError, ValueError):
-            return None
+            why = _not_regular(os.lstat(p).st_mode)
+            if why:
+                return None, why
+            fd = os.open(p, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+        except FileNotFoundError:
+            return None, None
+        except OSError as err:
+            return None, 'a symbolic link' if err.errno == errno.ELOOP else f'not readable ({err.strerror})'
+        try:
+            why = _not_regular(os.fstat(fd).st_mode)
+            if why:
+                return None, why
+            with os.fdopen(fd, encoding='utf-8') as fh:
+                fd = None
+                return json_value(fh.read(MAX_ROW_CHARS + 1), MAX_ROW_CHARS), None
+        except (OSError, ValueError) as err:
+            return None, f'not JSON ({err})' if isinstance(err, ValueError) else f'not readable ({err.strerror})'
+        finally:
+            if fd is not None:
+                os.close(fd)
+
+    def get(self, key):
+        """The entry's JSON value; None if there is none or it is not one (`read`)."""
+        return self.read(key)[0]
+
+    def writable(self, key) -> bool:
+        """Whether `put` can write the entry: absent or a regular file (not a link, a
+        directory, a FIFO ...: those are never written through or replaced)."""
+        try:
+            return not _not_regular(os.lstat(self.path(key)).st_mode)
+        except FileNotFoundError:
+            return True
 
     def put(self, key, doc):
-        write_atomic(self.path(key), json.dumps(doc))
+        """Write the entry (with its key, `row_error`) atomically; OSError (`files.write_atomic`)
+        if something that is not a regular file is at its path."""
+        write_atomic(self.path(key), json.dumps(dict(doc, key=key)))
+
+
+def _not_regular(mode: int):
+    """What a cache entry of ``mode`` (lstat) is if it is not a regular file (else None)."""
+    if stat.S_ISREG(mode):
+        return None
+    return next((kind for test, kind in _KINDS if test(mode)), 'not a regular file')

@@ -16,6 +16,7 @@ import hashlib
 import importlib.util
 import json
 import signal
+import sys
 import warnings
 from concurrent import futures
 from concurrent.futures import ProcessPoolExecutor
@@ -27,6 +28,7 @@ import numpy as np
 from pydantic import BaseModel
 
 from swarm_core.analysis.outputs import analyse, summary_of
+from swarm_core.checks import InputError
 from swarm_core.engine import registry
 from swarm_core.laws import LawError
 from swarm_core.laws.parameters import LAW_KINDS
@@ -91,7 +93,8 @@ def load_study(path, base_dir=None) -> Study:
     if 'scenario' not in doc or 'grid' not in doc:
         raise StudyError(f'{path}: a study needs `scenario:` and `grid:`')
     scn = str(doc['scenario'])
-    rel = (Path(base_dir) if base_dir else p.parent) / scn
+    here = Path(base_dir) if base_dir else p.parent
+    rel = here / scn
     if scn.endswith(('.yaml', '.yml')) and rel.is_file():
         scn = str(rel)
     sets = []
@@ -105,26 +108,52 @@ def load_study(path, base_dir=None) -> Study:
                 raise StudyError(f'{path}: grid.{k}: {err}') from None
         if not isinstance(v, list) or not v:
             raise StudyError(f'{path}: grid.{k}: needs a non-empty list or a START:STOP:COUNT range')
-        sets.append((str(k), v))
+        sets.append((str(k), [_named_here(str(k), x, here) for x in v]))
     seeds = doc.get('seeds', 10)
+    fixed = doc.get('set') or {}
+    if isinstance(fixed, dict):
+        fixed = {k: _named_here(k, v, here) for k, v in fixed.items()}
     st = make_study(scn, sets, seeds=seeds, first_seed=int(doc.get('first_seed', 0)),
-                    fixed=doc.get('set') or {}, name=doc.get('name') or p.stem)
+                    fixed=fixed, name=doc.get('name') or p.stem)
     st.figure = doc.get('figure') or {}
     return st
 
 
-def validate(study: Study) -> None:
-    """Parse every cell through the scenario model; the first bad one raises `StudyError`
-    naming the ``--set`` field and the scenario's complaint.  Nothing runs."""
+#: the field of a robot description: one a study file names is relative to the study file
+DESCRIPTION_FIELD = 'robots.description'
+
+
+def _named_here(fld: str, value, here: Path):
+    """``value`` of the field ``fld`` a study file sets: a robot description's path (relative
+    to the study file's directory ``here``) made absolute, anything else as it is."""
+    if fld != DESCRIPTION_FIELD or not isinstance(value, str):
+        return value
+    return str(scenario.description_path(value, here))
+
+
+def _say(line: str) -> None:
+    print(f'swarm sweep: WARNING: {line}', file=sys.stderr, flush=True)
+
+
+def validate(study: Study, warn=_say) -> None:
+    """Parse every cell through the scenario model (which reads and checks the robot
+    description a ``robots:`` section names); the first bad one raises `StudyError` naming
+    the ``--set`` field and the scenario's complaint.  A cell on robots whose step is too long
+    for them is refused too; one whose robots brake in every step is said once (``warn``: one
+    line each, on stderr).  Nothing runs."""
     if not study.seeds:
         raise StudyError('no seeds (--seeds must be ≥ 1)')
     for k, vals in study.grid.items():
         if not vals:
             raise StudyError(f'--set {k}: empty list of values')
+    said = set()
     for k, v in study.fixed.items():
         _check_cell(study, {}, f'set {k}={v}', cell_of_grid=False)
     for cell in study.cells():
-        _check_cell(study, cell, ', '.join(f'{k}={v}' for k, v in cell.items()))
+        line = _check_cell(study, cell, ', '.join(f'{k}={v}' for k, v in cell.items()))
+        if line and line not in said:
+            said.add(line)
+            warn(line)
 
 
 def _known(data: dict, dotted: str) -> bool:
@@ -179,6 +208,12 @@ def _check_cell(study, cell, label, cell_of_grid=True):
         raise StudyError(f'{label}: {ROBOT_SET} {robots!r}: one of {", ".join(ROBOT_SETS)}')
     if robots is not None and scn.spec.robots is None and cell_of_grid:
         raise StudyError(f'{label}: {ROBOT_SET} needs the scenario\'s robots: section (length_scale, cruise_speed)')
+    if robots in (None, 'none') or not cell_of_grid:
+        return None
+    try:                # the robots of the cell follow its steps (the description: checked by parse)
+        return scn.spec.robots.step_check(scn.dt)
+    except InputError as err:
+        raise StudyError(f'{label}: {err}') from None
 
 
 # ------------------------------------------------------------------ runs and the cache
@@ -352,17 +387,21 @@ def _dask_map(todo, scheduler):
             cluster.close()
 
 
-def _cached(cache, task) -> bool:
-    """Whether the cache holds the task's row; a file that is not one (`study_cache.row_error`)
-    is run again, with one warning."""
-    doc = cache.get(task.key)
-    if doc is None and not cache.path(task.key).exists():
-        return False
-    agents = placement.AgentsSpec.model_validate(task.data['agents']).count
-    why = 'not JSON' if doc is None else row_error(doc, task.cell, task.seed, agents)
-    if why:
-        warnings.warn(f'study cache {cache.path(task.key)}: {why}; running it again', stacklevel=3)
-    return why is None
+def _cached(cache, task):
+    """The task's row if the cache holds it (None: run it); an entry that is not one (not a
+    regular file, not JSON: `Cache.read`; not this run's row: `study_cache.row_error`) is run
+    again, with one warning (which says too if the result cannot be cached there)."""
+    doc, why = cache.read(task.key)
+    if doc is None and why is None:
+        return None
+    if why is None:
+        agents = placement.AgentsSpec.model_validate(task.data['agents']).count
+        why = row_error(doc, task.cell, task.seed, agents, task.key)
+    if why is None:
+        return doc['result']
+    kept = '' if cache.writable(task.key) else ' (its result is not cached: nothing is written through or over it)'
+    warnings.warn(f'study cache {cache.path(task.key)}: {why}; running it again{kept}', stacklevel=3)
+    return None
 
 
 def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, version=None,
@@ -377,7 +416,8 @@ def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, v
     from tqdm import tqdm
     cache = Cache(cache_dir)
     all_tasks = tasks(study, version, engine)
-    todo = [t for t in all_tasks if not _cached(cache, t)]
+    results = {t.key: _cached(cache, t) for t in all_tasks}      # the rows: the cache's, then each run's
+    todo = [t for t in all_tasks if results[t.key] is None]
     counts = {'total': len(all_tasks), 'cached': len(all_tasks) - len(todo), 'ran': 0}
     by_key = {t.key: t for t in todo}
     bar = None
@@ -391,8 +431,10 @@ def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, v
                 if 'failed' in out:
                     raise LawError(out['failed'])
                 t = by_key[out['key']]
-                cache.put(t.key, {'cell': t.cell, 'seed': t.seed, 'result': out['result'],
-                                  'wall': out['wall']})
+                results[t.key] = out['result']
+                if cache.writable(t.key):          # else: warned (`_cached`), the row kept here
+                    cache.put(t.key, {'cell': t.cell, 'seed': t.seed, 'result': out['result'],
+                                      'wall': out['wall']})
                 counts['ran'] += 1
                 if bar is not None:
                     bar.update(1)
@@ -401,8 +443,5 @@ def run_study(study: Study, cache_dir, jobs=1, scheduler=None, progress=False, v
     finally:
         if bar is not None:
             bar.close()
-    rows = []
-    for t in all_tasks:
-        doc = cache.get(t.key)
-        rows.append({**t.cell, 'seed': t.seed, **doc['result']})
+    rows = [{**t.cell, 'seed': t.seed, **results[t.key]} for t in all_tasks]
     return rows, counts
