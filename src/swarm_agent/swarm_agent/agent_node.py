@@ -60,8 +60,9 @@ from swarm_core.robot_units import ROBOT_KINDS
 from swarm_core.scenario.loader import noise_rng
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RealtimeDecision
-from swarm_ros.msg_checks import RejectLog, check_barrier, decoded, new_sender_tag
+from swarm_ros.msg_checks import RejectLog, check_barrier, decoded, guard_subscriptions, new_sender_tag
 from swarm_ros.rosutil import ParameterError, declare, run_node
+from swarm_ros.run_control import event_text, run_event
 from swarm_ros.runinfo import declare_run_id
 
 
@@ -116,6 +117,7 @@ class AgentNode(Node):
         self.own = None          # (sec, nanosec, x, y, qz, qw, u) last published
         self.pub_events = None   # /swarm/events, made at the first live law change (`publish_event`)
         self.driver.start()
+        guard_subscriptions(self, self.reject, passes=(LawError,))    # no message ends the agent
         # live parameters, as in ros2/demos (set_parameters_callback.py) and the commander:
         # pre-set adjusts the request, on-set checks it, post-set applies it
         self.add_pre_set_parameters_callback(self._pre_set)
@@ -243,7 +245,7 @@ class AgentNode(Node):
         world's reader gets it once matched)."""
         if self.pub_events is None:
             self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
-        self.pub_events.publish(String(data=json.dumps(dict(ev, node='agent'))))
+        self.pub_events.publish(String(data=event_text(dict(ev, node='agent'), self.run_id)))
 
     # ------------------------------------------------------------ output
     def publish_state(self, u=None):
@@ -307,14 +309,14 @@ class AgentNode(Node):
         also the faults of this agent (the world cannot signal a process it shares); a robot
         agent obeys them too (its robot stands from a pause or kill on)."""
         try:
-            ev = json.loads(msg.data)
+            ev = run_event(msg.data, self.run_id)        # only events of this run act (docs/security.md)
             mine = isinstance(ev, dict) and ev.get('agent') == self.agent_name
             if (self.contained or self.robot != 'none') and mine and ev.get('kind') in ('kill', 'freeze', 'resume'):
                 self.fault(ev['kind'])
                 return
             change = change_from_event(ev)
         except (ValueError, TypeError) as err:
-            self.reject('event', f'{P.EVENTS} event {msg.data[:80]!r}: {str(err)[:120]}')
+            self.reject(getattr(err, 'kind', 'event'), f'{P.EVENTS} event {msg.data[:80]!r}: {str(err)[:120]}')
             return
         if change is None:
             return                    # faults, or scheduled in the scenario (applied from our copy)

@@ -58,7 +58,7 @@ from swarm_agent.robot_driver import OdometryHold
 from swarm_core.laws import LawError
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RealtimeDecision
-from swarm_ros.msg_checks import RejectLog, batch_states, decoded
+from swarm_ros.msg_checks import RejectLog, batch_states, decoded, guard_subscriptions
 from swarm_ros.rosutil import ParameterError, declare, run_node
 
 
@@ -119,6 +119,7 @@ class AgentContainer(Node):
                     a.driver.hold = self.answers
             for a in self.agents:
                 a.driver.start_lockstep(self._first_state)
+        guard_subscriptions(self, self.reject, passes=(LawError,))    # no message ends the container
         self.get_logger().info(f'{len(self.agents)} agents: {", ".join(a.agent_name for a in self.agents)}')
 
     def _first_state(self, _agent):

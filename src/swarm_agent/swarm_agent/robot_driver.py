@@ -33,7 +33,6 @@ container's clock) and sends its state in the container's batches.
 """
 from __future__ import annotations
 
-import json
 import math
 import time
 
@@ -57,7 +56,9 @@ from swarm_core.robot_units import (
     yaw_of_quaternion,
 )
 from swarm_ros import protocol as P
+from swarm_ros.msg_checks import new_sender_tag
 from swarm_ros.rosutil import ParameterError, declare, fail
+from swarm_ros.run_control import command_frame, event_text
 
 #: the robot's clock: the swarm's sim clock (a simulator on /clock, lockstep) or the system
 #: clock (real robots; their controllers stamp and time out in wall time)
@@ -114,7 +115,11 @@ class RobotLink:
                                  needs_neighbours=node.n > 1, start=self.robot_now())
         self.say = RateLimit()
         self.stamped = cmd_type == 'TwistStamped'
-        self.serialize_cmd = P.TwistWriter(f'{node.agent_name}/base_link', self.stamped)
+        # a robot of the run's MuJoCo world takes commands of this run and this link only
+        # (`run_control.CommandSenders`); an external robot's frame is its base_link
+        frame = (command_frame(node.agent_name, node.run_id, new_sender_tag()) if node.robot == 'mujoco'
+                 else f'{node.agent_name}/base_link')
+        self.serialize_cmd = P.TwistWriter(frame, self.stamped)
         self.pose = None           # newest accepted odometry: (stamp s, x, y, θ unwrapped), model units
         self.on_pose = None        # the driver's hook for a new pose
         self.cmd_pub = node.create_publisher(TwistStamped if self.stamped else Twist, 'cmd_vel',
@@ -144,8 +149,14 @@ class RobotLink:
 
     # -- odometry in
     def _on_odom(self, raw):
-        """One serialized odometry message (read raw: no message object per step)."""
-        _, _, sec, nsec, (x, y, qx, qy, qz, qw), _, _, _ = P.cdr_to_odometry_full(raw)
+        """One serialized odometry message (read raw: no message object per step); bytes that
+        are not one (a writer of another type) are counted and dropped."""
+        try:
+            _, _, sec, nsec, (x, y, qx, qy, qz, qw), _, _, _ = P.cdr_to_odometry_full(raw)
+        except Exception as err:          # struct.error, IndexError: too short, a bad length
+            self.node.reject('odom-decode', f'{self.node.get_namespace()}/odom: not a serialized Odometry '
+                             f'({len(raw)} bytes: {str(err)[:60]})')
+            return
         yaw = yaw_of_quaternion(qx, qy, qz, qw)
         why = self.guard.odometry(self.robot_now(), x, y, yaw)
         if why is not None:
@@ -195,7 +206,7 @@ class RobotLink:
             ev = dict(t=self.node._now(), kind=kind, agent=self.node.agent_name, node='agent')
             if change[1]:
                 ev['reason'] = change[1]
-            self.events.publish(String(data=json.dumps(ev)))
+            self.events.publish(String(data=event_text(ev, self.node.run_id)))
             self.node.get_logger().warning(f'{kind}' + (f': {change[1]}' if change[1] else ''))
         return self.guard.stopped is not None
 

@@ -9,6 +9,9 @@ has sent its command for the step (`timing.RobotsLockstep`, the alive mask from
 ``/lockstep/robot_states`` (`layouts.RobotStates`, read from the odometry as the agents would
 read it: `world_setup.OdometryPoses`), and odometry goes out only while someone reads it.
 Realtime: the physics follows the sim clock (/clock), odometry at 50 Hz.
+A robot takes only its own agent's commands: of this run, from the first sender tag taken for it
+(`swarm_ros.run_control.CommandSenders`; a ``Twist`` names no sender); the reports carry the
+robot world's own tag; bytes that are not a command are counted (docs/security.md).
 Robot-robot contacts and the time at the velocity limits go to ``/robots/metrics`` and, at the
 end, to ``robots.json`` in ``output_dir`` (metrics.json's ``summary.robots``).  docs/robots.md.
 """
@@ -41,8 +44,9 @@ from swarm_robots.world_setup import (
 )
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RobotStates, Step
-from swarm_ros.msg_checks import RejectLog, decoded
+from swarm_ros.msg_checks import RejectLog, decoded, new_sender_tag
 from swarm_ros.rosutil import ParameterError, declare, require_sim_clock, run_node, steady_clock
+from swarm_ros.run_control import CommandSenders, EventRefused, decode_command, run_event
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
 
@@ -90,6 +94,8 @@ class RobotsNode(Node):
         self.readers, self.readers_at = ([], []), -math.inf     # robots whose odometry, ground truth is read
         self.last_sent = time.monotonic()       # wall s of the newest odometry published
         self.pub_odom, self.pub_truth = [], []
+        self.tag = new_sender_tag()             # on /lockstep/robot_states (the world binds it)
+        self.senders = CommandSenders(self.run_id, [cmd_vel_topic(nm) for nm in self.agents])
         own = self.sec.frame == 'odom'
         self.odom_writers = [P.OdometryWriter(f'{nm}/base_link', f'{nm}/odom' if own else 'world')
                              for nm in self.agents]
@@ -111,7 +117,7 @@ class RobotsNode(Node):
             self.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
             self.create_timer(REPEAT_AFTER / 2, self._repeat, clock=steady_clock())
             self.publish_odometry(0.0)
-            self.report = RobotStates(0, self.rows, self.poses.first).to_cdr(self.run_id)
+            self.report = RobotStates(0, self.tag, self.rows, self.poses.first).to_cdr(self.run_id)
             self.pub_report.publish(self.report)
         else:
             self.pacer, self.asked = RealtimePacer(self.scale), 0.0
@@ -160,7 +166,15 @@ class RobotsNode(Node):
     # ------------------------------------------------------------ inputs
     def _command_callback(self, k, stamped):
         def on_command(raw):          # serialized (`protocol.cdr_to_twist`): no message object per command
-            sec, nsec, v, omega = P.cdr_to_twist(raw, stamped)
+            try:
+                sec, nsec, v, omega, frame = decode_command(raw, stamped)
+            except ValueError as err:
+                self.reject('cmd-decode', f'{cmd_vel_topic(self.agents[k])}: {err}')
+                return
+            why = self.senders.check(k, frame) if stamped else None     # a Twist names no sender
+            if why is not None:
+                self.reject(why.kind, why)
+                return
             if not (math.isfinite(v) and math.isfinite(omega)):
                 self.reject('cmd-non-finite', f'{cmd_vel_topic(self.agents[k])}: non-finite command')
                 return
@@ -184,12 +198,14 @@ class RobotsNode(Node):
         self._advance()
 
     def _on_event(self, msg):
-        """Lockstep: a kill of a robot's agent (/swarm/events): its command is not awaited."""
+        """Lockstep: a kill of a robot's agent (/swarm/events, of this run): its command is not
+        awaited."""
         try:
-            ev = json.loads(msg.data)
-        except ValueError:
+            ev = run_event(msg.data, self.run_id)
+        except EventRefused as err:
+            self.reject(err.kind, err)
             return
-        if isinstance(ev, dict) and ev.get('kind') == 'kill' and ev.get('agent') in self.agents:
+        if ev.get('kind') == 'kill' and ev.get('agent') in self.agents:
             self.hold.stop_awaiting(self.agents.index(ev['agent']))
             self._advance()
 
@@ -199,7 +215,7 @@ class RobotsNode(Node):
         the next step to the world, the odometry."""
         while self.hold.ready():
             t = self.hold.advance()
-            self.report = RobotStates(self.hold.n, self.rows, self.poses.table()).to_cdr(self.run_id)
+            self.report = RobotStates(self.hold.n, self.tag, self.rows, self.poses.table()).to_cdr(self.run_id)
             self.pub_report.publish(self.report)
             self.publish_odometry(t)
 

@@ -77,7 +77,10 @@ class RobotsLockstep:
                 if k not in have and (mask is None or mask[k]) and k not in self.dead]
 
     def ready(self) -> bool:
-        return not self.waiting_for()
+        """The held step may advance: it has begun (its message or a command came) and no
+        command of it is awaited.  With every robot's agent dead the physics follows the world's
+        steps (before, it ran ahead without end)."""
+        return (self.n in self.known or self.n in self.commands) and not self.waiting_for()
 
     def stop_awaiting(self, k: int) -> None:
         """Robot ``k``'s agent was killed (its kill event): its command is not awaited from the

@@ -1,8 +1,10 @@
 """Validation of incoming inputs, shared by the world, the commander and the agents (no ROS
 import): agent states, who may speak for an agent, polygons, processes that may be signalled,
-and the rate-limited one-line-per-kind rejection log."""
+the rate-limited one-line-per-kind rejection log, and the guard that keeps any message from
+ending a node (`guard_subscriptions`)."""
 from __future__ import annotations
 
+import functools
 import math
 import secrets
 import time
@@ -17,6 +19,9 @@ MAX_BARRIER_POINTS = 1000
 
 #: sim seconds a state's stamp may be ahead of the receiver's clock (realtime)
 FUTURE_TOLERANCE = 2.0
+
+#: a sim time past this is none a node can take: the seconds of a ROS stamp are an int32
+MAX_SIM_TIME = 2.0 ** 31
 
 
 class Reason(str):
@@ -252,6 +257,49 @@ class RejectLog:
             return ''
         return f'rejected {self.count} inputs in all: ' + ', '.join(
             f'{k} {st[2]}' for k, st in sorted(self.kinds.items(), key=lambda kv: -kv[1][2]))
+
+
+# ------------------------------------------------------------------ no message ends a node
+
+#: the log key of a message a callback could not read (`guarded`): this prefix and the topic
+UNREADABLE = 'unreadable'
+
+
+def guarded(callback, reject, topic: str, passes=()):
+    """``callback`` of a subscription on ``topic``, such that no message ends the node: an
+    exception it raises (a malformed message, a value a check did not foresee) is counted and
+    logged with ``reject`` (a `RejectLog`; kind ``unreadable:<topic>``), and the message is
+    dropped.  ``passes``: exception classes that go on to the executor (an error of the run
+    itself that must stop the node, e.g. a law that failed).  The wrapper keeps the
+    callback's signature: rclpy reads from it whether to pass the message info too."""
+    if getattr(callback, 'guarded', False):
+        return callback
+
+    @functools.wraps(callback)
+    def run(*args):
+        try:
+            return callback(*args)
+        except passes:
+            raise
+        except Exception as err:
+            reject(f'{UNREADABLE}:{topic}', f'{topic}: a message this node cannot read, dropped '
+                   f'({type(err).__name__}: {str(err)[:120]})')
+            return None
+    run.guarded = True
+    return run
+
+
+def guard_subscriptions(node, reject, passes=()) -> int:
+    """Guard (`guarded`) the callback of every subscription of ``node`` (an rclpy node) not
+    guarded yet, rclpy's own ``/clock`` reader included (a negative stamp raises in it);
+    returns how many were guarded.  A node calls it once its readers are made, and again
+    after it makes another one."""
+    count = 0
+    for sub in list(node.subscriptions):
+        if not getattr(sub.callback, 'guarded', False):
+            sub.callback = guarded(sub.callback, reject, sub.topic_name, passes)
+            count += 1
+    return count
 
 
 # ------------------------------------------------------------------ processes

@@ -9,15 +9,20 @@ import math
 import numbers
 import re
 import secrets
+from types import SimpleNamespace
 
 from swarm_core.checks import json_value
 from swarm_ros import protocol as P
+from swarm_ros.msg_checks import RejectLog
 from swarm_ros.rosutil import ParameterError, declare
 
 #: longest ``/swarm/run`` text (the agent list of the largest run is about 40 kB)
 MAX_RUN_CHARS = 1 << 20
 #: how long a live verb listens for the announcements of every ``/swarm/run`` writer it sees
 ANNOUNCE_WAIT = 3.0
+#: most runs a `RunWatch` keeps (more are counted as ignored: a peer announcing run after run
+#: must not grow it without end; two are already enough to refuse)
+MAX_RUNS = 64
 
 _ID = re.compile(r'^[A-Za-z0-9_-]{1,32}$')
 
@@ -190,12 +195,14 @@ def verb_refusal(runs: dict, ignored: int, writers: int, prog: str, agent=None):
 
 
 class RunWatch:
-    """Collects the ``/swarm/run`` announcements heard on ``node`` ({run id: dict}); one that
-    is not an announcement (`run_error`) is ignored with one line to ``log`` (if given)."""
+    """Collects the ``/swarm/run`` announcements heard on ``node`` ({run id: dict}, at most
+    `MAX_RUNS`); one that is not an announcement (`run_error`) is ignored with one line to
+    ``log`` (if given; rate-limited, `RejectLog`)."""
 
     def __init__(self, node, log=None):
         from std_msgs.msg import String
-        self.node, self.log = node, log
+        self.node = node
+        self.log = None if log is None else RejectLog(SimpleNamespace(warning=log))
         self.runs = {}
         self.ignored = 0
         # depth 10: several worlds on one domain are each heard (transient-local, one sample each)
@@ -205,11 +212,13 @@ class RunWatch:
         why = run_error(msg.data)
         if why is None:
             d = parse_run(msg.data)
-            self.runs[d['run_id']] = d
-            return
+            if d['run_id'] in self.runs or len(self.runs) < MAX_RUNS:
+                self.runs[d['run_id']] = d
+                return
+            why = f'more than {MAX_RUNS} runs announced'
         self.ignored += 1
         if self.log is not None:
-            self.log(f'{P.RUN}: ignored an announcement {msg.data[:80]!r}: {why}')
+            self.log('run-announcement', f'{P.RUN}: ignored an announcement {msg.data[:80]!r}: {why}')
 
     def heard_all(self) -> bool:
         """Every writer of ``/swarm/run`` in the graph has been heard (and one is there if a

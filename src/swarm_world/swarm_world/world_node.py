@@ -36,8 +36,9 @@ from swarm_core.engine.trajectory import Trajectory, TrajectoryRecorder
 from swarm_core.files import open_regular
 from swarm_core.robot_units import ROBOT_KINDS
 from swarm_ros import protocol as P
-from swarm_ros.msg_checks import RejectLog, may_signal, reason
+from swarm_ros.msg_checks import RejectLog, guard_subscriptions, may_signal, reason
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
+from swarm_ros.run_control import EventRefused, event_text, run_event
 from swarm_ros.runinfo import RunWatch, declare_run_id, give_way, older_runs, parse_robots_text, run_json
 from swarm_ros.scenario_params import declare_scenario
 from swarm_world.drivers import DRIVERS
@@ -92,6 +93,7 @@ class WorldNode(Node):
         self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
         self.publish_geometry()
         self.timer = self.create_timer(self.driver.tick_period(), self._on_timer, clock=steady_clock())
+        guard_subscriptions(self, self.reject)      # no message ends the world
 
     def _declare_parameters(self):
         """The world's parameters (`parameters.WORLD`: those every mode shares kept as
@@ -209,7 +211,8 @@ class WorldNode(Node):
         for a in actions:
             kind = a[0]
             if kind == 'comms':
-                self.pub_events.publish(String(data=P.event_json('comms', a[1] * self.dt, source='scenario', **a[2])))
+                self.pub_events.publish(String(data=P.event_json('comms', a[1] * self.dt, source='scenario',
+                                                                 run_id=self.run_id, **a[2])))
             elif kind == 'event':
                 self.publish_event(a[1])
             elif kind == 'signal':
@@ -228,7 +231,7 @@ class WorldNode(Node):
         ev = dict(ev, node='world')
         self.events.append(ev)
         self.log(f'[world] event t={ev["t"]:.2f}: {ev["kind"]} {ev.get("agent", "")}', flush=True)
-        self.pub_events.publish(String(data=json.dumps(ev)))
+        self.pub_events.publish(String(data=event_text(ev, self.run_id)))
         self.write_event(ev)
 
     def write_event(self, ev):
@@ -237,12 +240,13 @@ class WorldNode(Node):
                 f.write(json.dumps(ev) + '\n')
 
     def _on_event(self, msg):
+        """Another node's event of this run: recorded (without its run id); others counted."""
         try:
-            ev = json.loads(msg.data)
-        except ValueError:
-            self.reject('event-json', f'{P.EVENTS}: not JSON: {msg.data[:80]!r}')
+            ev = run_event(msg.data, self.run_id)
+        except EventRefused as err:
+            self.reject(err.kind, err)
             return
-        if isinstance(ev, dict) and ev.get('node') != 'world':
+        if ev.get('node') != 'world':
             self.events.append(ev)
             self.write_event(ev)
             self.driver.on_event(ev)

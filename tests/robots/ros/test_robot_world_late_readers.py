@@ -40,10 +40,15 @@ def spin_both(executors, cond, timeout):
     return cond()
 
 
-def test_a_robot_world_matched_after_the_first_commands_still_gets_them(tmp_path, rclpy_context, ros_domain):
+def test_a_robot_world_matched_after_the_first_commands_still_gets_them(tmp_path, rclpy_context, ros_domain,
+                                                                       monkeypatch):
     from rclpy.context import Context
 
+    from swarm_robots import mujoco_world_node
     from swarm_robots.engine import simulate as robot_simulate
+    # the test's report of t_0 stands in for the robot world's: the same sender tag (the world
+    # binds /lockstep/robot_states to the first it takes)
+    monkeypatch.setattr(mujoco_world_node, 'new_sender_tag', lambda: 7.0)
     path = short_homotopy(tmp_path / 'late.yaml', robots=ROBOTS, duration=1, lam='{kind: constant, value: 0}', at=0.5)
     scn = load(str(path))
     out = tmp_path / 'run'
@@ -66,7 +71,7 @@ def test_a_robot_world_matched_after_the_first_commands_still_gets_them(tmp_path
     nodes.append(helper)
     report = helper.create_publisher(Float64MultiArray, P.LOCK_ROBOT_STATES, P.qos_latched())
     rows = list(range(len(scn.names)))
-    report.publish(RobotStates(0, rows, np.stack([*scn.pos0.T, *quaternion_from_heading(scn.theta0)]))
+    report.publish(RobotStates(0, 7.0, rows, np.stack([*scn.pos0.T, *quaternion_from_heading(scn.theta0)]))
                    .to_cdr('late0001'))
     try:
         # the world starts without the robot world (the test reports t_0): each agent sends its

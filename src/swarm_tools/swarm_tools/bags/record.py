@@ -9,6 +9,12 @@ received too), as rosbag2 does.  Messages are written as they arrive by
 ``--out X.mcap`` writes one file; ``--out DIR`` a rosbag2 bag directory (``DIR/DIR_0.mcap`` and
 ``DIR/metadata.yaml``).  SIGINT / SIGTERM / ``--duration`` end the recording with a
 complete, indexed file; the recorder then prints, per topic, messages received vs written.
+
+No writer ends the recording.  A topic is recorded with one type: the project's own for its
+topics (`swarm_type`), else the first type seen.  A writer of another type on it (a stray or
+hostile peer) is not recorded, and never makes the recorder drop the topic's own writers: it
+is counted, logged once and named in the summary.  A message or a writer that a callback or
+a look at the graph cannot handle is counted and logged the same way, and the recording goes on.
 """
 from __future__ import annotations
 
@@ -20,8 +26,10 @@ import re
 import signal
 import sys
 import time
+from types import SimpleNamespace
 
 from swarm_ros import protocol as P
+from swarm_ros.msg_checks import RejectLog, guard_subscriptions
 from swarm_ros.rosutil import make_executor, stop_on_signals
 from swarm_tools.bags.mcap_io import BagWriter, bag_paths, parse_odometry, qos_dict
 from swarm_tools.bags.msgdefs import DefinitionNotFound, _msg_file
@@ -108,8 +116,7 @@ SWARM_TYPES = {
     '/world/barrier': 'geometry_msgs/msg/PolygonStamped',
     '/world/markers': 'visualization_msgs/msg/MarkerArray',
     '/world/metrics': 'diagnostic_msgs/msg/DiagnosticArray',
-    '/lockstep/states': 'std_msgs/msg/Float64MultiArray',
-    '/lockstep/decision': 'std_msgs/msg/Float64MultiArray',
+    '/lockstep/command': 'std_msgs/msg/String',
     '/lockstep/step': 'std_msgs/msg/Float64MultiArray',
     '/lockstep/agent_states': 'std_msgs/msg/Float64MultiArray',
     '/lockstep/robot_states': 'std_msgs/msg/Float64MultiArray',
@@ -192,6 +199,9 @@ class Recorder:
         self.states: dict[str, set] = {}
         self.write_error: OSError | None = None      # the disk is full or gone: the recording ends
         self.said_commands = False   # the line about commands' writers (`_events`) was said
+        #: what could not be recorded (writers of another type, messages, looks at the graph), counted
+        self.reject = RejectLog(SimpleNamespace(warning=lambda line: log(f'swarm record: {line}')))
+        self.foreign: dict[str, dict[str, set]] = {}   # topic -> {another type: its writers' gids}
         for topic, (type_name, durability) in (presubscribe or {}).items():
             if wanted(topic):
                 self._subscribe(topic, type_name, request_qos([qos_dict(reliability=1, durability=durability)]))
@@ -216,8 +226,15 @@ class Recorder:
         self.received.setdefault(topic, 0)
         self.failed.setdefault(topic, 0)
         self.sub_type[topic] = type_name
-        self.subs[topic] = self.node.create_subscription(
-            cls, topic, self._callback(topic), qos, raw=True, event_callbacks=self._events(topic))
+        try:
+            self.subs[topic] = self.node.create_subscription(
+                cls, topic, self._callback(topic), qos, raw=True, event_callbacks=self._events(topic))
+        except Exception as err:     # rclpy refuses it (e.g. this node writes the topic with another type)
+            self.reject(f'subscribe:{topic}', f'{topic} ({type_name}): cannot subscribe ({str(err)[:120]}); '
+                        'not recorded')
+            self.skipped.add(topic)
+            return
+        guard_subscriptions(self.node, self.reject)
 
     def _events(self, topic):
         """λ and steering (`command_topic`): a command's writer (volatile: ``ros2 topic pub``,
@@ -244,7 +261,33 @@ class Recorder:
         profiles = offered_profiles([i for i in infos if i.topic_type == type_name])
         self.writer.add_topic(topic, type_name, profiles)
 
+    def topic_type(self, topic, infos, types) -> str:
+        """The one type ``topic`` is recorded with: the project's own for its topics
+        (`swarm_type`), else the type it was subscribed with, else its first writer's."""
+        return swarm_type(topic) or self.sub_type.get(topic) or infos[0].topic_type or types[0]
+
+    def _note_foreign(self, topic, type_name, infos):
+        """Count and log (once per writer) the writers of ``topic`` of another type than
+        ``type_name``: they are not recorded."""
+        for i in infos:
+            if i.topic_type == type_name:
+                continue
+            seen = self.foreign.setdefault(topic, {}).setdefault(i.topic_type, set())
+            gid = bytes(bytearray(i.endpoint_gid))
+            if gid not in seen:
+                seen.add(gid)
+                self.reject(f'other-type:{topic}', f'{topic}: a writer of {i.topic_type} (node '
+                            f'{i.node_namespace.rstrip("/")}/{i.node_name}), not {type_name}: not recorded')
+
     def poll(self):
+        """Look at the graph for new topics and writers (a timer); whatever it cannot handle
+        is counted and logged, and the next look goes on."""
+        try:
+            self._poll()
+        except Exception as err:
+            self.reject('poll', f'a look at the graph failed ({type(err).__name__}: {str(err)[:120]})')
+
+    def _poll(self):
         self._polls = getattr(self, '_polls', 0) + 1
         recheck = self._polls % 5 == 0          # about once a second
         try:
@@ -260,8 +303,12 @@ class Recorder:
             infos = self._publishers(topic)
             if not infos:
                 continue        # only subscribers so far: wait for a publisher's offer
-            type_name = infos[0].topic_type or types[0]
+            type_name = self.topic_type(topic, infos, types)
             same = [i for i in infos if i.topic_type == type_name]
+            if len(same) < len(infos):
+                self._note_foreign(topic, type_name, infos)
+            if not same:
+                continue        # writers of another type only: wait for one of the topic's own
             if command_topic(topic):
                 latched = [i for i in same if int(i.qos_profile.durability) == 1]
                 same = latched or same
@@ -344,6 +391,14 @@ class Recorder:
             expected = round((a[-1] - a[0]) / step) + 1
             out[name] = (len(a), max(0, expected - len(a)))
         return out
+
+    def refused_lines(self) -> list[str]:
+        """What was not recorded, in lines: each topic's writers of another type, and the
+        count of everything refused (`reject`)."""
+        lines = [f'{topic}: {sum(len(g) for g in by_type.values())} writer(s) of another type '
+                 f'({", ".join(sorted(by_type))}) not recorded; {self.sub_type.get(topic) or swarm_type(topic)} '
+                 'recorded' for topic, by_type in sorted(self.foreign.items())]
+        return lines + ([self.reject.summary()] if self.reject.count else [])
 
     def summary(self) -> list[tuple[str, int, int]]:
         return [(t, self.received[t],
@@ -464,6 +519,8 @@ def _report(args, rec, why) -> int:
             counts = [c for c, _ in gaps.values()]
             print(f'  /swarm/states: {len(gaps)} agents, {min(counts)}..{max(counts)} states each, '
                   f'missing between first and last: {missing}', flush=True)
+    for line in rec.refused_lines():        # said even with --quiet: what the bag does not hold
+        print(f'  {line}', flush=True)
     return 0 if lost == 0 else 1
 
 

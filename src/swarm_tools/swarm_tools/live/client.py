@@ -19,6 +19,7 @@ import time
 from swarm_core.checks import LAMBDA_BOUND, PAUSE_BOUND, RAMP_BOUND, STEERING_BOUND
 from swarm_ros import protocol as P
 from swarm_ros import runinfo
+from swarm_ros.msg_checks import RejectLog, guard_subscriptions
 
 
 class SwarmError(RuntimeError):
@@ -88,6 +89,8 @@ class Client:
         self.ex = SingleThreadedExecutor(context=self.ctx)
         self.ex.add_node(self.node)
         self.lock = threading.Lock()
+        #: the messages its readers (and those others make on its node: `api.Swarm`) could not read
+        self.reject = RejectLog(self.node.get_logger())
         self.watch = runinfo.RunWatch(self.node)
         self.clock = None             # sim time of the newest /clock (`follow_clock`)
         self._clock_sub = None
@@ -101,13 +104,20 @@ class Client:
         return dict(self.watch.runs)
 
     def _spin(self):
+        """Spin until `close`.  No message ends this thread: every reader on the node, those
+        made since the last turn too, is guarded (`msg_checks.guard_subscriptions`: what it
+        cannot read is counted in `reject` and logged once), and whatever else a callback
+        raises is counted there too."""
         while not self._stop and self.ctx.ok():
             try:
+                guard_subscriptions(self.node, self.reject)
                 self.ex.spin_once(timeout_sec=0.05)
-            except Exception:         # shutdown under our feet: the loop ends with the context
+            except Exception as err:  # shutdown under our feet: the loop ends with the context
                 if self._stop or not self.ctx.ok():
                     return
-                raise
+                self.reject('callback', f'{self.node.get_name()}: a callback failed ({type(err).__name__}: '
+                            f'{str(err)[:120]})')
+                time.sleep(0.01)      # a fault that repeats must not spin the thread hot
 
     def close(self):
         """Stop the executor thread and shut the node and its Context down."""
@@ -270,7 +280,7 @@ class Client:
         if unknown:
             raise UnknownAgent(f'{prog}: unknown agent {unknown[0]!r} (running: {", ".join(self.agents_in_graph())})')
         t = self.clock
-        pub.publish(String(data=P.event_json(kind, t, **fields)))
+        pub.publish(String(data=P.event_json(kind, t, **fields, run_id=(run or {}).get('run_id', ''))))   # its run's
         pub.wait_for_all_acked(Duration(seconds=2.0))
         return t, pub.get_subscription_count()
 

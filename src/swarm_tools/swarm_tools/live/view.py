@@ -22,6 +22,10 @@ Built on the ``foxglove-sdk`` WebSocket server:
   ``std_msgs/msg/Float64``.  Each value is republished on ROS as a user's
   ``ros2 topic pub`` would (`publish_client_value`), if its `Bound` (λ or steering) takes it;
   the commander checks it too.
+
+No writer ends the view: a topic is served with one type (the project's own for its topics,
+as the recorder does, `record.Recorder.topic_type`), a writer of another type is not served,
+and a message or a look at the graph that fails is counted and logged once (`reject`).
 """
 from __future__ import annotations
 
@@ -32,14 +36,16 @@ import re
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 from swarm_core.checks import LAMBDA_BOUND, STEERING_BOUND
 from swarm_core.files import write_atomic
 from swarm_ros import protocol as P
+from swarm_ros.msg_checks import RejectLog, guard_subscriptions
 from swarm_ros.rosutil import make_executor, stop_on_signals
 from swarm_tools.bags.mcap_io import parse_float64
 from swarm_tools.bags.msgdefs import DefinitionNotFound, has_leading_stamp, leading_stamp_ns, message_definition
-from swarm_tools.bags.record import message_class, offered_profiles, request_qos
+from swarm_tools.bags.record import message_class, offered_profiles, request_qos, swarm_type
 
 DEFAULT_PORT = 8765
 #: where the shipped layout lives (regenerate it with ``swarm view --write-layout FILE``)
@@ -152,6 +158,8 @@ class Bridge:
         self.fg = foxglove
         self.node = node
         self.log = log
+        #: what could not be served (a message, a reader, a look at the graph), counted
+        self.reject = RejectLog(SimpleNamespace(warning=lambda line: log(f'swarm view: {line}')))
         self.work: queue.Queue = queue.Queue()
         self.channels: dict[str, object] = {}      # topic -> foxglove Channel
         self.types: dict[str, str] = {}
@@ -178,7 +186,14 @@ class Bridge:
         return info.node_name == self.node.get_name() and info.node_namespace == self.node.get_namespace()
 
     def poll(self):
-        """Channels for new topics; publishers for new steering topics; drop idle readers."""
+        """Channels for new topics; publishers for new steering topics; drop idle readers.
+        What fails is counted and logged (`reject`); the next poll goes on."""
+        try:
+            self._poll()
+        except Exception as err:
+            self.reject('poll', f'a look at the graph failed ({type(err).__name__}: {str(err)[:120]})')
+
+    def _poll(self):
         try:
             names = self.node.get_topic_names_and_types()
         except Exception:       # the context is going down
@@ -189,8 +204,8 @@ class Bridge:
             if topic in self.channels or topic in self.skipped:
                 continue
             infos = [i for i in self.node.get_publishers_info_by_topic(topic) if not self._own(i)]
-            if infos:
-                self._advertise(topic, infos[0].topic_type or types[0])
+            if infos:            # the project's type for its topics: a writer of another type is not served
+                self._advertise(topic, swarm_type(topic) or infos[0].topic_type or types[0])
         for topic in list(self.subs):
             if topic != METRICS_TOPIC and not self.channels[topic].has_sinks():
                 self._unread(topic)
@@ -222,8 +237,14 @@ class Bridge:
             # match a command's volatile writer (ours, ros2 topic pub's), by design: no warning
             from rclpy.event_handler import SubscriptionEventCallbacks
             events = SubscriptionEventCallbacks(incompatible_qos=lambda _status: None)
-        self.subs[topic] = self.node.create_subscription(
-            message_class(self.types[topic]), topic, self._callback(topic), qos, raw=True, event_callbacks=events)
+        try:
+            self.subs[topic] = self.node.create_subscription(
+                message_class(self.types[topic]), topic, self._callback(topic), qos, raw=True,
+                event_callbacks=events)
+        except Exception as err:      # a type rclpy cannot read or refuses here
+            self.reject(f'subscribe:{topic}', f'{topic} ({self.types[topic]}): cannot read it ({str(err)[:120]})')
+            return
+        guard_subscriptions(self.node, self.reject)
 
     def _unread(self, topic):
         sub = self.subs.pop(topic, None)
@@ -321,10 +342,13 @@ class Bridge:
                 item = self.work.get_nowait()
             except queue.Empty:
                 break
-            if item[0] == 'subscribe':
-                self._read(item[1])
-            elif item[0] == 'publish':
-                self.publish_client_value(item[1], item[2])
+            try:
+                if item[0] == 'subscribe':
+                    self._read(item[1])
+                elif item[0] == 'publish':
+                    self.publish_client_value(item[1], item[2])
+            except Exception as err:      # the graph or a topic changed under it: counted, the view goes on
+                self.reject(item[0], f'{item[1]}: could not {item[0]} ({type(err).__name__}: {str(err)[:120]})')
         now = time.monotonic()
         if self.sim_ns != self.sent_ns and now - self.last_time >= TIME_PERIOD:
             self.server.broadcast_time(self.sim_ns)
@@ -421,7 +445,8 @@ def main(argv=None) -> int:
                 bridge.poll()
                 next_poll = time.monotonic() + POLL_PERIOD
         bridge.close()
-        log(f'swarm view: stopped; {bridge.published} client message(s) published to ROS')
+        log(f'swarm view: stopped; {bridge.published} client message(s) published to ROS'
+            + (f'; {bridge.reject.summary()}' if bridge.reject.count else ''))
         return 0
     finally:
         node.destroy_node()
