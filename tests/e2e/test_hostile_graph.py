@@ -20,7 +20,7 @@ from std_msgs.msg import Float64, Float64MultiArray, String
 from swarm_agent.agent_node import AgentNode
 from swarm_core.scenario.loader import load
 from swarm_ros import protocol as P
-from swarm_ros.layouts import ProcessStates, States, Step
+from swarm_ros.layouts import ProcessStates, Step
 from swarm_ros.rosutil import make_executor
 from swarm_ros.runinfo import run_json
 from swarm_tools.run.launch import build_nodes
@@ -133,10 +133,9 @@ def test_a_second_run_on_the_domain_is_refused_and_lockstep_messages_of_another_
     from homotopy_commander.commander_node import CommanderNode
     cmd = CommanderNode(context=ctx, parameter_overrides=overrides(dict(scenario='homotopy_global',
                                                                         run_id='bbbb2222')))
-    states = States(0, 0.0, scn.pos0[:, 0], scn.pos0[:, 1], quat[0], quat[1], np.ones(n, bool))
-    cmd._on_states(states.to_cdr('aaaa1111'))
+    cmd._on_step(data.to_cdr('aaaa1111'))              # the commander takes the record from the steps
     assert cmd.decisions == 0 and 'other-run' in cmd.reject.kinds
-    cmd._on_states(states.to_cdr('bbbb2222'))
+    cmd._on_step(data.to_cdr('bbbb2222'))
     assert cmd.decisions == 1
     for nd in (other, world, agent, cmd):
         nd.destroy_node()

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from swarm_ros import protocol as P
-from swarm_ros.layouts import MESSAGES, RUN_ID_BYTES, AgentStates, BadMessage, Decision, NotFinite, OtherRun, Step
+from swarm_ros.layouts import MESSAGES, RUN_ID_BYTES, AgentStates, BadMessage, NotFinite, OtherRun, Step
+from swarm_ros.layouts import RealtimeDecision as Decision
 from tests.helpers import ROOT
 
 

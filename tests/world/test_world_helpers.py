@@ -164,16 +164,17 @@ def test_progress_line_is_paced_in_sim_time():
 # ---------------------------------------------------------------- wall clock
 def test_start_waits_for_everyone_then_times_out():
     w = StartWatch(100.0, 3, start_timeout=30.0)
-    everyone = dict(states=True, relay_readers=3, commander_readers=1, decision_writers=1, clock_readers=4)
+    # relay readers: one per agent process and the commander
+    everyone = dict(states=True, relay_readers=4, commander_ready=True, clock_readers=4)
     assert w.decide(101.0, **everyone) == 'start'
-    for missing in [dict(states=False), dict(relay_readers=2), dict(commander_readers=0), dict(decision_writers=0)]:
+    for missing in [dict(states=False), dict(relay_readers=3), dict(commander_ready=False)]:
         assert w.decide(101.0, **{**everyone, **missing}) is None
         assert w.decide(131.0, **{**everyone, **missing}) == 'time_out'
 
 
 def test_start_waits_a_bounded_time_for_the_recorder():
     w = StartWatch(0.0, 3, start_timeout=100.0, wait_for_recorder=True, recorder_wait=5.0)
-    everyone = dict(states=True, relay_readers=3, commander_readers=1, decision_writers=1)
+    everyone = dict(states=True, relay_readers=4, commander_ready=True)
     # /clock readers: the commander and the recorder (lockstep agents take their time from the steps)
     assert w.decide(1.0, **everyone, clock_readers=1) is None          # the commander only
     assert w.decide(5.9, **everyone, clock_readers=1) is None
@@ -185,18 +186,18 @@ def test_start_waits_a_bounded_time_for_the_recorder():
 def test_stall_watch_drops_then_gives_up_and_repeats_between():
     w = StallWatch(0.0, missing_timeout=10.0, step_timeout=30.0, stall_timeout=2.0)
     assert w.give_up_after == 30.0
-    waiting = dict(states_out=False, complete=False, can_repeat=True)
+    waiting = dict(complete=False, can_repeat=True)
     assert w.decide(1.0, **waiting) is None
     assert w.decide(2.5, **waiting) == 'repeat'
     assert w.decide(3.0, **waiting) is None                          # the repeat counts as progress
     w.progressed(9.0)
     assert w.decide(10.5, **waiting) == 'drop'
     assert w.decide(10.5, **{**waiting, 'complete': True}) is None    # complete: nothing to drop
-    assert w.decide(10.5, states_out=True, complete=True, can_repeat=False) is None
-    assert w.decide(30.5, states_out=True, complete=True, can_repeat=True) == 'give_up'
+    assert w.decide(10.5, complete=True, can_repeat=False) is None
+    assert w.decide(30.5, complete=True, can_repeat=True) == 'give_up'
     w.stepped(30.0)
     w.progressed(30.0)
-    assert w.decide(31.0, states_out=True, complete=True, can_repeat=True) is None
+    assert w.decide(31.0, complete=True, can_repeat=True) is None
     assert StallWatch(0.0, missing_timeout=10.0, step_timeout=1.0, stall_timeout=2.0).give_up_after == 30.0
 
 

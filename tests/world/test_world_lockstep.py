@@ -1,25 +1,46 @@
 """The world's lockstep barrier and trajectory record, without ROS (swarm_world.lockstep,
-swarm_core.engine.trajectory): what a step needs, when it is complete, what goes out, and faults."""
+swarm_core.engine.trajectory): what a step needs, when it is complete, what the plan decides on,
+what goes out, and faults."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from swarm_core.command.plan import CommandPlan, Decided
+from swarm_core.command.schedules import ConstantSteering
 from swarm_core.engine.trajectory import TrajectoryRecorder, unwrap_headings
 from swarm_core.faults.agents import Fault, FaultTimeline
 from swarm_core.model.frenet import quaternion_from_heading
-from swarm_ros.layouts import AgentStates, States, Step
+from swarm_ros.layouts import AgentStates, Step
 from swarm_world.lockstep import LockstepBarrier
 
 NAMES = ['a', 'b', 'c']
 DT = 0.5
 
 
-def make(steps=3, faults=(), comms=()):
+class ScriptedPlan:
+    """The decisions the barrier asks for: λ per step (``lams``, 0.5 unless given), agent b the
+    leader steering 0.2; ``seen`` keeps (step, positions, heard) of each call."""
+
+    def __init__(self, lams=None):
+        self.lams = lams or {}
+        self.seen = []
+
+    def __call__(self, t, pos, cos_t, sin_t, heard):
+        k = int(round(t / DT))
+        self.seen.append((k, pos.copy(), heard.copy()))
+        return Decided(self.lams.get(k, 0.5), np.array([False, True, False]), np.array([0.0, 0.2, 0.0]),
+                       np.array([-1, 0, -1]), None, [])
+
+
+def make(steps=3, faults=(), comms=(), lams=None, decide=None):
     tl = FaultTimeline(list(faults), NAMES, DT)
     rec = TrajectoryRecorder(NAMES, steps, DT, theta0=np.zeros(3))
-    return LockstepBarrier(NAMES, steps, DT, tl, rec, comms_events=comms,
-                           geometry=lambda: (np.array([5.0, 6.0]), None))
+    plan = decide or ScriptedPlan(lams)
+    b = LockstepBarrier(NAMES, steps, DT, tl, rec, comms_events=comms, decide=plan,
+                        geometry=lambda: (np.array([5.0, 6.0]), None))
+    b.plan = plan
+    return b
 
 
 def state(i, k, theta=0.0):
@@ -48,28 +69,41 @@ def feed_states(b, k, agents=range(3), u=0.1):
     return acts
 
 
-def decide(b, n, lam=0.5, flags=(False, True, False)):
-    return b.on_decision(n, lam, list(flags), [0.0, 0.2, 0.0], [-1, 0, -1], None)
-
-
-def test_a_step_waits_for_every_state_then_for_the_decision():
+def test_a_step_waits_for_every_state_then_decides_and_goes_out():
     b = make()
     assert on_state(b, 0, 0, state(0, 0), 0.0) == (None, [])     # not started: nothing goes out
     assert b.start() == []                                          # b and c not here yet
     assert not b.complete() and list(b.missing()) == [1, 2]
     acts = feed_states(b, 0, [1, 2])
-    assert kinds(acts) == ['clock', 'states', 'observe']
+    assert kinds(acts) == ['clock', 'observe', 'step']
     assert acts[0] == ('clock', 0.0)
-    s = States.from_cdr(acts[1][1].to_cdr())                       # as the commander reads it
-    assert (s.n, s.t) == (0, 0.0) and list(s.x) == [0.0, 1.0, 2.0]
-    assert decide(b, 1) == []                                        # not the step awaited
-    acts = decide(b, 0)
-    assert kinds(acts) == ['step']
-    step = Step.from_cdr(acts[0][1].to_cdr())                      # as the agents read it
+    k, pos, heard = b.plan.seen[-1]                                 # the plan decided on the table
+    assert k == 0 and pos.tolist() == [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]] and heard.all()
+    step = Step.from_cdr(acts[2][1].to_cdr())                      # as the agents read it
     assert step.n == 0 and step.lam == 0.5 and list(step.flags) == [False, True, False]
-    assert list(step.target) == [5.0, 6.0]
+    assert list(step.steering) == [0.0, 0.2, 0.0] and list(step.target) == [5.0, 6.0]
     assert b.cur == 1 and not b.have.any()
-    assert decide(b, 0) == []                                        # a repeat is ignored
+    assert len(b.plan.seen) == 1
+
+
+def test_the_plan_of_the_scenario_decides_as_the_batch_engine_does():
+    """A real `CommandPlan`: its live command applies at the step decided next and comes out as
+    an event with that step (what ``--replay`` reads)."""
+    plan = CommandPlan(fixed_leaders={1: ConstantSteering(0.3)})
+    pending = [dict(command='lambda', value=1.0, ramp=0.0, shape='step')]
+
+    def decide(t, pos, cos_t, sin_t, heard):
+        commands = list(pending) if t == DT else []
+        return plan.decide(t, pos, cos_t, sin_t, heard=heard, commands=commands)
+    b = make(decide=decide)
+    b.start()
+    assert kinds(feed_states(b, 0)) == ['clock', 'observe', 'step']
+    acts = feed_states(b, 1)
+    assert kinds(acts) == ['clock', 'observe', 'event', 'step']
+    ev = acts[2][1]
+    assert (ev['kind'], ev['command'], ev['value'], ev['step']) == ('command', 'lambda', 1.0, 1)
+    step = acts[3][1]
+    assert step.lam == 1.0 and step.flags.tolist() == [False, True, False] and step.steering[1] == 0.3
 
 
 def test_states_of_another_step_are_refused_and_named():
@@ -81,11 +115,10 @@ def test_states_of_another_step_are_refused_and_named():
 
 
 def test_the_run_records_each_step_and_finishes_after_the_last_u():
-    b = make(steps=2)
+    b = make(steps=2, lams={k: 0.25 * k for k in range(3)})
     b.start()
     for k in range(3):
         feed_states(b, k, u=0.1 * (k + 1))
-        decide(b, k, lam=0.25 * k)
     acts = feed_states(b, 3, u=0.9)
     assert kinds(acts) == ['finish'] and b.done
     tr = b.rec.trajectory()
@@ -101,11 +134,8 @@ def test_rows_done_counts_rows_whose_u_is_known():
     b = make(steps=3)
     b.start()
     feed_states(b, 0)
-    decide(b, 0)
     assert b.rows_done() == 0            # u_0 comes with the states of step 1
     feed_states(b, 1)
-    assert b.rows_done() == 1
-    decide(b, 1)
     assert b.rows_done() == 1
 
 
@@ -113,14 +143,14 @@ def test_a_kill_signals_the_agent_leaves_it_out_and_its_rows_are_nan():
     b = make(steps=3, faults=[Fault(1.0, 'kill', 'b')])        # t = 1.0: step 2
     b.start()
     for k in range(2):
-        feed_states(b, k)
-        acts = decide(b, k)
-    assert kinds(acts) == ['step', 'event', 'signal']
-    assert acts[1][1]['kind'] == 'kill' and acts[1][1]['agent'] == 'b'
-    assert acts[2] == ('signal', 1, 'kill')
+        acts = feed_states(b, k)
+    assert kinds(acts) == ['clock', 'observe', 'step', 'event', 'signal']
+    assert acts[3][1]['kind'] == 'kill' and acts[3][1]['agent'] == 'b'
+    assert acts[4] == ('signal', 1, 'kill')
     acts = feed_states(b, 2, [0, 2])              # b is not awaited
-    assert kinds(acts) == ['clock', 'states', 'observe']
-    assert list(acts[1][1].alive) == [True, False, True]
+    assert kinds(acts) == ['clock', 'observe', 'step']
+    assert list(acts[2][1].alive) == [True, False, True]
+    assert b.plan.seen[-1][2].tolist() == [True, False, True]      # the plan hears a and c only
     tr = b.rec.trajectory()
     assert np.isnan(tr.u[1:, 1]).all() and np.isnan(tr.r[2:, 1]).all()
 
@@ -129,18 +159,15 @@ def test_a_freeze_stops_the_agent_once_its_state_is_held_and_resumes_it():
     b = make(steps=6, faults=[Fault(1.0, 'freeze', 'c', 1.0)])    # steps 2..4
     b.start()
     for k in range(2):
-        feed_states(b, k)
-        acts = decide(b, k)
-    assert kinds(acts) == ['step', 'event']           # no stop yet: its step-2 state not held
+        acts = feed_states(b, k)
+    assert kinds(acts) == ['clock', 'observe', 'step', 'event']     # no stop yet: its step-2 state not held
     assert 2 in b.stop_pending
     acts = feed_states(b, 2, [0, 1])                  # the step completes without c
-    assert kinds(acts) == ['clock', 'states', 'observe']
+    assert kinds(acts) == ['clock', 'observe', 'step']
     reason, acts = on_state(b, 2, 2, state(2, 2), 0.7)  # c's state of its freeze step
     assert reason is None and acts == [('signal', 2, 'stop')]
-    decide(b, 2)
-    feed_states(b, 3, [0, 1])
-    acts = decide(b, 3)
-    assert kinds(acts) == ['step', 'event', 'signal'] and acts[2] == ('signal', 2, 'cont')
+    acts = feed_states(b, 3, [0, 1])
+    assert kinds(acts) == ['clock', 'observe', 'step', 'event', 'signal'] and acts[4] == ('signal', 2, 'cont')
     assert b.have[2]                                  # resumes with the held state
     feed_states(b, 4, [0, 1])
     tr = b.rec.trajectory()
@@ -151,9 +178,9 @@ def test_a_freeze_stops_the_agent_once_its_state_is_held_and_resumes_it():
 def test_a_live_fault_applies_at_the_next_step():
     b = make(steps=4)
     b.start()
-    feed_states(b, 0)
+    feed_states(b, 0, [0, 1])
     assert b.add_fault(Fault(0.0, 'kill', 'a', source='live')) == 1
-    acts = decide(b, 0)
+    acts = feed_states(b, 0, [2])
     assert ('signal', 0, 'kill') in acts
 
 
@@ -162,7 +189,7 @@ def test_drop_missing_loses_the_silent_agents_and_goes_on():
     b.start()
     feed_states(b, 0, [0, 2])
     acts = b.drop_missing()
-    assert kinds(acts) == ['event', 'clock', 'states', 'observe']
+    assert kinds(acts) == ['event', 'clock', 'observe', 'step']
     assert acts[0][1] == dict(t=0.0, step=0, kind='lost', agent='b')
     assert not b.faults.alive[1]
 
@@ -170,11 +197,10 @@ def test_drop_missing_loses_the_silent_agents_and_goes_on():
 def test_scheduled_radio_events_go_out_with_their_step():
     b = make(comms=[(1, {'kind': 'drop', 'loss': 0.5})])
     b.start()
-    feed_states(b, 0)
-    assert kinds(decide(b, 0)) == ['step']
-    feed_states(b, 1)
-    acts = decide(b, 1)
-    assert acts[0] == ('comms', 1, {'kind': 'drop', 'loss': 0.5}) and kinds(acts) == ['comms', 'step']
+    assert kinds(feed_states(b, 0)) == ['clock', 'observe', 'step']
+    acts = feed_states(b, 1)
+    assert acts[2] == ('comms', 1, {'kind': 'drop', 'loss': 0.5}) and kinds(acts) == ['clock', 'observe', 'comms',
+                                                                                       'step']
 
 
 def test_realtime_record_holds_states_between_stamps():
@@ -221,7 +247,6 @@ def test_states_in_one_message_per_process_make_the_same_run(feed):
                 out.append(f(b, 2, [2], u=0.7 / 3))
             if k == 4 and f is feed_batch:         # a repeat of step 4 (stall recovery) is ignored
                 assert b.on_states(np.array([1]), np.array([3]), np.array([state(1, 3)]).T, np.array([0.2])) == ([], [])
-            out.append(decide(b, k))
         runs.append((b.rec.trajectory(), [kinds(a) for a in out]))
     (t1, k1), (t2, k2) = runs
     assert k1 == k2
@@ -241,21 +266,19 @@ def test_when_every_agent_is_dropped_the_run_fails_instead_of_waiting_for_nobody
     b = make(steps=4)
     b.start()
     feed_states(b, 0)
-    decide(b, 0)
     acts = b.drop_missing()                       # no state of step 1 from anyone
     assert kinds(acts) == ['event', 'event', 'event', 'fail'] and b.done
     assert acts[-1][1] == ('step 1: no state from a, b, c (dropped): every agent is lost or killed: '
                            'no agent is left, the run ends here')
     assert b.rows_done() == 1                     # step 0 whole (u_0 unknown: lost), kept as a partial run
     assert np.isnan(b.rec.trajectory().u[0]).all()
-    assert feed_states(b, 1) == [] and decide(b, 1) == []      # nothing goes out any more
+    assert feed_states(b, 1) == []                # nothing goes out any more
 
 
 def test_the_last_agents_dropped_after_others_were_killed_end_the_run():
     b = make(steps=4, faults=[Fault(0.5, 'kill', 'a')])        # step 1
     b.start()
-    feed_states(b, 0)
-    assert kinds(decide(b, 0)) == ['step', 'event', 'signal'] and not b.done
+    assert kinds(feed_states(b, 0)) == ['clock', 'observe', 'step', 'event', 'signal'] and not b.done
     acts = b.drop_missing()
     assert kinds(acts) == ['event', 'event', 'fail'] and 'no state from b, c (dropped)' in acts[-1][1]
 
@@ -264,10 +287,8 @@ def test_a_run_whose_agents_are_all_killed_ends_at_that_step():
     b = make(steps=4, faults=[Fault(1.0, 'kill', nm) for nm in NAMES])    # step 2
     b.start()
     feed_states(b, 0)
-    decide(b, 0)
-    feed_states(b, 1)
-    acts = decide(b, 1)
-    assert kinds(acts) == ['step'] + ['event', 'signal'] * 3 + ['fail'] and b.done
+    acts = feed_states(b, 1)
+    assert kinds(acts) == ['clock', 'observe', 'step'] + ['event', 'signal'] * 3 + ['fail'] and b.done
     assert acts[-1][1].startswith('step 2: every agent is killed or lost')
     assert b.rows_done() == 2
 
@@ -275,13 +296,10 @@ def test_a_run_whose_agents_are_all_killed_ends_at_that_step():
 def test_while_every_agent_is_frozen_the_steps_go_on_without_states():
     b = make(steps=6, faults=[Fault(1.0, 'freeze', nm, 1.0) for nm in NAMES])    # steps 2..3, back at 4
     b.start()
-    for k in range(2):
-        feed_states(b, k)
-        acts = decide(b, k)
-    assert kinds(acts)[-3:] == ['clock', 'states', 'observe'] and b.cur == 2 and b.states_out
-    acts = decide(b, 2)                                # nobody to wait for at step 3 either
-    assert kinds(acts) == ['step', 'clock', 'states', 'observe'] and b.cur == 3
-    assert not b.done
+    feed_states(b, 0)
+    acts = feed_states(b, 1)                           # nobody to wait for at steps 2 and 3
+    assert kinds(acts).count('step') == 3 and b.cur == 4     # steps 1, 2 and 3; at 4 they are back
+    assert not b.done and [k for k, _, _ in b.plan.seen] == [0, 1, 2, 3]
 
 
 # ------------------------------------------------------------------ robots of the MuJoCo world
@@ -326,11 +344,9 @@ def test_a_run_with_a_robot_agent_records_its_robots_poses():
     for k in range(4):
         acts = b.on_states(*join.from_agents([0, 1, 2], [k] * 3, np.array([state(i, k) for i in (0, 7, 2)]).T,
                                              [0.1, 0.2 * k, 0.3]))[1]
-        assert 'states' not in kinds(acts)                          # b's pose is not here yet
+        assert 'step' not in kinds(acts)                            # b's pose is not here yet
         acts = b.on_states(*join.from_robots(k, [1], np.array([state(1, 2 * k)]).T))[1]
         assert kinds(acts)[:1] == (['finish'] if k == 3 else ['clock'])
-        if k < 3:
-            decide(b, k)
     tr = b.rec.trajectory()
     assert tr.r[:, 1].tolist() == [[1.0, 0.0], [1.0, 2.0], [1.0, 4.0]]
     assert tr.u[:, 1].tolist() == pytest.approx([0.2, 0.4, 0.6])

@@ -1,18 +1,18 @@
 """CommanderNode: the λ schedule, the leaders and their steering programs, live commands.
 
-Runs the scenario's `swarm_core.command.plan.CommandPlan` (the batch engine runs the same):
-- lockstep: on each ``/lockstep/states`` (the states of step n) it decides λ, leaders and
-  s_k for step n and answers on ``/lockstep/decision``;
-- realtime: a timer at 1/dt (sim time) decides from the newest states, read from the agent
-  processes' batches (``/swarm/agent_states``: one message per process and tick).
+The scenario's `swarm_core.command.plan.CommandPlan` (the batch engine runs the same) decides
+λ, the leaders and s_k:
+- lockstep: the world runs it on the table of each step, so that a step is two DDS hops
+  (agents → world → agents), not four; the commander node forwards its live commands to the
+  world (``/lockstep/command``) and reads each ``/lockstep/step`` for what was decided;
+- realtime: the commander runs it, on a timer at 1/dt (sim time), from the newest states read
+  from the agent processes' batches (``/swarm/agent_states``: one message per process and tick),
+  and publishes it on ``/swarm/decision`` (`layouts.RealtimeDecision`) for the agents and the world.
 It publishes the λ in force on ``/swarm/lambda``, ``/<leader>/steering`` (both reliable,
-transient-local) and ``/swarm/leaders`` (latched), for the record and the tools; what the
-agents and the world act on is its decision: ``/lockstep/decision`` relayed in each step
-(lockstep), ``/swarm/decision`` every tick (realtime; `layouts.RealtimeDecision`).
+transient-local) and ``/swarm/leaders`` (latched), for the record and the tools.
 
-Live commands (docs/commands.md), each applied at the next step the commander decides and
-published with that step on ``/swarm/events`` (``kind: command``; ``swarm simulate
---replay`` re-applies them):
+Live commands (docs/commands.md), each applied at the next step decided and published with
+that step on ``/swarm/events`` (``kind: command``; ``swarm simulate --replay`` re-applies them):
 - ``/swarm/lambda`` (std_msgs/Float64) from anyone else, e.g. ``ros2 topic pub --once
   /swarm/lambda std_msgs/msg/Float64 "{data: 1.0}"``: ramp to it over ``ramp`` seconds;
 - ``/commander/lambda_setpoint`` (std_msgs/Float64MultiArray ``[value, ramp_seconds]``, what
@@ -34,16 +34,15 @@ another node is seen there (`_watch_commands` says why).
 one log line, nothing changes.
 
 Faults (swarm_core.faults.agents): in lockstep the plan sees which agents the world heard at each step
-(the alive mask of ``/lockstep/states``), so leader failover elects the same successor as the
-batch engine; the decision carries the leader slots and the rendezvous (reunion) target.  The
-plan's events (leaders chosen, failover, leader lost, rendezvous on/off, commands) go to
-``/swarm/events``.
+(the alive mask of its table), so leader failover elects the same successor as the batch engine;
+the decision carries the leader slots and the rendezvous (reunion) target.  The plan's events
+(leaders chosen, failover, leader lost, rendezvous on/off, commands) go to ``/swarm/events``.
 """
 from __future__ import annotations
 
-import json
 import sys
 import time
+from collections import deque
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
@@ -57,9 +56,18 @@ from swarm_core.command.plan import check_command
 from swarm_core.faults.agents import event_names
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_ros import protocol as P
-from swarm_ros.layouts import Decision, ProcessStates, RealtimeDecision, States
-from swarm_ros.msg_checks import FUTURE_TOLERANCE, ProcessSenders, RejectLog, check_agent_states, decoded
+from swarm_ros.layouts import ProcessStates, RealtimeDecision, Step
+from swarm_ros.msg_checks import (
+    FUTURE_TOLERANCE,
+    ProcessSenders,
+    RejectLog,
+    check_agent_states,
+    decoded,
+    guard_subscriptions,
+    new_sender_tag,
+)
 from swarm_ros.rosutil import declare, gid_key, require_sim_clock, run_node, steady_clock, when_matched
+from swarm_ros.run_control import event_text, forward_text
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
 
@@ -69,6 +77,8 @@ SETPOINT = P.LAMBDA_SETPOINT
 OWN_ECHO = P.STEP_DEPTH
 #: wall seconds between looks at the graph for new command writers (which topics: CommandWatch)
 COMMAND_POLL = 0.05
+#: live commands the commander keeps (``taken``: what it accepted, for tools and tests)
+TAKEN_KEPT = 100
 
 
 class CommandReader:
@@ -110,7 +120,8 @@ class CommanderNode(Node):
         self._declare_live_parameters()
         self.leaders_sent = None
         self.steer_sent = {}
-        self.pending = []            # live changes to apply at the next decision
+        self.pending = []            # realtime: live changes to apply at the next decision
+        self.taken = deque(maxlen=TAKEN_KEPT)    # the live commands accepted, newest last
         self.decisions = 0
         self._create_outputs()
         self._create_command_readers()
@@ -119,6 +130,7 @@ class CommanderNode(Node):
         else:
             self._start_realtime()
         self.publish_leaders([])
+        guard_subscriptions(self, self.reject)      # no message ends the commander
 
     def _declare_parameters(self):
         """The scenario (`declare_scenario`, as the world), the commander's own parameters
@@ -132,7 +144,7 @@ class CommanderNode(Node):
         self.heard_timeout = d('heard_timeout', 1.0, 'realtime: an agent silent for this many sim s is not heard '
                                '(leader failover)', lo=0.0, hi=1e9)
         self.wait_for_recorder = d('wait_for_recorder', False, 'lockstep: take part only once the recorder '
-                                   'matched /swarm/lambda, every steering topic and /lockstep/decision too '
+                                   'matched /swarm/lambda and every steering topic too '
                                    f'(at most {P.RECORDER_MATCH_WAIT:g} s)')
         self.publish_every = d('publish_every', 10, 'lockstep: publish /swarm/lambda every this many steps',
                                lo=1, hi=10**9)
@@ -185,17 +197,18 @@ class CommanderNode(Node):
         self.create_subscription(Float64MultiArray, SETPOINT, self._on_setpoint, P.qos_reliable())
 
     def _start_lockstep(self):
-        self.last_decision = None
-        self.joined = False
-        self.early_states = None     # the newest /lockstep/states that came before we joined
-        self.pub_decision = self.create_publisher(Float64MultiArray, P.LOCK_DECISION, P.qos_latched())
-        # read from the start (an input of the node from its start), taken once joined
-        self.create_subscription(Float64MultiArray, P.LOCK_STATES, self._on_states, P.qos_latched(), raw=True)
+        """The world decides each step (`swarm_world.lockstep`); the commander forwards its live
+        commands and says when it takes part, then publishes what each step message carries."""
+        self.last_step = -1
+        self.forward_seq = 0
+        self.forward_tag = new_sender_tag()
+        self.pub_command = self.create_publisher(String, P.LOCK_COMMAND, P.qos_latched(100))
+        self.create_subscription(Float64MultiArray, P.LOCK_STEP, self._on_step, P.qos_latched(), raw=True)
         if self.wait_for_recorder:
-            # decide (the world waits for our decisions) only once the recorder's readers of
-            # λ, steering and decisions matched, so that it records the first of them
+            # take part (the world waits for it) only once the recorder's readers of λ and
+            # steering matched, so that it records the first of them
             when_matched(self, self._recorder_matched, self._join_lockstep, P.RECORDER_MATCH_WAIT,
-                         f'the recorder has not matched {P.LAMBDA}, {P.LOCK_DECISION} and every steering topic')
+                         f'the recorder has not matched {P.LAMBDA} and every steering topic')
         else:
             self._join_lockstep()
 
@@ -212,12 +225,11 @@ class CommanderNode(Node):
         self.timer = self.create_timer(self.dt, self._on_tick)
 
     def _recorder_matched(self):
-        # readers: λ and steering — the recorder (and our own command reader, if one exists: it
-        # matches our writer too); decisions — the world, the recorder
+        # readers of λ and steering: the recorder (and our own command reader, if one exists:
+        # it matches our writer too)
         def others(key, pub):
             return pub.get_subscription_count() - (self.commands[key].sub is not None)
         return (others(P.LAMBDA, self.pub_lambda) >= 1
-                and self.pub_decision.get_subscription_count() >= 2
                 and all(others(nm, p) >= 1 for nm, p in self.pub_steer.items()))
 
     def _watch_commands(self):
@@ -265,6 +277,7 @@ class CommanderNode(Node):
                     c.sub = None
                 if writers:
                     c.sub = self.create_subscription(c.msg_type, c.topic, c.callback, P.qos_reliable())
+                    guard_subscriptions(self, self.reject)
                     self.reading.add(key)
                 else:
                     self.reading.discard(key)
@@ -275,11 +288,8 @@ class CommanderNode(Node):
             c.writers = writers
 
     def _join_lockstep(self):
-        """Take part: decide on the states that came before (if any), and on every one from now."""
-        self.joined = True
-        raw, self.early_states = self.early_states, None
-        if raw is not None:
-            self._on_states(raw)
+        """Take part: the world starts once it has this message."""
+        self._forward('ready')
 
     def _send(self, topic, pub, value):
         fifo = self.own_sent.setdefault(topic, [])
@@ -330,9 +340,19 @@ class CommanderNode(Node):
         except ValueError as err:
             self.reject(cmd['command'], f'{cmd["source"]}: {err}')
             return False
-        self.pending.append(cmd)
+        self.taken.append(cmd)
+        if self.mode == 'lockstep':          # the world decides: it applies it at its next step
+            self._forward('command', cmd)
+        else:
+            self.pending.append(cmd)
         self.get_logger().info(text)
         return True
+
+    def _forward(self, kind, command=None):
+        """A message to the lockstep world (`run_control.forward_text`), numbered in order."""
+        self.forward_seq += 1
+        self.pub_command.publish(String(data=forward_text(kind, self.run_id, self.forward_tag, self.forward_seq,
+                                                          command)))
 
     # parameters, as in ros2/demos (set_parameters_callback.py): pre-set adjusts the request,
     # on-set validates it, post-set applies it
@@ -367,25 +387,23 @@ class CommanderNode(Node):
                 self.set_steering(name[9:], float(v), f'parameter {name}')
 
     # ------------------------------------------------------------ deciding
-    def decide(self, t, pos, cos_t, sin_t, heard=None, step=None):
-        """The plan's λ, leader flags and s_k for time t (step n); pending commands apply now
+    def decide(self, t, pos, cos_t, sin_t, heard=None):
+        """Realtime: the plan's decision for time t (a `Decided`); pending commands apply now
         and are published with their step on /swarm/events."""
         commands, self.pending = self.pending, []
-        lam, leaders, steering = self.plan.update(t, pos, cos_t, sin_t, heard=heard, commands=commands)
-        for ev in self.plan.events:
+        d = self.plan.decide(t, pos, cos_t, sin_t, heard=heard, commands=commands)
+        for ev in d.events:
             ev = dict(event_names(ev, self.names), node='commander')
             if ev['kind'] == 'command':
-                ev['step'] = P.step_of(t, self.dt) if step is None else int(step)
-            self.pub_events.publish(String(data=json.dumps(ev)))
+                ev['step'] = P.step_of(t, self.dt)
+            self.pub_events.publish(String(data=event_text(ev, self.run_id)))
             if ev['kind'] in ('failover', 'leader_lost'):
                 self.get_logger().warning(f't={t:.2f}: leader {ev["lost"]} lost; '
                                           + (f'{ev["agent"]} takes over its program' if 'agent' in ev
                                              else 'no follower to take over'))
-        flags = np.zeros(self.n, bool)
-        flags[leaders] = True
-        self.t, self.lam = t, lam
+        self.t, self.lam = t, d.lam
         self.decisions += 1
-        return lam, flags, steering
+        return d
 
     def publish_outputs(self, lam, flags, steering, force=False):
         if force:
@@ -405,26 +423,18 @@ class CommanderNode(Node):
         if leaders:
             self.get_logger().info(f'leaders: {", ".join(leaders)}')
 
-    def _on_states(self, raw):
-        if not self.joined:
-            self.early_states = raw
+    def _on_step(self, raw):
+        """Lockstep: the world's step message, with its decision: published for the record."""
+        s = decoded(Step, raw, self.run_id, self.reject, 'step-decode')
+        if s is None or s.n <= self.last_step:           # a repeat
             return
-        s = decoded(States, raw, self.run_id, self.reject, 'states-decode')
-        if s is None:
+        if len(s.flags) != self.n:
+            self.reject('step-n', f'{P.LOCK_STEP} with {len(s.flags)} agents (scenario has {self.n})')
             return
-        if self.last_decision is not None and s.n == self.last_decision[0]:
-            self.pub_decision.publish(self.last_decision[1])     # a repeat: answer again
-            return
-        if len(s.x) != self.n:
-            self.reject('states-n', f'/lockstep/states with {len(s.x)} agents (scenario has {self.n})')
-            return
-        cos_t, sin_t = frame_from_quaternion(s.qz, s.qw)
-        pos = np.stack([s.x, s.y], axis=1)
-        lam, flags, steering = self.decide(s.t, pos, cos_t, sin_t, heard=s.alive, step=s.n)
-        raw_out = Decision(s.n, s.t, lam, flags, steering, self.slots(), self.plan.rendezvous_now).to_cdr(self.run_id)
-        self.pub_decision.publish(raw_out)
-        self.last_decision = (s.n, raw_out)
-        self.publish_outputs(lam, flags, steering, force=(s.n % self.publish_every == 0))
+        self.last_step = s.n
+        self.t, self.lam = s.t, s.lam
+        self.decisions += 1
+        self.publish_outputs(s.lam, s.flags, s.steering, force=(s.n % self.publish_every == 0))
 
     def _on_state(self, raw):
         """Realtime: the states of one agent process (a serialized /swarm/agent_states
@@ -450,17 +460,10 @@ class CommanderNode(Node):
             heard = t - self.last_seen <= self.heard_timeout
             heard = heard if heard.any() else None
         cos_t, sin_t = frame_from_quaternion(self.quat[:, 0], self.quat[:, 1])    # all at once, per tick
-        lam, flags, steering = self.decide(t, self.pos, cos_t, sin_t, heard=heard)
-        self.pub_rt_decision.publish(RealtimeDecision(P.step_of(t, self.dt), t, lam, flags, steering, self.slots(),
-                                                      self.plan.rendezvous_now).to_cdr(self.run_id))
-        self.publish_outputs(lam, flags, steering, force=True)
-
-    def slots(self):
-        """Each agent's leader slot (−1: none), as the decisions carry them."""
-        slots = np.full(self.n, -1)
-        for sl, i in self.plan.slots.items():
-            slots[i] = sl
-        return slots
+        d = self.decide(t, self.pos, cos_t, sin_t, heard=heard)
+        self.pub_rt_decision.publish(RealtimeDecision(P.step_of(t, self.dt), t, d.lam, d.flags, d.steering, d.slots,
+                                                      d.rendezvous).to_cdr(self.run_id))
+        self.publish_outputs(d.lam, d.flags, d.steering, force=True)
 
 
 def main(argv=None):

@@ -33,9 +33,7 @@ from swarm_ros.protocol import (
     AGENT_STATES,
     DECISION,
     LOCK_AGENT_STATES,
-    LOCK_DECISION,
     LOCK_ROBOT_STATES,
-    LOCK_STATES,
     LOCK_STEP,
     cdr_to_float64_array,
     float64_array_header,
@@ -313,14 +311,15 @@ class AgentStates(Packed):
     u: np.ndarray            # (K,) the u the state carries (u_{step−1})
 
 
-@declare(LOCK_ROBOT_STATES, Field('n', kind='whole'), Field('K', kind='count'), Field('index', 'K', 'whole'),
-         Field('pose', (4, 'K'), 'finite'))
+@declare(LOCK_ROBOT_STATES, Field('n', kind='whole'), Field('tag', kind='finite'), Field('K', kind='count'),
+         Field('index', 'K', 'whole'), Field('pose', (4, 'K'), 'finite'))
 @dataclasses.dataclass(eq=False)
 class RobotStates(Packed):
     """Lockstep: the MuJoCo robot world's poses of its robots at t_n, in model units, as each
     robot's agent reads its odometry (`swarm_robots.timing.OdometryPoses`).  The world takes
     these agents' states of t_n from here and only u from their own answers."""
     n: int                   # the step: the physics just reached t_n·L/v0
+    tag: float               # the robot world's sender tag (the world binds the topic to its first)
     index: np.ndarray        # (K,) the robots' agents' rows in the roster
     pose: np.ndarray         # (4, K) x, y, qz, qw
 
@@ -339,26 +338,13 @@ class ProcessStates(Packed):
     u: np.ndarray            # (K,) the u the state carries
 
 
-@declare(LOCK_STATES, Field('n', kind='whole'), Field('t'), Field('N', kind='count'),
-         Field('x', 'N'), Field('y', 'N'), Field('qz', 'N'), Field('qw', 'N'), Field('alive', 'N', 'flag'))
-@dataclasses.dataclass(eq=False)
-class States(Packed):
-    """The world's table of step n for the commander."""
-    n: int
-    t: float
-    x: np.ndarray
-    y: np.ndarray
-    qz: np.ndarray
-    qw: np.ndarray
-    alive: np.ndarray        # (N,) bool: in the table (False: dead or frozen, x .. qw stale)
-
-
-@declare(LOCK_DECISION, Field('n', kind='whole'), Field('t'), Field('N', kind='count'), Field('lam'),
+@declare(DECISION, Field('n', kind='whole'), Field('t'), Field('N', kind='count'), Field('lam'),
          Field('flags', 'N', 'flag'), Field('steering', 'N'), Field('slots', 'N', 'int'),
          Field('rendezvous', 7, 'rendezvous'))
 @dataclasses.dataclass(eq=False)
-class Decision(Packed):
-    """The commander's answer for step n."""
+class RealtimeDecision(Packed):
+    """Realtime: the commander's decision of each tick (``n``: the step of its time ``t``), for
+    the agents (λ, leaders, each one's s_k) and the world (λ and leaders recorded)."""
     n: int
     t: float
     lam: float
@@ -366,13 +352,6 @@ class Decision(Packed):
     steering: np.ndarray     # (N,) s_k
     slots: np.ndarray        # (N,) int: leader slot (swarm_core.faults.agents), −1 for none
     rendezvous: Any          # the reunion of step n or None
-
-
-@declare(DECISION, *Decision.LAYOUT.fields)
-@dataclasses.dataclass(eq=False)
-class RealtimeDecision(Decision):
-    """Realtime: the commander's decision of each tick (``n``: the step of its time ``t``), for
-    the agents (λ, leaders, each one's s_k) and the world (λ and leaders recorded)."""
 
 
 @declare(LOCK_STEP, Field('n', kind='whole'), Field('t'), Field('N', kind='count'), Field('M', kind='count'),
@@ -398,4 +377,4 @@ class Step(Packed):
     rendezvous: Any
 
 
-MESSAGES = (AgentStates, RobotStates, ProcessStates, States, Decision, RealtimeDecision, Step)
+MESSAGES = (AgentStates, RobotStates, ProcessStates, RealtimeDecision, Step)

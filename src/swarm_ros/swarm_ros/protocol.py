@@ -23,8 +23,8 @@ TARGET = '/world/target'
 BARRIER = '/world/barrier'
 MARKERS = '/world/markers'
 METRICS = '/world/metrics'
-LOCK_STATES = '/lockstep/states'
-LOCK_DECISION = '/lockstep/decision'
+#: lockstep: the commander node's live commands to the world, which decides each step (`run_control.forward_text`)
+LOCK_COMMAND = '/lockstep/command'
 LOCK_STEP = '/lockstep/step'
 LOCK_AGENT_STATES = '/lockstep/agent_states'
 #: lockstep: the MuJoCo robot world's poses of its robots after each physics step (`layouts.RobotStates`)
@@ -57,8 +57,8 @@ RECORDER_MATCH_WAIT = 30.0
 #: falls behind, or a datagram repaired late, still finds the sample
 STEP_DEPTH = 100
 
-#: the lockstep critical path of one step, in order: agents → world → commander → world → agents
-CRITICAL_PATH = (LOCK_AGENT_STATES, LOCK_STATES, LOCK_DECISION, LOCK_STEP)
+#: the lockstep critical path of one step, in order: agents → world → agents
+CRITICAL_PATH = (LOCK_AGENT_STATES, LOCK_STEP)
 
 
 def lockstep_messages(n: int, writers: int, *, clock_every: int = 1, publish_every: int = 10,
@@ -68,7 +68,7 @@ def lockstep_messages(n: int, writers: int, *, clock_every: int = 1, publish_eve
     world's ``clock_every`` and ``view_every``, the commander's ``publish_every``.  The
     leaders, the steering topics and /swarm/events carry messages only when something changes;
     a topic not listed carries none per step."""
-    per = {LOCK_AGENT_STATES: writers, LOCK_STATES: 1, LOCK_DECISION: 1, LOCK_STEP: 1,
+    per = {LOCK_AGENT_STATES: writers, LOCK_STEP: 1,
            STATES: n, CLOCK: 1 / clock_every, LAMBDA: 1 / publish_every}
     if view_every:
         per.update({METRICS: 1 / view_every, MARKERS: 1 / view_every})

@@ -23,26 +23,29 @@ from pathlib import Path
 
 import numpy as np
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, String
 
 from swarm_core.analysis import metrics as M
+from swarm_core.command.plan import check_command
 from swarm_core.files import write_atomic
 from swarm_ros import protocol as P
-from swarm_ros.layouts import AgentStates, Decision, ProcessStates, RealtimeDecision, RobotStates
+from swarm_ros.layouts import AgentStates, ProcessStates, RealtimeDecision, RobotStates
 from swarm_ros.msg_checks import NewestStates, ProcessSenders, batch_ok, check_agent_states, decoded
 from swarm_ros.rosutil import ParameterError
+from swarm_ros.run_control import EventRefused, FirstSender, forwarded
 from swarm_world.lateness import TIMING_FILE, Lateness, behind_line, timing_line
 from swarm_world.lockstep import LockstepBarrier, RobotPoseJoin, comms_schedule, decision_valid
 from swarm_world.markers import stamp
-from swarm_world.realtime import RealtimeSchedule, clock_tick, newest_view
+from swarm_world.realtime import RealtimeSchedule, SilenceWatch, clock_tick, newest_view
 from swarm_world.wallclock import StallWatch, StartWatch
 
 
 class LockstepDriver:
     """Lockstep: the barrier (`lock`, a `LockstepBarrier`) takes the agent processes' states
-    (``/lockstep/agent_states``, and the robot world's poses with ``robot_poses``) and the
-    commander's decisions (``/lockstep/decision``); the node carries out what it decides
-    (`WorldNode.carry_out`: the clock, the states to the commander, the step to the agents).
+    (``/lockstep/agent_states``, and the robot world's poses with ``robot_poses``) and decides
+    each step with the scenario's `CommandPlan` (``plan``) and the live commands the commander
+    node forwards (``/lockstep/command``); the node carries out what it decides
+    (`WorldNode.carry_out`: the clock, the step to the agents).
     The wall clock (`StartWatch`, `StallWatch`) starts the run, drops missing agents, repeats
     the last message of a stalled step or gives up."""
 
@@ -54,9 +57,15 @@ class LockstepDriver:
         self.robot_poses = robot_poses
         self.lock = LockstepBarrier(node.names, node.steps, node.dt, node.faults, node.rec,
                                     comms_events=comms_schedule(node.scn.spec.comms, node.dt), clock_every=clock_every,
-                                    geometry=lambda: (node.target, node.barrier))
+                                    geometry=lambda: (node.target, node.barrier), decide=self.decide)
+        self.plan = node.scn.command_plan()
+        self.pending = []        # the commander's live commands, for the next decision
+        self.commander = FirstSender(P.LOCK_COMMAND)
+        self.commander_seq = 0   # the last command message taken (a re-delivered one is older)
+        self.commander_ready = False
         self.process_senders = ProcessSenders(node.n)
         self.join = None         # with robot_poses: a `RobotPoseJoin`
+        self.robot_sender = FirstSender(P.LOCK_ROBOT_STATES)      # the robot world's tag
         self.start_watch = StartWatch(time.monotonic(), node.n, start_timeout=start_timeout,
                                       relay_want=step_readers, clock_want=clock_readers,
                                       wait_for_recorder=wait_for_recorder,
@@ -76,10 +85,9 @@ class LockstepDriver:
         # one message per agent process and step (protocol: /lockstep/agent_states)
         self.sub_states = node.create_subscription(Float64MultiArray, P.LOCK_AGENT_STATES, self.on_agent_states,
                                                    P.qos_latched(max(100, 4 * node.n)), raw=True)
-        self.pub_lock_states = node.create_publisher(Float64MultiArray, P.LOCK_STATES, P.qos_latched())
         self.pub_step = node.create_publisher(Float64MultiArray, P.LOCK_STEP, P.qos_latched())
-        self.sub_decision = node.create_subscription(Float64MultiArray, P.LOCK_DECISION, self.on_decision,
-                                                     P.qos_latched(), raw=True)
+        # the commander's live commands (transient-local: none is lost to a late match)
+        node.create_subscription(String, P.LOCK_COMMAND, self.on_command, P.qos_latched(100))
         robots = [nm.strip() for nm in self.robot_poses.split(',') if nm.strip()]
         if robots:          # their poses from the robot world, u from their answers (`RobotPoseJoin`)
             unknown = [nm for nm in robots if nm not in node.row]
@@ -117,6 +125,10 @@ class LockstepDriver:
         m = decoded(RobotStates, raw, node.run_id, node.reject, 'robot-decode')
         if m is None:
             return
+        why = self.robot_sender.check(m.tag)
+        if why is not None:
+            node.reject(why.kind, why)
+            return
         try:
             idx, ks, vals, u = self.join.from_robots(m.n, m.index, m.pose)
         except ValueError as err:
@@ -134,17 +146,36 @@ class LockstepDriver:
             self.node.reject('step', text)
         self.node.carry_out(acts)
 
-    def on_decision(self, raw):
-        """The commander's decision of the current step (serialized /lockstep/decision)."""
+    def on_command(self, msg):
+        """The commander node's message (`run_control.forwarded`): it takes part, or a live
+        command (checked again) for the next decision.  Only the run's commander speaks here:
+        the first sender tag binds the topic."""
         node = self.node
-        d = decoded(Decision, raw, node.run_id, node.reject, 'decision')
-        if d is None or d.n != self.lock.cur or self.lock.decision is not None:
+        try:
+            m = forwarded(msg.data, node.run_id)
+            cmd = check_command(m['command'], node.n) if m['kind'] == 'command' else None
+        except EventRefused as err:
+            node.reject(err.kind, err)
             return
-        if not decision_valid(d.lam, d.flags, d.steering, node.n):
-            node.reject('decision', f'commander decision for step {d.n}: λ={d.lam}, non-finite or wrong size')
+        except ValueError as err:
+            node.reject('command', f'{P.LOCK_COMMAND}: {err}')
             return
-        self.watch.progressed(time.monotonic())
-        node.carry_out(self.lock.on_decision(d.n, d.lam, d.flags, d.steering, d.slots, d.rendezvous))
+        why = self.commander.check(m['tag'])
+        if why is not None:
+            node.reject(why.kind, why)
+            return
+        if m['seq'] <= self.commander_seq:          # a re-delivered one
+            return
+        self.commander_seq = m['seq']
+        if cmd is None:
+            self.commander_ready = True
+        else:
+            self.pending.append(cmd)
+
+    def decide(self, t, pos, cos_t, sin_t, heard):
+        """The decision of a step (`LockstepBarrier`): the plan, with the commands pending."""
+        commands, self.pending = self.pending, []
+        return self.plan.decide(t, pos, cos_t, sin_t, heard=heard, commands=commands)
 
     def on_event(self, ev):
         """An event of another node: nothing to follow (each decision carries the leaders)."""
@@ -155,21 +186,17 @@ class LockstepDriver:
 
     # ------------------------------------------------------------ actions
     def carry_out(self, action):
-        """One of lockstep's own actions (`swarm_world.lockstep`): publish the clock, the states
-        to the commander or the step to the agents, or observe a step."""
+        """One of lockstep's own actions (`swarm_world.lockstep`): publish the clock or the step
+        to the agents, or observe a step."""
         node = self.node
         kind = action[0]
         if kind == 'clock':
             node.sim_t = action[1]
             node.pub_clock.publish(P.clock_to_cdr(action[1]))
-        elif kind == 'states':
-            node.sim_t = action[1].t
-            raw = action[1].to_cdr(node.run_id)
-            self.pub_lock_states.publish(raw)
-            self.last_msg = (self.pub_lock_states, raw)
         elif kind == 'observe':
             self.observe(action[1])
         elif kind == 'step':
+            node.sim_t = action[1].t
             node.lam_now, node.leaders_now = self.lock.lam, self.lock.leaders
             raw = action[1].to_cdr(node.run_id)
             self.pub_step.publish(raw)
@@ -204,8 +231,7 @@ class LockstepDriver:
             clock_readers = node.pub_clock.get_subscription_count()
             go = self.start_watch.decide(
                 now, states=bool(self.lock.have.all()), relay_readers=self.pub_step.get_subscription_count(),
-                commander_readers=self.pub_lock_states.get_subscription_count(),
-                decision_writers=self.sub_decision.handle.get_publisher_count(), clock_readers=clock_readers)
+                commander_ready=self.commander_ready, clock_readers=clock_readers)
             if go == 'start_without_recorder':
                 node.get_logger().warning(f'{P.CLOCK}: {clock_readers} readers matched, not '
                                           f'{self.start_watch.clock_want}, after '
@@ -222,12 +248,11 @@ class LockstepDriver:
                 node.give_up(f'discovery timed out after {self.start_timeout:.0f} s: have states of '
                              f'{int(self.lock.have.sum())}/{node.n} agents, relay readers '
                              f'{self.pub_step.get_subscription_count()}, commander '
-                             f'{"yes" if self.pub_lock_states.get_subscription_count() else "no"}'
+                             f'{"ready" if self.commander_ready else "not ready"}'
                              + (f'; no robot pose from the robot world ({P.LOCK_ROBOT_STATES}) for '
                                 + ', '.join(poses) if poses else ''))
             return
-        what = self.watch.decide(now, states_out=self.lock.states_out, complete=self.lock.complete(),
-                                 can_repeat=self.last_msg is not None)
+        what = self.watch.decide(now, complete=self.lock.complete(), can_repeat=self.last_msg is not None)
         if what == 'drop':
             for i in self.lock.missing():
                 node.get_logger().warning(f'{self.state_of(i)}: none for step {self.lock.cur} within '
@@ -235,10 +260,9 @@ class LockstepDriver:
             node.carry_out(self.lock.drop_missing())
         elif what == 'give_up':
             node.give_up(f'step {self.lock.cur} has not completed after {now - self.watch.step_wall:.0f} s '
-                         f'(waiting for {"the commander" if self.lock.states_out else "agents"}): giving up')
+                         '(waiting for agents): giving up')
         elif what == 'repeat':
-            waiting = ("the commander's decision" if self.lock.states_out else
-                       ', '.join(self.state_of(i) for i in self.lock.missing()))
+            waiting = ', '.join(self.state_of(i) for i in self.lock.missing())
             node.get_logger().warning(f'stalled at step {self.lock.cur} waiting for {waiting}: '
                                       'repeating the last message')
             self.last_msg[0].publish(self.last_msg[1])
@@ -266,12 +290,15 @@ class RealtimeDriver:
     """Realtime: the newest state of each agent (`heard`, recorded as it comes, with its
     lateness), λ and the leaders as the commander announces them; on each tick the clock at
     the real-time factor, the scheduled radio events and faults (`schedule`, a
-    `RealtimeSchedule`) and the view."""
+    `RealtimeSchedule`), the agents silent for ``missing_timeout`` wall s marked lost
+    (`silence`, a `SilenceWatch`) and the view."""
 
-    def __init__(self, node, rtf, future_tolerance):
+    def __init__(self, node, rtf, future_tolerance, missing_timeout):
         self.node = node
         self.rtf = rtf
         self.future_tolerance = future_tolerance
+        self.missing_timeout = missing_timeout
+        self.silence = SilenceWatch(node.n, missing_timeout)   # a process killed from outside: lost
         # fixed leaders, then the commander's events
         self.schedule = RealtimeSchedule(node.names, node.faults, node.scn.command_plan().slots,
                                          comms_schedule(node.scn.spec.comms, node.dt), node.view_every)
@@ -303,9 +330,11 @@ class RealtimeDriver:
         if m is None or not batch_ok(m, node.names, None, node.reject):
             return
         ok = self.heard.take(m, node.names, node.sim_t, self.future_tolerance, node.reject)
+        ok &= ~node.faults.dead[m.index]          # a killed or lost agent stays out (as in lockstep)
         if not ok.any():
             return
         i, t = m.index[ok], m.t[ok]
+        self.silence.heard(i, time.monotonic())
         k = np.rint(t / node.dt).astype(np.int64)                 # protocol.step_of
         if node.started:
             self.lateness.arrive(i, k, t, (time.monotonic() - node.run_wall) * self.rtf)
@@ -356,12 +385,16 @@ class RealtimeDriver:
             now = node.run_wall = time.monotonic()
             node.timer.reset()          # the ticks from the start on: one just after each period boundary
             self.lateness.start()
+            self.silence.start(now)
         node.sim_t = (now - node.run_wall) * self.rtf
         node.pub_clock.publish(Clock(clock=stamp(node.sim_t)))
         k = P.step_of(node.sim_t, node.dt)
         node.carry_out(self.schedule.comms_due(k))
+        self.lose_silent(now)
+        if node.done:
+            return
         if self.schedule.view_due(k):
-            pos, theta = newest_view(self.heard)
+            pos, theta = newest_view(self.heard, ~node.faults.dead)
             t = k * node.dt
             md = M.min_distance(pos)
             line = node.obs.progress(t, pos, md, node.lam_now)
@@ -370,11 +403,32 @@ class RealtimeDriver:
             node.publish_view(t, pos, theta, md, timing=self.lateness.summary(k))
         acts = self.schedule.faults_due(min(k, node.steps))
         for a in acts:
+            if a[0] == 'event':
+                at = a[1]['step']
             if a[0] == 'signal' and a[1] is not None and a[2] != 'cont':
                 self.lateness.excuse(a[1])          # its silence is the fault's, not lateness
+            if a[0] == 'signal' and a[1] is not None and a[2] == 'kill':
+                node.rec.mark_lost(a[1], at)        # gone from its kill's step, as in lockstep
         node.carry_out(acts)
         if node.sim_t >= node.scn.duration:
             node.finish()
+
+    def lose_silent(self, now):
+        """The agents (neither dead nor frozen) silent for ``missing_timeout`` wall s are lost
+        (`RealtimeSchedule.lose`): a ``lost`` event, out of the view and of the trajectory from
+        the step after their newest state, their gaps not lateness."""
+        node = self.node
+        gone, silent_for = self.silence.silent(now, ~node.faults.dead & ~node.faults.frozen)
+        if not gone.size:
+            return
+        for i in gone:
+            node.get_logger().warning(f'no state from {node.names[i]} for {silent_for:.1f} s (missing_timeout '
+                                      f'{self.missing_timeout:g} s): {node.names[i]} is lost')
+        acts, since = self.schedule.lose(gone, self.heard.t, node.dt, silent_for)
+        for i, k_gone in since.items():
+            node.rec.mark_lost(i, k_gone)
+            self.lateness.excuse(i)
+        node.carry_out(acts)
 
     # ------------------------------------------------------------ end
     def rows_done(self):

@@ -5,35 +5,39 @@ One step n (the cycle in docs/ros-graph.md):
 
 1. `on_states` takes the agents' states of t_n (one agent process's at once); once every
    agent in the table has sent one (`complete`), the barrier records the step and asks the
-   node to send ``/clock`` and the packed states to the commander;
-2. `on_decision` takes the commander's decision for step n; the barrier records λ and the
-   leaders and asks the node to relay ONE ``/lockstep/step`` message to every agent;
+   node to send ``/clock``;
+2. it decides λ, the leaders and s_k of step n on that table at once (``decide``: the
+   scenario's `CommandPlan`, with the live commands the commander node forwarded), records
+   them and asks the node to send ONE ``/lockstep/step`` message to every agent;
 3. `begin_step` applies the faults of step n + 1 (scheduled and live) before its states are
    awaited.
 
 Every method returns a list of actions for the node, in order:
 
 - ``('clock', t)``: publish ``/clock``;
-- ``('states', msg)``: publish the states (a `swarm_ros.layouts.States`);
 - ``('observe', k)``: step k's states are recorded (metrics, markers, progress);
 - ``('comms', k, event)``: publish a scheduled radio event (a dict) at step k on ``/swarm/events``;
 - ``('step', msg)``: publish the step (a `swarm_ros.layouts.Step`);
-- ``('event', ev)``: a world event (log it, publish it, write it to the events file);
+- ``('event', ev)``: a world event or one of the plan's (log it, publish it, write it to the events file);
 - ``('signal', i, what)``: signal agent i's process, ``what`` in ``kill``/``stop``/``cont``;
 - ``('finish',)``: the last u is known; the run is over;
 - ``('fail', why)``: no agent is left (every one lost or killed): the run cannot go on.
 
 The node carries them out (`WorldNode.carry_out`, the clock, states, step and observe actions by
 its `LockstepDriver`), which also keeps the wall clock (stalls, time-outs); the node keeps the
-messages and the files.
+messages and the files.  The decision of a step is made here, on the table the step message
+carries, not by a round trip to the commander node: two DDS hops per step instead of four
+(docs/ros-graph.md).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from swarm_core.checks import LAMBDA_BOUND, STEERING_BOUND
+from swarm_core.faults.agents import event_names
 from swarm_core.faults.radio import event_step
-from swarm_ros.layouts import States, Step
+from swarm_core.model.frenet import frame_from_quaternion
+from swarm_ros.layouts import Step
 
 
 def comms_schedule(comms, dt):
@@ -43,7 +47,7 @@ def comms_schedule(comms, dt):
 
 
 def decision_valid(lam, flags, steering, n):
-    """A commander decision is usable: λ in [0, 1], finite steering, one flag per agent."""
+    """A realtime commander decision is usable: λ in [0, 1], finite steering, one flag per agent."""
     return bool(LAMBDA_BOUND.ok(lam) and np.all(np.abs(steering) <= STEERING_BOUND.hi) and len(flags) == n)
 
 
@@ -126,9 +130,11 @@ class LockstepBarrier:
 
     ``faults`` is the scenario's `swarm_core.faults.agents.FaultTimeline`, ``recorder`` a
     `swarm_core.engine.trajectory.TrajectoryRecorder`; ``comms_events`` is a list of (step, event)
-    sorted by step; ``geometry()`` returns the (target, barrier) to put in each step."""
+    sorted by step; ``geometry()`` returns the (target, barrier) to put in each step;
+    ``decide(t, pos, cos_t, sin_t, heard)`` returns the decision of a step (a
+    `swarm_core.command.plan.Decided`: `CommandPlan.decide` with the pending live commands)."""
 
-    def __init__(self, names, steps, dt, faults, recorder, *, comms_events=(), clock_every=1,
+    def __init__(self, names, steps, dt, faults, recorder, *, decide, comms_events=(), clock_every=1,
                  geometry=lambda: (None, None)):
         self.names = list(names)
         self.n = len(self.names)
@@ -139,14 +145,13 @@ class LockstepBarrier:
         self.comms_events = list(comms_events)
         self.clock_every = clock_every
         self.geometry = geometry
+        self.decide = decide
         self.cur = 0
         self.buf = np.zeros((4, self.n))          # x, y, qz, qw of step cur
         self.buf_u = np.zeros(self.n)             # u_{cur-1} the states carry
         self.have = np.zeros(self.n, bool)
         self.fresh = np.zeros(self.n, bool)       # stamped at the current step (not held)
         self.want = np.zeros(self.n, dtype=np.int64)   # the stamp step wanted from each agent
-        self.states_out = False
-        self.decision = None
         self.slots = {}                           # leader slot → agent index (last decision)
         self.stop_pending = set()                 # frozen agents to stop once their state is held
         self.started = False
@@ -206,14 +211,6 @@ class LockstepBarrier:
             self.rec.u[k - 1, i] = u
         return None, []
 
-    def on_decision(self, n, lam, flags, steering, slots, rendezvous):
-        """The commander's decision for step n; ignored unless it is the one awaited."""
-        if n != self.cur or self.decision is not None:
-            return []
-        self.decision = (lam, np.array(flags, bool), np.array(steering, float), rendezvous)
-        self.slots = {int(sl): int(i) for i, sl in enumerate(slots) if sl >= 0}
-        return self.advance()
-
     # ------------------------------------------------------------------ the cycle
     def start(self):
         """Everyone is matched: apply step 0's faults and go."""
@@ -229,49 +226,60 @@ class LockstepBarrier:
         return np.flatnonzero(self.faults.alive & ~self.have)
 
     def advance(self):
-        if not self.started or self.done:
+        if not self.started or self.done or not self.complete():
             return []
         acts = []
         alive = self.faults.alive
-        if self.complete() and not self.states_out:
-            k = self.cur
-            if k > self.steps:                         # the final u_{steps}
-                self.rec.record_u(self.steps, alive, self.buf_u)
-                self.done = True
-                return [('finish',)]
-            x, y, qz, qw = self.buf
-            self.rec.record_states(k, alive, x, y, qz, qw)
-            if k > 0:
-                self.rec.record_u(k - 1, self.fresh & alive, self.buf_u)
-            t = k * self.dt
-            if k % self.clock_every == 0 or k == self.steps:
-                acts.append(('clock', t))
-            acts.append(('states', States(k, t, *self.buf.copy(), alive.copy())))     # as of now
-            self.states_out = True
-            acts.append(('observe', k))
-        if self.states_out and self.decision is not None:
-            k = self.cur
-            lam, flags, steering, rdv = self.decision
-            self.lam, self.leaders = lam, flags & alive
-            self.rec.record_decision(k, lam, self.leaders)
-            target, barrier = self.geometry()
-            data = Step(k, k * self.dt, lam, flags, steering, *self.buf.copy(), self.buf_u.copy(), alive.copy(),
-                        target, barrier, rdv)
-            while self.comms_events and self.comms_events[0][0] <= k:
-                acts.append(('comms', k, self.comms_events.pop(0)[1]))
-            acts.append(('step', data))
-            self.cur += 1
-            self.have[:] = False
-            self.fresh[:] = False
-            self.want[:] = self.cur
-            self.states_out = False
-            self.decision = None
-            acts += self.begin_step(self.cur)
-            if self.deserted():
-                return acts + self._fail('every agent is killed or lost')
-            if self.complete():                    # nobody to wait for (all frozen): the step goes on
-                acts += self.advance()
-        return acts
+        k = self.cur
+        if k > self.steps:                         # the final u_{steps}
+            self.rec.record_u(self.steps, alive, self.buf_u)
+            self.done = True
+            return [('finish',)]
+        x, y, qz, qw = self.buf
+        self.rec.record_states(k, alive, x, y, qz, qw)
+        if k > 0:
+            self.rec.record_u(k - 1, self.fresh & alive, self.buf_u)
+        t = k * self.dt
+        if k % self.clock_every == 0 or k == self.steps:
+            acts.append(('clock', t))
+        acts.append(('observe', k))
+        d = self._decide(t, alive)
+        acts += [('event', ev) for ev in self.plan_events(d.events, k)]
+        self.slots = {int(sl): int(i) for i, sl in enumerate(d.slots) if sl >= 0}
+        self.lam, self.leaders = d.lam, d.flags & alive
+        self.rec.record_decision(k, d.lam, self.leaders)
+        target, barrier = self.geometry()
+        data = Step(k, t, d.lam, d.flags, d.steering, *self.buf.copy(), self.buf_u.copy(), alive.copy(),
+                    target, barrier, d.rendezvous)
+        while self.comms_events and self.comms_events[0][0] <= k:
+            acts.append(('comms', k, self.comms_events.pop(0)[1]))
+        acts.append(('step', data))
+        self.cur += 1
+        self.have[:] = False
+        self.fresh[:] = False
+        self.want[:] = self.cur
+        acts += self.begin_step(self.cur)
+        if self.deserted():
+            return acts + self._fail('every agent is killed or lost')
+        return acts + self.advance()             # nobody to wait for (all frozen): the step goes on
+
+    def _decide(self, t, alive):
+        """The plan's decision at t on the table held: the positions, the frames the agents
+        compute from the quaternions they sent, and the agents heard (the alive mask)."""
+        x, y, qz, qw = self.buf
+        cos_t, sin_t = frame_from_quaternion(qz, qw)
+        return self.decide(t, np.stack([x, y], axis=1), cos_t, sin_t, alive.copy())
+
+    def plan_events(self, events, k):
+        """The plan's events of step k as the world publishes them: agent names, and the step
+        of each live command (what ``swarm simulate --replay`` applies again)."""
+        out = []
+        for ev in events:
+            ev = event_names(ev, self.names)
+            if ev['kind'] == 'command':
+                ev['step'] = k
+            out.append(ev)
+        return out
 
     def deserted(self):
         """No agent will ever answer again: every one killed or lost (a frozen one comes back)."""
@@ -336,4 +344,4 @@ class LockstepBarrier:
     def rows_done(self):
         """Rows whose state, λ, leaders and u are all known (u_{k-1} comes with step k, or is
         unknown once every agent is gone at step k)."""
-        return min(self.cur if self.states_out or self.deserted() else self.cur - 1, self.steps + 1)
+        return min(self.cur if self.deserted() else self.cur - 1, self.steps + 1)

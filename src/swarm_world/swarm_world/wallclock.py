@@ -5,10 +5,11 @@ from __future__ import annotations
 
 
 class StartWatch:
-    """Start once every agent's state of step 0 is held, the ``n`` relay readers and the
-    commander (both ways) are matched; with ``wait_for_recorder`` also one /clock reader more
-    than the agents and the commander (a late recorder would lose the first, volatile /clock
-    messages), for at most ``recorder_wait`` s."""
+    """Start once every agent's state of step 0 is held, the ``n`` relay readers and one more
+    (the commander) are matched and the commander said it takes part; with
+    ``wait_for_recorder`` also one /clock reader more than the agents and the commander (a
+    late recorder would lose the first, volatile /clock messages), for at most
+    ``recorder_wait`` s."""
 
     def __init__(self, now, n, *, start_timeout, wait_for_recorder=False, recorder_wait=0.0,
                  relay_want=0, clock_want=0):
@@ -21,11 +22,11 @@ class StartWatch:
         self.wall_start = now
         self.recorder_wait_from = None     # when everyone but the recorder was matched
 
-    def decide(self, now, *, states, relay_readers, commander_readers, decision_writers, clock_readers):
+    def decide(self, now, *, states, relay_readers, commander_ready, clock_readers):
         """``'start'``, ``'start_without_recorder'`` (waited ``recorder_wait`` in vain),
         ``'time_out'`` (not started within ``start_timeout``) or None (wait).  ``states``: every
         state of step 0 is held."""
-        ok = states and relay_readers >= self.relay_want and commander_readers >= 1 and decision_writers >= 1
+        ok = states and relay_readers >= self.relay_want + 1 and commander_ready
         if ok and self.wait_for_recorder and clock_readers < self.clock_want:
             if self.recorder_wait_from is None:
                 self.recorder_wait_from = now
@@ -55,13 +56,12 @@ class StallWatch:
     def progressed(self, now):
         self.last_progress = now
 
-    def decide(self, now, *, states_out, complete, can_repeat):
+    def decide(self, now, *, complete, can_repeat):
         """``'drop'`` (agents missing too long), ``'give_up'`` (the step too long),
-        ``'repeat'`` (no progress for ``stall_timeout``; counts as progress) or None.  ``states_out``: the step's
-        states went to the commander; ``complete``: every state of the step is here;
-        ``can_repeat``: a message has gone out."""
+        ``'repeat'`` (no progress for ``stall_timeout``; counts as progress) or None.
+        ``complete``: every state of the step is here; ``can_repeat``: a message has gone out."""
         waited = now - self.step_wall
-        if not states_out and not complete and waited > self.missing_timeout:
+        if not complete and waited > self.missing_timeout:
             return 'drop'
         if waited > self.give_up_after:
             return 'give_up'

@@ -34,13 +34,13 @@ def test_topic_pub_once_reaches_a_200_agent_commander(tmp_path, rclpy_context):
                                               for k, i in enumerate([199, 0, 137, 64, 5])]
     try:
         for topic, agent, value in tries:
-            n = len(cmd.pending)
+            n = len(cmd.taken)
             t = threading.Thread(target=topic_pub_once, args=([topic, 'std_msgs/msg/Float64', f'{{data: {value}}}'],),
                                  kwargs={'context': Context()})
             t.start()
             assert spin_for(ex, lambda t=t: not t.is_alive(), 120), topic
-            assert spin_for(ex, lambda n=n: len(cmd.pending) > n, 30), topic
-            got = cmd.pending[n:]
+            assert spin_for(ex, lambda n=n: len(cmd.taken) > n, 30), topic
+            got = list(cmd.taken)[n:]
             assert len(got) == 1 and got[0]['value'] == value, (topic, got)
             if agent is not None:
                 assert got[0]['command'] == 'steer' and got[0]['agent'] == cmd.row[agent]

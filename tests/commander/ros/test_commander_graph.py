@@ -20,7 +20,7 @@ from tests.fakes.ros2cli_verbs import NodeNotFound, param_describe, param_set
 from tests.helpers import node_inputs, overrides, spin_for
 
 #: what the commander reads in each mode (docs/ros-graph.md): /clock through use_sim_time
-INPUTS = {'lockstep': {P.LOCK_STATES, P.LAMBDA_SETPOINT, P.CLOCK},
+INPUTS = {'lockstep': {P.LOCK_STEP, P.LAMBDA_SETPOINT, P.CLOCK},
           'realtime': {P.AGENT_STATES, P.LAMBDA_SETPOINT, P.CLOCK}}
 
 
@@ -98,5 +98,5 @@ def test_ros2_param_describe_gives_each_live_parameter_its_range(rclpy_context):
     assert [d.name for d in got['describe']] == names
     assert not got['too_big'].successful and '1000000' in got['too_big'].reason
     assert got['ok'].successful
-    assert spin_for(ex, lambda: any(c.get('command') == 'steer' and c['value'] == 0.02 for c in cmd.pending), 10)
+    assert spin_for(ex, lambda: any(c.get('command') == 'steer' and c['value'] == 0.02 for c in cmd.taken), 10)
     cmd.destroy_node()

@@ -13,8 +13,8 @@ from tests.helpers import node_inputs, overrides
 
 #: what the world reads in every mode, and in each mode (docs/ros-graph.md)
 COMMON = {P.EVENTS, P.FAULT_REQUEST, P.RUN}
-INPUTS = {'lockstep': COMMON | {P.LOCK_AGENT_STATES, P.LOCK_DECISION},
-          'lockstep-robots': COMMON | {P.LOCK_AGENT_STATES, P.LOCK_DECISION, P.LOCK_ROBOT_STATES},
+INPUTS = {'lockstep': COMMON | {P.LOCK_AGENT_STATES, P.LOCK_COMMAND},
+          'lockstep-robots': COMMON | {P.LOCK_AGENT_STATES, P.LOCK_COMMAND, P.LOCK_ROBOT_STATES},
           'realtime': COMMON | {P.AGENT_STATES, P.DECISION}}
 
 

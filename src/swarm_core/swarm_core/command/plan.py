@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -150,6 +150,16 @@ def lateral_extremes(pos, cos_t, sin_t):
     return int(np.argmax(lateral)), int(np.argmin(lateral))
 
 
+class Decided(NamedTuple):
+    """One decision of the plan (`CommandPlan.decide`): what a step message carries."""
+    lam: float
+    flags: np.ndarray          # (N,) bool: the leaders
+    steering: np.ndarray       # (N,) s_k of the leaders, 0 elsewhere
+    slots: np.ndarray          # (N,) int: each agent's leader slot, -1 for none
+    rendezvous: object         # `CommandPlan.rendezvous_now`
+    events: list               # `CommandPlan.events` of this decision (agent indices)
+
+
 @dataclass
 class CommandPlan:
     """What the commander decides each step: λ, the leaders and their steering values.
@@ -258,6 +268,18 @@ class CommandPlan:
                     ev.update(point=None if now[0] is None else list(now[0]), gain=now[1], coupling=now[3])
                 self.events.append(ev)
         return lam, sorted(self.leaders), steering
+
+    def decide(self, t: float, pos, cos_t, sin_t, heard=None, commands=()) -> Decided:
+        """`update`, as flags, steering and leader slots per agent: the commander's decision of
+        a step (realtime) and the world's (lockstep) are this one call."""
+        lam, leaders, steering = self.update(t, pos, cos_t, sin_t, heard=heard, commands=commands)
+        n = len(cos_t)
+        flags = np.zeros(n, bool)
+        flags[leaders] = True
+        slots = np.full(n, -1)
+        for sl, i in self.slots.items():
+            slots[i] = sl
+        return Decided(lam, flags, steering, slots, self.rendezvous_now, list(self.events))
 
     def _failover(self, t, pos, heard):
         fo = self.failover
