@@ -14,7 +14,7 @@ bash scripts/setup.sh || exit $?
 # the lint gate first (ruff.toml): a finding fails the run before any test starts
 .venv/bin/ruff check --quiet . || { echo "ruff check found the problems above (ruff.toml); fix them first"; exit 1; }
 # the ROS shards' weights: shard 1 runs beside the pure tests from the start, shard 2 after them
-SHARDS=5,3
+SHARDS=3,2
 work=$(mktemp -d "${TMPDIR:-/tmp}/swarm-tests.XXXXXX")
 trap 'rm -rf "$work"' EXIT
 
