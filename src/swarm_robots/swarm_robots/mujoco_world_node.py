@@ -44,7 +44,7 @@ from swarm_robots.world_setup import (
 )
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RobotStates, Step
-from swarm_ros.msg_checks import RejectLog, decoded, new_sender_tag
+from swarm_ros.msg_checks import RejectLog, decoded, guard_subscriptions, new_sender_tag
 from swarm_ros.rosutil import ParameterError, declare, require_sim_clock, run_node, steady_clock
 from swarm_ros.run_control import CommandSenders, EventRefused, decode_command, run_event
 from swarm_ros.runinfo import declare_run_id
@@ -125,6 +125,7 @@ class RobotsNode(Node):
         self.get_logger().info(
             f'{len(self.agents)} robots ({self.mode}): L = {self.sec.length_scale:g} m, v0 = '
             f'{self.sec.cruise_speed:g} m/s, {self.scale:g} robot s per model s')
+        guard_subscriptions(self, self.reject)      # no message ends the robot world
 
     def _declare_parameters(self):
         d = lambda *a, **k: declare(self, *a, **k)
