@@ -230,7 +230,8 @@ class WorldNode(Node):
         published on /swarm/events and written to the events file."""
         ev = dict(ev, node='world')
         self.events.append(ev)
-        self.log(f'[world] event t={ev["t"]:.2f}: {ev["kind"]} {ev.get("agent", "")}', flush=True)
+        what = ' '.join(str(ev[k]) for k in ('command', 'agent', 'value', 'ramp', 'leaders') if k in ev)
+        self.log(f'[world] event t={ev["t"]:.2f}: {ev["kind"]} {what}'.rstrip(), flush=True)
         self.pub_events.publish(String(data=event_text(ev, self.run_id)))
         self.write_event(ev)
 
