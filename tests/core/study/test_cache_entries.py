@@ -80,3 +80,18 @@ def test_an_entry_that_is_not_this_runs_file_is_run_again_and_the_outputs_writte
     if target is not None:
         assert entry.is_symlink() and target.read_text() == before   # not written through the link
 
+
+
+def test_a_change_to_the_robot_description_file_is_a_change_of_the_runs(tmp_path):
+    """The cache key of a cell that names a robot description follows the file's content, as a
+    user's law file does: an edited description is run again, not taken from the cache."""
+    from swarm_core import study as st
+    from swarm_core.study.runner import tasks
+    desc = tmp_path / 'robot.yaml'
+    desc.write_text('wheel_radius: 0.05\n')
+    study = st.make_study('homotopy_global', [('robot_set', ['all'])], seeds=1,
+                          fixed={'robots.description': str(desc)})
+    before = [t.key for t in tasks(study, version='v')]
+    assert before == [t.key for t in tasks(study, version='v')]          # the same file: the same runs
+    desc.write_text('wheel_radius: 0.06\n')
+    assert not set(before) & {t.key for t in tasks(study, version='v')}

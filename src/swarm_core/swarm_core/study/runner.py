@@ -262,6 +262,21 @@ ENGINES = ('fast', 'reference')
 ROBOTS_ENGINE = 'robots'
 
 
+def description_hash(data: dict, base_dir=None) -> str:
+    """A hash of the robot description file that a cell's ``robots:`` section names ('' for
+    none), read with the limits of every input (`scenario.read_text`): part of the cell's cache
+    key, as a user's law file is (`law_code_hash`).  StudyError for a file that cannot be read."""
+    robots = data.get('robots')
+    name = robots.get('description') if isinstance(robots, dict) else None
+    if not name:
+        return ''
+    try:
+        text = scenario.read_text(scenario.description_path(name, base_dir), 'robot description')
+    except ValueError as err:             # ScenarioError: not a regular file, too large, ...
+        raise StudyError(f'robots.description: {err}') from None
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 def tasks(study: Study, version: str | None = None, engine: str = 'fast') -> list[Task]:
     if engine not in ENGINES:
         raise StudyError(f'engine {engine!r}: one of {", ".join(ENGINES)}')
@@ -273,9 +288,13 @@ def tasks(study: Study, version: str | None = None, engine: str = 'fast') -> lis
         on = ROBOTS_ENGINE if study.robot_set(cell) is not None else engine
         tag = {'fast': version, 'reference': f'{version}-reference'}.get(on) or \
             f'{version}-robots-{code_version("swarm_robots")}-{study.robot_set(cell)}'
-        laws = law_code_hash(data.get('law'), Path(study.source).parent if Path(study.source).is_file() else None)
+        base_dir = Path(study.source).parent if Path(study.source).is_file() else None
+        laws = law_code_hash(data.get('law'), base_dir)
         if laws:            # a user's law: a change to its file is a change of the code
             tag = f'{tag}-law-{laws}'
+        robot = description_hash(data, base_dir)
+        if robot:           # a robot description: a change to its file is a change of the run
+            tag = f'{tag}-robot-{robot}'
         for seed in study.seeds:
             out.append(Task(run_key(base, cell, seed, tag), ci, cell, seed, data, study.source, version, on,
                             study.robot_set(cell)))
