@@ -48,6 +48,7 @@ from swarm_core.laws import LawError
 from swarm_core.robot_units import (
     CMD_TYPES,
     ROBOT_FRAMES,
+    ROBOTS_BOUNDS,
     RateLimit,
     RobotsSpec,
     RobotUnits,
@@ -71,21 +72,28 @@ def _default(name):
     return RobotsSpec.model_fields[name].default          # one place: the scenario schema
 
 
+def _range(name, unset=False):
+    """The parameter range of a robots: field: the scenario's bounds (`ROBOTS_BOUNDS`, one
+    place); ``unset``: 0.0 too, the value of a parameter not given."""
+    b = ROBOTS_BOUNDS[name]
+    return dict(lo=0.0 if unset else b.lo, hi=b.hi)
+
+
 def declare_robot(node) -> dict:
     """A robot agent's parameters (declared only when ``robot`` is not none)."""
     d = lambda *a, **k: declare(node, *a, read_only=True, **k)  # read once at the start
     p = dict(
         length_scale=d('length_scale', 0.0, 'robot: L, metres per model unit (the scenario\'s robots: section)',
-                       lo=0.0, hi=1e6),
-        cruise_speed=d('cruise_speed', 0.0, 'robot: v0, the forward speed (m/s)', lo=0.0, hi=100.0),
+                       **_range('length_scale', unset=True)),
+        cruise_speed=d('cruise_speed', 0.0, 'robot: v0, the forward speed (m/s)', **_range('cruise_speed', unset=True)),
         max_angular=d('max_angular', _default('max_angular'), 'robot: ω_max (rad/s); a larger turn is clipped '
-                      'and counted', lo=1e-6, hi=1e3),
+                      'and counted', **_range('max_angular')),
         odom_timeout=d('odom_timeout', _default('odom_timeout'), 'robot: odometry older than this (robot s) '
-                       'stops the robot', lo=1e-3, hi=1e6),
+                       'stops the robot', **_range('odom_timeout')),
         neighbour_timeout=d('neighbour_timeout', _default('neighbour_timeout'), 'robot: no neighbour in radio '
-                            'range for this long (robot s) stops the robot', lo=1e-3, hi=1e6),
+                            'range for this long (robot s) stops the robot', **_range('neighbour_timeout')),
         max_jump=d('max_jump', _default('max_jump'), 'robot: odometry moving farther than v0·Δt + this (m) '
-                   'is rejected', lo=0.0, hi=1e6),
+                   'is rejected', **_range('max_jump')),
         robot_frame=d('robot_frame', _default('frame'), 'robot: odometry in its own odom frame from (0, 0, 0) '
                       'at the start pose (odom) or in a common frame (world)', choices=ROBOT_FRAMES),
         cmd_type=d('cmd_type', _default('cmd_type'), 'robot: cmd_vel message type', choices=CMD_TYPES),
