@@ -53,9 +53,8 @@ class WaitTimeout(SwarmError, TimeoutError):
     """`Swarm.wait_until`: the predicate was not true within the timeout."""
 
 
-#: how long `Swarm.start` listens for a run already on the domain before it starts its own (wall s):
-#: a new participant found a running swarm after 0.15-3 s on a busy 2-core machine
-BUSY_DISCOVERY = 4.0
+#: how long `Swarm.start` listens for a run already on the domain before it starts its own (wall s)
+BUSY_DISCOVERY = runinfo.DISCOVERY_SETTLE
 
 
 def check_timeout(name: str, value, none=False):

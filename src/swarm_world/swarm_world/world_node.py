@@ -36,6 +36,7 @@ from swarm_core.engine.trajectory import Trajectory, TrajectoryRecorder
 from swarm_core.files import open_regular
 from swarm_core.robot_units import ROBOT_KINDS
 from swarm_ros import protocol as P
+from swarm_ros import runinfo
 from swarm_ros.msg_checks import RejectLog, guard_subscriptions, may_signal, reason
 from swarm_ros.rosutil import ParameterError, declare, run_node, steady_clock
 from swarm_ros.run_control import EventRefused, event_text, run_event
@@ -53,7 +54,7 @@ SIGNALS = {'kill': signal.SIGKILL, 'stop': signal.SIGSTOP, 'cont': signal.SIGCON
 
 #: before its first step the world listens this long (wall s) for another run on the domain:
 #: its own agents may be discovered in 0.2 s, an older run's announcement can come later
-ANNOUNCE_SETTLE = 2.0
+ANNOUNCE_SETTLE = runinfo.DISCOVERY_SETTLE
 
 
 class WorldNode(Node):
