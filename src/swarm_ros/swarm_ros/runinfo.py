@@ -20,10 +20,10 @@ from swarm_ros.rosutil import ParameterError, declare
 MAX_RUN_CHARS = 1 << 20
 #: how long a live verb listens for the announcements of every ``/swarm/run`` writer it sees
 ANNOUNCE_WAIT = 3.0
-#: wall s a new participant may take to discover a swarm already on the domain (measured 0.15-3 s
+#: wall s a new participant may take to discover a swarm already on the domain (measured 0.15-3.0 s
 #: on a busy 2-core machine): how long a world listens before its first step, and `Swarm.start`
 #: before it starts a run, for another run
-DISCOVERY_SETTLE = 4.0
+DISCOVERY_SETTLE = 3.0
 #: most runs a `RunWatch` keeps (more are counted as ignored: a peer announcing run after run
 #: must not grow it without end; two are already enough to refuse)
 MAX_RUNS = 64

@@ -134,7 +134,11 @@ def _record(rclpy_context, processes, swarm_cmd, out, steps, *, stop_signal=sign
     pubs = Publishers(rclpy_context)
     try:
         rec = _start_recorder(processes, swarm_cmd, out, *extra)
-        assert _wait(pubs.matched, 30, pubs.spin), 'recorder never subscribed'
+        if not _wait(pubs.matched, 30, pubs.spin):
+            os.killpg(rec.pid, signal.SIGINT)
+            said = rec.communicate(timeout=30)
+            raise AssertionError(f'recorder never subscribed (readers of states, λ, clock: '
+                                 f'{[p.get_subscription_count() for p in pubs.volatile]}); it said: {said}')
         # the recorder has subscribed to the volatile topics: the run starts
         pubs.publish_run(steps, pace)
         # stop only once everything published is in the file (chunks are closed every 0.5 s)
