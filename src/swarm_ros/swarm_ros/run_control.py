@@ -42,17 +42,29 @@ def run_event(text: str, run_id: str) -> dict:
     """The event (a dict, without its run id) in a ``/swarm/events`` text of run ``run_id``;
     `EventRefused` for one to ignore: not a JSON object (kind ``event-json``), or, when
     ``run_id`` is set, of another run or of none (kind ``other-run``)."""
-    try:
-        ev = json_value(text, MAX_EVENT_CHARS)
-    except ValueError as err:
-        raise EventRefused('event-json', f'{P.EVENTS}: not a JSON event ({str(err)[:80]}): {text[:80]!r}') from None
+    ev = _json_object(text, P.EVENTS, 'event-json', 'event')
     if not isinstance(ev, dict):
         raise EventRefused('event-json', f'{P.EVENTS}: an event is a JSON object, not {text[:80]!r}')
-    got = ev.pop(RUN_KEY, '')
+    return _of_run(ev, run_id, P.EVENTS, f'event {str(ev.get("kind"))[:40]!r}')
+
+
+def _json_object(text: str, topic: str, kind: str, what: str):
+    """The JSON value of a message's ``text`` (with the limits of every input); `EventRefused`
+    of ``kind`` naming ``topic`` for one that is not JSON."""
+    try:
+        return json_value(text, MAX_EVENT_CHARS)
+    except ValueError as err:
+        raise EventRefused(kind, f'{topic}: not a JSON {what} ({str(err)[:80]}): {text[:80]!r}') from None
+
+
+def _of_run(msg: dict, run_id: str, topic: str, what: str) -> dict:
+    """``msg`` without its run id; `EventRefused` (kind ``other-run``) when ``run_id`` is set and
+    the message's is another or none (``what``: the message in words)."""
+    got = msg.pop(RUN_KEY, '')
     if run_id and got != run_id:
-        raise EventRefused('other-run', f'{P.EVENTS}: event {str(ev.get("kind"))[:40]!r} of run '
-                           f'{str(got)[:40] or "(none)"!r}, not this run {run_id!r}: ignored')
-    return ev
+        raise EventRefused('other-run', f'{topic}: {what} of run {str(got)[:40] or "(none)"!r}, '
+                           f'not this run {run_id!r}: ignored')
+    return msg
 
 
 class FirstSender:
@@ -138,17 +150,10 @@ def forwarded(text: str, run_id: str) -> dict:
     """The message in a ``/lockstep/command`` text of run ``run_id`` (with ``tag``, ``seq``,
     ``kind`` and, for a command, ``command``); `EventRefused` for one to ignore: not such an
     object (kind ``command-json``), or of another run (kind ``other-run``)."""
-    try:
-        msg = json_value(text, MAX_EVENT_CHARS)
-    except ValueError as err:
-        raise EventRefused('command-json', f'{P.LOCK_COMMAND}: not JSON ({str(err)[:80]}): {text[:80]!r}') from None
+    msg = _json_object(text, P.LOCK_COMMAND, 'command-json', 'message')
     if (not isinstance(msg, dict) or msg.get('kind') not in FORWARD_KINDS
             or not isinstance(msg.get('tag'), float) or isinstance(msg.get('seq'), bool)
             or not isinstance(msg.get('seq'), int)
             or (msg['kind'] == 'command') != isinstance(msg.get('command'), dict)):
         raise EventRefused('command-json', f'{P.LOCK_COMMAND}: not a commander message: {text[:80]!r}')
-    got = msg.pop(RUN_KEY, '')
-    if run_id and got != run_id:
-        raise EventRefused('other-run', f'{P.LOCK_COMMAND}: message of run {str(got)[:40] or "(none)"!r}, '
-                           f'not this run {run_id!r}: ignored')
-    return msg
+    return _of_run(msg, run_id, P.LOCK_COMMAND, 'message')
