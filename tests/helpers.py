@@ -51,6 +51,26 @@ def short_homotopy(path, *, duration, lam, at, curvature=0.01, **overrides):
     return path
 
 
+TWO_AGENTS = """
+name: two_agents
+seed: 0
+dt: 0.05
+duration: {duration}
+agents:
+  positions: [[0, 0], [1, 0]]
+  headings: {{rule: cone, half_width: 0.5}}
+law: {{kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0, leader_gain: 30.0, q0: 1.0}}
+lambda: {{kind: constant, value: 0.0}}
+"""
+
+
+def two_agents(path, duration):
+    """Write a small scenario of two agents, λ = 0, of ``duration`` s to ``path`` (returned)."""
+    path = Path(path)
+    path.write_text(TWO_AGENTS.format(duration=duration))
+    return path
+
+
 class Lines:
     """Collects a child's stdout lines in a thread (start it with stdout=PIPE, text=True)."""
 

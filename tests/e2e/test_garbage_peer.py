@@ -4,6 +4,7 @@ type), and every node goes on; the run finishes with the batch engine's result, 
 counts what it refused."""
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
@@ -92,19 +93,18 @@ class Peer:
         rclpy.try_shutdown(context=self.ctx2)
 
 
-def test_garbage_on_every_topic_of_a_lockstep_run_ends_no_node(tmp_path, rclpy_context, ros_domain):
-    """A lockstep run (world, commander, six agents in one executor) while a peer writes
-    garbage on its topics a few times mid-run.  A /lockstep/step of the run at t = NaN used to
-    end every agent (in setting its clock), a /clock before 0 the commander (in rclpy's own
-    reader).  Now every message any node cannot read is counted and logged once: the run
-    finishes equal to `simulate`, and each node's count says what it refused."""
-    path = short_homotopy(tmp_path / 'g.yaml', duration=8.0, lam='{kind: constant, value: 0.0}', at=100.0)
+@contextlib.contextmanager
+def run_beside_a_peer(tmp_path, ctx, domain, mode, duration, rounds, pause, **extra):
+    """World, commander and six agents of run `RUN` in one executor (``mode``, ``duration`` s),
+    started, while a `Peer` writes up to ``rounds`` rounds of garbage ``pause`` s apart; yields
+    (scenario, executor, world, commander, agents, rounds written).  Nodes and peer are closed
+    after, also when the test fails."""
+    path = short_homotopy(tmp_path / 'g.yaml', duration=duration, lam='{kind: constant, value: 0.0}', at=100.0)
     scn = load(str(path))
-    params = node_parameters(scn, str(path), 'lockstep', extra_world=dict(stall_timeout=0.3))
+    params = node_parameters(scn, str(path), mode, **extra)
     for p in params.values():
         p['run_id'] = RUN
-    ctx = rclpy_context
-    peer = Peer(ctx, ros_domain, len(scn.names), 'lockstep')
+    peer = Peer(ctx, domain, len(scn.names), mode)
     world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
     ex = make_executor(ctx)
     nodes = [world, commander, *agents]
@@ -113,11 +113,26 @@ def test_garbage_on_every_topic_of_a_lockstep_run_ends_no_node(tmp_path, rclpy_c
             ex.add_node(nd)
         assert spin_for(ex, lambda: peer.matched(len(agents)), 30.0)
         assert spin_for(ex, lambda: world.started, 60.0)
-        rounds = 0
-        while not world.done and rounds < 8:        # a round now and then, mid-run
-            peer.write(rounds)
-            rounds += 1
-            spin_for(ex, lambda: world.done, 0.2)
+        written = 0
+        while not world.done and written < rounds:        # a round now and then, mid-run
+            peer.write(written)
+            written += 1
+            spin_for(ex, lambda: world.done, pause)
+        yield scn, ex, world, commander, agents, written
+    finally:
+        for nd in nodes:
+            nd.destroy_node()
+        peer.close()
+
+
+def test_garbage_on_every_topic_of_a_lockstep_run_ends_no_node(tmp_path, rclpy_context, ros_domain):
+    """A lockstep run (world, commander, six agents in one executor) while a peer writes
+    garbage on its topics a few times mid-run.  A /lockstep/step of the run at t = NaN used to
+    end every agent (in setting its clock), a /clock before 0 the commander (in rclpy's own
+    reader).  Now every message any node cannot read is counted and logged once: the run
+    finishes equal to `simulate`, and each node's count says what it refused."""
+    with run_beside_a_peer(tmp_path, rclpy_context, ros_domain, 'lockstep', 8.0, 8, 0.2,
+                           extra_world=dict(stall_timeout=0.3)) as (scn, ex, world, commander, agents, rounds):
         assert rounds >= 4, 'the run ended before the peer wrote four rounds'
         assert spin_for(ex, lambda: world.done, 60.0)
         assert world.failed is None
@@ -128,13 +143,9 @@ def test_garbage_on_every_topic_of_a_lockstep_run_ends_no_node(tmp_path, rclpy_c
         assert {f'unreadable:{P.CLOCK}', 'step-decode', 'setpoint'} <= set(commander.reject.kinds), \
             commander.reject.lines
         assert 'state-decode' in world.reject.kinds, world.reject.lines
-        for nd in nodes:
+        for nd in (world, commander, *agents):
             # one line per kind, one more per kind per 10 s of rejections
             assert len(nd.reject.lines) <= 2 * len(nd.reject.kinds), (nd.get_name(), nd.reject.lines)
-    finally:
-        for nd in nodes:
-            nd.destroy_node()
-        peer.close()
 
 
 def test_garbage_on_every_topic_of_a_realtime_run_ends_no_node(tmp_path, rclpy_context, ros_domain):
@@ -142,26 +153,8 @@ def test_garbage_on_every_topic_of_a_realtime_run_ends_no_node(tmp_path, rclpy_c
     follows the sim clock (agents, commander), an event of the run naming a leader slot by a
     list the world.  Every node goes on to the end, no state is NaN, and the counts say what
     each refused."""
-    path = short_homotopy(tmp_path / 'g.yaml', duration=5.0, lam='{kind: constant, value: 0.0}', at=100.0)
-    scn = load(str(path))
-    params = node_parameters(scn, str(path), 'realtime', rtf=5.0)
-    for p in params.values():
-        p['run_id'] = RUN
-    ctx = rclpy_context
-    peer = Peer(ctx, ros_domain, len(scn.names), 'realtime')
-    world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
-    ex = make_executor(ctx)
-    nodes = [world, commander, *agents]
-    try:
-        for nd in nodes:
-            ex.add_node(nd)
-        assert spin_for(ex, lambda: peer.matched(len(agents)), 30.0)
-        assert spin_for(ex, lambda: world.started, 60.0)
-        rounds = 0
-        while not world.done and rounds < 4:
-            peer.write(rounds)
-            rounds += 1
-            spin_for(ex, lambda: world.done, 0.1)
+    with run_beside_a_peer(tmp_path, rclpy_context, ros_domain, 'realtime', 5.0, 4, 0.1,
+                           rtf=5.0) as (scn, ex, world, commander, agents, rounds):
         assert rounds >= 2, 'the run ended before the peer wrote twice'
         assert spin_for(ex, lambda: world.done, 60.0)
         assert world.failed is None
@@ -172,9 +165,5 @@ def test_garbage_on_every_topic_of_a_realtime_run_ends_no_node(tmp_path, rclpy_c
             assert f'unreadable:{P.CLOCK}' in a.reject.kinds, a.reject.lines
         assert f'unreadable:{P.CLOCK}' in commander.reject.kinds, commander.reject.lines
         assert {f'unreadable:{P.EVENTS}', 'state-decode'} <= set(world.reject.kinds), world.reject.lines
-        for nd in nodes:
+        for nd in (world, commander, *agents):
             assert len(nd.reject.lines) <= 2 * len(nd.reject.kinds), (nd.get_name(), nd.reject.lines)
-    finally:
-        for nd in nodes:
-            nd.destroy_node()
-        peer.close()

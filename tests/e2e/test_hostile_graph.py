@@ -26,7 +26,7 @@ from swarm_ros.runinfo import run_json
 from swarm_tools.run.launch import build_nodes
 from swarm_tools.run.params import agent_parameters, node_parameters
 from swarm_world.world_node import WorldNode
-from tests.helpers import odom, overrides, short_homotopy, spin_for
+from tests.helpers import odom, overrides, short_homotopy, spin_for, two_agents
 
 
 def test_hostile_publisher_during_a_realtime_run(tmp_path, rclpy_context):
@@ -231,19 +231,6 @@ def test_live_verbs_that_cannot_act_exit_nonzero_and_name_the_run(rclpy_context,
         sp.close()
 
 
-TWO = """
-name: two_agents
-seed: 0
-dt: 0.05
-duration: 20
-agents:
-  positions: [[0, 0], [1, 0]]
-  headings: {rule: cone, half_width: 0.5}
-law: {kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0, leader_gain: 30.0, q0: 1.0}
-lambda: {kind: constant, value: 0.0}
-"""
-
-
 def test_a_second_swarm_run_on_the_domain_refuses_and_the_first_is_not_mixed(tmp_path, ros_domain, processes,
                                                                              swarm_cmd):
     """Run A (in one process) is going; run B (processes) on the same ROS_DOMAIN_ID refuses to
@@ -257,7 +244,7 @@ def test_a_second_swarm_run_on_the_domain_refuses_and_the_first_is_not_mixed(tmp
     lines = Lines(a)
     assert lines.wait_for('[world] t=    5.00', 180), ''.join(lines.lines)
     run_a = next(ln.split()[3].rstrip(':') for ln in lines.lines if ln.startswith('swarm run: run '))
-    (tmp_path / 'two.yaml').write_text(TWO)
+    two_agents(tmp_path / 'two.yaml', 20)
     b = processes.start([swarm_cmd, 'run', tmp_path / 'two.yaml', '--out', tmp_path / 'b', '--no-figure'],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     out = processes.communicate(b, 180)

@@ -5,19 +5,7 @@ from __future__ import annotations
 
 import subprocess
 
-from tests.helpers import Lines
-
-TWO = """
-name: two_agents
-seed: 0
-dt: 0.05
-duration: 5
-agents:
-  positions: [[0, 0], [1, 0]]
-  headings: {rule: cone, half_width: 0.5}
-law: {kind: homotopy, alpha: 0.02, eta: 0.02, mu: 0.02, r0: 1.5, cutoff_radius: 4.0, leader_gain: 30.0, q0: 1.0}
-lambda: {kind: constant, value: 0.0}
-"""
+from tests.helpers import Lines, two_agents
 
 #: the run's topics the peer writes std_msgs/String on: presubscribed ones and one found later
 HIJACKED = ('/swarm/states', '/clock', '/world/metrics', '/lockstep/step')
@@ -41,7 +29,7 @@ def test_a_writer_of_another_type_on_recorded_topics_loses_nothing(rclpy_context
     pubs = [peer.create_publisher(String, topic, P.qos_latched(10)) for topic in HIJACKED]
     for p in pubs:
         p.publish(String(data='not yours'))
-    (tmp_path / 'two.yaml').write_text(TWO)
+    two_agents(tmp_path / 'two.yaml', 5)
     bag = tmp_path / 'run.mcap'
     proc = processes.start([swarm_cmd, 'run', tmp_path / 'two.yaml', '--record', bag, '--out', tmp_path / 'out',
                             '--no-figure', '--start-timeout', '25'],
