@@ -85,7 +85,7 @@ def test_commands_and_decisions_take_the_same_bounds():
     """A steering of 1e308 made an agent NaN once λ = 1: refused by the commander's check,
     the world's check of a decision and the Foxglove view alike."""
     from swarm_tools.live.view import client_bound
-    from swarm_world.lockstep import decision_valid
+    from swarm_world.realtime import decision_valid
     for cmd in [dict(command='steer', agent=0, value=1e308), dict(command='lambda', value=1.0, ramp=1e308),
                 dict(command='lambda', value=1.0, ramp=[1]), dict(command='lambda', value=1.0, shape=['x'])]:
         with pytest.raises(ValueError):

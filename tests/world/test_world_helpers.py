@@ -12,11 +12,17 @@ from swarm_core.analysis import metrics as M
 from swarm_core.faults.agents import Fault, FaultTimeline
 from swarm_core.model.frenet import quaternion_from_heading
 from swarm_ros.msg_checks import NewestStates
-from swarm_world.lockstep import decision_valid
 from swarm_world.markers import markers_every
 from swarm_world.observe import Observer
 from swarm_world.parsing import fault_request, format_points, leader_flags, parse_geometry, parse_point, parse_points
-from swarm_world.realtime import CLOCK_TICK_MAX, CLOCK_TICK_MIN, RealtimeSchedule, clock_tick, newest_view
+from swarm_world.realtime import (
+    CLOCK_TICK_MAX,
+    CLOCK_TICK_MIN,
+    RealtimeSchedule,
+    clock_tick,
+    decision_valid,
+    newest_view,
+)
 from swarm_world.wallclock import StallWatch, StartWatch
 
 NAMES = ['a', 'b', 'c']

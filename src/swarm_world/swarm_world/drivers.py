@@ -34,9 +34,9 @@ from swarm_ros.msg_checks import NewestStates, ProcessSenders, batch_ok, check_a
 from swarm_ros.rosutil import ParameterError
 from swarm_ros.run_control import EventRefused, FirstSender, forwarded
 from swarm_world.lateness import TIMING_FILE, Lateness, behind_line, timing_line
-from swarm_world.lockstep import LockstepBarrier, RobotPoseJoin, comms_schedule, decision_valid
+from swarm_world.lockstep import LockstepBarrier, RobotPoseJoin, comms_schedule
 from swarm_world.markers import stamp
-from swarm_world.realtime import RealtimeSchedule, SilenceWatch, clock_tick, newest_view
+from swarm_world.realtime import RealtimeSchedule, SilenceWatch, clock_tick, decision_valid, newest_view
 from swarm_world.wallclock import StallWatch, StartWatch
 
 

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from swarm_core.checks import LAMBDA_BOUND, STEERING_BOUND
 from swarm_core.faults.agents import event_names
 from swarm_core.faults.radio import event_step
 from swarm_core.model.frenet import frame_from_quaternion
@@ -44,11 +43,6 @@ def comms_schedule(comms, dt):
     """A scenario's radio events (its ``comms`` spec or None) as (step, event dict), by step."""
     return sorted(((event_step(e.at, dt), e.model_dump(exclude_none=True))
                    for e in (comms.events if comms else [])), key=lambda se: se[0])
-
-
-def decision_valid(lam, flags, steering, n):
-    """A realtime commander decision is usable: λ in [0, 1], finite steering, one flag per agent."""
-    return bool(LAMBDA_BOUND.ok(lam) and np.all(np.abs(steering) <= STEERING_BOUND.hi) and len(flags) == n)
 
 
 #: no states (rows, steps, values, u)

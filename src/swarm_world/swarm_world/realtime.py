@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from swarm_core.checks import LAMBDA_BOUND, STEERING_BOUND
 from swarm_core.faults.agents import track_slots
 from swarm_core.model.frenet import yaw_from_quaternion
 from swarm_ros import protocol as P
@@ -33,6 +34,11 @@ def clock_tick(dt, rtf, most=CLOCK_TICK_MAX, least=CLOCK_TICK_MIN):
     if period < least:
         return period * math.ceil(least / period - 1e-9)
     return period / max(1, math.ceil(period / most - 1e-9))
+
+
+def decision_valid(lam, flags, steering, n):
+    """A realtime commander decision is usable: λ in [0, 1], finite steering, one flag per agent."""
+    return bool(LAMBDA_BOUND.ok(lam) and np.all(np.abs(steering) <= STEERING_BOUND.hi) and len(flags) == n)
 
 
 class RealtimeSchedule:
