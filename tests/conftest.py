@@ -11,6 +11,8 @@ tests/e2e/ (whole runs) is marked; a test elsewhere that is marked `ros` by hand
 """
 from __future__ import annotations
 
+import contextlib
+import gc
 import os
 import signal
 import subprocess
@@ -99,17 +101,25 @@ def take_shard(config, items):
 
 @pytest.fixture
 def rclpy_context(ros_domain):
-    """An initialised rclpy Context of its own on the test's domain; shut down afterwards."""
+    """An initialised rclpy Context of its own on the test's domain; afterwards every node made
+    on it is destroyed and it is shut down.  (A shutdown alone leaves the nodes' DDS entities
+    alive: a later test on this domain would still be served their transient-local messages.)"""
     import rclpy
     from rclpy.context import Context
+    from rclpy.node import Node
 
     ctx = Context()
     rclpy.init(context=ctx, domain_id=ros_domain)
     try:
         yield ctx
     finally:
+        gc.collect()
+        for node in [o for o in gc.get_objects() if isinstance(o, Node) and o.context is ctx]:
+            with contextlib.suppress(Exception):     # already destroyed by the test
+                node.destroy_node()
         if ctx.ok():
             rclpy.shutdown(context=ctx)
+        ctx.destroy()
 
 
 class ProcessGroup:

