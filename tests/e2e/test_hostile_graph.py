@@ -232,12 +232,14 @@ def test_live_verbs_that_cannot_act_exit_nonzero_and_name_the_run(rclpy_context,
 
 
 def test_a_second_swarm_run_on_the_domain_refuses_and_the_first_is_not_mixed(tmp_path, ros_domain, processes,
-                                                                             swarm_cmd):
+                                                                             swarm_cmd, monkeypatch):
     """Run A (in one process) is going; run B (processes) on the same ROS_DOMAIN_ID refuses to
     start with one line naming A (it used to follow A's world and fail with "discovery timed
     out"); A goes on, equal to `swarm simulate` bit for bit, so nothing of B got in."""
     from swarm_core.engine.reference import Trajectory, simulate
+    from swarm_ros.runinfo import SETTLE_ENV
     from tests.helpers import Lines
+    monkeypatch.delenv(SETTLE_ENV)               # the worlds listen for another run, as by default
     a = processes.start([swarm_cmd, 'run', 'homotopy_global', '--in-process', '--out', tmp_path / 'a',
                          '--no-figure', '--progress-every', '5'],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

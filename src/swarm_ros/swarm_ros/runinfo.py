@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 import numbers
+import os
 import re
 import secrets
 from types import SimpleNamespace
@@ -24,6 +25,24 @@ ANNOUNCE_WAIT = 3.0
 #: on a busy 2-core machine): how long a world listens before its first step, and `Swarm.start`
 #: before it starts a run, for another run
 DISCOVERY_SETTLE = 3.0
+#: the environment variable that sets `discovery_settle` (wall s, 0-60), e.g. 0 where a
+#: ROS_DOMAIN_ID is held for one run alone (the pytest plugin's ``ros_domain`` does so)
+SETTLE_ENV = 'SWARM_DISCOVERY_SETTLE'
+
+
+def discovery_settle() -> float:
+    """Wall s to listen for another run before starting one: `SETTLE_ENV` if set, else
+    `DISCOVERY_SETTLE`; ValueError naming the variable if it is not a number in [0, 60]."""
+    text = os.environ.get(SETTLE_ENV, '').strip()
+    if not text:
+        return DISCOVERY_SETTLE
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 <= value <= 60.0:
+        raise ValueError(f'{SETTLE_ENV}={text!r}: want wall seconds in [0, 60]')
+    return value
 #: most runs a `RunWatch` keeps (more are counted as ignored: a peer announcing run after run
 #: must not grow it without end; two are already enough to refuse)
 MAX_RUNS = 64

@@ -53,10 +53,6 @@ class WaitTimeout(SwarmError, TimeoutError):
     """`Swarm.wait_until`: the predicate was not true within the timeout."""
 
 
-#: how long `Swarm.start` listens for a run already on the domain before it starts its own (wall s)
-BUSY_DISCOVERY = runinfo.DISCOVERY_SETTLE
-
-
 def check_timeout(name: str, value, none=False):
     """A timeout (wall or sim seconds) given to a `Swarm` method, as a float: ValueError (an
     `InputError`) naming the argument for one that is not a finite number in [0, `MAX_TIME`]
@@ -169,7 +165,7 @@ class Swarm:
     # ------------------------------------------------------------ making one
     @classmethod
     def start(cls, scenario, mode='lockstep', rtf=1.0, duration=None, out=None, agents_per_process=1,
-              record=None, *, domain=None, start_timeout=180.0, echo=False, busy_wait=BUSY_DISCOVERY,
+              record=None, *, domain=None, start_timeout=180.0, echo=False, busy_wait=None,
               **overrides) -> 'Swarm':
         """Start ``swarm run SCENARIO`` with these options (``overrides``: any other ``swarm
         run`` option as a keyword, e.g. ``seed=3``, ``no_figure=True``) on ``domain`` (None:
@@ -177,10 +173,10 @@ class Swarm:
         announced itself and its sim time runs; `SwarmError` (with what ``swarm run`` said) if
         it ends or does not start within ``start_timeout`` wall s, or naming the other run if
         one is already on the domain (then nothing is started: that run's clients see nothing
-        of this one; ``busy_wait``: wall s to listen for one, 0 on a domain held for this run
-        alone, as the pytest plugin's).  ``echo``: print its lines."""
+        of this one; ``busy_wait``: wall s to listen for one (None: `runinfo.discovery_settle`),
+        0 on a domain held for this run alone, as the pytest plugin's).  ``echo``: print its lines."""
         start_timeout = check_timeout('start_timeout', start_timeout)
-        busy_wait = check_timeout('busy_wait', busy_wait)
+        busy_wait = check_timeout('busy_wait', runinfo.discovery_settle() if busy_wait is None else busy_wait)
         busy = _run_on_domain(domain, busy_wait) if busy_wait > 0 else None
         if busy:
             raise SwarmError(busy)
@@ -492,7 +488,7 @@ def _busy_line(runs, domain) -> str:
             + '): refusing to start one more (give each run its own ROS_DOMAIN_ID)')
 
 
-def _run_on_domain(domain, wait=BUSY_DISCOVERY):
+def _run_on_domain(domain, wait):
     """The error line if a run already announces itself on ``domain`` (None: ROS_DOMAIN_ID),
     else None: listens ``wait`` wall s for a ``/swarm/run`` writer or a ``/world``
     node, and then for every writer's announcement (at most `runinfo.ANNOUNCE_WAIT` s).  A

@@ -3,7 +3,9 @@
 
 ``ros_domain``  a ROS_DOMAIN_ID of the test's own (held with a lock file, so parallel pytest
     runs on one machine never share one), localhost-only discovery, set in os.environ for the
-    test (child processes inherit it); gives the id.  The ids it takes: ``--swarm-domains
+    test (child processes inherit it); gives the id.  No other run can be on that domain, so a
+    world starts without listening for one first (``SWARM_DISCOVERY_SETTLE=0``; a test of that
+    refusal sets it back).  The ids it takes: ``--swarm-domains
     LO-HI``, else the environment's ``SWARM_DOMAINS=LO-HI``, else 1-100 (`DOMAINS`).
 ``swarm``  a function ``swarm(scenario, **options)`` that starts `swarm_tools.api.Swarm` on the
     test's domain (``out`` defaults to a directory in tmp_path); after the test, passed or
@@ -18,6 +20,8 @@ import time
 from pathlib import Path
 
 import pytest
+
+from swarm_ros.runinfo import SETTLE_ENV
 
 # Domain ids 1..100 are safe on Linux (ports below the ephemeral range).  A test holds an
 # exclusive flock on <SWARM_DOMAIN_LOCK_DIR>/<id>.lock for as long as it uses the id.
@@ -130,6 +134,7 @@ def ros_domain(monkeypatch, request):
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     monkeypatch.delenv('ROS_STATIC_PEERS', raising=False)
     monkeypatch.setenv('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp')
+    monkeypatch.setenv(SETTLE_ENV, '0')        # the domain is this test's alone
     return dom
 
 

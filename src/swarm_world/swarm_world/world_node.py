@@ -52,11 +52,6 @@ from swarm_world.parsing import fault_request, format_points, parse_geometry, pa
 SIGNALS = {'kill': signal.SIGKILL, 'stop': signal.SIGSTOP, 'cont': signal.SIGCONT}
 
 
-#: before its first step the world listens this long (wall s) for another run on the domain:
-#: its own agents may be discovered in 0.2 s, an older run's announcement can come later
-ANNOUNCE_SETTLE = runinfo.DISCOVERY_SETTLE
-
-
 class WorldNode(Node):
     """What every world node has, whatever its mode: its parameters, the scenario and its
     faults, the record (`rec`) and the checks (`obs`), target and barrier, the clock, view and
@@ -85,6 +80,12 @@ class WorldNode(Node):
         self.done = False
         self.failed = None
         self.wall_start = time.monotonic()
+        # before its first step the world listens this long (wall s) for another run on the
+        # domain: its own agents may be discovered in 0.2 s, an older run's announcement later
+        try:
+            self.announce_settle = runinfo.discovery_settle()
+        except ValueError as err:
+            raise ParameterError(str(err)) from None
         self.run_wall = None
         self.trails = Trails(self.n, self.trail_length)
         self.views = -1          # views published (markers: every `markers_every`)
@@ -188,7 +189,7 @@ class WorldNode(Node):
         (runinfo.give_way); once started, go on whatever is announced."""
         worlds = 1 if self.started else sum(
             1 for nm, ns in self.get_node_names_and_namespaces() if nm == 'world' and ns == '/')
-        if not self.started and time.monotonic() - self.wall_start < ANNOUNCE_SETTLE:
+        if not self.started and time.monotonic() - self.wall_start < self.announce_settle:
             return True     # give discovery a moment to bring an older run's announcement
         if worlds > 1 and not older_runs(self.runs.runs, self.run_id, self.since):
             # a second world seen before its /swarm/run: hold the start a moment to hear which run
