@@ -40,6 +40,7 @@ def test_a_callback_that_raises_is_counted_logged_once_and_the_node_goes_on():
     assert reject.count == 3 and set(reject.kinds) == {'unreadable:/t'}
     assert len(log.lines) == 1 and log.lines[0].startswith('rejected /t: a message this node cannot read, '
                                                            'dropped (ZeroDivisionError')
+    assert log.lines[0].endswith('raised at test_guard.py:33 in on_message)')     # where to look
     with pytest.raises(Fatal):                          # an error of the run itself goes on to the executor
         guarded(on_message, reject, '/t', passes=(Fatal,))(7)
 

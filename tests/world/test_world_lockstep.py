@@ -168,6 +168,10 @@ def test_a_freeze_stops_the_agent_once_its_state_is_held_and_resumes_it():
     assert reason is None and acts == [('signal', 2, 'stop')]
     acts = feed_states(b, 3, [0, 1])
     assert kinds(acts) == ['clock', 'observe', 'step', 'event', 'signal'] and acts[4] == ('signal', 2, 'cont')
+    # step 3 is observed over its own table (a, b): c, resumed at step 4, has no state at 3 (its
+    # NaN row once went to the metrics' k-d tree, which raised, and step 3 was never sent)
+    assert acts[1][:2] == ('observe', 3) and acts[1][2].tolist() == [0, 1]
+    assert np.isfinite(b.rec.r[3, acts[1][2]]).all() and np.isnan(b.rec.r[3, 2]).all()
     assert b.have[2]                                  # resumes with the held state
     feed_states(b, 4, [0, 1])
     tr = b.rec.trajectory()

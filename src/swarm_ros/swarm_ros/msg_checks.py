@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import secrets
 import time
+import traceback
 
 import numpy as np
 
@@ -283,10 +285,24 @@ def guarded(callback, reject, topic: str, passes=()):
             raise
         except Exception as err:
             reject(f'{UNREADABLE}:{topic}', f'{topic}: a message this node cannot read, dropped '
-                   f'({type(err).__name__}: {str(err)[:120]})')
+                   f'({type(err).__name__}: {str(err)[:120]}; raised at {_where(err)})')
             return None
     run.guarded = True
     return run
+
+
+def _where(err: BaseException) -> str:
+    """``module.py:LINE in function`` of the deepest frame of this project's code that ``err``
+    passed through (else its deepest frame): where to look, in one line."""
+    frames = traceback.extract_tb(err.__traceback__)
+    ours = [f for f in frames if any(f'/{pkg}/' in f.filename for pkg in _PACKAGES)]
+    f = (ours or frames or [None])[-1]
+    return '?' if f is None else f'{os.path.basename(f.filename)}:{f.lineno} in {f.name}'
+
+
+#: this project's packages (`_where`)
+_PACKAGES = ('swarm_core', 'swarm_ros', 'swarm_agent', 'swarm_world', 'homotopy_commander', 'swarm_robots',
+             'swarm_tools')
 
 
 def guard_subscriptions(node, reject, passes=()) -> int:

@@ -194,7 +194,7 @@ class LockstepDriver:
             node.sim_t = action[1]
             node.pub_clock.publish(P.clock_to_cdr(action[1]))
         elif kind == 'observe':
-            self.observe(action[1])
+            self.observe(*action[1:])
         elif kind == 'step':
             node.sim_t = action[1].t
             node.lam_now, node.leaders_now = self.lock.lam, self.lock.leaders
@@ -203,10 +203,11 @@ class LockstepDriver:
             self.last_msg = (self.pub_step, raw)
             self.watch.stepped(time.monotonic())
 
-    def observe(self, k):
-        """Step k's checks (collisions, intrusions), progress, metrics and markers."""
+    def observe(self, k, idx):
+        """Step k's checks (collisions, intrusions), progress, metrics and markers, over the
+        agents ``idx`` of its table (faults: the agents alive at step k, not those of the step
+        begun since: an agent resumed there has no state at k)."""
         node = self.node
-        idx = np.flatnonzero(node.faults.alive)         # faults: only agents in the table
         pos = node.rec.r[k, idx]
         t = k * node.dt
         md, complaints = node.obs.check(t, pos, [node.names[i] for i in idx], node.barrier_geom)

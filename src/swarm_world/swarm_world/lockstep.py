@@ -15,7 +15,8 @@ One step n (the cycle in docs/ros-graph.md):
 Every method returns a list of actions for the node, in order:
 
 - ``('clock', t)``: publish ``/clock``;
-- ``('observe', k)``: step k's states are recorded (metrics, markers, progress);
+- ``('observe', k, rows)``: step k's states of the agents ``rows`` (those in its table) are
+  recorded (metrics, markers, progress);
 - ``('comms', k, event)``: publish a scheduled radio event (a dict) at step k on ``/swarm/events``;
 - ``('step', msg)``: publish the step (a `swarm_ros.layouts.Step`);
 - ``('event', ev)``: a world event or one of the plan's (log it, publish it, write it to the events file);
@@ -236,7 +237,7 @@ class LockstepBarrier:
         t = k * self.dt
         if k % self.clock_every == 0 or k == self.steps:
             acts.append(('clock', t))
-        acts.append(('observe', k))
+        acts.append(('observe', k, np.flatnonzero(alive)))     # the table of step k: not the next's
         d = self._decide(t, alive)
         acts += [('event', ev) for ev in self.plan_events(d.events, k)]
         self.slots = {int(sl): int(i) for i, sl in enumerate(d.slots) if sl >= 0}
