@@ -247,10 +247,11 @@ class CommanderNode(Node):
         existed before it, the Jazzy ``ros2 topic pub --once`` lost its sample in 1 of 45 tries
         (one where the tool had to wait for discovery; docs/commands.md).
 
-        One count of writers per topic looked at, and a full query only where the count changed
-        or a new node writes the topic: `CommandWatch` picks which (all of them in a swarm of up
-        to 64 agents; in a bigger one those a new node writes, asked by node for 2 s after it
-        appeared, and 4 more a tick in turn)."""
+        One count of writers per topic looked at, and a full query only where the count changed,
+        a new node writes the topic or a writer of another node was there at the last look.
+        `CommandWatch` picks the topics (all of them in a swarm of up to 64 agents; in a bigger
+        one those a new node writes, asked by node for 2 s after it appeared, and 4 more a tick
+        in turn)."""
         me = (self.get_name(), self.get_namespace())
         now = time.monotonic()
         try:
@@ -269,10 +270,12 @@ class CommanderNode(Node):
         for key in keys:
             c = self.commands[key]
             try:
-                # the count first (one cheap call): a topic whose count of writers did not
-                # change and that no new node writes needs no full look
+                # the count first (one cheap call): a topic that had no writer of another node at
+                # the last look, whose count of writers did not change, and that no new node
+                # writes needs no full look.  With a writer of another node on it, the look is
+                # full: one tool leaving and another coming between two ticks keep the count
                 count = self.count_publishers(c.topic)
-                if count == c.count and key not in found:
+                if count == c.count and not c.writers and key not in found:
                     continue
                 infos = self.get_publishers_info_by_topic(c.topic)
             except Exception:            # the context is going down
