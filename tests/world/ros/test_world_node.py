@@ -107,6 +107,31 @@ def test_world_ends_the_run_once_every_agent_is_lost(tmp_path, rclpy_context):
             nd.destroy_node()
 
 
+def test_a_fault_in_the_metrics_does_not_stop_the_step(tmp_path, rclpy_context):
+    """Lockstep: the metrics of a step (progress, markers) raise once; the world logs it and still
+    sends that step, so the run ends whole and equal to the batch engine (a fault there once
+    stalled the step and lost every agent)."""
+    from swarm_core.engine.reference import simulate
+    from swarm_tools.run.launch import build_nodes
+    scn = load('homotopy_global', duration=2.0)
+    params = node_parameters(scn, 'homotopy_global', 'lockstep', duration=2.0, output_dir=str(tmp_path))
+    world, commander, agents = build_nodes(params, rclpy_context, log=lambda *a, **k: None)
+    observe = world.driver.observe
+
+    def faulty(k, rows):
+        if k == 5:
+            raise ValueError('data must be finite, check for nan or inf values')
+        return observe(k, rows)
+    world.driver.observe = faulty
+    ex = make_executor(rclpy_context)
+    for nd in (world, commander, *agents):
+        ex.add_node(nd)
+    assert spin_for(ex, lambda: world.done, timeout=120)
+    assert not world.failed and world.reject.kinds['observe'][2] == 1, world.reject.kinds
+    got, ref = Trajectory.load(tmp_path / 'trajectory.npz'), simulate(scn)
+    assert np.array_equal(got.r, ref.r)
+
+
 def test_realtime_world_resolves_leader_i_from_the_commanders_events(tmp_path, rclpy_context):
     """Realtime (nodes in one executor, rtf 10): leaders are chosen by rule at t = 1; the
     scenario kills 'leader:1' at t = 2; the world names the agent the commander put in slot 1."""
