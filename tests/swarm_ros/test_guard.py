@@ -72,12 +72,20 @@ def test_guard_subscriptions_guards_each_reader_once():
     reject = RejectLog(Lines())
     subs = [SimpleNamespace(topic_name='/clock', callback=lambda m: 1 / m),
             SimpleNamespace(topic_name='/swarm/events', callback=lambda m: json.loads(m))]
-    node = SimpleNamespace(subscriptions=subs)
+    after_sets = []
+    node = SimpleNamespace(subscriptions=subs, add_post_set_parameters_callback=after_sets.append)
     assert guard_subscriptions(node, reject) == 2
     assert guard_subscriptions(node, reject) == 0
     subs[0].callback(0)
     subs[1].callback('[' * 100_000)        # RecursionError: no ValueError, yet no end either
     assert reject.kinds.keys() == {'unreadable:/clock', 'unreadable:/swarm/events'}
+    # a reader made by a parameter set (rclpy's /clock reader after use_sim_time := true) is
+    # guarded by the post-set callback hooked once
+    assert len(after_sets) == 1
+    subs.append(SimpleNamespace(topic_name='/late', callback=lambda m: 1 / m))
+    after_sets[0]([])
+    subs[2].callback(0)
+    assert 'unreadable:/late' in reject.kinds
 
 
 def test_run_watch_keeps_at_most_max_runs():

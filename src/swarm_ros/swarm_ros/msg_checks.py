@@ -309,7 +309,11 @@ def guard_subscriptions(node, reject, passes=()) -> int:
     """Guard (`guarded`) the callback of every subscription of ``node`` (an rclpy node) not
     guarded yet, rclpy's own ``/clock`` reader included (a negative stamp raises in it);
     returns how many were guarded.  A node calls it once its readers are made, and again
-    after it makes another one."""
+    after it makes another one.  The first call also hooks a post-set parameter callback that
+    guards again: ``ros2 param set NODE use_sim_time true`` makes rclpy's ``/clock`` reader then."""
+    if not getattr(node, '_guard_after_sets', False):
+        node._guard_after_sets = True
+        node.add_post_set_parameters_callback(lambda _params: guard_subscriptions(node, reject, passes))
     count = 0
     for sub in list(node.subscriptions):
         if not getattr(sub.callback, 'guarded', False):
