@@ -34,7 +34,7 @@ from swarm_ros.runinfo import RunWatch, describe, join_error, one_run, run_robot
 from swarm_tools.run import dds
 from swarm_tools.run.launch import add_network_options, check_interface, parse_agents, set_state_readers
 from swarm_tools.run.params import load_scenario, node_parameters, write_params_file
-from swarm_tools.run.processes import agent_commands, supervised
+from swarm_tools.run.processes import REFUSED_EXIT, agent_commands, refused_label, supervised
 from swarm_tools.run.robots import apply_robots
 
 #: wall seconds the world may stay out of the graph before ``swarm join`` takes the run as over
@@ -129,13 +129,15 @@ def main(argv=None) -> int:
             ros = ['--ros-args', '--params-file', str(write_params_file(join.params, Path(tmp) / 'params.yaml'))]
             for label, _, cmd in agent_commands([[nm] for nm in join.names], ros):
                 sup.start(label, cmd, env)
-        return execute(join, start, sup.alive, stopped)
+        return execute(join, start, sup.alive, stopped, lambda: refused_label(sup.procs))
 
 
-def execute(join: JoinPlan, start, alive, stopped) -> int:
+def execute(join: JoinPlan, start, alive, stopped, refused=lambda: None) -> int:
     """Watch the graph: ``start(run)`` the agents once the run is heard; 0 once the world has
-    left (the run is over), 130 on a signal (``stopped()``), 1 if the run is not heard within
-    the wait, is another, or every agent here (``alive()``) has exited."""
+    left (the run is over), 130 on a signal (``stopped()``), `REFUSED_EXIT` once an agent here
+    refused its parameters (``refused()``: its label, else None; the run cannot go on without
+    it), 1 if the run is not heard within the wait, is another, or every agent here
+    (``alive()``) has exited."""
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
@@ -147,7 +149,7 @@ def execute(join: JoinPlan, start, alive, stopped) -> int:
         watch = RunWatch(node)          # the run's id: its agents take part only in that run
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
-        return _watch(join, node, lambda: ex.spin_once(timeout_sec=0.2), watch, start, alive, stopped)
+        return _watch(join, node, lambda: ex.spin_once(timeout_sec=0.2), watch, start, alive, stopped, refused)
     finally:
         rclpy.try_shutdown(context=ctx)
 
@@ -163,7 +165,7 @@ def _heard(join: JoinPlan, watch):
     return run, err
 
 
-def _watch(join: JoinPlan, node, spin, watch, start, alive, stopped) -> int:
+def _watch(join: JoinPlan, node, spin, watch, start, alive, stopped, refused=lambda: None) -> int:
     t0, run, seen, gone_since = time.monotonic(), None, False, None
     print(f'swarm join: waiting for the run at {join.server}', flush=True)
     while not stopped():
@@ -177,6 +179,10 @@ def _watch(join: JoinPlan, node, spin, watch, start, alive, stopped) -> int:
             if run is not None:
                 start(run)
                 print(f'swarm join: {len(join.names)} agents ({join.agents}) joining {describe(run)}', flush=True)
+        elif (label := refused()) is not None:
+            print(f'swarm join: {label} refused its parameters (its line is above); stopping the agents here',
+                  file=sys.stderr, flush=True)
+            return REFUSED_EXIT
         elif not alive():
             print('swarm join: every agent here has exited', file=sys.stderr, flush=True)
             return 1

@@ -322,6 +322,12 @@ def refusal_line(spec: ProcessSpec, rc: int, note: str | None = None) -> str | N
     return f'{spec.label} refused its parameters: {note or f"exit code {rc} (its line is above)"}'
 
 
+def refused_label(procs: dict) -> str | None:
+    """The label of the first process of ``procs`` (label → Popen) that exited with
+    `REFUSED_EXIT` (it refused its parameters), else None."""
+    return next((label for label, p in procs.items() if p.poll() == REFUSED_EXIT), None)
+
+
 def without_recorder(params: dict) -> dict:
     """``params`` for a run whose recorder is gone before the start: the world and the commander
     do not wait for it, and each agent waits for one state reader fewer."""
