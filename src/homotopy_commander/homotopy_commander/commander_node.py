@@ -89,7 +89,6 @@ class CommandReader:
         self.own = own                   # key of the commander's own writer (own_sent), if any
         self.sub = None
         self.writers = frozenset()
-        self.count = -1                  # writers on the topic (ours too) at the last full look
 
     def drain(self):
         """Hand what the reader holds to the callback before it is dropped."""
@@ -247,11 +246,9 @@ class CommanderNode(Node):
         existed before it, the Jazzy ``ros2 topic pub --once`` lost its sample in 1 of 45 tries
         (one where the tool had to wait for discovery; docs/commands.md).
 
-        One count of writers per topic looked at, and a full query only where the count changed,
-        a new node writes the topic or a writer of another node was there at the last look.
-        `CommandWatch` picks the topics (all of them in a swarm of up to 64 agents; in a bigger
-        one those a new node writes, asked by node for 2 s after it appeared, and 4 more a tick
-        in turn)."""
+        One graph query per topic looked at: `CommandWatch` picks which (all of them in a swarm
+        of up to 64 agents; in a bigger one those a new node writes, asked by node for 2 s after
+        it appeared, and 4 more a tick in turn)."""
         me = (self.get_name(), self.get_namespace())
         now = time.monotonic()
         try:
@@ -266,21 +263,12 @@ class CommanderNode(Node):
                 continue
             found += [self.command_key[t] for t, _ in writes if t in self.command_key]
         keys = self.watch.pick(now, self.reading, found)
-        found = set(found)
         for key in keys:
             c = self.commands[key]
             try:
-                # the count first (one cheap call): a topic that had no writer of another node at
-                # the last look, whose count of writers did not change, and that no new node
-                # writes needs no full look.  With a writer of another node on it, the look is
-                # full: one tool leaving and another coming between two ticks keep the count
-                count = self.count_publishers(c.topic)
-                if count == c.count and not c.writers and key not in found:
-                    continue
                 infos = self.get_publishers_info_by_topic(c.topic)
             except Exception:            # the context is going down
                 return
-            c.count = len(infos)
             writers = frozenset(gid_key(i.endpoint_gid) for i in infos if (i.node_name, i.node_namespace) != me)
             if writers - c.writers or (not writers and c.sub is not None):
                 if c.sub is not None:
