@@ -14,7 +14,7 @@ bash scripts/setup.sh || exit $?
 # the lint gate first (ruff.toml): a finding fails the run before any test starts
 .venv/bin/ruff check --quiet . || { echo "ruff check found the problems above (ruff.toml); fix them first"; exit 1; }
 # the ROS shards' weights (by test count): 1 and 2 run from the start, 3 after the pure tests
-SHARDS=2,2,1
+SHARDS=2,2,0.6
 work=$(mktemp -d "${TMPDIR:-/tmp}/swarm-tests.XXXXXX")
 trap 'rm -rf "$work"' EXIT
 
