@@ -68,11 +68,12 @@ def test_each_command_takes_effect_in_the_runs_record(swarm, mode):
         return int(np.searchsorted(traj.t, next(e['t'] for e in events if e['kind'] == kind and e['agent'] == agent)))
     k_kill, k_freeze, k_resume = step_of('kill', 'agent_5'), step_of('freeze', 'agent_1'), step_of('resume', 'agent_1')
     # realtime: an agent's last states before the fault may come a few steps after the
-    # event's stamp (signals, timers): judge the second half of the 2 s freeze
+    # event's stamp (signals, timers; at rtf 4 on a loaded machine, over 1 sim s once): judge
+    # the last quarter of the 2 s freeze
     steps = round(2.0 / (traj.t[1] - traj.t[0]))
     assert k_resume - k_freeze >= steps - 1                                   # 2 sim s frozen
     assert _still(traj.r[k_kill + steps // 2:, 5]) and not _still(traj.r[k_kill + steps // 2:, 4])
-    assert _still(traj.r[k_resume - steps // 2:k_resume, 1]) and not _still(traj.r[k_resume:, 1])
+    assert _still(traj.r[k_resume - steps // 4:k_resume, 1]) and not _still(traj.r[k_resume:, 1])
     # the partition went out stamped with the run's sim time, and the world wrote it down
     part = [e for e in events if e['kind'] == 'partition']
     assert part and part[0]['groups'] == [['agent_0', 'agent_1'], ['agent_2', 'agent_3', 'agent_4']]
