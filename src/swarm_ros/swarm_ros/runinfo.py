@@ -28,6 +28,9 @@ DISCOVERY_SETTLE = 3.0
 #: the environment variable that sets `discovery_settle` (wall s, 0-60), e.g. 0 where a
 #: ROS_DOMAIN_ID is held for one run alone (the pytest plugin's ``ros_domain`` does so)
 SETTLE_ENV = 'SWARM_DISCOVERY_SETTLE'
+#: most runs a `RunWatch` keeps (more are counted as ignored: a peer announcing run after run
+#: must not grow it without end; two are already enough to refuse)
+MAX_RUNS = 64
 
 
 def discovery_settle() -> float:
@@ -43,9 +46,7 @@ def discovery_settle() -> float:
     if not 0.0 <= value <= 60.0:
         raise ValueError(f'{SETTLE_ENV}={text!r}: want wall seconds in [0, 60]')
     return value
-#: most runs a `RunWatch` keeps (more are counted as ignored: a peer announcing run after run
-#: must not grow it without end; two are already enough to refuse)
-MAX_RUNS = 64
+
 
 _ID = re.compile(r'^[A-Za-z0-9_-]{1,32}$')
 

@@ -194,7 +194,13 @@ class LockstepDriver:
             node.sim_t = action[1]
             node.pub_clock.publish(P.clock_to_cdr(action[1]))
         elif kind == 'observe':
-            self.observe(*action[1:])
+            # metrics, markers and progress are for the user, not the step: a fault in them is
+            # logged and the actions after it (the step itself) still go out
+            try:
+                self.observe(*action[1:])
+            except Exception as err:
+                node.reject('observe', f'the metrics of step {action[1]} ({type(err).__name__}: '
+                                       f'{str(err)[:120]}); the step goes on')
         elif kind == 'step':
             node.sim_t = action[1].t
             node.lam_now, node.leaders_now = self.lock.lam, self.lock.leaders

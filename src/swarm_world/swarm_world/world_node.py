@@ -223,14 +223,6 @@ class WorldNode(Node):
                 self.finish()
             elif kind == 'fail':
                 self.give_up(a[1])
-            elif kind == 'observe':
-                # metrics, markers and progress are for the user, not the step: a fault in them
-                # is logged and the actions after it (the step itself) still go out
-                try:
-                    self.driver.carry_out(a)
-                except Exception as err:
-                    self.reject('observe', f'the metrics of step {a[1]} ({type(err).__name__}: '
-                                           f'{str(err)[:120]}); the step goes on')
             else:
                 self.driver.carry_out(a)
 
