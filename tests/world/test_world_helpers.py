@@ -104,6 +104,40 @@ def test_realtime_live_fault_lands_on_the_next_step_and_slots_follow_the_command
     assert acts[0][1]['agent'] == 'a' and acts[1] == ('signal', 0, 'kill')
 
 
+def test_realtime_leader_fault_waits_for_the_commanders_choice_heard_late():
+    """Leaders are chosen by rule by step 2; 'leader:1' is killed at step 4, but the
+    commander's leaders_chosen event reaches the world after the clock passed step 4 (a loaded
+    machine).  The kill waits for it (and the freeze of b after it waits too), then lands on
+    the agent in slot 1 at its own step."""
+    faults = FaultTimeline([Fault(2.0, 'kill', 'leader:1'), Fault(2.5, 'freeze', 'b', 1.0)], NAMES, DT)
+    s = RealtimeSchedule(NAMES, faults, {}, choose_step=2, choice_wait=5.0)
+    assert s.faults_due(6, now=10.0) == []                   # held: the choice is in flight
+    assert s.faults_due(7, now=12.0) == []
+    s.on_event({'kind': 'leaders_chosen', 'slots': ['c', 'a']})
+    acts = s.faults_due(7, now=12.5)
+    events = [a[1] for a in acts if a[0] == 'event']
+    assert [(e['kind'], e['agent'], e['step']) for e in events] == [('kill', 'a', 4), ('freeze', 'b', 5),
+                                                                  ('resume', 'b', 7)]
+    assert ('signal', 0, 'kill') in acts
+
+
+def test_realtime_leader_fault_is_skipped_when_the_choice_never_comes_or_has_no_such_slot():
+    s = RealtimeSchedule(NAMES, FaultTimeline([Fault(2.0, 'kill', 'leader:1')], NAMES, DT), {},
+                         choose_step=2, choice_wait=5.0)
+    assert s.faults_due(4, now=0.0) == []
+    acts = s.faults_due(5, now=5.0)                         # waited its 5 wall s: skipped
+    assert [a[1]['kind'] for a in acts] == ['fault_skipped']
+    # heard, with one slot only: skipped at once
+    s = RealtimeSchedule(NAMES, FaultTimeline([Fault(2.0, 'kill', 'leader:1')], NAMES, DT), {},
+                         choose_step=2, choice_wait=5.0)
+    s.on_event({'kind': 'leaders_chosen', 'slots': ['c']})
+    assert [a[1]['kind'] for a in s.faults_due(4, now=0.0)] == ['fault_skipped']
+    # before the choice step nothing waits (fixed leaders: never)
+    s = RealtimeSchedule(NAMES, FaultTimeline([Fault(0.5, 'kill', 'leader:0')], NAMES, DT), {},
+                         choose_step=2)
+    assert [a[1]['kind'] for a in s.faults_due(1, now=0.0)] == ['fault_skipped']
+
+
 def test_realtime_view_is_due_once_per_period_and_never_with_zero():
     s = schedule(view_every=10)
     assert [k for k in [0, 3, 9, 10, 15, 31, 32] if s.view_due(k)] == [0, 10, 31]

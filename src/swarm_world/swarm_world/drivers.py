@@ -307,8 +307,9 @@ class RealtimeDriver:
         self.missing_timeout = missing_timeout
         self.silence = SilenceWatch(node.n, missing_timeout)   # a process killed from outside: lost
         # fixed leaders, then the commander's events
-        self.schedule = RealtimeSchedule(node.names, node.faults, node.scn.command_plan().slots,
-                                         comms_schedule(node.scn.spec.comms, node.dt), node.view_every)
+        self.schedule = RealtimeSchedule.of_plan(node.names, node.faults, node.scn.command_plan(), node.dt,
+                                                 comms_events=comms_schedule(node.scn.spec.comms, node.dt),
+                                                 view_every=node.view_every)
         self.lateness = Lateness(node.n, node.dt, rtf)     # states on time (`lateness`)
         self.heard = NewestStates(node.n)                  # each agent's newest accepted state
 
@@ -408,7 +409,7 @@ class RealtimeDriver:
             if line:
                 node.log(line, flush=True)
             node.publish_view(t, pos, theta, md, timing=self.lateness.summary(k))
-        acts = self.schedule.faults_due(min(k, node.steps))
+        acts = self.schedule.faults_due(min(k, node.steps), now)
         for a in acts:
             if a[0] == 'event':
                 at = a[1]['step']

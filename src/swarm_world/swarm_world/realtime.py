@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from swarm_core.checks import LAMBDA_BOUND, STEERING_BOUND
-from swarm_core.faults.agents import track_slots
+from swarm_core.faults.agents import leader_slot, step_at, track_slots
 from swarm_core.model.frenet import yaw_from_quaternion
 from swarm_ros import protocol as P
 
@@ -21,6 +21,9 @@ SIGNAL_OF = {'kill': 'kill', 'freeze': 'stop', 'resume': 'cont'}   # fault event
 CLOCK_TICK_MAX = 0.01
 #: ... and at most this often (a clock at 10 kHz would cost every reader more than it serves)
 CLOCK_TICK_MIN = 0.005
+#: wall s a fault on 'leader:i', due once the commander must have chosen its leaders, waits for
+#: that choice's event (in flight on a loaded machine) before it is skipped
+LEADER_CHOICE_WAIT = 5.0
 
 
 def clock_tick(dt, rtf, most=CLOCK_TICK_MAX, least=CLOCK_TICK_MIN):
@@ -43,9 +46,13 @@ def decision_valid(lam, flags, steering, n):
 
 class RealtimeSchedule:
     """``faults`` a `FaultTimeline`, ``slots`` the fixed leader slots (slot → index), then
-    the commander's; ``comms_events`` (step, event) sorted by step."""
+    the commander's; ``comms_events`` (step, event) sorted by step.  ``choose_step``: the step
+    by which the commander chooses its leaders by rule (None: fixed leaders); a fault on
+    'leader:i' due from then on waits up to ``choice_wait`` wall s for the commander's
+    ``leaders_chosen`` event, which the world may hear after the clock has passed the fault."""
 
-    def __init__(self, names, faults, slots, comms_events=(), view_every=0):
+    def __init__(self, names, faults, slots, comms_events=(), view_every=0, choose_step=None,
+                 choice_wait=LEADER_CHOICE_WAIT):
         self.row = {nm: i for i, nm in enumerate(names)}
         self.faults = faults
         self.slots = dict(slots)
@@ -53,6 +60,16 @@ class RealtimeSchedule:
         self.view_every = view_every
         self.fault_step = -1           # faults applied up to this step
         self.view_bucket = -1
+        self.choose_step = choose_step
+        self.choice_wait = float(choice_wait)
+        self.chosen = choose_step is None     # the commander's leader choice is heard
+        self.held_since = None                # wall time a fault began to wait for it
+
+    @classmethod
+    def of_plan(cls, names, faults, plan, dt, **kw):
+        """The schedule of a `CommandPlan`: its fixed slots, and its rule's last choice step."""
+        choose = step_at(plan.choose_at, dt) if plan.rule is not None else None
+        return cls(names, faults, plan.slots, choose_step=choose, **kw)
 
     def comms_due(self, k):
         """The scheduled radio events of every step up to k not sent yet."""
@@ -61,16 +78,32 @@ class RealtimeSchedule:
             acts.append(('comms', k, self.comms.pop(0)[1]))
         return acts
 
-    def faults_due(self, k):
-        """The faults of every step up to k ('leader:i' resolved with the slots known now)."""
+    def faults_due(self, k, now=0.0):
+        """The faults of every step up to k ('leader:i' resolved with the slots known now;
+        held, with the faults after it, while `waits_for_choice` at wall time ``now``)."""
         acts = []
         while self.fault_step < k:
+            if self.waits_for_choice(self.fault_step + 1, now):
+                break
             self.fault_step += 1
             for ev in self.faults.apply(self.fault_step, dict(self.slots)):
                 acts.append(('event', ev))
                 if ev['kind'] in SIGNAL_OF:
                     acts.append(('signal', self.row.get(ev['agent']), SIGNAL_OF[ev['kind']]))
         return acts
+
+    def waits_for_choice(self, s, now) -> bool:
+        """Step ``s`` has a fault on a leader slot not known yet, the commander must have chosen
+        its leaders by ``s``, its event is not heard, and the wait began under ``choice_wait``
+        wall s ago."""
+        if self.chosen or s < self.choose_step:
+            return False
+        if not any(k0 <= s and (slot := leader_slot(f.agent)) is not None and slot not in self.slots
+                   for k0, _, f in self.faults.pending):
+            return False
+        if self.held_since is None:
+            self.held_since = now
+        return now - self.held_since < self.choice_wait
 
     def view_due(self, k):
         """True once per ``view_every`` steps (never with 0)."""
@@ -88,6 +121,8 @@ class RealtimeSchedule:
     def on_event(self, ev):
         """Follow the commander's leader slots from its events."""
         track_slots(self.slots, ev, self.row)
+        if ev.get('kind') == 'leaders_chosen':
+            self.chosen = True
 
     def lose(self, gone, last_t, dt, silent_for):
         """Agents ``gone`` (rows) went silent (`SilenceWatch`): they are lost, as lockstep drops

@@ -23,6 +23,9 @@ from swarm_tools.run import dds
 from swarm_tools.run.params import write_params_file
 
 STOP_GRACE = 4.0
+#: wall seconds a process that writes the run's outputs (the world, the recorder) gets to finish
+#: them after SIGINT before it is killed; on a loaded machine saving can outlast `STOP_GRACE`
+SAVE_GRACE = 30.0
 
 
 _PR_SET_PDEATHSIG = 1
@@ -72,19 +75,25 @@ class Supervisor:
             except ProcessLookupError:
                 pass
 
-    def stop(self, grace=STOP_GRACE, first=()):
+    def stop(self, grace=STOP_GRACE, first=(), keep=(), keep_grace=SAVE_GRACE):
         """SIGINT to ``first`` (e.g. the recorder, so it can finish its file) and everyone else,
-        wait, then SIGKILL the process group."""
+        wait ``grace`` s, SIGKILL all but ``keep`` (the processes that write the run's outputs),
+        wait for those up to ``keep_grace`` s from the SIGINT, then SIGKILL the process group."""
         self.signal_all(signal.SIGCONT)          # a frozen (SIGSTOPped) agent cannot stop
         for label in first:
             p = self.procs.get(label)
             if p is not None and p.poll() is None:
                 p.send_signal(signal.SIGINT)
         self.signal_all(signal.SIGINT)
-        deadline = time.monotonic() + grace
-        while self.alive() and time.monotonic() < deadline:
-            time.sleep(0.05)
-        if self.alive():
+        start = time.monotonic()
+        self._wait_for(lambda: self.alive(), start + grace)
+        killed = [p for label, p in self.alive().items() if label not in keep]
+        for p in killed:
+            _kill(p)
+        if self._wait_for(lambda: self.alive(), start + max(grace, keep_grace)):
+            print(f'swarm: {", ".join(sorted(self.alive()))} did not stop within {keep_grace:g} s '
+                  'of SIGINT; killed', file=sys.stderr, flush=True)
+        if self.alive() or killed:
             self.signal_all(signal.SIGKILL)
             if self.pgid is not None:
                 try:
@@ -97,18 +106,33 @@ class Supervisor:
             except subprocess.TimeoutExpired:
                 pass
 
+    @staticmethod
+    def _wait_for(busy, deadline) -> bool:
+        """Sleep while ``busy()`` until ``deadline``; whether it is still busy."""
+        while busy() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        return bool(busy())
+
+
+def _kill(p):
+    try:
+        p.send_signal(signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
 
 #: wall seconds to wait for the recorder's subscriptions before the nodes start
 RECORDER_READY_TIMEOUT = 30.0
 
 
 @contextlib.contextmanager
-def supervised(prog: str, signals=(signal.SIGINT, signal.SIGTERM, signal.SIGHUP), first=()):
+def supervised(prog: str, signals=(signal.SIGINT, signal.SIGTERM, signal.SIGHUP), first=(), keep=()):
     """The processes of one command (``swarm run``, ``swarm join``): yields (`Supervisor`,
     ``stopped``).  ``signals`` set a flag instead of raising in the middle of a start;
     ``stopped()`` says whether one came (printing ``PROG: SIGINT: stopping N processes``
     once).  When the block ends, also on an error, every process is stopped (``first``
-    first: the recorder, so it can finish its file) and the old handlers are back, unless a
+    first: the recorder, so it can finish its file; ``keep``, the processes that write the
+    outputs, get `SAVE_GRACE`) and the old handlers are back, unless a
     signal came: then later ones are still only noted while the outputs are written
     (`swarm_ros.rosutil.stop_on_signals`: a dying parent's death signal repeats)."""
     sup = Supervisor()
@@ -124,7 +148,7 @@ def supervised(prog: str, signals=(signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     try:
         yield sup, stopped
     finally:
-        sup.stop(first=first)
+        sup.stop(first=first, keep=keep)
         for s, h in old.items() if not got else ():
             signal.signal(s, h)
 
@@ -376,7 +400,7 @@ def run_processes(params: dict, params_file: Path, specs, env, record=None, out_
     line (`refusal_line`)."""
     code = 1
     gone = set()
-    with supervised('swarm run', first=('record',)) as (sup, stopped):
+    with supervised('swarm run', first=('record',), keep=('record', 'world')) as (sup, stopped):
         if server is not None:
             try:
                 server.start(sup.start, env, Path(params_file).parent)
