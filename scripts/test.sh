@@ -3,9 +3,10 @@
 #
 # Three pytest runs side by side at any time.  The ROS tests (marker `ros`, given by folder: every
 # test under a ros/ folder or tests/e2e/; they mostly wait on processes, DDS and the wall clock)
-# are three shards of files (`--shard`, tests/conftest.py; each test claims a ROS_DOMAIN_ID of its
-# own, so shards do not meet): shards 1 and 2 run from the start, beside the pure tests (CPU-bound,
-# no DDS); shard 3, the lightest, runs once the pure tests are done.  The outputs of the
+# are three shards of files, dealt out by their measured time (`--shard`, tests/conftest.py;
+# tests/durations.json, written by scripts/test_durations.py; each test claims a ROS_DOMAIN_ID of
+# its own, so shards do not meet): shards 1 and 2 run from the start, beside the pure tests
+# (CPU-bound, no DDS); shard 3, the lightest, runs once the pure tests are done.  The outputs of the
 # background runs follow shard 1's; the exit code is the first failure's.  Arguments go to every
 # run (a run that selects no test passes).
 set -uo pipefail
@@ -13,8 +14,8 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh || exit $?
 # the lint gate first (ruff.toml): a finding fails the run before any test starts
 .venv/bin/ruff check --quiet . || { echo "ruff check found the problems above (ruff.toml); fix them first"; exit 1; }
-# the ROS shards' weights (by test count): 1 and 2 run from the start, 3 after the pure tests
-SHARDS=2,2,0.6
+# the ROS shards' weights (by measured time): 1 and 2 run from the start, 3 after the pure tests
+SHARDS=1,1,0.3
 work=$(mktemp -d "${TMPDIR:-/tmp}/swarm-tests.XXXXXX")
 trap 'rm -rf "$work"' EXIT
 

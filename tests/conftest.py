@@ -33,10 +33,10 @@ VENV_BIN = Path(sys.executable).parent
 
 def pytest_addoption(parser):
     parser.addoption('--shard', default=None, metavar='I/K[:W1,...,WK]', help=(
-        'run only shard I of K (1-based): the selected tests\' files dealt out by their number of '
-        'tests, the largest first, each to the shard with the fewest for its weight W (default: all '
-        '1; scripts/test.sh runs the ROS tests as two shards, the one beside the pure tests larger; '
-        'each test claims its own ROS_DOMAIN_ID, so shards run side by side)'))
+        'run only shard I of K (1-based): the selected tests\' files dealt out by their measured '
+        'time (tests/durations.json; a file not there at the mean per test), the longest first, each '
+        'to the shard with the least for its weight W (default: all 1; scripts/test.sh runs the ROS '
+        'tests as three shards; each test claims its own ROS_DOMAIN_ID, so shards run side by side)'))
 
 
 def ros_by_folder(path: Path) -> bool | None:
@@ -81,18 +81,36 @@ def take_shard(config, items):
     except (ValueError, AssertionError):
         raise pytest.UsageError(f'--shard {shard}: want I/K with 1 <= I <= K, then optionally :W1,...,WK '
                                 '(K positive weights)') from None
-    count = {}
-    for item in items:
-        count[item.path] = count.get(item.path, 0) + 1
-    load, mine = [0] * k, set()
-    for path in sorted(count, key=lambda f: (-count[f], str(f))):
-        j = min(range(k), key=lambda s: ((load[s] + count[path]) / weight[s], s))
-        load[j] += count[path]
+    cost = file_costs(items)
+    load, mine = [0.0] * k, set()
+    for path in sorted(cost, key=lambda f: (-cost[f], str(f))):
+        j = min(range(k), key=lambda s: ((load[s] + cost[path]) / weight[s], s))
+        load[j] += cost[path]
         if j == i - 1:
             mine.add(path)
     keep = [it for it in items if it.path in mine]
     config.hook.pytest_deselected(items=[it for it in items if it.path not in mine])
     items[:] = keep
+
+
+#: measured wall seconds per ROS test file (scripts/test_durations.py writes it)
+DURATIONS = TESTS / 'durations.json'
+
+
+def file_costs(items) -> dict:
+    """{file path: its expected seconds}: tests/durations.json, and for a file not there its
+    number of tests times the mean per test of the files there (1 s each without the table)."""
+    import json
+    count = {}
+    for item in items:
+        count[item.path] = count.get(item.path, 0) + 1
+    try:
+        known = {TESTS.parent / f: float(v) for f, v in json.loads(DURATIONS.read_text()).items()}
+    except (OSError, ValueError, AttributeError):
+        known = {}
+    seen = [p for p in count if p in known]
+    per_test = sum(known[p] for p in seen) / sum(count[p] for p in seen) if seen else 1.0
+    return {p: known.get(p, n * per_test) for p, n in count.items()}
 
 
 # ``ros_domain`` (a ROS_DOMAIN_ID of the test's own) and ``swarm`` come from the project's pytest
