@@ -4,7 +4,8 @@ import math
 
 import pytest
 
-from swarm_core.robot_units import RateLimit, RobotsSpec, RobotUnits, SafetyGuard, wrap_near
+from swarm_core.robot_spec import RobotsSpec
+from swarm_core.robot_units import RateLimit, RobotUnits, SafetyGuard, wrap_near
 
 
 def test_command_is_v0_and_v0_u_over_L_and_counts_clipping():

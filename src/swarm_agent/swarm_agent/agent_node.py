@@ -56,8 +56,8 @@ from swarm_core.checks import DT_BOUND, LAMBDA_BOUND, STEERING_BOUND
 from swarm_core.command.plan import is_kind, law_with
 from swarm_core.faults.radio import CommModel, change_from_event
 from swarm_core.laws import DEFAULTS, KINDS, Blend, LawError, default_law, from_flat_parameters, parameter_specs
+from swarm_core.model.integrate import noise_rng
 from swarm_core.robot_units import ROBOT_KINDS
-from swarm_core.scenario.loader import noise_rng
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RealtimeDecision
 from swarm_ros.msg_checks import RejectLog, check_barrier, decoded, guard_subscriptions, new_sender_tag

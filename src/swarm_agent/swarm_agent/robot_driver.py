@@ -49,8 +49,8 @@ from swarm_core.robot_units import (
     CMD_TYPES,
     ROBOT_FRAMES,
     ROBOTS_BOUNDS,
+    ROBOTS_DEFAULTS,
     RateLimit,
-    RobotsSpec,
     RobotUnits,
     SafetyGuard,
     wrap_near,
@@ -69,7 +69,7 @@ ODOM_RELIABILITY = ('reliable', 'best_effort')
 
 
 def _default(name):
-    return RobotsSpec.model_fields[name].default          # one place: the scenario schema
+    return ROBOTS_DEFAULTS[name]          # one place, with the scenario schema's limits
 
 
 def _range(name, unset=False):

@@ -10,8 +10,9 @@ robot (`RobotUnits`):
 - a robot pose (metres, yaw) is x/L, y/L, yaw in model units, after the start-pose transform
   when each robot's odometry starts at (0, 0, 0) in its own ``odom`` frame (`RobotUnits.to_model`).
 
-`RobotsSpec` is the scenario's ``robots:`` section, `DESCRIPTION_FIELDS` the fields of the robot
-description it may name (`swarm_robots.description`): the limits of both are here, in one place
+`swarm_core.robot_spec.RobotsSpec` is the scenario's ``robots:`` section, `DESCRIPTION_FIELDS`
+the fields of the robot description it may name (`swarm_robots.description`): the limits of both
+are here, in one place
 (`ROBOTS_BOUNDS`, `MAX_ROBOT_STEP`, `DESCRIPTION_FIELDS`; docs/robots.md, "Limits").
 `SafetyGuard` decides when a robot agent stops its robot (stale odometry, no neighbour in radio
 range) and resumes it, and which odometry it rejects (not finite, or a jump physics does not
@@ -21,13 +22,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal, Optional
 
 import numpy as np
-from pydantic import PrivateAttr
 
 from swarm_core.checks import Bound, InputError
-from swarm_core.schema import Strict, checked
 
 #: what an agent's ``robot`` parameter may be: its own kinematic point, or a robot behind
 #: ``/<agent>/cmd_vel`` and ``/<agent>/odom`` (``mujoco``: the same on the agent's side)
@@ -97,6 +95,10 @@ ROBOTS_BOUNDS = {b.name: b for b in (
     Bound('neighbour_timeout', 1e-2, 3600.0),  # robot s
     Bound('max_jump', 0.0, 1e3),               # m
 )}
+#: the defaults of the ``robots:`` fields that have one (`swarm_core.robot_spec.RobotsSpec`, and
+#: the robot agent's parameters): ω_max rad/s, the timeouts robot s, the jump m
+ROBOTS_DEFAULTS = dict(max_angular=DEFAULT_MAX_ANGULAR, odom_timeout=0.5, neighbour_timeout=2.0, max_jump=0.5,
+                       frame='odom', cmd_type='TwistStamped')
 #: most robot seconds one step of the model may last (dt·L/v0): a robot gets one command per
 #: step, and the MuJoCo world runs this much physics for each step while the world waits
 MAX_ROBOT_STEP = 10.0
@@ -136,59 +138,6 @@ def description_values(data, source: str = 'description') -> dict:
     except InputError as err:
         raise InputError(f'{source}: {err}') from None
     return values
-
-
-class RobotsSpec(Strict):
-    """The scenario's ``robots:`` section (see docs/robots.md), each number in its range
-    (`ROBOTS_BOUNDS`)."""
-    length_scale: checked(ROBOTS_BOUNDS['length_scale'])                  # L, metres per model unit
-    cruise_speed: checked(ROBOTS_BOUNDS['cruise_speed'])                  # v0, m/s
-    max_angular: checked(ROBOTS_BOUNDS['max_angular']) = DEFAULT_MAX_ANGULAR     # ω_max, rad/s
-    odom_timeout: checked(ROBOTS_BOUNDS['odom_timeout']) = 0.5            # robot s: older odometry stops the robot
-    neighbour_timeout: checked(ROBOTS_BOUNDS['neighbour_timeout']) = 2.0  # robot s without a neighbour in range
-    max_jump: checked(ROBOTS_BOUNDS['max_jump']) = 0.5                    # m a pose may move beyond v·Δt
-    frame: Literal['odom', 'world'] = 'odom'
-    cmd_type: Literal['TwistStamped', 'Twist'] = 'TwistStamped'
-    description: Optional[str] = None             # robot description YAML (default TurtleBot3 Burger)
-    _robot: Optional[dict] = PrivateAttr(default=None)        # the description's values, once read
-
-    def units(self) -> 'RobotUnits':
-        return RobotUnits(self.length_scale, self.cruise_speed, self.max_angular)
-
-    def take_description(self, data, source: str) -> None:
-        """Check the mapping ``data`` read from the description file ``source``
-        (`description_values`: InputError naming the field) and keep its values (`robot`)."""
-        self._robot = description_values(data, source)
-
-    def robot(self) -> dict:
-        """The values of the robot description: the file's once read (`take_description`, as
-        the scenario loader does), the Burger's when the section names none; ValueError for a
-        file named but not read."""
-        if self._robot is not None:
-            return self._robot
-        if self.description:
-            raise ValueError(f'robots.description {self.description}: not read (load the scenario with '
-                             'swarm_core.scenario.loader, which reads it)')
-        return {name: f.default for name, f in DESCRIPTION_FIELDS.items()}
-
-    def step_check(self, dt: float) -> str | None:
-        """A run of these robots at a step of ``dt`` model s: InputError if one step lasts
-        longer than `MAX_ROBOT_STEP` robot s; the warning line if it lasts longer than the
-        controller's ``cmd_vel_timeout`` (the robots brake in every step: one command per step),
-        else None."""
-        units = self.units()
-        step = units.robot_time(dt)
-        scale = (f'robots: a step of dt = {dt:g} model s lasts {step:.3g} robot s (L/v0 = {self.length_scale:g} m '
-                 f'/ {self.cruise_speed:g} m/s = {units.seconds_per_model_unit:.3g} s per model unit)')
-        if step > MAX_ROBOT_STEP:
-            raise InputError(f'{scale}: at most {MAX_ROBOT_STEP:g} robot s (raise cruise_speed, lower length_scale '
-                             'or dt)')
-        timeout = self.robot()['cmd_vel_timeout']
-        if timeout and step > timeout:
-            return (f'{scale}, longer than the controller\'s cmd_vel_timeout '
-                    f'{timeout:g} s: the robots brake in every step (lower dt, or give the robot description '
-                    'a longer cmd_vel_timeout)')
-        return None
 
 
 @dataclass

@@ -16,7 +16,7 @@ SUMMARY_FILE = 'robots.json'
 
 
 def robots_section(scn):
-    """The scenario's ``robots:`` section (`swarm_core.robot_units.RobotsSpec`); ValueError if
+    """The scenario's ``robots:`` section (`swarm_core.robot_spec.RobotsSpec`); ValueError if
     it has none: without the scale a model cannot drive a robot."""
     if scn.spec.robots is None:
         raise ValueError(f'scenario {scn.name!r} has no robots: section (length_scale, cruise_speed): '

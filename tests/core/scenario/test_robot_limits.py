@@ -12,7 +12,8 @@ import pytest
 import yaml
 
 from swarm_core import study as st
-from swarm_core.robot_units import DESCRIPTION_FIELDS, MAX_ROBOT_STEP, ROBOTS_BOUNDS, RobotsSpec
+from swarm_core.robot_spec import RobotsSpec
+from swarm_core.robot_units import DESCRIPTION_FIELDS, MAX_ROBOT_STEP, ROBOTS_BOUNDS
 from swarm_core.scenario import loader as scenario
 from swarm_core.scenario.loader import ScenarioError, load, parse
 

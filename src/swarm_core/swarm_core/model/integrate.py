@@ -9,6 +9,12 @@ from __future__ import annotations
 import numpy as np
 
 
+def noise_rng(seed: int, index: int) -> np.random.Generator:
+    """Agent ``index``'s own noise stream of a run with ``seed`` (the same in the batch engine
+    and its node): one place for its key."""
+    return np.random.default_rng([seed, 7919, index])
+
+
 def sinc(z):
     """sin(z)/z with sinc(0) = 1 (unnormalised), as (sin z + [z = 0]) / (z + [z = 0])."""
     z = np.asarray(z, dtype=float)

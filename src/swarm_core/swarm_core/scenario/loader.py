@@ -33,7 +33,8 @@ from swarm_core.faults.radio import CommModel
 from swarm_core.files import read_regular
 from swarm_core.laws import Blend, LawConfig, LawError, make_law, swarm_control
 from swarm_core.laws.parameters import LAW_KINDS, LAW_PARAMETER, LAW_TABLE
-from swarm_core.robot_units import RobotsSpec
+from swarm_core.model.integrate import noise_rng
+from swarm_core.robot_spec import RobotsSpec
 from swarm_core.scenario.placement import AgentsSpec, initial_conditions
 from swarm_core.schema import (
     Finite,
@@ -290,7 +291,7 @@ class ScenarioSpec(Strict):
     failover: Optional[FailoverSpec] = None
     reunion: list[ReunionSpec] = Field(default_factory=list)
     comms: Optional[CommsSpec] = None
-    robots: Optional[RobotsSpec] = None          # the scale to robots (swarm_core.robot_units)
+    robots: Optional[RobotsSpec] = None          # the scale to robots (swarm_core.robot_spec)
     expect: dict = Field(default_factory=dict)   # what `swarm sweep` checks (see outcomes.py)
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
 
@@ -417,11 +418,6 @@ class Scenario:
     def noise_rng(self, index: int) -> np.random.Generator:
         """Agent ``index``'s own noise stream (the same in the batch engine and its node)."""
         return noise_rng(self.spec.seed, index)
-
-
-def noise_rng(seed: int, index: int) -> np.random.Generator:
-    """Agent ``index``'s own noise stream of a run with ``seed``: one place for its key."""
-    return np.random.default_rng([seed, 7919, index])
 
 
 def _kinds(union) -> str:

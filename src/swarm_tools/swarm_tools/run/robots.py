@@ -64,7 +64,7 @@ def parse_robots(options, names) -> dict:
 
 def robot_parameters(spec, kind: str, mode: str) -> dict:
     """An agent node's parameters for a robot of ``kind`` with the scenario's ``robots:``
-    section ``spec`` (`swarm_core.robot_units.RobotsSpec`) in ``mode``: an external robot in
+    section ``spec`` (`swarm_core.robot_spec.RobotsSpec`) in ``mode``: an external robot in
     realtime lives in wall time (its controller stamps and times out on the system clock)."""
     clock = 'wall' if kind == 'external' and mode == 'realtime' else 'sim'
     return dict(robot=kind, robot_clock=clock,
@@ -76,7 +76,7 @@ def robot_parameters(spec, kind: str, mode: str) -> dict:
 
 def robot_steps(scn, robots: dict) -> str | None:
     """Whether the robots of ``robots`` ({name: kind}) can follow the steps of ``scn``
-    (`swarm_core.robot_units.RobotsSpec.step_check`): ValueError naming the scale if a step
+    (`swarm_core.robot_spec.RobotsSpec.step_check`): ValueError naming the scale if a step
     lasts longer than `swarm_core.robot_units.MAX_ROBOT_STEP` robot s; the one warning line if
     the robots brake in every step; None (also without robots, or without a ``robots:`` section,
     which `apply_robots` refuses).  The scenario loader has checked the robot description."""
