@@ -16,6 +16,7 @@ from __future__ import annotations
 import fcntl
 import itertools
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -138,10 +139,15 @@ def ros_domain(monkeypatch, request):
     return dom
 
 
+#: lines of each run's output shown for a failed test (`swarm`)
+LOG_TAIL = 60
+
+
 @pytest.fixture
 def swarm(ros_domain, tmp_path):
     """``swarm(scenario, **options)``: a started `swarm_tools.api.Swarm` (options as for
-    `Swarm.start`); all of them stopped, their processes gone, after the test."""
+    `Swarm.start`); all of them stopped, their processes gone, after the test.  The end of what
+    each run printed goes to stderr then, which pytest shows only for a test that failed."""
     from swarm_tools.api import Swarm
     started = []
 
@@ -157,4 +163,7 @@ def swarm(ros_domain, tmp_path):
     for run in started:
         run.close()
         left += run.leftover()
+        tail = run.log[-LOG_TAIL:]
+        print(f'---- the last {len(tail)} lines swarm run printed ({run.out}):\n' + ''.join(tail),
+              file=sys.stderr)
     assert not left, f'processes of the run still there after the test: {left}'
