@@ -54,3 +54,18 @@ def test_a_keeper_that_never_ends_is_killed_after_its_grace(tmp_path):
     sup.stop(grace=0.2, keep=('world',), keep_grace=1.0)
     assert world.returncode == -9
     assert 0.9 < time.monotonic() - t0 < 8
+
+
+def test_the_discovery_server_stops_after_the_others_have_left(tmp_path):
+    """The processes named ``last`` (the discovery server) get SIGINT only once the others have
+    ended, and `LAST_LINGER` s later: time to tell the other hosts that the run's participants
+    have left (`swarm join` ends on that)."""
+    from swarm_tools.run.processes import LAST_LINGER
+    sup = Supervisor()
+    agent_out, server_out = tmp_path / 'agent', tmp_path / 'server'
+    _start(sup, 'agents', SLOW_SAVER, str(agent_out), '0.5')
+    _start(sup, 'discovery_server', SLOW_SAVER, str(server_out), '0')
+    sup.stop(grace=5, last=('discovery_server',))
+    assert sup.procs['agents'].returncode == 130 and sup.procs['discovery_server'].returncode == 130
+    gap = server_out.stat().st_mtime - agent_out.stat().st_mtime
+    assert gap >= 0.9 * LAST_LINGER, gap

@@ -26,6 +26,9 @@ STOP_GRACE = 4.0
 #: wall seconds a process that writes the run's outputs (the world, the recorder) gets to finish
 #: them after SIGINT before it is killed; on a loaded machine saving can outlast `STOP_GRACE`
 SAVE_GRACE = 30.0
+#: wall seconds the processes stopped last (the discovery server) outlive the others: time to
+#: tell the other hosts' participants that the run's have left
+LAST_LINGER = 1.0
 
 
 _PR_SET_PDEATHSIG = 1
@@ -75,25 +78,36 @@ class Supervisor:
             except ProcessLookupError:
                 pass
 
-    def stop(self, grace=STOP_GRACE, first=(), keep=(), keep_grace=SAVE_GRACE):
-        """SIGINT to ``first`` (e.g. the recorder, so it can finish its file) and everyone else,
-        wait ``grace`` s, SIGKILL all but ``keep`` (the processes that write the run's outputs),
-        wait for those up to ``keep_grace`` s from the SIGINT, then SIGKILL the process group."""
+    def stop(self, grace=STOP_GRACE, first=(), keep=(), keep_grace=SAVE_GRACE, last=()):
+        """SIGINT to ``first`` (e.g. the recorder, so it can finish its file) and everyone else
+        but ``last``, wait ``grace`` s, SIGKILL all but ``keep`` (the processes that write the
+        run's outputs), wait for those up to ``keep_grace`` s from the SIGINT; then ``last`` (the
+        discovery server, which tells the other hosts that the run's participants have left)
+        after `LAST_LINGER` s, with ``grace`` s of its own; SIGKILL the process group if any
+        process had to be killed."""
         self.signal_all(signal.SIGCONT)          # a frozen (SIGSTOPped) agent cannot stop
         for label in first:
             p = self.procs.get(label)
             if p is not None and p.poll() is None:
                 p.send_signal(signal.SIGINT)
-        self.signal_all(signal.SIGINT)
+        others = lambda: {k: p for k, p in self.alive().items() if k not in last}
+        for p in others().values():
+            _signal(p, signal.SIGINT)
         start = time.monotonic()
-        self._wait_for(lambda: self.alive(), start + grace)
-        killed = [p for label, p in self.alive().items() if label not in keep]
+        self._wait_for(others, start + grace)
+        killed = [p for label, p in others().items() if label not in keep]
         for p in killed:
-            _kill(p)
-        if self._wait_for(lambda: self.alive(), start + max(grace, keep_grace)):
-            print(f'swarm: {", ".join(sorted(self.alive()))} did not stop within {keep_grace:g} s '
+            _signal(p, signal.SIGKILL)
+        if self._wait_for(others, start + max(grace, keep_grace)):
+            print(f'swarm: {", ".join(sorted(others()))} did not stop within {keep_grace:g} s '
                   'of SIGINT; killed', file=sys.stderr, flush=True)
-        if self.alive() or killed:
+            killed += list(others().values())
+        if self.alive():                         # ``last``: the others' departure relayed first
+            time.sleep(LAST_LINGER)
+            self.signal_all(signal.SIGINT)
+            if self._wait_for(self.alive, time.monotonic() + grace):
+                killed += list(self.alive().values())
+        if killed:
             self.signal_all(signal.SIGKILL)
             if self.pgid is not None:
                 try:
@@ -114,9 +128,9 @@ class Supervisor:
         return bool(busy())
 
 
-def _kill(p):
+def _signal(p, sig):
     try:
-        p.send_signal(signal.SIGKILL)
+        p.send_signal(sig)
     except ProcessLookupError:
         pass
 
@@ -126,13 +140,14 @@ RECORDER_READY_TIMEOUT = 30.0
 
 
 @contextlib.contextmanager
-def supervised(prog: str, signals=(signal.SIGINT, signal.SIGTERM, signal.SIGHUP), first=(), keep=()):
+def supervised(prog: str, signals=(signal.SIGINT, signal.SIGTERM, signal.SIGHUP), first=(), keep=(),
+               last=()):
     """The processes of one command (``swarm run``, ``swarm join``): yields (`Supervisor`,
     ``stopped``).  ``signals`` set a flag instead of raising in the middle of a start;
     ``stopped()`` says whether one came (printing ``PROG: SIGINT: stopping N processes``
     once).  When the block ends, also on an error, every process is stopped (``first``
     first: the recorder, so it can finish its file; ``keep``, the processes that write the
-    outputs, get `SAVE_GRACE`) and the old handlers are back, unless a
+    outputs, get `SAVE_GRACE`; ``last`` after the others) and the old handlers are back, unless a
     signal came: then later ones are still only noted while the outputs are written
     (`swarm_ros.rosutil.stop_on_signals`: a dying parent's death signal repeats)."""
     sup = Supervisor()
@@ -148,7 +163,7 @@ def supervised(prog: str, signals=(signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     try:
         yield sup, stopped
     finally:
-        sup.stop(first=first, keep=keep)
+        sup.stop(first=first, keep=keep, last=last)
         for s, h in old.items() if not got else ():
             signal.signal(s, h)
 
@@ -400,7 +415,8 @@ def run_processes(params: dict, params_file: Path, specs, env, record=None, out_
     line (`refusal_line`)."""
     code = 1
     gone = set()
-    with supervised('swarm run', first=('record',), keep=('record', 'world')) as (sup, stopped):
+    with supervised('swarm run', first=('record',), keep=('record', 'world'),
+                    last=('discovery_server',)) as (sup, stopped):
         if server is not None:
             try:
                 server.start(sup.start, env, Path(params_file).parent)
