@@ -120,10 +120,20 @@ def _talk(c):
         return [(ts, stores[t].deserialize_cdr(raw, c.channels[t]['schemaName']))
                 for ts, raw in c.messages.get(i + 1, [])]
 
-    c.until(lambda: len(c.messages.get(1, [])) >= 30 and c.messages.get(2) and c.messages.get(3)
-            and c.messages.get(99), 120, 'states, markers, λ and metrics')
+    names, read = set(), [0]
+
+    def state_names():
+        """The agents heard on /swarm/states so far (the bridge's reader discovers their writers
+        one by one: on a loaded machine the first 30 states came from two agents)."""
+        got = c.messages.get(1, [])
+        names.update(stores[wanted[0]].deserialize_cdr(raw, c.channels[wanted[0]]['schemaName']).child_frame_id
+                     for _, raw in got[read[0]:])
+        read[0] = len(got)
+        return names
+
+    c.until(lambda: len(c.messages.get(1, [])) >= 30 and len(state_names()) >= 3 and c.messages.get(2)
+            and c.messages.get(3) and c.messages.get(99), 120, 'states of 3 agents, markers, λ and metrics')
     states = decoded(0)
-    names = {m.child_frame_id for _, m in states}
     assert names <= {f'agent_{i}' for i in range(6)} and len(names) >= 3, names
     for ts, m in states:      # logged at sim time: the state's own stamp
         assert m.header.frame_id == 'world'
