@@ -71,6 +71,11 @@ def two_agents(path, duration):
     return path
 
 
+#: wall s `Lines.wait` lets the reader drain the pipe after the exit (a grandchild that still
+#: holds it open keeps it open longer: then the lines so far)
+DRAIN = 5.0
+
+
 class Lines:
     """Collects a child's stdout lines in a thread (start it with stdout=PIPE, text=True)."""
 
@@ -95,11 +100,15 @@ class Lines:
         return False
 
     def wait(self, proc, timeout):
-        """proc.wait(timeout); on a timeout the test fails with everything the child printed."""
+        """proc.wait(timeout), then up to `DRAIN` s for the reader to take the last lines from
+        the pipe (a line written just before the exit was once not in ``lines`` yet); on a
+        timeout the test fails with everything the child printed."""
         try:
-            return proc.wait(timeout=timeout)
+            code = proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             pytest.fail(f'no exit within {timeout} s; it printed:\n' + ''.join(self.lines[-200:]))
+        self.t.join(DRAIN)
+        return code
 
 
 # ------------------------------------------------------------------ rclpy nodes and messages

@@ -63,10 +63,11 @@ def test_run_through_a_discovery_server(tmp_path, ros_domain, processes, swarm_c
     assert lines.wait_for('λ=1.000', 180), ''.join(lines.lines[-20:])
     p.send_signal(signal.SIGINT)
     assert lines.wait(p, 60) == 130
+    # realtime: each row's λ is the one in force when a state of that step came, so a late state
+    # can give a row a newer λ than the row after it; the ramp's ends are what `swarm lambda` did
     lam = Trajectory.load(out / 'trajectory.npz').lam
-    lam = lam[np.isfinite(lam)]               # realtime: the rows after the newest decision heard
-    assert lam[0] == 0.0 and lam[-1] == 1.0
-    assert np.all(np.diff(lam) >= 0)
+    lam = lam[np.isfinite(lam)]
+    assert lam[0] == 0.0 and lam[-1] == 1.0 and np.all((lam >= 0) & (lam <= 1))
 
 
 def test_lockstep_over_the_udp_profile_equals_simulate(tmp_path, ros_domain, processes, swarm_cmd):
