@@ -25,7 +25,7 @@ from swarm_tools.run.params import write_params_file
 STOP_GRACE = 4.0
 #: wall seconds a process that writes the run's outputs (the world, the recorder) gets to finish
 #: them after SIGINT before it is killed; on a loaded machine saving can outlast `STOP_GRACE`
-SAVE_GRACE = 30.0
+SAVE_GRACE = 10.0
 #: wall seconds the processes stopped last (the discovery server) outlive the others: time to
 #: tell the other hosts' participants that the run's have left
 LAST_LINGER = 1.0
