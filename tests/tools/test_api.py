@@ -43,3 +43,33 @@ def test_plugin_is_installed_as_a_pytest11_entry_point():
     from importlib.metadata import entry_points
     assert [e.value for e in entry_points(group='pytest11') if e.name == 'swarm_tools'] == [
         'swarm_tools.pytest_plugin']
+
+
+class _LaggingRun:
+    """A run whose ``/clock`` is far ahead of its metrics: a reliable stream held back until DDS
+    resends a lost sample (seen in a fast lockstep run: clock at t = 10.9, metrics at t = 2)."""
+
+    proc = None
+    running = True
+
+    def __init__(self, clock, metric_times):
+        self.t, self._times = clock, list(metric_times)
+
+    def metrics(self):
+        t = self._times.pop(0) if len(self._times) > 1 else self._times[0]
+        return {'t': t, 'clusters': 1}
+
+    states = None
+
+
+def test_wait_until_counts_sim_time_on_the_samples_not_the_clock():
+    from swarm_tools.api import Swarm, WaitTimeout
+    lagging = _LaggingRun(clock=0.0, metric_times=[0.0, 2.0, 2.0, 2.0, 3.0, 4.0])
+    lagging.t = 11.0                      # the clock has run past the timeout; the samples have not
+    assert Swarm.wait_until(lagging, lambda m: m['t'] >= 3, timeout=10, wall_timeout=5)['t'] == 3.0
+    late = _LaggingRun(clock=0.0, metric_times=[1.0, 5.0, 10.5])
+    with pytest.raises(WaitTimeout, match=r'after 10 sim s \(t 0.00 → 10.50\)'):
+        Swarm.wait_until(late, lambda m: m['clusters'] >= 2, timeout=10, wall_timeout=5)
+    stalled = _LaggingRun(clock=0.0, metric_times=[1.0])
+    with pytest.raises(WaitTimeout, match='samples stalled at t = 1.0'):
+        Swarm.wait_until(stalled, lambda m: m['clusters'] >= 2, timeout=10, wall_timeout=0.2)

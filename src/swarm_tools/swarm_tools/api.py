@@ -383,8 +383,10 @@ class Swarm:
     def wait_until(self, predicate, timeout: float, *, on='metrics', wall_timeout=None):
         """Wait until ``predicate(sample)`` is true for the newest ``metrics()`` (or, with
         ``on='states'``, ``states()``) and return that sample.  ``timeout``: sim seconds from
-        now (read on ``/clock``); `WaitTimeout` when they pass, or after ``wall_timeout`` wall s
-        (default 60 + 10 × timeout) if sim time stalls; `SwarmError` if the run ends first."""
+        now (``/clock``), counted on the samples' own time, so a stream that lags the clock is
+        waited for; `WaitTimeout` once a sample that late has been seen, or after
+        ``wall_timeout`` wall s (default 60 + 10 × timeout) if the samples stall; `SwarmError`
+        if the run ends first."""
         timeout = check_timeout('timeout', timeout)
         wall_timeout = check_timeout('wall_timeout', wall_timeout, none=True)
         if on not in ('metrics', 'states'):
@@ -397,7 +399,7 @@ class Swarm:
             sample = sample_of()
             if sample is not None and predicate(sample):
                 return sample
-            now = self.t
+            now = _sample_time(sample)
             if t0 is None:
                 t0 = now
             if now is not None and t0 is not None and now - t0 >= timeout:
@@ -408,7 +410,7 @@ class Swarm:
                                  f'{_name(predicate)} was true; newest {on}: {sample}')
             if time.monotonic() > wall_end:
                 raise WaitTimeout(f'wait_until: {_name(predicate)} not true after {wall:g} wall s '
-                                  f'(sim time stalled at {now}); newest {on}: {sample}')
+                                  f'(samples stalled at t = {now}, /clock at {self.t}); newest {on}: {sample}')
             time.sleep(0.05)
 
     # ------------------------------------------------------------ the end
@@ -551,3 +553,13 @@ def session_pids(sid: int) -> list:
 
 def _name(predicate) -> str:
     return getattr(predicate, '__name__', None) or repr(predicate)
+
+
+def _sample_time(sample):
+    """The sim time a `wait_until` sample stands for: a metrics dict's ``t``, the newest row of
+    a `States` (None before the first sample)."""
+    if sample is None:
+        return None
+    if isinstance(sample, States):
+        return float(np.max(sample.t)) if len(sample.t) else None
+    return float(sample['t'])
