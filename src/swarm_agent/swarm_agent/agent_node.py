@@ -44,6 +44,7 @@ import sys
 import numpy as np
 from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from std_msgs.msg import String
@@ -64,6 +65,10 @@ from swarm_ros.msg_checks import RejectLog, check_barrier, decoded, guard_subscr
 from swarm_ros.rosutil import ParameterError, declare, run_node
 from swarm_ros.run_control import event_text, run_event
 from swarm_ros.runinfo import declare_run_id
+
+#: wall s an agent stopped by a signal waits for its states to be acknowledged (`flush_states`):
+#: one heartbeat of the run's DDS profile (0.25 s), within the 1 s a stop may take
+ACK_WAIT = 0.3
 
 
 class AgentNode(Node):
@@ -257,6 +262,12 @@ class AgentNode(Node):
                     float(self.core.u_last if u is None else u))
         self.pub.publish(self.serialize_state(*self.own))
 
+    def flush_states(self):
+        """On SIGINT / SIGTERM: wait up to `ACK_WAIT` s for the reliable readers of
+        /swarm/states (a recorder) to acknowledge every state sent, so that one lost datagram
+        is resent on the next heartbeat rather than dropped with the process."""
+        self.pub.wait_for_all_acked(Duration(seconds=ACK_WAIT))
+
     def applied(self, u):
         """Note the control u applied over the step held (`u_history`)."""
         self.u_history.append((self.step, u))
@@ -359,7 +370,8 @@ def driver_class(mode: str, robot: str):
 
 
 def main(argv=None):
-    return run_node(AgentNode, 'swarm_agent', argv, fatal=(LawError,))    # a law that failed: one line
+    # a law that failed: one line; a stop: the states sent are acknowledged first
+    return run_node(AgentNode, 'swarm_agent', argv, fatal=(LawError,), on_stop=AgentNode.flush_states)
 
 
 if __name__ == '__main__':

@@ -11,6 +11,7 @@ import signal
 import subprocess
 import sys
 
+from swarm_ros import protocol as P
 from tests.helpers import FAKES, ROOT, short_homotopy
 
 OVERRIDES = ROOT / 'src' / 'swarm_tools' / 'config' / 'record_qos_overrides.yaml'
@@ -20,9 +21,12 @@ EMULATION = FAKES / 'rosbag2_record.py'
 def test_rosbag2_style_recorder_with_overrides_loses_no_state(ros_domain, processes, swarm_cmd, tmp_path):
     """`ros2 bag record -a --qos-profile-overrides-path FILE` started before a lockstep
     `swarm run --state-readers 1`: each agent's states of steps 0..last all arrive.  (The run has fewer states
-    than the override's depth; what a slower recorder loses in a long run is measured by
+    than the agents' writer history (`STATES_DEPTH`), so a datagram lost under load is resent
+    on a heartbeat, at the latest while a stopped agent waits for its acknowledgements; in a
+    longer run a recorder slower than the run loses what drops out of that history, measured by
     scripts/bench_bag_qos.py.)"""
-    steps, dt = 120, 0.05
+    steps, dt = 90, 0.05
+    assert steps < P.STATES_DEPTH
     scn = short_homotopy(tmp_path / 'scn.yaml', duration=steps * dt, lam='{kind: constant, value: 0.0}', at=1000.0)
     rec = processes.start([sys.executable, EMULATION, '--qos-profile-overrides-path', OVERRIDES],
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
