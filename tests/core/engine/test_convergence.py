@@ -32,7 +32,8 @@ def test_homotopy_outcomes_agree_across_dt_and_integrator(name, seed):
     _agree(name, seed)
 
 
-@pytest.mark.parametrize('seed', [1, 2])
+# one seed, as above (seed 2 passed the same check; each seed costs ≈ 15 s of CPU in the suite)
+@pytest.mark.parametrize('seed', [1])
 def test_target_barrier_outcomes_agree_across_dt_and_integrator(seed):
     # Whether the six agents split around the barrier or all pass on one side is decided
     # by a near-symmetric encounter and changes with dt (README: 15/20 seeds split); the

@@ -17,13 +17,15 @@ SCENARIO = ROOT / 'examples' / 'six_agents_live.yaml'
 
 def test_a_second_start_on_a_busy_domain_fails_and_the_first_run_goes_on(swarm, ros_domain, tmp_path):
     from swarm_tools.api import Swarm, SwarmError
-    first = swarm(SCENARIO, duration=4000, in_process=True, no_figure=True)
+    # realtime at rtf 4: what is checked does not need lockstep, which would spin a core meanwhile
+    first = swarm(SCENARIO, mode='realtime', rtf=4, duration=4000, in_process=True, no_figure=True)
     runs, t0 = first.client.runs, first.wait_until(lambda m: m['t'] >= 1, timeout=10)['t']
     started = time.monotonic()
     with pytest.raises(SwarmError, match=rf'ROS_DOMAIN_ID={ros_domain} \(run {first.run_id} ') as err:
         # busy_wait 20 s, not the default 4: under the suite's load, discovering the first run
         # took more than 4 s once (the wait ends as soon as its announcement is heard)
-        Swarm.start(SCENARIO, duration=4000, in_process=True, no_figure=True, out=tmp_path / 'second',
+        Swarm.start(SCENARIO, mode='realtime', rtf=4, duration=4000, in_process=True, no_figure=True,
+                    out=tmp_path / 'second',
                     busy_wait=20.0)
     assert 'refusing to start one more' in str(err.value) and time.monotonic() - started < 30
     assert not (tmp_path / 'second').exists()                    # nothing of it was started

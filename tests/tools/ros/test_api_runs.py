@@ -125,11 +125,13 @@ def test_a_script_that_dies_leaves_no_run_behind(ros_domain, tmp_path):
 
 def test_attach_to_swarm_run_and_a_second_run_on_another_domain(ros_domain, processes, swarm_cmd, tmp_path):
     """One script drives two runs: one started by `swarm run` (attached) on the test's domain,
-    one started by the API on a second domain; each takes its own λ."""
+    one started by the API on a second domain; each takes its own λ.  Both realtime at rtf 4:
+    two lockstep runs would spin both cores while the script waits."""
     from swarm_core.engine.trajectory import Trajectory
     from swarm_tools.api import NoSwarm, Swarm
     from swarm_tools.pytest_plugin import claim_domain
-    cli = processes.start([swarm_cmd, 'run', SCENARIO, '--in-process', '--duration', '4000', '--out',
+    cli = processes.start([swarm_cmd, 'run', SCENARIO, '--in-process', '--mode', 'realtime', '--rtf', '4',
+                           '--duration', '4000', '--out',
                            tmp_path / 'cli', '--no-figure'],
                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = Lines(cli)
@@ -140,8 +142,8 @@ def test_attach_to_swarm_run_and_a_second_run_on_another_domain(ros_domain, proc
         with pytest.raises(NoSwarm, match='no run'):
             Swarm.attach(domain=other, wait=1.0)
         with Swarm.attach(out=tmp_path / 'cli', wait=60) as a, \
-                Swarm.start(SCENARIO, domain=other, duration=4000, out=tmp_path / 'api', in_process=True,
-                            no_figure=True) as b:
+                Swarm.start(SCENARIO, domain=other, mode='realtime', rtf=4, duration=4000, out=tmp_path / 'api',
+                            in_process=True, no_figure=True) as b:
             assert a.run_id == run_id and b.run_id != run_id
             a.set_lambda(1.0, ramp=0)
             b.set_lambda(0.5, ramp=0)
