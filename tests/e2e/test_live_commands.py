@@ -40,7 +40,8 @@ def test_topic_pub_once_and_param_set_take_effect_every_time(tmp_path, ros_domai
     from swarm_ros.rosutil import make_executor
     from tests.helpers import spin_for
 
-    path = short_homotopy(tmp_path / 'rt.yaml', duration=100000, lam='{kind: constant, value: 0.0}', at=1e6)
+    # dt 0.1: a realtime run's CPU grows with its rate, and the commands need no more
+    path = short_homotopy(tmp_path / 'rt.yaml', duration=100000, lam='{kind: constant, value: 0.0}', at=1e6, dt=0.1)
     run = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--record', tmp_path / 'bag.mcap',
                            '--out', tmp_path / 'out', '--no-figure'],
                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

@@ -37,7 +37,8 @@ def documented_names(names, per, record):
 
 def start_run(processes, swarm_cmd, tmp_path, *options):
     """A realtime run of the six agents that goes on until stopped; (process, its lines)."""
-    path = short_homotopy(tmp_path / 'rt.yaml', duration=100000, lam='{kind: constant, value: 0.0}', at=1e6)
+    # dt 0.1: a live run is all the tools need, and a realtime run's CPU grows with its rate
+    path = short_homotopy(tmp_path / 'rt.yaml', duration=100000, lam='{kind: constant, value: 0.0}', at=1e6, dt=0.1)
     env = dict(os.environ, ROS_LOG_DIR=str(tmp_path / 'ros_log'))       # the nodes' log files
     run = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--out', tmp_path / 'out', '--no-figure',
                            *options], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
