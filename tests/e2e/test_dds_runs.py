@@ -36,7 +36,8 @@ def test_run_through_a_discovery_server(tmp_path, ros_domain, processes, swarm_c
     simple discovery on the same domain, does not (a run with its own server is apart).  Realtime
     at rtf 4: a lockstep run would spin both cores while the tools look (lockstep over a server,
     bit for bit: tests/e2e/test_multi_host.py)."""
-    path = short_homotopy(tmp_path / 'short.yaml', duration=4000, lam='{kind: constant, value: 0.0}', at=5)
+    # dt 0.1: a realtime run's CPU grows with its rate
+    path = short_homotopy(tmp_path / 'short.yaml', duration=4000, lam='{kind: constant, value: 0.0}', at=5, dt=0.1)
     out = tmp_path / 'run'
     p = processes.start([swarm_cmd, 'run', path, '--discovery', 'server', '--mode', 'realtime', '--rtf', '4',
                          '--out', out, '--no-figure', '--progress-every', '1'],

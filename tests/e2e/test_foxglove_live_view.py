@@ -85,7 +85,7 @@ def test_live_view_serves_states_markers_and_takes_lambda(ros_domain, processes,
     (CDR, as Foxglove's Publish panel does on a ROS 2 server): the commander then ramps its
     published λ up from 0."""
     import subprocess
-    scn = short_homotopy(tmp_path / 'view.yaml', duration=3000, lam='{kind: constant, value: 0.0}', at=1e6)
+    scn = short_homotopy(tmp_path / 'view.yaml', duration=3000, lam='{kind: constant, value: 0.0}', at=1e6, dt=0.1)
     run = processes.start([swarm_cmd, 'run', scn, '--mode', 'realtime', '--foxglove', '0',
                            '--out', tmp_path / 'out', '--no-figure', '--progress-every', '1000'],
                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1)
