@@ -436,9 +436,11 @@ def test_recorder_started_before_the_run(rclpy_context, processes, swarm_cmd, tm
         n_states = sum(1 for _ in reader.messages(connections=[conns['/swarm/states']]))
     assert lam_vals == [k * 0.1 for k in range(10)]
     assert n_states == 10
-    # both offers on /swarm/lambda are kept: this test's best-effort one, Publishers' reliable one
+    # the channel keeps the offers known when the recorder first saw a writer of /swarm/lambda, as
+    # rosbag2 does: this test's best-effort one, and Publishers' reliable one when it was known by
+    # then (created just after it; on a loaded machine the recorder's look came between the two)
     qos = parse_qos_yaml(_channel_qos(out, '/swarm/lambda'))
-    assert sorted(q['reliability'] for q in qos) == ['best_effort', 'reliable']
+    assert sorted(q['reliability'] for q in qos) in (['best_effort'], ['best_effort', 'reliable']), qos
 
 
 def _channel_qos(path, topic):
