@@ -51,6 +51,7 @@ class _LaggingRun:
 
     proc = None
     running = True
+    states = None
 
     def __init__(self, clock, metric_times):
         self.t, self._times = clock, list(metric_times)
@@ -59,13 +60,11 @@ class _LaggingRun:
         t = self._times.pop(0) if len(self._times) > 1 else self._times[0]
         return {'t': t, 'clusters': 1}
 
-    states = None
-
 
 def test_wait_until_counts_sim_time_on_the_samples_not_the_clock():
     from swarm_tools.api import Swarm, WaitTimeout
-    lagging = _LaggingRun(clock=0.0, metric_times=[0.0, 2.0, 2.0, 2.0, 3.0, 4.0])
-    lagging.t = 11.0                      # the clock has run past the timeout; the samples have not
+    # the clock has run past the timeout; the samples have not
+    lagging = _LaggingRun(clock=11.0, metric_times=[0.0, 2.0, 2.0, 2.0, 3.0, 4.0])
     assert Swarm.wait_until(lagging, lambda m: m['t'] >= 3, timeout=10, wall_timeout=5)['t'] == 3.0
     late = _LaggingRun(clock=0.0, metric_times=[1.0, 5.0, 10.5])
     with pytest.raises(WaitTimeout, match=r'after 10 sim s \(t 0.00 → 10.50\)'):

@@ -25,8 +25,7 @@ def test_a_second_start_on_a_busy_domain_fails_and_the_first_run_goes_on(swarm, 
         # busy_wait 20 s, not the default 4: under the suite's load, discovering the first run
         # took more than 4 s once (the wait ends as soon as its announcement is heard)
         Swarm.start(SCENARIO, mode='realtime', rtf=4, duration=4000, in_process=True, no_figure=True,
-                    out=tmp_path / 'second',
-                    busy_wait=20.0)
+                    out=tmp_path / 'second', busy_wait=20.0)
     assert 'refusing to start one more' in str(err.value) and time.monotonic() - started < 30
     assert not (tmp_path / 'second').exists()                    # nothing of it was started
     # the first run's client heard nothing of a second one: its commands still reach its run
