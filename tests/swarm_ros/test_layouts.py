@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import struct
 
 import numpy as np
 import pytest
@@ -143,3 +144,14 @@ def test_the_docs_show_the_declared_layouts():
     text = (ROOT / 'docs' / 'ros-graph.md').read_text()
     for cls in MESSAGES:
         assert cls.LAYOUT.text() in text, cls.LAYOUT.text()
+
+
+@pytest.mark.parametrize('k', [0, 1, 3])
+def test_a_packer_makes_what_encode_makes(k):
+    """`Layout.packer`: the bytes of `encode` for the same values, without a message object."""
+    rng = np.random.default_rng(k)
+    msg = AgentStates(17.0, rng.integers(0, 9, k), rng.integers(0, 99, k), rng.normal(size=(4, k)), rng.normal(size=k))
+    values = [msg.tag, *msg.index, *msg.step, *msg.pose.ravel(), *msg.u]
+    assert AgentStates.LAYOUT.packer((k,), 'run7')(*values) == msg.to_cdr('run7')
+    with pytest.raises(struct.error):
+        AgentStates.LAYOUT.packer((k,), 'run7')(*values, 1.0)         # one value too many

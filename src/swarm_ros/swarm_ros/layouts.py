@@ -136,6 +136,9 @@ def _run_id_field(run_id: str) -> bytes:
     return rid.ljust(RUN_ID_BYTES, b'\0')
 
 
+#: plans a layout keeps by the count values it received (each message size seen, up to this many)
+_PLANS_KEPT = 64
+
 #: records of at most this many doubles (a lone agent's answer) are packed from plain floats:
 #: cheaper than numpy for a few values
 _SMALL = 64
@@ -190,6 +193,8 @@ class Layout:
         self.count_of = {c: next(f.name for f in self.fields if f.dims()[0] == c) for c in self.counts}
         assert [fl.name for fl in dataclasses.fields(cls)] == [f.name for f in self.fields if f.kind != 'count'], topic
         self.encoders = tuple((f.name, _CODECS[f.kind][0]) for f in self.fields if f.kind != 'count')
+        self._count_at = tuple(self.counts.values())
+        self._plans = {}                             # count values as received (floats) → plan
 
     def text(self) -> str:
         """The layout as docs/ros-graph.md shows it: each field with its count and its kind."""
@@ -216,6 +221,17 @@ class Layout:
         body = (_small_body if size <= _SMALL else _numpy_body)(plan, values, size - _RUN_DOUBLES)
         return float64_array_header(size) + _run_id_field(run_id) + body
 
+    def packer(self, counts: tuple, run_id: str = ''):
+        """``pack(*values)`` → what `encode` makes of a message with these count values (its
+        counts must lead the record) and ``run_id``, from the doubles of every other field in
+        wire order (each flattened row-major), without a message object: a lone agent's answer
+        of each step."""
+        assert all(f.kind == 'count' for f in self.fields[:len(self.counts)]), f'{self.topic}: counts do not lead'
+        size = self.plan(tuple(counts)).dtype.itemsize // 8
+        head = float64_array_header(size) + _run_id_field(run_id) + struct.pack(f'<{len(counts)}d', *counts)
+        body = struct.Struct(f'<{size - _RUN_DOUBLES - len(counts)}d')
+        return lambda *values: head + body.pack(*values)
+
     def decode(self, raw: bytes, run_id: str = ''):
         """The one decoder: the message (``cls``) in a serialized Float64MultiArray, or a
         `BadMessage` (`OtherRun` if ``run_id`` is set and the message's differs, `NotFinite`,
@@ -233,20 +249,26 @@ class Layout:
             got = data[:_RUN_DOUBLES].tobytes().rstrip(b'\0').decode('ascii', 'replace')
             raise OtherRun(f'message of run {got or "(none)"!r}, not this run {run_id!r}: another swarm run '
                            'on this ROS_DOMAIN_ID?')
-        counts = [data.item(i) for i in self.counts.values()]
-        if not all(c.is_integer() and 0 <= c <= size for c in counts):
-            raise BadMessage(f'counts {", ".join(self.counts)} = {counts} are not whole numbers ≥ 0')
-        plan = self.plan(tuple(int(c) for c in counts))
+        counts = tuple(map(data.item, self._count_at))
+        try:
+            plan = self._plans[counts]              # counts seen before: whole numbers ≥ 0
+        except KeyError:
+            if not all(c.is_integer() and 0 <= c <= size for c in counts):
+                raise BadMessage(f'counts {", ".join(self.counts)} = {list(counts)} are not whole numbers ≥ 0') \
+                    from None
+            plan = self.plan(tuple(int(c) for c in counts))
+            if len(self._plans) < _PLANS_KEPT:
+                self._plans[counts] = plan
         if size * 8 != plan.dtype.itemsize:
             raise BadMessage(f'{size} values do not hold {dict(zip(self.counts, counts))} '
                              f'(want {plan.dtype.itemsize // 8})')
-        for a, b, names in plan.finite:
-            if not (math.isfinite(data.item(a)) if b - a == 1 else np.isfinite(data[a:b]).all()):
+        for a, b, names in plan.finite:             # a few values: plain floats are cheaper
+            if not (all(map(math.isfinite, data[a:b].tolist())) if b - a <= _SMALL
+                    else np.isfinite(data[a:b]).all()):
                 raise NotFinite(f'a value of {names} is not finite')
         for a, b, names in plan.whole:
-            if b - a == 1:
-                v = data.item(a)
-                if v.is_integer() and v >= 0:
+            if b - a <= _SMALL:
+                if all(v.is_integer() and v >= 0 for v in data[a:b].tolist()):
                     continue
             elif not (data[a:b] != np.abs(np.floor(data[a:b]))).any():
                 continue

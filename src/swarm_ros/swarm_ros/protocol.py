@@ -143,8 +143,14 @@ def float64_array_header(size: int) -> bytes:
     return CDR_LE + struct.pack('<IIII', 0, 0, size, 0)
 
 
+#: the bytes of a little-endian serialized Float64MultiArray with an empty layout up to its size
+_EMPTY_LAYOUT_LE = CDR_LE + struct.pack('<II', 0, 0)
+
+
 def cdr_to_float64_array(raw: bytes) -> np.ndarray:
     """``data`` of a serialized std_msgs/Float64MultiArray (any layout)."""
+    if raw[:12] == _EMPTY_LAYOUT_LE:             # what this project sends: no layout to walk
+        return np.frombuffer(raw, dtype='<f8', count=int.from_bytes(raw[12:16], 'little'), offset=20)
     little = raw[1] == 1
     end = '<' if little else '>'
     o = 4
