@@ -135,6 +135,11 @@ class Senders:
             self.bound.setdefault(name, sender)
 
 
+#: `ProcessSenders.check`'s mask of one row taken (read-only: shared)
+_ONE_TRUE = np.ones(1, bool)
+_ONE_TRUE.flags.writeable = False
+
+
 class ProcessSenders:
     """Lockstep: binds each agent (row) to the first agent process whose
     ``/lockstep/agent_states`` carried it (its sender tag), as `Senders` does per name."""
@@ -144,6 +149,10 @@ class ProcessSenders:
 
     def check(self, index, tag):
         """(rows to take: a bool mask over ``index``, a `Reason` for the others or None)."""
+        if index.size == 1:                              # a lone agent: no array work
+            bound = self.tag[index[0]]
+            if bound != bound or bound == tag:
+                return _ONE_TRUE, None
         bound = self.tag[index]
         ok = (bound != bound) | (bound == tag)           # unbound (NaN) or this sender
         if ok.all():
@@ -152,6 +161,10 @@ class ProcessSenders:
                           f'{_show(float(tag))}) for {int((~ok).sum())} agents bound to another one')
 
     def accept(self, index, tag):
+        if index.size == 1:
+            if self.tag[index[0]] != self.tag[index[0]]:
+                self.tag[index[0]] = tag
+            return
         unbound = self.tag[index] != self.tag[index]
         self.tag[index[unbound]] = tag
 
@@ -161,6 +174,13 @@ def check_agent_states(index, vals, n, topic=P.LOCK_AGENT_STATES):
     ``/swarm/agent_states`` (`layouts.ProcessStates`), whose decoders check that every value is
     finite, must be rejected as a whole (a `Reason`), or None: an agent index outside the roster
     or twice, an orientation that is not a planar unit quaternion."""
+    if index.size == 1:                                  # a lone agent's state: no array work
+        i, qz, qw = index.item(0), vals.item(2, 0), vals.item(3, 0)
+        if i >= n:
+            return reason('unknown-agent', f'{topic} with agent index {i} (the roster has {n})')
+        if abs(qz * qz + qw * qw - 1.0) > 1e-6:
+            return reason('not-planar', f'{topic}: an orientation is not a planar unit quaternion')
+        return None
     if index.size and index.max() >= n:
         return reason('unknown-agent', f'{topic} with agent index {int(index.max())} (the roster has {n})')
     if index.size > 1 and np.unique(index).size != index.size:

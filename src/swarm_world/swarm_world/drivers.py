@@ -117,6 +117,10 @@ class LockstepDriver:
         self.process_senders.accept(idx, tag)
         if self.join is not None:
             idx, ks, vals, u = self.join.from_agents(idx, ks, vals, u)
+        elif idx.size == 1:             # a lone agent's answer: no index arrays (`on_state`)
+            self.watch.progressed(time.monotonic())
+            self.after(self.lock.on_state(int(idx[0]), int(ks[0]), vals[:, 0], float(u[0])))
+            return
         self.take_states(idx, ks, vals, u)
 
     def on_robot_states(self, raw):
@@ -141,7 +145,11 @@ class LockstepDriver:
         self.watch.progressed(time.monotonic())
         if idx.size == 0:           # a robot agent's u whose pose has not come (`RobotPoseJoin`)
             return
-        late, acts = self.lock.on_states(idx, ks, vals, u)
+        self.after(self.lock.on_states(idx, ks, vals, u))
+
+    def after(self, outcome):
+        """What the barrier decided on states: (reasons for states of later steps, actions)."""
+        late, acts = outcome
         for text in late[:1]:
             self.node.reject('step', text)
         self.node.carry_out(acts)

@@ -185,6 +185,21 @@ class LockstepBarrier:
                 why.append(f'state of {self.names[rows[j]]!r} for step {ks[j]} while the world is at step {self.cur}')
         return why, acts + (self.advance() if r.size else [])
 
+    def on_state(self, i, k, vals, u):
+        """`on_states` for the state of ONE agent ``i`` (a lone agent's answer: step ``k``,
+        values (4,), u), without index arrays when it is the state the world waits for
+        (alive, of the wanted step); any other goes through `on_states`."""
+        if not (self.faults.alive[i] and k == self.want[i]):
+            return self.on_states(np.array([i]), np.array([k]), vals.reshape(4, 1), np.array([u]))
+        self.buf[:, i] = vals
+        self.buf_u[i] = u
+        self.have[i] = True
+        fresh = k == self.cur
+        self.fresh[i] = fresh
+        if not fresh and 0 < k <= self.steps:              # a resumed agent's held state
+            self.rec.u[k - 1, i] = u
+        return [], self.advance()
+
     def _take(self, i, k, vals, u):
         """One agent's state, without the completion check: (reason it was not taken or None,
         actions)."""
@@ -214,7 +229,7 @@ class LockstepBarrier:
 
     def complete(self):
         """Every agent in the table of the current step has its state here."""
-        return bool(np.all(self.have | ~self.faults.alive))
+        return bool(self.have.all() or (self.have | ~self.faults.alive).all())
 
     def missing(self):
         """Indices of the agents in the table whose state of the current step has not come."""
