@@ -120,6 +120,7 @@ class AgentNode(Node):
         self.sender_tag = new_sender_tag()     # who we are on /swarm/states (protocol.SENDER_TAG_INDEX)
         self.serialize_state = P.OdometryWriter(self.agent_name, tag=self.sender_tag)
         self.own = None          # (sec, nanosec, x, y, qz, qw, u) last published
+        self.states_held = None  # lockstep: states serialised but not yet sent (`send_held_states`)
         self.pub_events = None   # /swarm/events, made at the first live law change (`publish_event`)
         self.driver.start()
         guard_subscriptions(self, self.reject, passes=(LawError,))    # no message ends the agent
@@ -255,12 +256,31 @@ class AgentNode(Node):
     # ------------------------------------------------------------ output
     def publish_state(self, u=None):
         """Publish the own state of t (pre-serialised: no message object per step), carrying
-        ``u`` (default: the u held last)."""
+        ``u`` (default: the u held last).  Lockstep, past the first `P.STATES_DEPTH` steps, a
+        state no reader is matched for is not sent (`unread`)."""
         sec, nsec = P.time_to_stamp(self.t)
         qz, qw = self.core.quaternion
         self.own = (sec, nsec, float(self.core.pos[0, 0]), float(self.core.pos[0, 1]), qz, qw,
                     float(self.core.u_last if u is None else u))
-        self.pub.publish(self.serialize_state(*self.own))
+        if self.unread():
+            return
+        if self.states_held is None:
+            self.pub.publish(self.serialize_state(*self.own))
+        else:                    # the process answers the world first (`process_io.step_message`)
+            self.states_held.append(self.serialize_state(*self.own))
+
+    def unread(self) -> bool:
+        """Lockstep: nobody would get this state (no reader of /swarm/states matched, the step
+        past the writer's history of the start); the world reads /lockstep/agent_states.
+        Serialising and writing it would cost a fifth of a lone agent's step for nothing
+        (docs/ros-graph.md, "/swarm/states")."""
+        return self.mode == 'lockstep' and self.step >= P.STATES_DEPTH and self.pub.get_subscription_count() == 0
+
+    def send_held_states(self):
+        """Publish the states `publish_state` held, and hold no more."""
+        held, self.states_held = self.states_held, None
+        for raw in held or ():
+            self.pub.publish(raw)
 
     def flush_states(self):
         """On SIGINT / SIGTERM: wait up to `ACK_WAIT` s for the reliable readers of

@@ -64,10 +64,17 @@ class AgentStatesWriter:
         topic, qos = (P.AGENT_STATES, P.qos_latched(P.AGENT_STATES_DEPTH)) if realtime else \
             (P.LOCK_AGENT_STATES, P.qos_latched())
         self.pub = node.create_publisher(Float64MultiArray, topic, qos)
+        self.pack_one = None           # lockstep: (run id, `Layout.packer` of one agent's answer)
 
     def publish(self, agents):
         """The state each of ``agents`` last published on /swarm/states (realtime: with its stamp)."""
         if not agents:
+            return
+        if len(agents) == 1 and not self.realtime:          # a lone agent, each step: no message object
+            a = agents[0]
+            if self.pack_one is None or self.pack_one[0] != a.run_id:
+                self.pack_one = (a.run_id, AgentStates.LAYOUT.packer((1,), a.run_id))
+            self.pub.publish(self.pack_one[1](self.tag, a.index, a.step, *a.own[2:]))
             return
         if self.realtime:
             rows = list(zip(*[(a.index, a.own[0] + a.own[1] * 1e-9, *a.own[2:]) for a in agents]))
@@ -89,8 +96,9 @@ def step_message(raw, lock, agents, reject, batch):
     """One ``/lockstep/step`` message for the agents of a process: decoded once, decided by
     their `ContainerCore` (one law call), carried out by each agent's lockstep driver; then the
     states of the agents that answered go to the world in one message (``batch``, an
-    `AgentStatesWriter`).  A step of another run (its id, swarm_ros.runinfo), or whose time
-    is no sim time a stamp can hold, is rejected (``reject``: the process's `RejectLog`)."""
+    `AgentStatesWriter`), and only after it each agent's state on /swarm/states.  A step of
+    another run (its id, swarm_ros.runinfo), or whose time is no sim time a stamp can hold, is
+    rejected (``reject``: the process's `RejectLog`)."""
     s = decoded(Step, raw, agents[0].run_id, reject, 'step-decode')
     if s is None:
         return None
@@ -103,11 +111,17 @@ def step_message(raw, lock, agents, reject, batch):
     except LawError as err:         # the agents' law failed: the process stops with one line
         fail(err)
         return None
-    for j, kind, detail in outcomes:
-        agents[j].driver.lockstep_outcome(kind, detail, s)
-        if kind in ('moved', 'repeat'):
-            said.append(agents[j])
-    batch.publish(said)
+    for a in agents:                # the answer to the world first: it is on the critical path
+        a.states_held = []
+    try:
+        for j, kind, detail in outcomes:
+            agents[j].driver.lockstep_outcome(kind, detail, s)
+            if kind in ('moved', 'repeat'):
+                said.append(agents[j])
+        batch.publish(said)
+    finally:                        # then /swarm/states, for the recorder and the user
+        for a in agents:
+            a.send_held_states()
     return s
 
 

@@ -280,3 +280,46 @@ def test_agent_declares_each_law_parameter_with_the_tables_description_and_range
                 assert d.additional_constraints == 'one of: ' + ', '.join(p.choices), p.name
     finally:
         node.destroy_node()
+
+
+def test_lockstep_answers_the_world_first_and_sends_no_state_nobody_reads(rclpy_context):
+    """Lockstep: each step the agent sends its answer on /lockstep/agent_states first, then its
+    state on /swarm/states.  Past the first `P.STATES_DEPTH` states, a state no reader is matched
+    for is not sent; once a reader matches, every state goes out again.  The world's answer goes
+    out every step."""
+    scn = load('homotopy_global')
+    ctx = rclpy_context
+    agent = AgentNode('agent', namespace='agent_0', context=ctx, parameter_overrides=overrides(
+        dict(agent_parameters(scn, 0, 'lockstep'), use_sim_time=False)))
+    order = []
+    for label, pub in (('states', agent.pub), ('answer', agent.driver.batch.pub)):
+        real = pub.publish
+        pub.publish = lambda raw, real=real, label=label: (order.append(label), real(raw))
+    qz, qw = quaternion_from_heading(scn.theta0)
+    n = len(scn.names)
+
+    def feed(a, b):
+        for k in range(a, b):
+            agent.driver.on_input(Step(k, k * scn.dt, 0.0, np.zeros(n, bool), np.zeros(n), scn.pos0[:, 0] + 0.01 * k,
+                                       scn.pos0[:, 1], qz, qw, np.zeros(n), np.ones(n, bool), None, None,
+                                       None).to_cdr(agent.run_id))
+    last = P.STATES_DEPTH + 20
+    feed(0, last)
+    assert agent.step == last
+    # steps 0..: the state of step k + 1 after the answer; the states of steps 1..99 go out
+    assert order[:4] == ['answer', 'states', 'answer', 'states']
+    assert order.count('answer') == last
+    assert order.count('states') == P.STATES_DEPTH - 1
+    probe = rclpy.create_node('state_reader', context=ctx)
+    got = []
+    probe.create_subscription(Odometry, P.STATES, got.append, P.qos_latched(P.STATES_DEPTH))
+    ex = make_executor(ctx)
+    ex.add_node(probe)
+    assert spin_for(ex, lambda: agent.pub.get_subscription_count() >= 1, 10.0)
+    order.clear()
+    feed(last, last + 10)
+    assert order == ['answer', 'states'] * 10
+    assert spin_for(ex, lambda: any(P.step_of(P.stamp_to_time(m.header.stamp), scn.dt) == last + 10
+                                    for m in got), 10.0)
+    probe.destroy_node()
+    agent.destroy_node()
