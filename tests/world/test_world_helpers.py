@@ -215,12 +215,12 @@ def test_start_waits_for_everyone_then_times_out():
 def test_start_waits_a_bounded_time_for_the_recorder():
     w = StartWatch(0.0, 3, start_timeout=100.0, wait_for_recorder=True, recorder_wait=5.0)
     everyone = dict(states=True, relay_readers=4, commander_ready=True)
-    # /clock readers: the commander and the recorder (lockstep agents take their time from the steps)
-    assert w.decide(1.0, **everyone, clock_readers=1) is None          # the commander only
-    assert w.decide(5.9, **everyone, clock_readers=1) is None
-    assert w.decide(6.0, **everyone, clock_readers=1) == 'start_without_recorder'
+    # /clock readers: the recorder (the lockstep agents and commander take their time from the steps)
+    assert w.decide(1.0, **everyone, clock_readers=0) is None          # no recorder yet
+    assert w.decide(5.9, **everyone, clock_readers=0) is None
+    assert w.decide(6.0, **everyone, clock_readers=0) == 'start_without_recorder'
     w = StartWatch(0.0, 3, start_timeout=100.0, wait_for_recorder=True, recorder_wait=5.0)
-    assert w.decide(1.0, **everyone, clock_readers=2) == 'start'
+    assert w.decide(1.0, **everyone, clock_readers=1) == 'start'
 
 
 def test_stall_watch_drops_then_gives_up_and_repeats_between():

@@ -48,6 +48,7 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.time import Time
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from homotopy_commander.command_watch import CommandWatch, of_swarm
@@ -200,6 +201,9 @@ class CommanderNode(Node):
         """The world decides each step (`swarm_world.lockstep`); the commander forwards its live
         commands and says when it takes part, then publishes what each step message carries."""
         self.last_step = -1
+        # sim time from each step message, as the lockstep agents: no /clock reader, so that the
+        # world's /clock goes to nobody in a run without a recorder or tools
+        self._time_source.detach_node()
         self.forward_seq = 0
         self.forward_tag = new_sender_tag()
         self.pub_command = self.create_publisher(String, P.LOCK_COMMAND, P.qos_latched(100))
@@ -433,6 +437,7 @@ class CommanderNode(Node):
             return
         self.last_step = s.n
         self.t, self.lam = s.t, s.lam
+        self.get_clock().set_ros_time_override(Time(nanoseconds=round(s.t * 1e9)))
         self.decisions += 1
         self.publish_outputs(s.lam, s.flags, s.steering, force=(s.n % self.publish_every == 0))
 

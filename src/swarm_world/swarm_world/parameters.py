@@ -33,8 +33,8 @@ WORLD = {
                         'is lost', dict(lo=0.1, hi=1e6)),
     'step_readers': (0, 'lockstep: readers of the step relay to wait for (one per agent process; 0: one per '
                      'agent)', dict(lo=0, hi=100000)),
-    'clock_readers': (0, 'with wait_for_recorder: /clock readers to wait for (0: commander + recorder; '
-                      'lockstep agents take their time from the step messages)', dict(lo=0, hi=100000)),
+    'clock_readers': (0, 'with wait_for_recorder: /clock readers to wait for (0: the recorder; the lockstep '
+                      'agents and commander take their time from the step messages)', dict(lo=0, hi=100000)),
     'remote_agents': ('', 'the agents other hosts start (swarm join), comma-separated; announced on /swarm/run',
                       {}),
     'remote_robots': ('', 'the robots of remote agents, NAME=KIND comma-separated (KIND external or mujoco); '

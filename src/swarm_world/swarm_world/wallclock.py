@@ -15,7 +15,7 @@ class StartWatch:
                  relay_want=0, clock_want=0):
         self.n = n
         self.relay_want = relay_want or n          # agent containers: one relay reader per process
-        self.clock_want = clock_want or 2          # commander, recorder (lockstep agents: time from the steps)
+        self.clock_want = clock_want or 1          # the recorder (lockstep agents, commander: time from the steps)
         self.start_timeout = start_timeout
         self.wait_for_recorder = wait_for_recorder
         self.recorder_wait = recorder_wait

@@ -19,8 +19,9 @@ from swarm_tools.run.params import node_parameters
 from tests.fakes.ros2cli_verbs import NodeNotFound, param_describe, param_set
 from tests.helpers import node_inputs, overrides, spin_for
 
-#: what the commander reads in each mode (docs/ros-graph.md): /clock through use_sim_time
-INPUTS = {'lockstep': {P.LOCK_STEP, P.LAMBDA_SETPOINT, P.CLOCK},
+#: what the commander reads in each mode (docs/ros-graph.md): realtime /clock through use_sim_time;
+#: lockstep its time from each step message
+INPUTS = {'lockstep': {P.LOCK_STEP, P.LAMBDA_SETPOINT},
           'realtime': {P.AGENT_STATES, P.LAMBDA_SETPOINT, P.CLOCK}}
 
 
