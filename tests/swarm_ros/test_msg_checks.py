@@ -250,3 +250,15 @@ def test_refused_logs_reasons_and_drops_repeats_silently():
     assert refused(log, 'repeat') is True and log.count == 0
     assert refused(log, reason('future-stamp', 'state of x from the future')) is True
     assert log.count == 1 and lines == ['rejected state of x from the future']
+
+
+def test_a_step_time_no_stamp_can_hold_is_refused():
+    """`check_step_time`, which the agents and the commander apply to each /lockstep/step."""
+    from types import SimpleNamespace
+
+    from swarm_ros.msg_checks import MAX_SIM_TIME, check_step_time
+    for t in (0.0, 12.5, MAX_SIM_TIME - 1.0):
+        assert check_step_time(SimpleNamespace(n=3, t=t)) is None
+    for t in (float('nan'), -0.1, MAX_SIM_TIME, float('inf')):
+        why = check_step_time(SimpleNamespace(n=3, t=t))
+        assert why is not None and why.kind == 'step-time' and 'step 3' in why

@@ -63,9 +63,11 @@ from swarm_ros.msg_checks import (
     ProcessSenders,
     RejectLog,
     check_agent_states,
+    check_step_time,
     decoded,
     guard_subscriptions,
     new_sender_tag,
+    refused,
 )
 from swarm_ros.rosutil import declare, gid_key, require_sim_clock, run_node, steady_clock, when_matched
 from swarm_ros.run_control import event_text, forward_text
@@ -430,7 +432,7 @@ class CommanderNode(Node):
     def _on_step(self, raw):
         """Lockstep: the world's step message, with its decision: published for the record."""
         s = decoded(Step, raw, self.run_id, self.reject, 'step-decode')
-        if s is None or s.n <= self.last_step:           # a repeat
+        if s is None or s.n <= self.last_step or refused(self.reject, check_step_time(s)):     # a repeat, a bad time
             return
         if len(s.flags) != self.n:
             self.reject('step-n', f'{P.LOCK_STEP} with {len(s.flags)} agents (scenario has {self.n})')

@@ -16,7 +16,7 @@ from swarm_agent.realtime_core import CATCH_UP_MAX, advance_periods, due_periods
 from swarm_core.laws import LawError
 from swarm_ros import protocol as P
 from swarm_ros.layouts import AgentStates, ProcessStates, Step
-from swarm_ros.msg_checks import MAX_SIM_TIME, batch_ok, decoded, new_sender_tag
+from swarm_ros.msg_checks import batch_ok, check_step_time, decoded, new_sender_tag, refused
 from swarm_ros.rosutil import fail
 
 #: lockstep: where an agent's sim time comes from (parameter ``lockstep_clock``)
@@ -102,8 +102,7 @@ def step_message(raw, lock, agents, reject, batch):
     s = decoded(Step, raw, agents[0].run_id, reject, 'step-decode')
     if s is None:
         return None
-    if not 0.0 <= s.t < MAX_SIM_TIME:
-        reject('step-time', f'{P.LOCK_STEP} for step {s.n}: t={s.t!r} is not a sim time in [0, {MAX_SIM_TIME:g}) s')
+    if refused(reject, check_step_time(s)):
         return None
     said = []
     try:

@@ -37,6 +37,14 @@ def reason(kind: str, text: str) -> Reason:
     return r
 
 
+def check_step_time(s):
+    """Why a decoded /lockstep/step (`layouts.Step`) must be rejected (a `Reason`): its time is
+    no sim time a stamp can hold (NaN, negative, past `MAX_SIM_TIME`); or None."""
+    if 0.0 <= s.t < MAX_SIM_TIME:
+        return None
+    return reason('step-time', f'/lockstep/step for step {s.n}: t={s.t!r} is not a sim time in [0, {MAX_SIM_TIME:g}) s')
+
+
 def check_state(msg, row, newest, now=None, tolerance=FUTURE_TOLERANCE):
     """Why a /swarm/states message must be rejected (a `Reason`), 'repeat' for an exact repeat
     of the newest accepted state of that agent, or None to accept it.
