@@ -182,18 +182,18 @@ def check_agent_states(index, vals, n, topic=P.LOCK_AGENT_STATES):
     ``/swarm/agent_states`` (`layouts.ProcessStates`), whose decoders check that every value is
     finite, must be rejected as a whole (a `Reason`), or None: an agent index outside the roster
     or twice, an orientation that is not a planar unit quaternion."""
-    if index.size == 1:                                  # a lone agent's state: no array work
-        i, qz, qw = index.item(0), vals.item(2, 0), vals.item(3, 0)
-        if i >= n:
-            return reason('unknown-agent', f'{topic} with agent index {i} (the roster has {n})')
-        if abs(qz * qz + qw * qw - 1.0) > 1e-6:
-            return reason('not-planar', f'{topic}: an orientation is not a planar unit quaternion')
+    if index.size == 0:
         return None
-    if index.size and index.max() >= n:
-        return reason('unknown-agent', f'{topic} with agent index {int(index.max())} (the roster has {n})')
+    if index.size == 1:                                  # a lone agent's state: plain floats, no array work
+        top, qz, qw = index.item(0), vals.item(2, 0), vals.item(3, 0)
+        off = abs(qz * qz + qw * qw - 1.0)
+    else:
+        top, off = int(index.max()), np.abs(vals[2] * vals[2] + vals[3] * vals[3] - 1.0).max()
+    if top >= n:
+        return reason('unknown-agent', f'{topic} with agent index {top} (the roster has {n})')
     if index.size > 1 and np.unique(index).size != index.size:
         return reason('duplicate', f'{topic} names an agent twice')
-    if index.size and np.abs(vals[2] * vals[2] + vals[3] * vals[3] - 1.0).max() > 1e-6:
+    if off > 1e-6:
         return reason('not-planar', f'{topic}: an orientation is not a planar unit quaternion')
     return None
 

@@ -191,13 +191,7 @@ class LockstepBarrier:
         (alive, of the wanted step); any other goes through `on_states`."""
         if not (self.faults.alive[i] and k == self.want[i]):
             return self.on_states(np.array([i]), np.array([k]), vals.reshape(4, 1), np.array([u]))
-        self.buf[:, i] = vals
-        self.buf_u[i] = u
-        self.have[i] = True
-        fresh = k == self.cur
-        self.fresh[i] = fresh
-        if not fresh and 0 < k <= self.steps:              # a resumed agent's held state
-            self.rec.u[k - 1, i] = u
+        self._take(i, k, vals, u)                          # alive, wanted: taken, no actions
         return [], self.advance()
 
     def _take(self, i, k, vals, u):
