@@ -48,7 +48,6 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.time import Time
 from std_msgs.msg import Float64, Float64MultiArray, String
 
 from homotopy_commander.command_watch import CommandWatch, of_swarm
@@ -69,7 +68,7 @@ from swarm_ros.msg_checks import (
     new_sender_tag,
     refused,
 )
-from swarm_ros.rosutil import declare, gid_key, require_sim_clock, run_node, steady_clock, when_matched
+from swarm_ros.rosutil import declare, gid_key, require_sim_clock, run_node, steady_clock, step_time, when_matched
 from swarm_ros.run_control import event_text, forward_text
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
@@ -439,7 +438,7 @@ class CommanderNode(Node):
             return
         self.last_step = s.n
         self.t, self.lam = s.t, s.lam
-        self.get_clock().set_ros_time_override(Time(nanoseconds=round(s.t * 1e9)))
+        step_time([self], s)
         self.decisions += 1
         self.publish_outputs(s.lam, s.flags, s.steering, force=(s.n % self.publish_every == 0))
 

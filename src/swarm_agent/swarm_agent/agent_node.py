@@ -272,8 +272,8 @@ class AgentNode(Node):
     def unread(self) -> bool:
         """Lockstep: nobody would get this state (no reader of /swarm/states matched, the step
         past the writer's history of the start); the world reads /lockstep/agent_states.
-        Serialising and writing it would cost a fifth of a lone agent's step for nothing
-        (docs/ros-graph.md, "/swarm/states")."""
+        Serialising and writing it would be work for nothing, for each agent of a container
+        each step (docs/ros-graph.md, "/swarm/states")."""
         return self.mode == 'lockstep' and self.step >= P.STATES_DEPTH and self.pub.get_subscription_count() == 0
 
     def send_held_states(self):

@@ -51,7 +51,6 @@ from swarm_agent.process_io import (
     realtime_tick,
     shared_inputs,
     step_message,
-    step_time,
 )
 from swarm_agent.realtime_core import Continued, HeardStates
 from swarm_agent.robot_driver import OdometryHold
@@ -59,7 +58,7 @@ from swarm_core.laws import LawError
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RealtimeDecision
 from swarm_ros.msg_checks import RejectLog, batch_states, decoded, guard_subscriptions
-from swarm_ros.rosutil import ParameterError, declare, run_node
+from swarm_ros.rosutil import ParameterError, declare, run_node, step_time
 
 
 class AgentContainer(Node):

@@ -15,13 +15,12 @@ from swarm_agent.process_io import (
     own_echo,
     realtime_tick,
     step_message,
-    step_time,
 )
 from swarm_agent.realtime_core import CATCH_UP_MAX, Continued, HeardStates
 from swarm_core.faults.radio import StreamRadio
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, Senders, batch_states, check_values, refused
-from swarm_ros.rosutil import declare, when_matched
+from swarm_ros.rosutil import declare, step_time, when_matched
 
 
 class LockstepDriver:

@@ -9,7 +9,6 @@ import math
 
 import numpy as np
 from geometry_msgs.msg import PointStamped, PolygonStamped
-from rclpy.time import Time
 from std_msgs.msg import Float64MultiArray, String
 
 from swarm_agent.realtime_core import CATCH_UP_MAX, advance_periods, due_periods, shared_controls
@@ -83,13 +82,6 @@ class AgentStatesWriter:
             rows = list(zip(*[(a.index, a.step, *a.own[2:]) for a in agents]))
             msg = AgentStates(self.tag, rows[0], rows[1], rows[2:6], rows[6])
         self.pub.publish(msg.to_cdr(agents[0].run_id))
-
-
-def step_time(agents, s):
-    """Lockstep without /clock: the agents' sim time is that of step message ``s``."""
-    now = Time(nanoseconds=int(round(s.t * 1e9)))
-    for a in agents:
-        a.get_clock().set_ros_time_override(now)
 
 
 def step_message(raw, lock, agents, reject, batch):

@@ -43,7 +43,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
 from swarm_agent.drivers import LockstepDriver, RealtimeDriver
-from swarm_agent.process_io import AgentStatesWriter, step_message, step_time
+from swarm_agent.process_io import AgentStatesWriter, step_message
 from swarm_core.laws import LawError
 from swarm_core.robot_units import (
     CMD_TYPES,
@@ -58,7 +58,7 @@ from swarm_core.robot_units import (
 )
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import new_sender_tag
-from swarm_ros.rosutil import ParameterError, declare, fail
+from swarm_ros.rosutil import ParameterError, declare, fail, step_time
 from swarm_ros.run_control import command_frame, event_text
 
 #: the robot's clock: the swarm's sim clock (a simulator on /clock, lockstep) or the system

@@ -262,6 +262,15 @@ def profiler():
     return dump
 
 
+def step_time(nodes, s):
+    """Lockstep without /clock (the agents, the commander): the nodes' sim time is that of step
+    message ``s`` (a decoded /lockstep/step)."""
+    from rclpy.time import Time
+    now = Time(nanoseconds=int(round(s.t * 1e9)))
+    for nd in nodes:
+        nd.get_clock().set_ros_time_override(now)
+
+
 def settle_garbage():
     """Once the nodes are built: move every object alive now out of the garbage collector's
     reach (`gc.freeze`).  The nodes' objects live as long as the process; without this the
