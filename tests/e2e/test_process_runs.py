@@ -198,3 +198,24 @@ def test_agent_process_rejects_a_bad_parameter(ros_domain, processes):
     assert p.returncode == 2
     errs = [ln for ln in out.splitlines() if 'parameter cutoff_radius' in ln]
     assert len(errs) == 1 and 'Traceback' not in out
+
+
+def test_realtime_leader_rule_reads_the_agents_states(tmp_path, ros_domain, processes, swarm_cmd):
+    """The realtime commander chooses the leaders from the states the agents send, not from
+    the start: seed 6's swarm reshapes before the rule fires at t = 10, and its lateral
+    extremes are then agents 4 and 1, not 5 and 0 as at t = 0 (the batch engine, which lockstep
+    equals bit for bit; their lateral offsets lead the next agent's by ≥ 0.8 over t = 8-10, so a
+    state one period old picks the same).  A commander that dropped every lone agent's state
+    chose 5 and 0."""
+    path = short_homotopy(tmp_path / 'turns.yaml', duration=14, dt=0.1, lam='{kind: constant, value: 0.0}', at=10,
+                          seed=6)
+    ref = simulate(load(str(path)))
+    want = set(np.flatnonzero(ref.leader[-1]))
+    assert want == {1, 4} and not ref.leader[0].any()
+    out = tmp_path / 'run'
+    p = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--rtf', '4', '--out', out, '--no-figure'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait(p, 120) == 0, ''.join(lines.lines[-30:])
+    got = Trajectory.load(out / 'trajectory.npz')
+    assert set(np.flatnonzero(got.leader[-1])) == want, ''.join(lines.lines[-30:])

@@ -452,7 +452,7 @@ class CommanderNode(Node):
             return
         now = self.get_clock().now().nanoseconds * 1e-9
         ok, _ = self.senders.check(m.index, m.tag)
-        ok &= m.t <= now + FUTURE_TOLERANCE
+        ok = ok & (m.t <= now + FUTURE_TOLERANCE)           # not in place: `check` may hand back a shared mask
         idx = m.index[ok]
         self.senders.accept(idx, m.tag)
         self.pos[idx] = m.pose[:2, ok].T
