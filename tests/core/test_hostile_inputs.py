@@ -234,7 +234,7 @@ def test_a_rebuild_never_replaces_a_longer_record(tmp_path, capsys):
     """The launcher rebuilt the world's 85-sample trajectory from the bag as 84 samples (the
     discovery server was SIGKILLed, the run ended with an error): the longer one stays."""
     from swarm_core.engine.trajectory import Trajectory
-    from swarm_tools.run import launch
+    from swarm_tools.run import outputs
     from tests.helpers import write_run_bag
     run_dir = tmp_path / 'run'
     assert simulate_cli.simulate_main(['homotopy_global', '--duration', '4', '--out', str(run_dir),
@@ -245,13 +245,13 @@ def test_a_rebuild_never_replaces_a_longer_record(tmp_path, capsys):
                        lam=traj.lam[:-1], leader=traj.leader[:-1], meta=dict(traj.meta))
     scn = scenario.load('homotopy_global', duration=4)
     bag = write_run_bag(short, tmp_path / 'run.mcap', metrics_cutoff=scn.law.cutoff_radius)
-    assert not launch.salvage(scn, run_dir, bag, 'lockstep', 0.0, figure=False)
+    assert not outputs.salvage(scn, run_dir, bag, 'lockstep', 0.0, figure=False)
     assert (run_dir / 'trajectory.npz').read_bytes() == saved
     assert f'kept the trajectory the world saved ({len(traj.t)} samples); the bag holds {len(traj.t) - 1}' \
         in capsys.readouterr().err
     (run_dir / 'trajectory.npz').unlink()                # nothing saved: the rebuild is written
-    assert launch.salvage(scn, run_dir, bag, 'lockstep', 0.0, figure=False)
-    assert launch.saved_samples(run_dir / 'trajectory.npz') == len(traj.t) - 1
+    assert outputs.salvage(scn, run_dir, bag, 'lockstep', 0.0, figure=False)
+    assert outputs.saved_samples(run_dir / 'trajectory.npz') == len(traj.t) - 1
 
 
 def test_the_world_and_join_agree_on_the_scenario_hash():

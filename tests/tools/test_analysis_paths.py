@@ -2,7 +2,7 @@
 
 One short target_barrier run (target and barrier metrics included) is written by
 ``swarm simulate``; its trajectory goes into a bag as the nodes publish it.  The launcher's
-rebuild from that bag (`launch.salvage`, what ``swarm run`` does when the world saved
+rebuild from that bag (`outputs.salvage`, what ``swarm run`` does when the world saved
 nothing) and ``swarm report`` (cutoff radius, target and barrier read from the bag) must give
 the summary values ``swarm simulate`` gives, wherever their summaries share a key.  No ROS
 graph: rclpy only serialises the messages.
@@ -41,7 +41,7 @@ def _same(a, b, key):
 
 def test_three_entry_points_share_one_analysis(tmp_path, capsys):
     from swarm_tools.bags import report
-    from swarm_tools.run import launch
+    from swarm_tools.run import outputs
 
     sim_dir = tmp_path / 'simulate'
     assert simulate_cli.simulate_main(['target_barrier', '--duration', str(DURATION), '--out',
@@ -54,7 +54,7 @@ def test_three_entry_points_share_one_analysis(tmp_path, capsys):
     bag = write_run_bag(traj, tmp_path / 'run.mcap', metrics_cutoff=scn.law.cutoff_radius,
                     target=scn.target, barrier=scn.barrier)
     run_dir = tmp_path / 'run'
-    assert launch.salvage(scn, run_dir, bag, 'lockstep', 0.0, figure=False)
+    assert outputs.salvage(scn, run_dir, bag, 'lockstep', 0.0, figure=False)
     run = json.loads((run_dir / 'metrics.json').read_text())
     rep_dir = tmp_path / 'report'
     assert report.main([str(bag), '--out', str(rep_dir), '--no-figure']) == 0

@@ -32,12 +32,12 @@ the bag.
 parameters and the outputs, made without side effects), executes it and finishes (outputs, exit
 code).  `plan_processes` turns a plan into the processes to start (`processes.ProcessSpec`) and
 writes the files they read; ``ros2 launch swarm_tools swarm.launch.py`` starts the same ones from
-the same plan (`swarm_tools.run.launch_description`) and finishes the same way (`finish`).
+the same plan (`swarm_tools.run.launch_description`) and finishes the same way (`finish`, in
+`swarm_tools.run.outputs`).
 """
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -45,11 +45,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from swarm_agent.container_core import agent_services, agents_per_process, split_agents
-from swarm_core.analysis.outputs import analyse, check_output_dir, write_atomic, write_failed, write_outputs
-from swarm_core.engine.trajectory import Trajectory
+from swarm_core.analysis.outputs import check_output_dir
 from swarm_core.laws import LawError
 from swarm_robots.world_setup import SUMMARY_FILE
 from swarm_ros.rosutil import (
@@ -62,13 +59,11 @@ from swarm_ros.rosutil import (
     stop_on_signals,
 )
 from swarm_ros.runinfo import new_run_id, robots_text
-from swarm_tools.bags.mcap_io import bag_complete
-from swarm_tools.bags.report import read_run, rebuild_trajectory
 from swarm_tools.run import dds
+from swarm_tools.run.outputs import finish
 from swarm_tools.run.params import load_scenario, node_parameters, write_params_file
-from swarm_tools.run.processes import REFUSED_EXIT, process_specs, read_events, run_processes
-from swarm_tools.run.robots import ROBOTS_NODE, add_robot_world, apply_robots, parse_robots, read_summary, robot_steps
-from swarm_world.lateness import TIMING_FILE, behind_line, timing_line
+from swarm_tools.run.processes import process_specs, run_processes
+from swarm_tools.run.robots import ROBOTS_NODE, add_robot_world, apply_robots, parse_robots, robot_steps
 
 #: most agents of one ``swarm run`` (each is an OS process, or a node of one executor);
 #: larger swarms are for ``swarm simulate``
@@ -492,68 +487,6 @@ def _run_processes(run: RunPlan) -> int:
         return code
 
 
-def finish(run: RunPlan, code: int, wall: float) -> int:
-    """The outputs of a run that has ended with ``code``: trajectory, metrics and figure (or
-    what `salvage` can rebuild), and run.json; gives ``code``."""
-    if code in (0, 130) and run.traj_file.exists():      # 130: Ctrl-C; the world saved the steps done
-        write_run_outputs(run, code, wall)
-    elif code != 0:
-        print(f'swarm run: stopped (code {code}) after {wall:.1f} s', file=sys.stderr, flush=True)
-        if code == REFUSED_EXIT:        # a node refused its parameters: nothing ran, nothing to save
-            pass
-        elif run.in_process and run.stopped and run.traj_file.exists():     # a law failed: the steps done
-            write_run_outputs(run, code, wall)
-        elif not run.in_process and not salvage(run.scn, run.out, run.record, run.mode, wall, figure=run.figure) \
-                and run.traj_file.exists():             # the world's own record is the longer one
-            write_run_outputs(run, code, wall)
-    if code == 0 and run.record and not run.in_process and not bag_complete(run.record):
-        print(f'swarm run: the bag {run.record} is not complete: its recorder stopped early (see above)',
-              file=sys.stderr, flush=True)
-        code = 1
-    try:
-        write_atomic(run.out / 'run.json', json.dumps(dict(
-            exit_code=code, wall_seconds=wall, mode=run.mode, processes=not run.in_process,
-            agents=len(run.scn.names), agents_per_process=run.per)))
-    except OSError as err:
-        print(write_failed('swarm run', run.out, err), file=sys.stderr)
-    return code
-
-
-def write_run_outputs(run: RunPlan, code: int, wall: float) -> None:
-    """metrics.json and the figure from the trajectory.npz the world wrote."""
-    scn, out = run.scn, run.out
-    try:
-        traj = Trajectory.load(run.traj_file)
-        traj.meta = dict(scenario=scn.name, seed=scn.seed, dt=scn.dt, duration=scn.duration, source='ros',
-                         mode=run.mode, wall_seconds=wall, events=read_events(run.events_file),
-                         interrupted=code == 130 or run.stopped is not None, robots=read_summary(out))
-        if run.stopped:
-            traj.meta['stopped'] = run.stopped
-        series, checks = analyse(traj, scenario=scn)
-        timing = read_timing(out) if run.mode == 'realtime' else None
-        summary = write_outputs(out, scn, traj, series, checks, figure=run.figure,
-                                extra=dict(timing=timing) if timing else None)
-        what = (f'stopped (code {code}) at t = {summary["t_end"]:g} after {wall:.1f} s; partial run'
-                if code else f'done in {wall:.1f} s')
-        print(f'swarm run: {what}; final clusters {summary.get("final_clusters", "?")}; '
-              f'wrote {out}/trajectory.npz, metrics.json' + (f', {scn.label}.png' if run.figure else ''),
-              flush=True)
-        if timing:
-            for line in (timing_line(timing), behind_line(timing, timing['rtf'])):
-                if line:
-                    print(f'swarm run: {line}', flush=True)
-    except Exception as err:  # the trajectory is there; the extras are a bonus
-        print(f'swarm run: wrote {run.traj_file} (metrics/figure failed: {err})', flush=True)
-
-
-def read_timing(out: Path) -> dict | None:
-    """The realtime world's timing (`swarm_world.lateness`, its ``timing.json``), if it wrote one."""
-    try:
-        return json.loads((out / TIMING_FILE).read_text())
-    except (OSError, ValueError):
-        return None
-
-
 def validate(a) -> RunPlan | None:
     """The run ``a`` asks for, planned, its outputs ready; `NotStarted` naming a bad option or
     output, None for a bad scenario (said)."""
@@ -584,52 +517,3 @@ def main(argv=None) -> int:
         print(f'swarm run: {err}', file=sys.stderr)
         return 2
     return finish(run, code, wall)
-
-
-def saved_samples(path) -> int:
-    """The samples of a trajectory.npz (0 if there is none or it cannot be read)."""
-    try:
-        with np.load(path) as z:
-            return int(z['t'].shape[0])
-    except (OSError, ValueError, KeyError, EOFError):
-        return 0
-
-
-def salvage(scn, out: Path, bag, mode: str, wall: float, figure: bool = True) -> bool:
-    """The run ended with an error: rebuild it from the bag of ``--record``
-    (`swarm_tools.bags.report`) into ``out``, or say plainly what is lost.  A rebuild never replaces
-    a longer record: if the world saved a trajectory.npz with at least as many samples, that
-    one is kept (False)."""
-    lost = 'the trajectory is lost (the world keeps it in memory until the end)'
-    if not bag or not Path(bag).is_file():
-        if saved_samples(out / 'trajectory.npz'):
-            return False                    # the world saved what it had
-        print(f'swarm run: {lost}; {out}/events.jsonl is kept. Record the run (--record BAG.mcap) '
-              'to be able to rebuild it', file=sys.stderr, flush=True)
-        return False
-    try:
-        run = read_run(bag, cutoff_radius=scn.law.cutoff_radius, agents=scn.names)
-        traj = rebuild_trajectory(run)
-        order = [traj.names.index(nm) for nm in scn.names if nm in traj.names]
-        traj.names = [traj.names[k] for k in order]
-        traj.r, traj.theta, traj.u = traj.r[:, order], traj.theta[:, order], traj.u[:, order]
-        traj.leader = traj.leader[:, order]
-        traj.meta.update(scenario=scn.name, seed=scn.seed, duration=scn.duration, source='bag',
-                         mode=mode, wall_seconds=wall, interrupted=True,
-                         events=read_events(out / 'events.jsonl'))
-        saved = saved_samples(out / 'trajectory.npz')
-        if saved >= len(traj.t):
-            print(f'swarm run: kept the trajectory the world saved ({saved} samples); the bag holds '
-                  f'{len(traj.t)}', file=sys.stderr, flush=True)
-            return False
-        series, checks = analyse(traj, scenario=scn)
-        write_outputs(out, scn, traj, series, checks, figure=figure)
-    except (ValueError, OSError, IndexError) as err:
-        print(f'swarm run: {lost}, and rebuilding it from the bag {bag} failed: {err}', file=sys.stderr, flush=True)
-        return False
-    missing = sorted(set(scn.names) - set(traj.names))
-    print(f'swarm run: the world did not save the trajectory; rebuilt t = {traj.t[0]:g}..{traj.t[-1]:g} '
-          f'({len(traj.t)} samples, {len(traj.names)} agents) from the bag {bag} into {out}/trajectory.npz, '
-          'metrics.json' + (f'; no states in the bag for {", ".join(missing)}' if missing else ''),
-          file=sys.stderr, flush=True)
-    return True
