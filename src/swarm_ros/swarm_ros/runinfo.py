@@ -48,6 +48,30 @@ def discovery_settle() -> float:
     return value
 
 
+#: the highest ROS_DOMAIN_ID there is: Fast DDS computes its UDP ports from it, and past 232
+#: they do not fit in 16 bits (its participant then fails, and rclpy ends the process);
+#: 0-101 stay below Linux's ephemeral ports (docs.ros.org, "The ROS_DOMAIN_ID")
+MAX_DOMAIN = 232
+
+
+def check_domain(domain, name: str = 'domain'):
+    """``domain`` (a ROS_DOMAIN_ID given as an argument ``name``; None: the environment's) as an
+    int, or ValueError naming the argument and the range [0, `MAX_DOMAIN`] for anything else (a
+    negative or too large number, a string, a bool, a float).  None stays None, unless
+    ROS_DOMAIN_ID holds a decimal number past `MAX_DOMAIN`: ValueError naming the variable
+    (rclpy would take it, and Fast DDS end the process)."""
+    if domain is None:
+        text = os.environ.get('ROS_DOMAIN_ID', '').strip()
+        if text.isdigit() and int(text) > MAX_DOMAIN:
+            raise ValueError(f'ROS_DOMAIN_ID={text}: must be a ROS_DOMAIN_ID, an integer in [0, {MAX_DOMAIN}] '
+                             '(0-101 are safe on Linux)')
+        return None
+    if isinstance(domain, bool) or not isinstance(domain, numbers.Integral) or not 0 <= domain <= MAX_DOMAIN:
+        raise ValueError(f'{name}={domain!r}: must be a ROS_DOMAIN_ID, an integer in [0, {MAX_DOMAIN}] '
+                         '(0-101 are safe on Linux)')
+    return int(domain)
+
+
 _ID = re.compile(r'^[A-Za-z0-9_-]{1,32}$')
 
 

@@ -177,6 +177,7 @@ class Swarm:
         0 on a domain held for this run alone, as the pytest plugin's).  ``echo``: print its lines."""
         start_timeout = check_timeout('start_timeout', start_timeout)
         busy_wait = check_timeout('busy_wait', runinfo.discovery_settle() if busy_wait is None else busy_wait)
+        domain = runinfo.check_domain(domain)
         busy = _run_on_domain(domain, busy_wait) if busy_wait > 0 else None
         if busy:
             raise SwarmError(busy)
@@ -245,7 +246,7 @@ class Swarm:
         wall s for its announcement; `NoSwarm`, or `TwoRuns` when two share the domain and no
         ``run_id`` is given."""
         wait = check_timeout('wait', wait)
-        client = Client(domain, name='swarm_api')
+        client = Client(runinfo.check_domain(domain), name='swarm_api')
         try:
             Client.until(lambda: (run_id in client.runs) if run_id else client.runs, wait)
             time.sleep(0.5)                             # a second run's announcement may come just after

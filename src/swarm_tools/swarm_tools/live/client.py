@@ -78,6 +78,7 @@ class Client:
     manager, or call `close`."""
 
     def __init__(self, domain=None, name: str = 'swarm_client'):
+        domain = runinfo.check_domain(domain)       # Fast DDS ends the process past 232
 
         import rclpy
         from rclpy.context import Context
