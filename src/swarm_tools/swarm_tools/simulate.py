@@ -310,7 +310,8 @@ def sweep_table(name, results) -> str:
     return '\n'.join(lines)
 
 
-def sweep_main(argv) -> int:
+def _sweep_parser() -> argparse.ArgumentParser:
+    """The options of ``swarm sweep``: a plain sweep over seeds, or a parameter study."""
     p = argparse.ArgumentParser(prog='swarm sweep', description=(
         "Run scenarios over many seeds and count how often the paper's behaviour happens "
         "(the scenario's `expect` checks). With --set or --study: a parameter study over a "
@@ -340,6 +341,11 @@ def sweep_main(argv) -> int:
     g.add_argument('--no-figure', action='store_true', help='study: skip the figure')
     g.add_argument('--quiet', action='store_true', help='study: no progress bar')
     _engine_option(g)
+    return p
+
+
+def sweep_main(argv) -> int:
+    p = _sweep_parser()
     a = p.parse_args(argv)
     if a.seeds is not None and a.seeds < 1:
         p.error('--seeds must be ≥ 1')

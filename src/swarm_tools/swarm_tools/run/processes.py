@@ -402,6 +402,50 @@ def start_recorder(sup, record, env, params: dict, params_file) -> bool:
     return False
 
 
+def _stop_code(sup, by_label: dict, members: dict, gone: set, notes=None, events_file=None, record=None,
+               stopped_by=None) -> int | None:
+    """One look at the processes other than the world (`run_processes`): the exit code that stops
+    the run, its line said (a law that failed, an agent that refused its parameters, any other
+    vital process that exited), or None while it goes on.  Agent processes and the recorder that
+    exited are said once and added to ``gone``."""
+    dead = [k for k, p in sup.procs.items() if p.poll() is not None and k != 'world' and k not in gone]
+    fatal = [k for k in dead if k in members and sup.procs[k].returncode == FATAL_EXIT]
+    if fatal:
+        line = (read_fatal_note(notes) if notes else None) or f'{fatal[0]}: its law failed'
+        print(f'swarm run: {line}; stopping the run', file=sys.stderr, flush=True)
+        if stopped_by is not None:
+            stopped_by.append(line)
+        return 1
+    refused = [(k, refusal_line(by_label[k], sup.procs[k].returncode, note_of(notes, sup.procs[k].pid)))
+               for k in dead if k in members and k not in gone]
+    refused = [(k, line) for k, line in refused if line]
+    if refused:
+        line = refused[0][1]
+        print(f'swarm run: {line}; stopping the run', file=sys.stderr, flush=True)
+        if stopped_by is not None:
+            stopped_by.append(line)
+        for k, p in sup.alive().items():     # SIGTERM: a node still importing ends without a
+            if k != 'record':                 # traceback (SIGINT would raise in it); the rest stop
+                p.send_signal(signal.SIGTERM)
+        return REFUSED_EXIT
+    for k in [k for k in dead if k in members]:
+        gone.add(k)
+        print(exit_line(by_label[k], sup.procs[k].returncode, events_file), file=sys.stderr, flush=True)
+    if 'record' in dead and 'record' not in gone:
+        gone.add('record')
+        print(f'swarm run: WARNING: the recorder exited with code {sup.procs["record"].returncode}; '
+              f'the run goes on without it (the bag {record} ends here; `swarm bag recover` '
+              'repairs a truncated bag)', file=sys.stderr, flush=True)
+    dead = [k for k in dead if k not in members and k != 'record']      # ... or the discovery server
+    if dead:
+        k = dead[0]
+        note = note_of(notes, sup.procs[k].pid)
+        print(f'swarm run: {k} exited with code {sup.procs[k].returncode}{f": {note}" if note else ""}; '
+              'stopping the run', file=sys.stderr, flush=True)
+        return 1
+    return None
+
+
 def run_processes(params: dict, params_file: Path, specs, env, record=None, out_dir=None,
                   pid_file=None, events_file=None, server=None, notes=None, stopped_by=None) -> int:
     """Start ``specs`` (`process_specs`: world, commander, robots, agents, view) and watch them
@@ -443,43 +487,10 @@ def run_processes(params: dict, params_file: Path, specs, env, record=None, out_
             if rc is not None:
                 code = rc
                 break
-            dead = [k for k, p in sup.procs.items() if p.poll() is not None and k != 'world' and k not in gone]
-            fatal = [k for k in dead if k in members and sup.procs[k].returncode == FATAL_EXIT]
-            if fatal:
-                line = (read_fatal_note(notes) if notes else None) or f'{fatal[0]}: its law failed'
-                print(f'swarm run: {line}; stopping the run', file=sys.stderr, flush=True)
-                if stopped_by is not None:
-                    stopped_by.append(line)
-                code = 1
-                break
-            refused = [(k, refusal_line(by_label[k], sup.procs[k].returncode, note_of(notes, sup.procs[k].pid)))
-                       for k in dead if k in members and k not in gone]
-            refused = [(k, line) for k, line in refused if line]
-            if refused:
-                line = refused[0][1]
-                print(f'swarm run: {line}; stopping the run', file=sys.stderr, flush=True)
-                if stopped_by is not None:
-                    stopped_by.append(line)
-                code = REFUSED_EXIT
-                for k, p in sup.alive().items():     # SIGTERM: a node still importing ends without a
-                    if k != 'record':                 # traceback (SIGINT would raise in it); the rest stop
-                        p.send_signal(signal.SIGTERM)
-                break
-            for k in [k for k in dead if k in members]:
-                gone.add(k)
-                print(exit_line(by_label[k], sup.procs[k].returncode, events_file), file=sys.stderr, flush=True)
-            if 'record' in dead and 'record' not in gone:
-                gone.add('record')
-                print(f'swarm run: WARNING: the recorder exited with code {sup.procs["record"].returncode}; '
-                      f'the run goes on without it (the bag {record} ends here; `swarm bag recover` '
-                      'repairs a truncated bag)', file=sys.stderr, flush=True)
-            dead = [k for k in dead if k not in members and k != 'record']      # ... or the discovery server
-            if dead:
-                k = dead[0]
-                note = note_of(notes, sup.procs[k].pid)
-                print(f'swarm run: {k} exited with code {sup.procs[k].returncode}{f": {note}" if note else ""}; '
-                      'stopping the run', file=sys.stderr, flush=True)
-                code = 1
+            stop = _stop_code(sup, by_label, members, gone, notes=notes, events_file=events_file, record=record,
+                              stopped_by=stopped_by)
+            if stop is not None:
+                code = stop
                 break
             time.sleep(0.05)
     return code
