@@ -262,3 +262,19 @@ def test_a_step_time_no_stamp_can_hold_is_refused():
     for t in (float('nan'), -0.1, MAX_SIM_TIME, float('inf')):
         why = check_step_time(SimpleNamespace(n=3, t=t))
         assert why is not None and why.kind == 'step-time' and 'step 3' in why
+
+
+def test_a_decision_from_the_future_or_of_no_sim_time_is_refused():
+    """`check_decision_time`, which the realtime agents, containers and world apply to each
+    /swarm/decision: a peer that copied the run id still cannot stamp one far ahead."""
+    from types import SimpleNamespace
+
+    from swarm_ros.msg_checks import MAX_SIM_TIME, check_decision_time
+    for t in (0.0, 10.0, 12.0):
+        assert check_decision_time(SimpleNamespace(n=7, t=t), 10.0, 2.0) is None
+    why = check_decision_time(SimpleNamespace(n=7, t=1.0e6), 10.0, 2.0)
+    assert why.kind == 'decision-future' and 't=1000000.000' in why and 'by more than 2 s' in why
+    assert check_decision_time(SimpleNamespace(n=7, t=12.5), 10.0, 2.0).kind == 'decision-future'
+    for t in (float('nan'), -0.1, MAX_SIM_TIME, float('inf')):
+        why = check_decision_time(SimpleNamespace(n=7, t=t), 10.0, 2.0)
+        assert why is not None and why.kind == 'decision-time' and 'step 7' in why

@@ -61,7 +61,15 @@ from swarm_core.model.integrate import noise_rng
 from swarm_core.robot_units import ROBOT_KINDS
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RealtimeDecision
-from swarm_ros.msg_checks import RejectLog, check_barrier, decoded, guard_subscriptions, new_sender_tag
+from swarm_ros.msg_checks import (
+    RejectLog,
+    check_barrier,
+    check_decision_time,
+    decoded,
+    guard_subscriptions,
+    new_sender_tag,
+    refused,
+)
 from swarm_ros.rosutil import ParameterError, declare, run_node
 from swarm_ros.run_control import event_text, run_event
 from swarm_ros.runinfo import declare_run_id
@@ -296,9 +304,11 @@ class AgentNode(Node):
 
     # ------------------------------------------------------------ inputs of every mode
     def _on_decision(self, raw):
-        """Realtime: the commander's decision of a tick (serialized ``/swarm/decision``)."""
+        """Realtime: the commander's decision of a tick (serialized ``/swarm/decision``); one
+        stamped more than ``future_tolerance`` ahead of this clock is refused (a peer's)."""
         d = decoded(RealtimeDecision, raw, self.run_id, self.reject, 'decision')
-        if d is not None:
+        if d is not None and not refused(self.reject, check_decision_time(d, self._now(),
+                                                                          self.driver.future_tolerance)):
             self.take_decision(d)
 
     def take_decision(self, d, leaders=None):

@@ -57,7 +57,7 @@ from swarm_agent.robot_driver import OdometryHold
 from swarm_core.laws import LawError
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RealtimeDecision
-from swarm_ros.msg_checks import RejectLog, batch_states, decoded, guard_subscriptions
+from swarm_ros.msg_checks import RejectLog, batch_states, check_decision_time, decoded, guard_subscriptions, refused
 from swarm_ros.rosutil import ParameterError, declare, run_node, step_time
 
 
@@ -144,6 +144,8 @@ class AgentContainer(Node):
         leaders made a set once, taken by every agent (each checks its values as it would alone)."""
         first = self.agents[0]
         d = decoded(RealtimeDecision, raw, first.run_id, self.reject, 'decision')
+        if d is not None and refused(self.reject, check_decision_time(d, first._now(), first.driver.future_tolerance)):
+            return
         if d is None or len(d.flags) != first.n:
             if d is not None:
                 self.reject('decision-n', f'{P.DECISION} with {len(d.flags)} agents (the roster has {first.n})')

@@ -45,6 +45,20 @@ def check_step_time(s):
     return reason('step-time', f'/lockstep/step for step {s.n}: t={s.t!r} is not a sim time in [0, {MAX_SIM_TIME:g}) s')
 
 
+def check_decision_time(d, now, tolerance=FUTURE_TOLERANCE):
+    """Why a decoded /swarm/decision (`layouts.RealtimeDecision`) must be rejected (a `Reason`):
+    its time is no sim time (NaN, negative, past `MAX_SIM_TIME`), or it is more than
+    ``tolerance`` sim s ahead of the receiver's clock ``now``: a decision from the future, which
+    the commander of the run never sends (a peer's, with the run id copied); or None."""
+    if not 0.0 <= d.t < MAX_SIM_TIME:
+        return reason('decision-time', f'{P.DECISION} of step {d.n}: t={d.t!r} is not a sim time in '
+                      f'[0, {MAX_SIM_TIME:g}) s')
+    if d.t > now + tolerance:
+        return reason('decision-future', f'{P.DECISION} stamped t={d.t:.3f}, ahead of this clock t={now:.3f} '
+                      f'by more than {tolerance:g} s (a decision from the future)')
+    return None
+
+
 def check_state(msg, row, newest, now=None, tolerance=FUTURE_TOLERANCE):
     """Why a /swarm/states message must be rejected (a `Reason`), 'repeat' for an exact repeat
     of the newest accepted state of that agent, or None to accept it.

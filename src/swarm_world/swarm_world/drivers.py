@@ -30,7 +30,15 @@ from swarm_core.command.plan import check_command
 from swarm_core.files import write_atomic
 from swarm_ros import protocol as P
 from swarm_ros.layouts import AgentStates, ProcessStates, RealtimeDecision, RobotStates
-from swarm_ros.msg_checks import NewestStates, ProcessSenders, batch_ok, check_agent_states, decoded
+from swarm_ros.msg_checks import (
+    NewestStates,
+    ProcessSenders,
+    batch_ok,
+    check_agent_states,
+    check_decision_time,
+    decoded,
+    refused,
+)
 from swarm_ros.rosutil import ParameterError
 from swarm_ros.run_control import EventRefused, FirstSender, forwarded
 from swarm_world.lateness import TIMING_FILE, Lateness, behind_line, timing_line
@@ -366,7 +374,7 @@ class RealtimeDriver:
         flags recorded with the states from now on, if it is a decision of this roster."""
         node = self.node
         d = decoded(RealtimeDecision, raw, node.run_id, node.reject, 'decision')
-        if d is None:
+        if d is None or refused(node.reject, check_decision_time(d, node.sim_t, self.future_tolerance)):
             return
         if not decision_valid(d.lam, d.flags, d.steering, node.n):
             node.reject('decision', f'{P.DECISION} of t={d.t:g}: λ={d.lam}, non-finite or wrong size')
