@@ -105,7 +105,7 @@ class ContainerCore:
         self.dead[j] = True
 
     def on_step(self, s) -> list[tuple]:
-        """What each agent does at step message ``s`` (a `protocol.Step`): a list of
+        """What each agent does at step message ``s`` (a `swarm_ros.layouts.Step`): a list of
         (j, kind, detail) with kind 'repeat' (publish the last state again), 'silent' (left the
         table at step detail), 'back' (back in the table; detail: the step it held),
         'reject' (detail: (key, text)), 'moved' (detail: u; the agent advanced one step)."""

@@ -219,7 +219,7 @@ class RealtimeDriver:
         own = (core.pos[0, 0], core.pos[0, 1], *core.quaternion)
         if not node.radio_on:
             return known_table(node.roster, node.agent_name, own, heard.newest, node.leaders, now, self.stale_after)
-        rows, states = self.stream.table(now, own)     # what the radio delivered (`comms.StreamRadio`)
+        rows, states = self.stream.table(now, own)     # what the radio delivered (`faults.radio.StreamRadio`)
         flags = np.array([node.roster[j] in node.leaders for j in rows])
         return int(np.searchsorted(rows, node.index)), states, flags
 

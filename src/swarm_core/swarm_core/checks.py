@@ -4,7 +4,7 @@ A value that reaches the swarm from outside (a scenario file, a CLI argument, a 
 parameter, a recorded bag) is checked by its one `Bound` here, so every boundary accepts the
 same values and rejects the others with the same text; each caller decides only what a
 rejection does there (refuse, log and drop, skip).  The scenario schema takes its type of the
-value from the same object (`scenario_schema.checked`).
+value from the same object (`swarm_core.schema.checked`).
 """
 from __future__ import annotations
 

@@ -38,7 +38,7 @@ def bounded(bound: Bound):
 
 def checked(bound: Bound):
     """A number checked by the `Bound`'s own check, so the schema rejects it with the text of
-    every other boundary (`scenario._format_error` shows it as it is)."""
+    every other boundary (`swarm_core.scenario.loader._format_error` shows it as it is)."""
     return Annotated[float, AfterValidator(bound.check)]
 
 

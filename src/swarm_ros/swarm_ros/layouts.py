@@ -338,7 +338,7 @@ class AgentStates(Packed):
 @dataclasses.dataclass(eq=False)
 class RobotStates(Packed):
     """Lockstep: the MuJoCo robot world's poses of its robots at t_n, in model units, as each
-    robot's agent reads its odometry (`swarm_robots.timing.OdometryPoses`).  The world takes
+    robot's agent reads its odometry (`swarm_robots.world_setup.OdometryPoses`).  The world takes
     these agents' states of t_n from here and only u from their own answers."""
     n: int                   # the step: the physics just reached t_n·L/v0
     tag: float               # the robot world's sender tag (the world binds the topic to its first)

@@ -68,7 +68,8 @@ MAX_REPLAY_BYTES = 64 * 1024 * 1024
 
 
 def _replay_or_exit(path, scn) -> dict:
-    """The commands of an events file by step (schedules.read_commands), or exit 2 naming the problem."""
+    """The commands of an events file by step (`swarm_core.command.plan.read_commands`), or exit 2
+    naming the problem."""
     try:
         with open(path, 'rb') as fh:           # at most the limit, whatever the file is (/dev/zero)
             raw = fh.read(MAX_REPLAY_BYTES + 1)

@@ -7,13 +7,13 @@ file that defines a function, so a change in a kernel called from another file w
 recompile `_run`.
 
 **The radio** (`radio_receive`, `radio_control`), each step n, as the reference engine
-does it (`comms.CommModel.decide`, `Beliefs.receive`, `belief_controls`):
+does it (`swarm_core.faults.radio.CommModel.decide`, `Beliefs.receive`, `belief_controls`):
 
 - every agent sends its state of t_n (x, y, the planar quaternion, the u it held over the
   step that ended at t_n); the fate of the message j → k is drawn from the same
-  counter-based hash (`comms.link_uniforms`: splitmix64 over seed, n, k, j, stream), so a
-  message is lost, cut by a partition or the radio range, or delayed by the very same
-  numbers as in the reference and in every agent process;
+  counter-based hash (`swarm_core.faults.radio.link_uniforms`: splitmix64 over seed, n, k, j,
+  stream), so a message is lost, cut by a partition or the radio range, or delayed by the very
+  same numbers as in the reference and in every agent process;
 - each receiver folds in the messages that arrive at step n (newest stamp wins), forgets
   senders older than the timeout and dead-reckons the others to t_n (each message
   (sender, age) once per step, as `Beliefs.known_pairs` does for large tables);
@@ -44,10 +44,10 @@ from swarm_core.faults.radio import (
 )
 from swarm_core.faults.radio import splitmix as _mix_array
 
-_UNIT = 1.0 / 9007199254740992.0            # 2⁻⁵³, as `comms.link_uniforms`
+_UNIT = 1.0 / 9007199254740992.0            # 2⁻⁵³, as `swarm_core.faults.radio.link_uniforms`
 #: dead-reckoned messages kept per sender and step: those up to this many steps old
 PREDICTED_AGES = 64
-#: mix(stream + G) of the two streams (`comms.link_uniforms`' last key)
+#: mix(stream + G) of the two streams (`swarm_core.faults.radio.link_uniforms`' last key)
 _KEY_LOSS, _KEY_DELAY = _mix_array(np.array([STREAM_LOSS, STREAM_DELAY], dtype=np.uint64) + GOLDEN)
 
 
@@ -176,7 +176,8 @@ def _target_control(x, y, c, s, alpha, r0, w, normalised, u):
 @njit(cache=True)
 def _world_terms(x, y, c, s, world, barrier, alpha, r0, w, u):
     """u plus the target term (eq. 15, `laws.target_term`) and the barrier term (eq. 16,
-    `laws.barrier_term`); world = (target on, x, y, γ, normalised, barrier on, s_b, literal)."""
+    `swarm_core.laws.control.barrier_term`); world = (target on, x, y, γ, normalised, barrier
+    on, s_b, literal)."""
     for k in range(x.size):
         if world[0] != 0.0:
             dx, dy = world[1] - x[k], world[2] - y[k]
@@ -220,7 +221,7 @@ def _frames(theta, c, s, q):
 
 @njit(cache=True)
 def _lateral_extremes(x, y, c, s):
-    """(left, right) as `command_plan.lateral_extremes`."""
+    """(left, right) as `swarm_core.command.plan.lateral_extremes`."""
     n = x.size
     hx = _pairwise(c, 0, n) / n
     hy = _pairwise(s, 0, n) / n
@@ -258,7 +259,7 @@ def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choos
          world, barrier, noise, radio, every, r_rec, th_rec, u_rec, lead_rec):
     """Every step of a run (the commander's plan, the radio, the law, the zoh step, the noise)
     with the records of every ``every``-th step filled in place; returns the step at which
-    the rule chose the leaders (−1: none).  radio: `fast.radio_arguments`."""
+    the rule chose the leaders (−1: none).  radio: `swarm_core.engine.compiled.radio_arguments`."""
     n = x.size
     steps = lams.size - 1
     alpha, eta, mu, r0, w, leader_gain = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5]
@@ -343,7 +344,7 @@ def _mix(z):
 
 @njit(cache=True, inline='always')
 def _fold(h, key):
-    """One key of `comms.link_uniforms`: mix(h XOR mix(key + G))."""
+    """One key of `swarm_core.faults.radio.link_uniforms`: mix(h XOR mix(key + G))."""
     return _mix(h ^ _mix(np.uint64(key) + GOLDEN))
 
 
@@ -465,8 +466,8 @@ def _believed(i, k, rf, state):
 @njit(cache=True, inline='always')
 def _dead_reckon(sent, at, j, horizon):
     """(x, y, cos θ, sin θ) of the state sent[at, :, j] (x, y, qz, qw, u, cos θ, sin θ)
-    ``horizon`` sim s ahead on the exact arc, with the sums of `comms.dead_reckon` (sin and
-    cos of uh/2 only)."""
+    ``horizon`` sim s ahead on the exact arc, with the sums of
+    `swarm_core.faults.radio.dead_reckon` (sin and cos of uh/2 only)."""
     qz, qw, c, s = sent[at, 2, j], sent[at, 3, j], sent[at, 5, j], sent[at, 6, j]
     half = sent[at, 4, j] * (0.5 * horizon)
     sh, ch = math.sin(half), math.cos(half)
@@ -478,10 +479,10 @@ def _dead_reckon(sent, at, j, horizon):
 
 @njit(cache=True, inline='always')
 def radio_control(i, x, y, c, s, lam, q0, is_leader, steer, code, gains, normalised, rf, state, u):
-    """u_k of every receiver from its true state and its beliefs (`comms.belief_controls`,
-    the sparse pair sums of `pair_sums._pair_sums_sparse` and `_combine`): eq. 4-5, 8,
-    10-15 over the believed senders, in sender order; a coincident pair adds nothing (the
-    reference's careful redo)."""
+    """u_k of every receiver from its true state and its beliefs
+    (`swarm_core.faults.radio.belief_controls`, the sparse pair sums of
+    `pair_sums._pair_sums_sparse` and `_combine`): eq. 4-5, 8, 10-15 over the believed senders,
+    in sender order; a coincident pair adds nothing (the reference's careful redo)."""
     alpha, eta, mu, r0, w, leader_gain = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5]
     ar2, w2 = alpha * r0 * r0, w * w
     far, gain_f = q0 * (1.0 - lam), (leader_gain - 1.0) * lam + 1.0

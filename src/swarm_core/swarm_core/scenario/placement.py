@@ -89,7 +89,7 @@ class AgentsSpec(Strict):
 
 
 def initial_conditions(spec):
-    """Names, positions (N, 2) and headings (N,) of a `scenario.ScenarioSpec` for its seed."""
+    """Names, positions (N, 2) and headings (N,) of a `swarm_core.scenario.loader.ScenarioSpec` for its seed."""
     a = spec.agents
     n = a.count
     rng = np.random.default_rng([spec.seed, 1])

@@ -43,7 +43,7 @@ def _scalar(v) -> bool:
 
 
 def _verdict(checks: dict):
-    """The row's ``ok`` from its checks' verdicts (as `analysis.behaviour_ok`)."""
+    """The row's ``ok`` from its checks' verdicts (as `swarm_core.analysis.outputs.behaviour_ok`)."""
     if not checks or any(v is False for v in checks.values()):
         return False if checks else None
     return None if any(v is None for v in checks.values()) else True

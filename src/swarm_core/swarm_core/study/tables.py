@@ -127,7 +127,7 @@ def rates_markdown(study: Study, rates_rows, checks=None) -> str:
 
 
 def robot_metrics_markdown(study: Study, rows) -> str:
-    """Per cell, the robot engine's metrics over its seeds (`study_cache.ROBOT_METRICS`): the
+    """Per cell, the robot engine's metrics over its seeds (`swarm_core.study.cache.ROBOT_METRICS`): the
     mean of each, and the smallest min_distance; '' when no row has them."""
     if not any('iae_mean' in r for r in rows):
         return ''

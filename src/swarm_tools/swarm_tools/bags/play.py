@@ -53,7 +53,7 @@ def parse_args(argv):
 
 
 def foreign_lines(topics: dict) -> list[str]:
-    """One line per topic with channels of a type not its own (`bag.bag_topics`: for the
+    """One line per topic with channels of a type not its own (`swarm_tools.bags.mcap_io.bag_topics`: for the
     project's topics, not the project's type): their messages are not played."""
     out = []
     for topic, info in sorted(topics.items()):
@@ -66,7 +66,7 @@ def foreign_lines(topics: dict) -> list[str]:
 
 
 def _topics_to_play(a) -> dict | None:
-    """`bag.bag_topics` of the bag, those of ``--topics``, with a type to play; None (said
+    """`swarm_tools.bags.mcap_io.bag_topics` of the bag, those of ``--topics``, with a type to play; None (said
     in one line) if there are none."""
     try:
         a.bag = str(resolve_bag(a.bag))
