@@ -101,10 +101,10 @@ def test_stale_and_off_step_stamps_are_ignored_and_the_first_command_counts():
     assert h.on_command(0, 0.0, 0.1, 0.5)
     assert h.on_command(0, 0.0, 0.1, 9.9)   # a second command for the same step: the first counts
     assert h.run() == [pytest.approx(DT)]
-    assert not h.on_command(0, 0.0, 0.1, 0.5)           # step 0 is done: stale
+    assert h.on_command(0, 0.0, 0.1, 0.5)               # step 0 is done: an agent's resend, no change
     assert not h.on_command(0, 0.0123, 0.1, 0.5)        # no step's time
     assert not h.on_command(0, 1000 * DT, 0.1, 0.5)     # far beyond the held step
-    assert h.ignored == 3 and h.run() == []
+    assert h.repeated == 1 and h.ignored == 2 and h.run() == []
     assert h.world.calls[0] == ('command', 0, 0.1, 0.5)
     h.on_step(0, np.ones(1, bool))                      # a repeated old step changes nothing
     assert 0 not in h.known and h.run() == []

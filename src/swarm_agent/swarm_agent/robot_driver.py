@@ -128,6 +128,7 @@ class RobotLink:
         frame = (command_frame(node.agent_name, node.run_id, new_sender_tag()) if node.robot == 'mujoco'
                  else f'{node.agent_name}/base_link')
         self.serialize_cmd = P.TwistWriter(frame, self.stamped)
+        self.last_cmd = None       # the newest cmd_vel sent (serialized): `resend`
         self.pose = None           # newest accepted odometry: (stamp s, x, y, θ unwrapped), model units
         self.on_pose = None        # the driver's hook for a new pose
         self.cmd_pub = node.create_publisher(TwistStamped if self.stamped else Twist, 'cmd_vel',
@@ -190,7 +191,15 @@ class RobotLink:
     # -- commands out
     def publish_cmd(self, v: float, w: float, stamp):
         """One cmd_vel stamped ``stamp`` (sec, nanosec), pre-serialised (`protocol.TwistWriter`)."""
-        self.cmd_pub.publish(self.serialize_cmd(*stamp, float(v), float(w)))
+        self.last_cmd = self.serialize_cmd(*stamp, float(v), float(w))
+        self.cmd_pub.publish(self.last_cmd)
+
+    def resend(self):
+        """Lockstep: the newest cmd_vel again, when the world repeats a stalled step (a reader's
+        history may have lost it; the robot world takes the first of a step, a repeat changes
+        nothing)."""
+        if self.last_cmd is not None:
+            self.cmd_pub.publish(self.last_cmd)
 
     def drive(self, u: float, stamp):
         """Command curvature u (model units) as v0 and a clipped ω (counted)."""
@@ -281,8 +290,10 @@ class LockstepRobotDriver(LockstepDriver):
                 link.drive(detail, stamp)
             self.pending = s.n + 1
         elif kind == 'repeat':
-            if self.pending is None:  # else the command is out (reliable): still waiting for the robot
+            if self.pending is None:
                 node.publish_state()
+            else:                    # still waiting for the robot: its command again
+                link.resend()
         else:
             if kind == 'silent':     # out of the table: the robot stands, and no answer is awaited
                 link.publish_cmd(0.0, 0.0, stamp)
@@ -327,7 +338,9 @@ class LockstepMujocoDriver(LockstepDriver):
                 link.drive(detail, stamp)
             node.step = s.n + 1
             node.own = node.own[:6] + (float(detail),)
-        elif kind != 'repeat':       # a repeat: the process sends the answer again
+        elif kind == 'repeat':       # a repeat: the process sends the answer again, and the robot its command
+            link.resend()
+        else:
             if kind == 'silent':     # out of the table: the robot stands
                 link.publish_cmd(0.0, 0.0, stamp)
             super().lockstep_outcome(kind, detail, s)

@@ -5,9 +5,13 @@ each robot's ``/<agent>/cmd_vel`` (geometry_msgs/TwistStamped, or Twist with the
 ``cmd_type: Twist``, realtime only) and publishes ``/<agent>/odom`` and ``/<agent>/ground_truth``
 (nav_msgs/Odometry).  Lockstep: the physics advances one step once every robot of an alive agent
 has sent its command for the step (`timing.RobotsLockstep`, the alive mask from
-``/lockstep/step``); then the robots' poses of the new step go to the world on
-``/lockstep/robot_states`` (`layouts.RobotStates`, read from the odometry as the agents would
-read it: `world_setup.OdometryPoses`), and odometry goes out only while someone reads it.
+``/lockstep/step``; commands are kept until taken, so a flood of refused ones only delays
+them, and an agent sends its command again when the world repeats a stalled step); then the
+robots' poses of the new step go to the world on ``/lockstep/robot_states``
+(`layouts.RobotStates`, read from the odometry as the agents would read it:
+`world_setup.OdometryPoses`), and odometry goes out only while someone reads it.  A step that
+goes on without a robot's command (``hold_timeout``) is recorded: the run is then no longer
+deterministic (``commands_missed`` in robots.json and metrics.json).
 Realtime: the physics follows the sim clock (/clock), odometry at 50 Hz.
 A robot takes only its own agent's commands: of this run, from the first sender tag taken for it
 (`swarm_ros.run_control.CommandSenders`; a ``Twist`` names no sender); the reports carry the
@@ -95,6 +99,7 @@ class RobotsNode(Node):
         self.last_sent = time.monotonic()       # wall s of the newest odometry published
         self.pub_odom, self.pub_truth = [], []
         self.tag = new_sender_tag()             # on /lockstep/robot_states (the world binds it)
+        self.missed = {}                        # lockstep: agent -> steps that went on without its command
         self.senders = CommandSenders(self.run_id, [cmd_vel_topic(nm) for nm in self.agents])
         own = self.sec.frame == 'odom'
         self.odom_writers = [P.OdometryWriter(f'{nm}/base_link', f'{nm}/odom' if own else 'world')
@@ -104,8 +109,10 @@ class RobotsNode(Node):
             self.pub_odom.append(self.create_publisher(Odometry, odom_topic(nm), P.qos_reliable(10)))
             self.pub_truth.append(self.create_publisher(Odometry, ground_truth_topic(nm), P.qos_reliable(10)))
             stamped = self.sec.cmd_type == 'TwistStamped'
+            # lockstep: every command kept until taken, so a flood of refused ones cannot push it out
             self.create_subscription(TwistStamped if stamped else Twist, cmd_vel_topic(nm),
-                                     self._command_callback(k, stamped), P.qos_cmd_vel(self.mode == 'lockstep'),
+                                     self._command_callback(k, stamped),
+                                     P.qos_kept_latched() if self.mode == 'lockstep' else P.qos_cmd_vel(False),
                                      raw=True)
         self.pub_metrics = self.create_publisher(DiagnosticArray, METRICS_TOPIC, 10)
         self.create_timer(1.0, self.publish_metrics, clock=steady_clock())
@@ -228,9 +235,12 @@ class RobotsNode(Node):
         if self.hold.overdue(now, self.hold_timeout):
             missing = self.hold.release()
             if missing:
+                for k in missing:
+                    self.missed.setdefault(self.agents[k], []).append(self.hold.n)
                 self.get_logger().warning(
                     f'step {self.hold.n}: no command from {", ".join(self.agents[k] for k in missing)} '
-                    f'{self.hold_timeout:g} s after the step came; their robots get none this step')
+                    f'{self.hold_timeout:g} s after the step came; their robots get none this step: '
+                    'the run is no longer deterministic (robots.json, metrics.json)')
                 self._advance()
                 return
         if now - self.last_sent >= REPEAT_AFTER:
@@ -269,7 +279,7 @@ class RobotsNode(Node):
 
     def summary(self) -> dict:
         w = self.world
-        return robot_summary(self.agents, w.contacts, w.seconds, w.saturated_time, self.scale)
+        return robot_summary(self.agents, w.contacts, w.seconds, w.saturated_time, self.scale, self.missed)
 
     def publish_metrics(self):
         s = self.summary()

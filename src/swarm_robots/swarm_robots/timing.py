@@ -39,7 +39,8 @@ class RobotsLockstep:
         self.known = {}                         # step -> ((K,) bool: whose agent is alive, wall s its
                                                 # step message first came)
         self.dead = set()                       # robots whose agent was killed: never awaited again
-        self.ignored = 0                        # commands of a past step or too far ahead
+        self.ignored = 0                        # commands of no step or too far ahead
+        self.repeated = 0                       # commands of a step already advanced (an agent's resend)
         self.asked = 0.0                        # robot s asked of the physics so far
 
     def step_of(self, t: float) -> int | None:
@@ -48,11 +49,15 @@ class RobotsLockstep:
         return k if abs(k * self.dt - t) <= 1e-6 * max(1.0, abs(t)) else None
 
     def on_command(self, k: int, t: float, v: float, omega: float) -> bool:
-        """A command of robot ``k`` stamped ``t``: kept for its step; a stamp of a step already
-        advanced (a stale or repeated command), of no step, or too far ahead is ignored (False).
-        The first command of a robot for a step counts (an agent repeats the same one)."""
+        """A command of robot ``k`` stamped ``t``: kept for its step.  One of a step already
+        advanced changes nothing (an agent sends its command again when the world repeats a
+        stalled step: counted in ``repeated``, True); one of no step or too far ahead is ignored
+        (False).  The first command of a robot for a step counts (an agent repeats the same one)."""
         n = self.step_of(t)
-        if n is None or n < self.n or n > self.n + AHEAD:
+        if n is not None and n < self.n:
+            self.repeated += 1
+            return True
+        if n is None or n > self.n + AHEAD:
             self.ignored += 1
             return False
         self.commands.setdefault(n, {}).setdefault(int(k), (float(v), float(omega)))
@@ -185,13 +190,17 @@ def advance_to(world, asked: float, target: float, limit: float = math.inf) -> f
     return asked
 
 
-def robot_summary(names, contacts: int, turn_limit_time, saturated_time, robot_per_model: float) -> dict:
+def robot_summary(names, contacts: int, turn_limit_time, saturated_time, robot_per_model: float,
+                  commands_missed=None) -> dict:
     """What the robots did, for metrics.json: robot-robot contacts (a pair coming into contact),
     the time each robot was commanded at the turn-rate limit (`TurnLimitClock`) and the time its
-    controller held it at any velocity or acceleration limit (robot s; totals also in model s)."""
+    controller held it at any velocity or acceleration limit (robot s; totals also in model s).
+    ``commands_missed`` (lockstep, the robot world): {agent: [steps]} that went on without that
+    robot's command (`RobotsLockstep.release`); any makes the run no longer deterministic."""
     turn = np.asarray(turn_limit_time, dtype=float)
     sat = np.asarray(saturated_time, dtype=float)
-    return dict(robots=list(names), contacts=int(contacts),
+    missed = {} if commands_missed is None else {nm: list(v) for nm, v in commands_missed.items()}
+    return dict(robots=list(names), contacts=int(contacts), commands_missed=missed, deterministic=not missed,
                 turn_limit_seconds={nm: float(s) for nm, s in zip(names, turn)},
                 turn_limit_seconds_total=float(turn.sum()),
                 turn_limit_model_seconds_total=float(turn.sum() / robot_per_model),

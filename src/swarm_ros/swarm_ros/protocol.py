@@ -89,12 +89,23 @@ def qos_reliable(depth: int = 10):
                       durability=DurabilityPolicy.VOLATILE)
 
 
+def qos_kept_latched():
+    """A lockstep reader that keeps every message until it is taken (reliable, transient-local,
+    KEEP_ALL): a flood of refused messages (another run's, a peer's) cannot push an unread one
+    of this run out of its history, so it only comes later.  History is not part of QoS
+    matching: the writers keep their own depth."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    return QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
 def qos_cmd_vel(lockstep: bool):
     """A robot agent's ``cmd_vel`` writer and the robot world's reader (reliable, depth 10).
     Lockstep: transient-local.  Each command is sent once, and the robot world holds its step
     until it has every one, so a reader matched after the agent sent it must still get it (a
     volatile writer drops it, and the run stalls at its first step); a controller's volatile
-    reader matches it all the same.  Realtime: volatile (a replayed command would be stale)."""
+    reader matches it all the same.  Realtime: volatile (a replayed command would be stale).
+    The MuJoCo robot world reads lockstep commands with `qos_kept_latched`."""
     return qos_latched(10) if lockstep else qos_reliable(10)
 
 

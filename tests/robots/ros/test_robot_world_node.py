@@ -2,6 +2,7 @@
 topics, frames and QoS, the lockstep hold on real messages (a dead agent's robot is not waited
 for, a stale command changes nothing) and the summary it leaves for metrics.json."""
 import json
+import time
 
 import numpy as np
 import pytest
@@ -62,11 +63,11 @@ def robots_node(tmp_path, rclpy_context, monkeypatch):
     node.destroy_node()
 
 
-def step(scn, n, alive):
+def step(scn, n, alive, run_id=''):
     k = len(scn.names)
     z = np.zeros(k)
     return Step(n, n * scn.dt, 0.0, np.zeros(k, bool), z, z, z, z, z + 1, z, np.asarray(alive, bool),
-                None, None, None).to_cdr()
+                None, None, None).to_cdr(run_id)
 
 
 def command(t, v):
@@ -251,3 +252,55 @@ def test_mujoco_robots_in_lockstep_repeat_bit_for_bit(tmp_path, rclpy_context):
     assert 0.5 < np.hypot(x, y) <= 0.15 * 4.0 + 1e-9
     assert set(summary['limit_seconds']) == {'agent_0', 'agent_1'}
     assert summary['turn_limit_seconds'] == {'agent_0': 0.0, 'agent_1': pytest.approx(4.0)}
+
+
+def test_a_flood_of_refused_commands_does_not_push_out_the_agents_own(tmp_path, rclpy_context, monkeypatch):
+    """Lockstep: a peer floods a robot's cmd_vel with commands of another run, right after the
+    agent's own command of the step and before the robot world reads it.  Each is refused, and
+    the agent's command is still taken: the step goes on with it, at once, not after the hold's
+    time-out without it (a reader history of depth 10 lost it under the flood).  A step that does
+    go on without a command is recorded (robots.json: not deterministic)."""
+    from swarm_ros.run_control import command_frame
+    monkeypatch.setattr(M.RobotsNode, '_make_world', lambda self, desc: FakeWorld(
+        M.start_poses(self.scn, self.rows, self.units)))
+    path = short_homotopy(tmp_path / 'six.yaml', duration=10, lam='{kind: constant, value: 0}', at=1, robots=ROBOTS)
+    scn = load(str(path))
+    ctx = rclpy_context
+    node = M.RobotsNode(context=ctx, parameter_overrides=overrides(dict(
+        scenario=str(path), mode='lockstep', robots='agent_1', hold_timeout=3.0, run_id='ours',
+        output_dir=str(tmp_path))))
+    peer = rclpy.create_node('peer', context=ctx)
+    cmd = peer.create_publisher(TwistStamped, M.cmd_vel_topic('agent_1'), P.qos_cmd_vel(True))
+    flood = peer.create_publisher(TwistStamped, M.cmd_vel_topic('agent_1'), P.qos_latched(1000))
+    steps = peer.create_publisher(Float64MultiArray, P.LOCK_STEP, P.qos_latched())
+    ex = make_executor(ctx, events=False)
+    ex.add_node(node)
+    ex.add_node(peer)
+    try:
+        assert spin_for(ex, lambda: cmd.get_subscription_count() == 1 and flood.get_subscription_count() == 1, 10)
+        steps.publish(_raw(step(scn, 0, np.ones(6, bool), 'ours')))
+        assert spin_for(ex, lambda: 0 in node.hold.known, 10)
+        own = command(0.0, 0.15)
+        own.header.frame_id = command_frame('agent_1', 'ours', 7)
+        cmd.publish(own)
+        other = command(0.0, 0.0)
+        other.header.frame_id = command_frame('agent_1', 'theirs', 9)
+        for _ in range(200):
+            flood.publish(other)
+        time.sleep(0.5)                       # all delivered into the reader's history, none taken yet
+        assert spin_for(ex, lambda: node.hold.n == 1, 2.0), node.reject.summary()
+        assert node.world.commands == [(0.0, 0, 0.15, 0.0)] and node.missed == {}
+        assert spin_for(ex, lambda: node.reject.kinds.get('other-run', [0, 0, 0])[2] == 200, 5)
+        # the agent's resend of a step already advanced (the world repeated it) changes nothing
+        cmd.publish(own)
+        spin_for(ex, lambda: node.hold.repeated == 1, 5)
+        assert node.hold.repeated == 1 and 'cmd-stale' not in node.reject.kinds
+        # step 1 without the command: after the hold's time-out it goes on, and that is recorded
+        steps.publish(_raw(step(scn, 1, np.ones(6, bool), 'ours')))
+        assert spin_for(ex, lambda: node.hold.n == 2, 10)
+        node.finish()
+        summary = json.loads((tmp_path / SUMMARY_FILE).read_text())
+        assert summary['commands_missed'] == {'agent_1': [1]} and summary['deterministic'] is False
+    finally:
+        peer.destroy_node()
+        node.destroy_node()
