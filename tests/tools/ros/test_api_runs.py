@@ -164,7 +164,7 @@ def test_attach_to_swarm_run_and_a_second_run_on_another_domain(ros_domain, proc
 def test_example_test_passes_and_a_broken_variant_fails(tmp_path):
     """The user's example test passes under the installed plugin (no conftest of ours), and a
     variant expecting three clusters fails on its assertion, its processes gone all the same."""
-    example = ROOT / 'examples' / 'test_user_law_change.py'
+    example = ROOT / 'examples' / 'test_lambda_change.py'
     broken = tmp_path / 'test_broken_variant.py'
     text = example.read_text()
     assert 'EXPECTED_CLUSTERS = 2' in text

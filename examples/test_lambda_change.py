@@ -1,8 +1,8 @@
-"""A user's integration test of the law, written against the project's pytest plugin.
+"""A user's integration test of a λ change, written against the project's pytest plugin.
 
 ``ros_domain`` and ``swarm`` come from swarm_tools.pytest_plugin (installed with the project):
 the test gets a ROS_DOMAIN_ID of its own, and every process of the runs it starts is gone
-after it, passed or failed.  Run it with ``pytest examples/test_user_law_change.py``.
+after it, passed or failed.  Run it with ``pytest examples/test_lambda_change.py``.
 
 The check: at λ = 0 the six agents stay one swarm; raised to λ = 1, the two leaders steering
 apart split it into two clusters, one leader each (the homotopy law, Morgan & Schwartz).
