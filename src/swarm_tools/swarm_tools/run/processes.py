@@ -23,8 +23,10 @@ from swarm_tools.run import dds
 from swarm_tools.run.params import write_params_file
 
 STOP_GRACE = 4.0
+#: what the launcher sends its children to stop them (`Supervisor.stop`)
+STOP_SIGNAL = signal.SIGTERM
 #: wall seconds a process that writes the run's outputs (the world, the recorder) gets to finish
-#: them after SIGINT before it is killed; on a loaded machine saving can outlast `STOP_GRACE`
+#: them after the stop signal before it is killed; on a loaded machine saving can outlast `STOP_GRACE`
 SAVE_GRACE = 10.0
 #: wall seconds the processes stopped last (the discovery server) outlive the others: time to
 #: tell the other hosts' participants that the run's have left
@@ -79,20 +81,22 @@ class Supervisor:
                 pass
 
     def stop(self, grace=STOP_GRACE, first=(), keep=(), keep_grace=SAVE_GRACE, last=()):
-        """SIGINT to ``first`` (e.g. the recorder, so it can finish its file) and everyone else
+        """SIGTERM to ``first`` (e.g. the recorder, so it can finish its file) and everyone else
         but ``last``, wait ``grace`` s, SIGKILL all but ``keep`` (the processes that write the
-        run's outputs), wait for those up to ``keep_grace`` s from the SIGINT; then ``last`` (the
+        run's outputs), wait for those up to ``keep_grace`` s from the SIGTERM; then ``last`` (the
         discovery server, which tells the other hosts that the run's participants have left)
         after `LAST_LINGER` s, with ``grace`` s of its own; SIGKILL the process group if any
-        process had to be killed."""
+        process had to be killed.  SIGTERM, not SIGINT: every node and tool stops on either the
+        same way once it runs, and a process still importing (a Ctrl-C just after the start)
+        ends quietly on SIGTERM, where SIGINT would print a KeyboardInterrupt traceback."""
         self.signal_all(signal.SIGCONT)          # a frozen (SIGSTOPped) agent cannot stop
         for label in first:
             p = self.procs.get(label)
             if p is not None and p.poll() is None:
-                p.send_signal(signal.SIGINT)
+                p.send_signal(STOP_SIGNAL)
         others = lambda: {k: p for k, p in self.alive().items() if k not in last}
         for p in others().values():
-            _signal(p, signal.SIGINT)
+            _signal(p, STOP_SIGNAL)
         start = time.monotonic()
         self._wait_for(others, start + grace)
         killed = [p for label, p in others().items() if label not in keep]
@@ -100,7 +104,7 @@ class Supervisor:
             _signal(p, signal.SIGKILL)
         if self._wait_for(others, start + max(grace, keep_grace)):
             print(f'swarm: {", ".join(sorted(others()))} did not stop within {keep_grace:g} s '
-                  'of SIGINT; killed', file=sys.stderr, flush=True)
+                  f'of {STOP_SIGNAL.name}; killed', file=sys.stderr, flush=True)
             killed += list(others().values())
         if self.alive():                         # ``last``: the others' departure relayed first
             time.sleep(LAST_LINGER)
@@ -446,6 +450,24 @@ def _stop_code(sup, by_label: dict, members: dict, gone: set, notes=None, events
     return None
 
 
+def world_exit(rc: int, stopped_by=None) -> int:
+    """The launcher's exit code once the world process has ended with ``rc``: the world's own,
+    or, for a world killed by a signal (``rc`` < 0: SIGKILL, or a crash's SIGSEGV or SIGABRT),
+    128 + the signal, as a shell gives it (137 for SIGKILL), with one line naming the signal
+    (appended to ``stopped_by``)."""
+    if rc >= 0:
+        return rc
+    try:
+        name = signal.Signals(-rc).name
+    except ValueError:
+        name = f'signal {-rc}'
+    line = f'the world was killed by {name}'
+    print(f'swarm run: {line}; stopping the run (exit code {128 - rc})', file=sys.stderr, flush=True)
+    if stopped_by is not None:
+        stopped_by.append(line)
+    return 128 - rc
+
+
 def run_processes(params: dict, params_file: Path, specs, env, record=None, out_dir=None,
                   pid_file=None, events_file=None, server=None, notes=None, stopped_by=None) -> int:
     """Start ``specs`` (`process_specs`: world, commander, robots, agents, view) and watch them
@@ -485,7 +507,7 @@ def run_processes(params: dict, params_file: Path, specs, env, record=None, out_
                 break
             rc = world.poll()
             if rc is not None:
-                code = rc
+                code = world_exit(rc, stopped_by)
                 break
             stop = _stop_code(sup, by_label, members, gone, notes=notes, events_file=events_file, record=record,
                               stopped_by=stopped_by)
