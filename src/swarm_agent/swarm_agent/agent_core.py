@@ -20,7 +20,8 @@ operation is elementwise, the agent's u equals the batch engine's bit for bit.
 With a communication model (`attach_comms`), `comms_control` first lets the agent's radio
 decide which states of the step's table it receives (`swarm_core.faults.radio`, the same pure fate
 function the batch engine uses for every link), folds them into its beliefs and computes u on
-its beliefs (`comms.belief_controls`, itself the only receiver): again bit for bit the batch engine's u.
+its beliefs (`swarm_core.faults.radio.belief_controls`, itself the only receiver): again bit for bit
+the batch engine's u.
 """
 from __future__ import annotations
 
@@ -161,7 +162,7 @@ class AgentCore:
         ``t`` (what a `Law`'s view reads: lockstep the step's n·dt, realtime the clock's now).
 
         alive (N,) bool: only these rows are in the table (this agent must be one);
-        rendezvous: the reunion of this step (`faults.reunion_law`), or None; row: this agent's
+        rendezvous: the reunion of this step (`swarm_core.faults.agents.reunion_law`), or None; row: this agent's
         row in the table (default: its index; realtime: its row among the agents it knows)."""
         k = self.index if row is None else int(row)
         pos, cos_t, sin_t = received_table(x, y, qz, qw, [k], [self])

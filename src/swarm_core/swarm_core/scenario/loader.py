@@ -205,12 +205,12 @@ class Scenario:
                              self.names, self.spec.dt)
 
     def comms_config(self) -> dict | None:
-        """The ``comms`` section as a plain mapping (what `comms.CommModel.from_config` and
+        """The ``comms`` section as a plain mapping (what `swarm_core.faults.radio.CommModel.from_config` and
         the agents' ``comms`` parameter take), None without one."""
         return None if self.spec.comms is None else self.spec.comms.model_dump(mode='json')
 
     def comm_model(self):
-        """A fresh `comms.CommModel` of this scenario, or None if its radio is perfect."""
+        """A fresh `swarm_core.faults.radio.CommModel` of this scenario, or None if its radio is perfect."""
         m = CommModel.from_config(self.comms_config(), self.names, self.dt, self.seed)
         return None if m.perfect else m
 

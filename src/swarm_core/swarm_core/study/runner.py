@@ -254,7 +254,7 @@ class Task:
     robot_set: str | None = None      # engine 'robots': which agents are robots
 
 
-#: the engines a study runs on: 'fast' (`fast.simulate`: the compiled kernel where it covers
+#: the engines a study runs on: 'fast' (`swarm_core.engine.compiled.simulate`: the compiled kernel where it covers
 #: the run, else the reference) and 'reference' (`engine.simulate`); a cell with a `ROBOT_SET`
 #: runs on ROBOTS_ENGINE (registered by swarm_robots, `engine.registry`) whatever the engine asked for
 ENGINES = ('fast', 'reference')
@@ -408,7 +408,7 @@ def _dask_map(todo, scheduler):
 
 def _cached(cache, task):
     """The task's row if the cache holds it (None: run it); an entry that is not one (not a
-    regular file, not JSON: `Cache.read`; not this run's row: `study_cache.row_error`) is run
+    regular file, not JSON: `Cache.read`; not this run's row: `swarm_core.study.cache.row_error`) is run
     again, with one warning (which says too if the result cannot be cached there)."""
     doc, why = cache.read(task.key)
     if doc is None and why is None:
