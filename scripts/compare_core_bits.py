@@ -22,6 +22,7 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+PAPER_KINDS = ('global', 'local', 'leader_following', 'homotopy', 'target')
 SCENARIOS = ('homotopy_global', 'homotopy_local', 'target_barrier', 'leader_failover',
              'homotopy_reunion', 'global_alignment')
 
@@ -30,17 +31,20 @@ def produce(out, quick):
     """Every result, into an .npz file (runs in a worker process)."""
     import numpy as np
 
-    from swarm_core import engine, laws, scenario
-    from swarm_core.laws import LawConfig, swarm_control
+    from swarm_core import engine, scenario
+    from swarm_core.laws import from_flat_parameters, swarm_control
     try:                      # the layout with sub-packages, then older revisions' module names
         from swarm_core.engine import reference as engine
-        from swarm_core.laws import PairGains
         from swarm_core.model.frenet import heading_frame
     except ImportError:
         try:
-            from swarm_core.frenet import PairGains, heading_frame
+            from swarm_core.frenet import heading_frame
         except ImportError:
-            from swarm_core.model import PairGains, heading_frame
+            from swarm_core.model import heading_frame
+    try:                      # where the KD-tree pair list lives: beside the paper's law, or in the engine
+        from swarm_core.laws.paper.pair_sums import neighbour_pairs
+    except ImportError:
+        neighbour_pairs = engine.neighbour_pairs
     res = {}
     rng = np.random.default_rng(0)
     for n in ((1, 3, 6, 40) if quick else (1, 2, 3, 6, 9, 40, 300)):
@@ -56,14 +60,15 @@ def produce(out, quick):
             if n > 1 and trial != 5:
                 leaders[rng.choice(n, min(2, n - 1), replace=False)] = True
             steer = rng.uniform(-0.02, 0.02, n)
-            for kind in laws.LAW_KINDS:
+            for kind in PAPER_KINDS:
                 for lam in (0.0, 0.37, 1.0):
                     for q0 in (0.0, 0.05, 1.0):
-                        law = LawConfig(kind=kind, q0=q0, leader_gain=17.0,
-                                        target_gain=0.05 if trial % 2 else 0.0,
-                                        barrier_gain=4.0 if trial == 3 else 0.0,
-                                        target_normalised=trial == 4,
-                                        gains=PairGains(0.02, 0.03, 0.025, 1.5))
+                        # every parameter as flat parameters, as an agent node gets the law: one
+                        # way to build the paper's law that each revision reads
+                        law = from_flat_parameters(dict(
+                            law=kind, alpha=0.02, eta=0.03, mu=0.025, r0=1.5, cutoff_radius=4.0, leader_gain=17.0,
+                            q0=q0, target_gain=0.05 if trial % 2 else 0.0, target_normalised=trial == 4,
+                            barrier_gain=4.0 if trial == 3 else 0.0, barrier_mode='ahead'))
                         kw = dict(lambda_=lam, is_leader=leaders, target=(20.0, -3.0), barrier=pos[:2] + 0.5)
                         key = f'{n}_{trial}_{kind}_{lam}_{q0}'
                         res[key] = swarm_control(pos, c, s, np.arange(n), law, steering=steer, **kw)
@@ -71,7 +76,7 @@ def produce(out, quick):
                             swarm_control(pos, c, s, np.array([k]), law, steering=steer[[k]], **kw)[0]
                             for k in (0, n - 1, n // 2)])
                         if kind in ('local', 'target') or (n >= 9 and lam > 0 and q0 == 0.0):
-                            pairs = engine.neighbour_pairs(pos, law.cutoff_radius)
+                            pairs = neighbour_pairs(pos, law.cutoff_radius)
                             res[key + '_pairs'] = swarm_control(pos, c, s, np.arange(n), law,
                                                                 steering=steer, pairs=pairs, **kw)
     for name in (SCENARIOS[:2] if quick else SCENARIOS):

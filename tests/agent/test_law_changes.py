@@ -68,7 +68,7 @@ def test_agents_with_live_law_changes_equal_the_engines_replay(groups, comms):
         np.testing.assert_array_equal(np.stack([x, y], 1), eng.pos)
     for b in boxes:                               # a container with a changed agent: one law call per agent
         assert b.one_law == (len(b.cores) == 1 or not any(c.index in (1, 4) for c in b.cores))
-    assert cores[1].law.gains.alpha == 0.4 and cores[1].law.gains.eta == 0.1 and cores[4].law.cutoff_radius == 2.0
+    assert cores[1].law.alpha == 0.4 and cores[1].law.eta == 0.1 and cores[4].law.cutoff_radius == 2.0
     events = [e for e in eng.events if e.get('command') == 'law']
     assert [(e['step'], e['agent'], e['parameters']) for e in events] == [
         (40, 'agent_1', {'alpha': 0.4}), (90, 'agent_4', {'mu': 0.3, 'cutoff_radius': 2.0}),

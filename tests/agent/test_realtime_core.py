@@ -9,8 +9,8 @@ import pytest
 from swarm_agent.agent_core import AgentCore, known_table
 from swarm_agent.container_core import ContainerCore
 from swarm_agent.realtime_core import Continued, HeardStates, advance_periods, due_periods, shared_controls
-from swarm_core.laws import LawConfig
 from swarm_core.model.frenet import quaternion_from_heading
+from tests.core.laws import paper_law
 
 N, DT, STALE = 12, 0.05, 0.3
 MINE = [2, 3, 5, 8, 9]          # the container's agents (roster rows)
@@ -22,7 +22,7 @@ def _states(rng, n):
     return pos, qz, qw
 
 
-@pytest.mark.parametrize('law', [LawConfig(), LawConfig(cutoff_radius=3.0, q0=0.0)])
+@pytest.mark.parametrize('law', [paper_law(), paper_law(cutoff_radius=3.0, q0=0.0)])
 def test_container_tick_equals_lone_agents(law):
     rng = np.random.default_rng(4)
     roster = [f'agent_{i}' for i in range(N)]

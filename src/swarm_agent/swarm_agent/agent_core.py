@@ -31,7 +31,7 @@ import numpy as np
 
 from swarm_core.faults.agents import alive_control, reunion_law
 from swarm_core.faults.radio import Beliefs, CommModel, belief_controls
-from swarm_core.laws import LawConfig, LawError, failed_at
+from swarm_core.laws import Law, LawError, failed_at
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.model.integrate import zoh_step
 from swarm_core.robot_units import reported_heading
@@ -105,7 +105,7 @@ def known_table(roster, own: str, own_state, newest: dict, leaders, now: float, 
 
 class AgentCore:
     def __init__(self, index: int, n_agents: int, x: float, y: float, theta: float,
-                 law: LawConfig, dt: float, noise=(0.0, 0.0), noise_rng=None):
+                 law: Law, dt: float, noise=(0.0, 0.0), noise_rng=None):
         self.index = int(index)
         self.n = int(n_agents)
         self.pos = np.array([[float(x), float(y)]])

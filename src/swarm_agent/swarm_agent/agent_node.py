@@ -56,7 +56,15 @@ from swarm_agent.robot_driver import ROBOT_DRIVERS, declare_robot
 from swarm_core.checks import DT_BOUND, LAMBDA_BOUND, STEERING_BOUND
 from swarm_core.command.plan import is_kind, law_with
 from swarm_core.faults.radio import CommModel, change_from_event
-from swarm_core.laws import DEFAULTS, KINDS, Blend, LawError, default_law, from_flat_parameters, parameter_specs
+from swarm_core.laws import (
+    DEFAULTS,
+    LawError,
+    default_law,
+    from_flat_parameters,
+    law_class,
+    names,
+    parameter_specs,
+)
 from swarm_core.model.integrate import noise_rng
 from swarm_core.robot_units import ROBOT_KINDS
 from swarm_ros import protocol as P
@@ -179,10 +187,9 @@ class AgentNode(Node):
         def kinds(prefix=''):
             values[prefix + 'law'] = declare(
                 self, prefix + 'law', DEFAULTS['law'], f'control law{" (" + prefix[:-1] + ")" if prefix else ""}: '
-                f'{", ".join(KINDS)}, or a user\'s FILE.py:Class or module:Class (docs/laws.md)', read_only=True)
-            if values[prefix + 'law'] == Blend.kind:
-                kinds(prefix + 'from.')
-                kinds(prefix + 'to.')
+                f'{", ".join(names())}, or a user\'s FILE.py:Class or module:Class (docs/laws.md)', read_only=True)
+            for part in law_class(values[prefix + 'law']).parts:      # a blend's from and to
+                kinds(f'{prefix}{part}.')
         try:
             kinds()
             template = default_law(values)

@@ -142,7 +142,7 @@ class RobotLink:
             pose = f'{ns}/odom ({robot_frame} frame, {robot_clock} clock)'
         else:
             pose = f'the robot world\'s reports ({P.LOCK_ROBOT_STATES})'
-        r0 = getattr(getattr(node.law, 'gains', None), 'r0', None)      # the paper's law's spacing, if any
+        r0 = getattr(node.law, 'r0', None)      # the paper's law's spacing, if any
         node.get_logger().info(f'robot on {ns}/cmd_vel ({cmd_type}), pose from {pose}; '
                                + self.units.describe(node.law.cutoff_radius, r0))
 

@@ -26,6 +26,11 @@ def scenarios(argv):
     return scenarios_main(argv)
 
 
+def laws(argv):
+    from swarm_tools.laws import laws_main
+    return laws_main(argv)
+
+
 # ---------------------------------------------------------------- ROS 2
 def run(argv):
     from swarm_tools.run.launch import main
@@ -97,6 +102,7 @@ VERBS = {
     'simulate': (simulate, 'run a scenario in the batch engine (no ROS)'),
     'sweep': (sweep, "how often a scenario shows the paper's behaviour over seeds; parameter studies"),
     'scenarios': (scenarios, 'list the shipped scenarios'),
+    'laws': (laws, 'list the laws a scenario can name, with their parameters'),
     'run': (run, 'run a scenario as ROS 2 nodes (agents as processes)'),
     'lambda': (lambda_, 'set the homotopy parameter λ of a running swarm'),
     'steer': (steer, "set a leader's steering program in a running swarm"),

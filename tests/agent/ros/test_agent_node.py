@@ -261,7 +261,7 @@ def test_agent_declares_each_law_parameter_with_the_tables_description_and_range
     """The agent's ROS parameters come from `law_parameters.LAW_TABLE`: the same default,
     description and range (or choices) a scenario is checked against."""
     from swarm_core.laws import KINDS
-    from swarm_core.laws.parameters import LAW_TABLE
+    from swarm_core.laws.paper.parameters import LAW_TABLE
     node = AgentNode('agent', namespace='described', context=rclpy_context)
     try:
         law = node.describe_parameter('law')        # any kind: the paper's, shipped, a user's (docs/laws.md)

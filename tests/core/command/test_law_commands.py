@@ -7,7 +7,8 @@ import json
 import pytest
 
 from swarm_core.command.plan import check_command, law_timeline, law_with, read_commands
-from swarm_core.laws import Blend, LawConfig, flat_parameters, make_law
+from swarm_core.laws import Blend, flat_parameters, make_law
+from tests.core.laws import paper_law
 
 NAMES = ['a', 'b', 'c']
 
@@ -35,10 +36,10 @@ def test_malformed_law_commands_are_named(cmd):
 
 
 def test_law_with_changes_only_the_laws_own_parameters_in_their_ranges():
-    law = LawConfig(kind='homotopy')
+    law = paper_law(kind='homotopy')
     new = law_with(law, {'alpha': 0.5, 'mu': 1, 'barrier_mode': 'literal', 'target_normalised': True})
-    assert (new.gains.alpha, new.gains.mu, new.barrier_mode, new.target_normalised) == (0.5, 1.0, 'literal', True)
-    assert type(new.gains.mu) is float and new.kind == 'homotopy' and law.gains.alpha == LawConfig().gains.alpha
+    assert (new.alpha, new.mu, new.barrier_mode, new.target_normalised) == (0.5, 1.0, 'literal', True)
+    assert type(new.mu) is float and new.kind == 'homotopy' and law.alpha == paper_law().alpha
     for change, why in [({'law': 'global'}, 'may change'), ({'speed': 1.0}, 'may change'),
                         ({'alpha': -1.0}, 'outside'), ({'q0': 2.0}, 'outside'), ({'alpha': float('nan')}, 'finite'),
                         ({'alpha': True}, 'finite'), ({'barrier_mode': 'sideways'}, 'one of'),
@@ -59,7 +60,7 @@ def test_law_with_reaches_a_blends_two_laws_and_a_shipped_law():
 
 
 def test_law_timeline_applies_each_agents_changes_in_step_order():
-    law = LawConfig(kind='global')
+    law = paper_law(kind='global')
     cmds = {30: [dict(command='law', agent=2, parameters={'eta': 0.1})],
             10: [dict(command='law', agent=2, parameters={'alpha': 0.2}),
                  dict(command='lambda', value=1.0, ramp=0.0, shape='step')]}
@@ -68,6 +69,6 @@ def test_law_timeline_applies_each_agents_changes_in_step_order():
     (k, l10, p10), = tl[10]
     (k2, l30, p30), = tl[30]
     assert (k, k2, p10, p30) == (2, 2, {'alpha': 0.2}, {'eta': 0.1})
-    assert (l30.gains.alpha, l30.gains.eta) == (0.2, 0.1)          # the second change keeps the first
+    assert (l30.alpha, l30.eta) == (0.2, 0.1)          # the second change keeps the first
     with pytest.raises(ValueError, match='law command at step 30'):
         law_timeline({30: [dict(command='law', agent=0, parameters={'alpha': -1.0})]}, law, 3)

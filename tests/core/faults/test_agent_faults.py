@@ -19,9 +19,10 @@ from swarm_core.faults.agents import (
     reunion_law,
     track_slots,
 )
-from swarm_core.laws import LawConfig, swarm_control
+from swarm_core.laws import swarm_control
 from swarm_core.model.frenet import frame_from_quaternion, heading_frame
 from swarm_core.scenario.loader import ScenarioError, load, parse
+from tests.core.laws import paper_law
 
 BASE = dict(name='faulty', seed=1, dt=0.05, duration=3.0,
             agents=dict(positions=[[-1, 1], [0, 1], [1, 1], [-1, 0], [0, 0], [1, 0]]),
@@ -210,7 +211,7 @@ def _table(n=7, seed=3):
     return pos, c, s, flags, rng.uniform(-0.3, 0.3, size=n)
 
 
-LAW = LawConfig(kind='homotopy', q0=0.5)
+LAW = paper_law(kind='homotopy', q0=0.5)
 
 
 def test_alive_control_leaves_a_killed_agent_out_of_everyones_table():

@@ -1,4 +1,4 @@
-"""The compiled pair sums of large swarms (swarm_core.laws.compiled_sums) against the reference
+"""The compiled pair sums of large swarms (swarm_core.laws.paper.compiled_sums) against the reference
 (`laws.swarm_control` dense/sparse numpy paths) on n = 3,000, where the reference is still
 affordable: equal to 1e-9 (they add the same terms in another order), for every coupling;
 and the batch engine takes them only from COMPILED_LIMIT agents on."""
@@ -8,9 +8,10 @@ import sys
 import numpy as np
 import pytest
 
-from swarm_core.laws import LawConfig, PairGains, swarm_control
-from swarm_core.laws import compiled_sums as large_swarms
+from swarm_core.laws import swarm_control
+from swarm_core.laws.paper import compiled_sums as large_swarms
 from swarm_core.model.frenet import heading_frame
+from tests.core.laws import gains, paper_law
 
 pytestmark = pytest.mark.skipif(not large_swarms.available(), reason='numba is not installed')
 
@@ -30,13 +31,13 @@ def table(n=N, spacing=1.5, seed=0):
 
 
 @pytest.mark.parametrize('law, lam', [
-    (LawConfig(kind='global'), 0.0),
-    (LawConfig(kind='homotopy', q0=1.0), 0.4),
-    (LawConfig(kind='homotopy', q0=0.0), 1.0),
-    (LawConfig(kind='local'), 0.0),
-    (LawConfig(kind='leader_following'), 1.0),
-    (LawConfig(kind='target', target_normalised=True), 0.0),
-    (LawConfig(kind='homotopy', q0=0.5, gains=PairGains(alpha=2.0, r0=0.7)), 0.7),
+    (paper_law(kind='global'), 0.0),
+    (paper_law(kind='homotopy', q0=1.0), 0.4),
+    (paper_law(kind='homotopy', q0=0.0), 1.0),
+    (paper_law(kind='local'), 0.0),
+    (paper_law(kind='leader_following'), 1.0),
+    (paper_law(kind='target', target_normalised=True), 0.0),
+    (paper_law(kind='homotopy', q0=0.5, gains=gains(alpha=2.0, r0=0.7)), 0.7),
 ])
 def test_compiled_equals_the_reference_to_1e_9(law, lam):
     pos, c, s, leaders, steer = table()

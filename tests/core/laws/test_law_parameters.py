@@ -1,9 +1,8 @@
-"""One declaration of the law's parameters (swarm_core.laws.parameters) drives the scenario
-schema, the agent's ROS parameters and `LawConfig`; one check of λ (swarm_core.checks) is the
-one every boundary uses."""
+"""One declaration of the law's parameters (swarm_core.laws.paper.parameters) drives the scenario
+schema, the agent's ROS parameters and the paper's laws' `param`s; one check of λ
+(swarm_core.checks) is the one every boundary uses."""
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -11,13 +10,15 @@ import pytest
 
 from swarm_core.checks import LAMBDA_BOUND, Bound, InputError
 from swarm_core.command.plan import check_command
-from swarm_core.laws import LAW_PARAMETERS, LawConfig, PairGains
-from swarm_core.laws.parameters import LAW_TABLE
+from swarm_core.laws import Homotopy, from_flat_parameters, law_class
+from swarm_core.laws.paper.parameters import LAW_TABLE
 from swarm_core.scenario.loader import BarrierSpec, LawSpec, ScenarioError, TargetSpec, parse
 
 BASE = dict(name='t', dt=0.1, duration=1.0, agents=dict(count=3))
 SQUARE = [[0, 0], [1, 0], [1, 1], [0, 1]]
 REAL = [p for p in LAW_TABLE if p.bound is not None]
+#: name → (default, description, range or choices or None) of the agent node's flat parameters
+SPECS = Homotopy().flat_specs()
 
 
 def _section_model(p, value):
@@ -32,20 +33,19 @@ def _section_model(p, value):
 def test_every_name_appears_once_everywhere():
     names = [p.name for p in LAW_TABLE]
     assert len(set(names)) == len(names)
-    assert list(LAW_PARAMETERS) == names
-    assert list(LawConfig().parameters()) == names
+    assert list(SPECS) == names
+    assert list(Homotopy().flat()) == names
     assert list(LawSpec.model_fields) == [p.scenario_key for p in LAW_TABLE if p.section == 'law']
-    config_fields = {f.name for f in dataclasses.fields(LawConfig)} - {'gains'}
-    gain_fields = {f.name for f in dataclasses.fields(PairGains)}
-    assert config_fields | gain_fields == {p.field for p in LAW_TABLE}
-    assert not config_fields & gain_fields
+    for kind in LAW_TABLE[0].choices:                       # every paper's law has them all
+        assert list(law_class(kind).param_specs()) == names[1:], kind
 
 
 def test_defaults_and_descriptions_come_from_the_table():
-    flat = LawConfig().parameters()
+    flat = Homotopy().flat()
     for p in LAW_TABLE:
         assert flat[p.name] == p.default and type(flat[p.name]) is type(p.default), p.name
-        assert LAW_PARAMETERS[p.name][0] == p.description and 'eq.' in p.description, p.name
+        if p.name != 'law':
+            assert SPECS[p.name][:2] == (p.default, p.description) and 'eq.' in p.description, p.name
         if p.section == 'law':
             assert LawSpec.model_fields[p.scenario_key].default == p.default, p.name
 
@@ -53,7 +53,7 @@ def test_defaults_and_descriptions_come_from_the_table():
 @pytest.mark.parametrize('p', REAL, ids=lambda p: p.name)
 def test_schema_and_ros_ranges_are_the_one_bound(p):
     lo, hi = p.bound.lo, p.bound.hi
-    assert LAW_PARAMETERS[p.name][1] == (lo, hi)              # what the agent node declares
+    assert SPECS[p.name][2] == (lo, hi)                       # what the agent node declares
     for ok in (lo, hi, 0.5 * (lo + hi)):
         assert getattr(_section_model(p, ok), p.scenario_key) == ok
     for bad in (np.nextafter(lo, -math.inf), np.nextafter(hi, math.inf), math.nan, math.inf):
@@ -64,9 +64,9 @@ def test_schema_and_ros_ranges_are_the_one_bound(p):
     assert not p.bound.ok(float(np.nextafter(hi, math.inf)))
 
 
-@pytest.mark.parametrize('p', [p for p in LAW_TABLE if p.choices], ids=lambda p: p.name)
+@pytest.mark.parametrize('p', [p for p in LAW_TABLE if p.choices and p.name != 'law'], ids=lambda p: p.name)
 def test_schema_and_ros_choices_are_the_same(p):
-    assert LAW_PARAMETERS[p.name][1] == p.choices
+    assert SPECS[p.name][2] == p.choices
     for c in p.choices:
         assert getattr(_section_model(p, c), p.scenario_key) == c
     with pytest.raises(ValueError):
@@ -74,7 +74,7 @@ def test_schema_and_ros_choices_are_the_same(p):
 
 
 def test_reunion_coupling_and_gain_are_q0_and_the_target_gain():
-    from swarm_core.laws.parameters import LAW_PARAMETER
+    from swarm_core.laws.paper.parameters import LAW_PARAMETER
     from swarm_core.scenario.loader import ReunionSpec
     for key, name in (('coupling', 'q0'), ('gain', 'target_gain')):
         b = LAW_PARAMETER[name].bound
@@ -86,27 +86,27 @@ def test_reunion_coupling_and_gain_are_q0_and_the_target_gain():
 def test_booleans_have_no_range():
     for p in LAW_TABLE:
         if isinstance(p.default, bool):
-            assert LAW_PARAMETERS[p.name][1] is None and p.bound is None and not p.choices
+            assert SPECS[p.name][2] is None and p.bound is None and not p.choices
 
 
 def test_each_flat_parameter_reaches_its_own_field():
-    base = LawConfig(kind='target', barrier_mode='literal').parameters()
+    base = law_class('target')(barrier_mode='literal').flat()
     for p in REAL:
         changed = dict(base, **{p.name: 0.5 * (p.bound.lo + p.bound.hi) + 0.25 * (p.bound.hi - p.bound.lo)})
-        back = LawConfig.from_parameters(changed).parameters()
+        back = from_flat_parameters(changed).flat()
         assert back == changed, p.name
-    cfg = LawConfig(kind='local', gains=PairGains(0.1, 0.2, 0.3, 0.4), cutoff_radius=5.0, leader_gain=9.0,
-                    q0=0.5, target_gain=0.6, target_normalised=True, barrier_gain=0.7, barrier_mode='literal')
-    assert LawConfig.from_parameters(cfg.parameters()) == cfg
+    law = law_class('local')(alpha=0.1, eta=0.2, mu=0.3, r0=0.4, cutoff_radius=5.0, leader_gain=9.0, q0=0.5,
+                             target_gain=0.6, target_normalised=True, barrier_gain=0.7, barrier_mode='literal')
+    assert from_flat_parameters(law.flat()) == law
 
 
 def test_a_scenario_sets_the_law_from_its_sections():
     law = parse({**BASE, 'law': dict(kind='target', alpha=0.3, r0=2.0),
                  'target': dict(position=[5, 5], gain=0.7, normalised=True),
                  'barrier': dict(points=SQUARE, gain=3.0, mode='literal')}).law
-    assert law == LawConfig(kind='target', gains=PairGains(alpha=0.3, r0=2.0), target_gain=0.7,
-                            target_normalised=True, barrier_gain=3.0, barrier_mode='literal')
-    assert parse(BASE).law == LawConfig()          # no target, no barrier: their terms are off
+    assert law == law_class('target')(alpha=0.3, r0=2.0, target_gain=0.7, target_normalised=True,
+                                      barrier_gain=3.0, barrier_mode='literal')
+    assert parse(BASE).law == Homotopy()           # no target, no barrier: their terms are off
 
 
 # ---------------------------------------------------------------- λ

@@ -15,7 +15,6 @@ from swarm_core.engine.trajectory import Trajectory
 from swarm_core.laws import (
     Blend,
     Law,
-    LawConfig,
     LawError,
     LawFailed,
     View,
@@ -30,6 +29,7 @@ from swarm_core.laws import (
 from swarm_core.scenario.loader import ScenarioError, load, parse
 from swarm_tools.simulate import simulate_main, sweep_main
 from tests.core.laws import law_references as refs
+from tests.core.laws import paper_law
 from tests.helpers import ROOT, faulty_law_scenario
 
 REFERENCE = json.loads((refs.DATA / f'paper_laws_{refs.REVISION}.json').read_text())['cases']
@@ -273,8 +273,8 @@ def test_swarm_control_checks_what_a_law_returns():
     pos = np.zeros((3, 2))
     with pytest.raises(LawError, match=r'returned shape \(3, 1\), want \(3,\)'):
         swarm_control(pos, np.ones(3), np.zeros(3), np.arange(3), Ragged())
-    assert swarm_control(pos, np.ones(3), np.zeros(3), np.arange(3), LawConfig(kind='global')).shape == (3,)
-    assert make_law({'kind': 'global'}) == LawConfig(kind='global')
+    assert swarm_control(pos, np.ones(3), np.zeros(3), np.arange(3), paper_law(kind='global')).shape == (3,)
+    assert make_law({'kind': 'global'}) == paper_law(kind='global')
 
 
 def test_the_law_in_docs_is_the_example_file():

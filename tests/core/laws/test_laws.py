@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 
 from swarm_core import laws
-from swarm_core.laws import LawConfig, PairGains, pair_sums, swarm_control
-from swarm_core.laws.control import barrier_term
+from swarm_core.laws import swarm_control
+from swarm_core.laws.paper import pair_sums
+from swarm_core.laws.paper.terms import barrier_term
 from swarm_core.model import frenet as model
 from swarm_core.model.frenet import heading_frame
+from tests.core.laws import gains, paper_law
 
 # ------------------------------------------------------------------ pair term by hand
 
@@ -18,14 +20,14 @@ def _u_of_one_pair(dx, dy, th_k, th_j, gains, kind='local', **law):
     th_j (r_jk = r_k − r_j = (dx, dy)), from `swarm_control`."""
     c, s = heading_frame(np.array([th_k, th_j]))
     pos = np.array([[0.0, 0.0], [-dx, -dy]])
-    return swarm_control(pos, c, s, np.array([0]), LawConfig(kind=kind, gains=gains, **law))[0]
+    return swarm_control(pos, c, s, np.array([0]), paper_law(kind=kind, gains=gains, **law))[0]
 
 
 def test_pair_terms_hand_computed():
     # k at the origin heading +x (x_k = (1,0), y_k = (0,1)); j at (-1,-1) heading +y.
     # r_jk = r_k - r_j = (1, 1): rho = sqrt(2), r̂·x_k = r̂·y_k = 1/sqrt(2), x_j·y_k = 1.
     def u(alpha=0.0, eta=0.0, mu=0.0):
-        return _u_of_one_pair(1.0, 1.0, 0.0, math.pi / 2, PairGains(alpha=alpha, eta=eta, mu=mu, r0=1.5))
+        return _u_of_one_pair(1.0, 1.0, 0.0, math.pi / 2, gains(alpha=alpha, eta=eta, mu=mu, r0=1.5))
     assert u(eta=0.3) == pytest.approx(-0.3 * 0.5, abs=1e-15)                            # baseline
     assert u(alpha=0.2) == pytest.approx(-0.2 * (1 - 1.5 ** 2 / 2) / math.sqrt(2), abs=1e-15)  # spacing
     assert u(mu=0.5) == pytest.approx(0.5, abs=1e-15)                                    # alignment
@@ -33,23 +35,23 @@ def test_pair_terms_hand_computed():
 
 
 def test_pair_term_signs_follow_the_paper():
-    g = PairGains(alpha=1.0, eta=0.0, mu=0.0, r0=1.0)
+    g = gains(alpha=1.0, eta=0.0, mu=0.0, r0=1.0)
     # j straight to the left of k (r_jk = (0, -2), beyond r0): attraction turns k left (u > 0)
     assert _u_of_one_pair(0.0, -2.0, 0.0, 0.0, g) > 0
     # inside r0 it repels: turn right
     assert _u_of_one_pair(0.0, -0.5, 0.0, 0.0, g) < 0
     # alignment alone: j heading at +30° turns k anticlockwise
-    g = PairGains(alpha=0.0, eta=0.0, mu=1.0, r0=1.0)
+    g = gains(alpha=0.0, eta=0.0, mu=1.0, r0=1.0)
     assert _u_of_one_pair(0.0, -2.0, 0.0, math.radians(30), g) == pytest.approx(0.5)
 
 
 def test_coincident_agents_contribute_zero_not_nan():
     pos = np.zeros((4, 2))
     cos_t, sin_t = heading_frame(np.array([0.0, 1.0, 2.0, 3.0]))
-    for kind in laws.LAW_KINDS:
-        u = swarm_control(pos, cos_t, sin_t, np.arange(4), LawConfig(kind=kind))
+    for kind in laws.paper.LAW_KINDS:
+        u = swarm_control(pos, cos_t, sin_t, np.arange(4), paper_law(kind=kind))
         np.testing.assert_allclose(u, 0.0, rtol=0, atol=1e-15, err_msg=kind)   # alignment too
-        law = LawConfig(kind=kind, target_gain=0.05, barrier_gain=5.0)
+        law = paper_law(kind=kind, target_gain=0.05, barrier_gain=5.0)
         u = swarm_control(pos, cos_t, sin_t, np.arange(4), law, lambda_=0.5,
                           is_leader=np.array([1, 0, 0, 1], bool), steering=np.full(4, 0.01),
                           target=np.zeros(2), barrier=np.zeros((3, 2)))
@@ -58,7 +60,7 @@ def test_coincident_agents_contribute_zero_not_nan():
 
 def test_cutoff_function():
     """c(ρ, q, w) (eq. 8): weight 1 where ρ < w, q from ρ = w on."""
-    g = PairGains()
+    g = gains()
     w, q0 = 4.0, 0.25
     for rho, weight in ((3.99, 1.0), (4.0, q0), (10.0, q0)):
         u = _u_of_one_pair(0.0, -rho, 0.0, 0.3, g, kind='homotopy', cutoff_radius=w, q0=q0)
@@ -92,7 +94,7 @@ def _u_pair_loop(rk, thk, rj, thj, g):
 def _law_loop(pos, th, law, lam, leaders, steering, target, barrier):
     """Every law of docs/model.md as a plain double loop over agent pairs."""
     n = len(th)
-    g = law.gains
+    g = law
     w = law.cutoff_radius
     def c(rho, q):                                      # eq. 8
         return 1.0 if rho < w else q
@@ -155,7 +157,7 @@ def _law_loop(pos, th, law, lam, leaders, steering, target, barrier):
     return out
 
 
-@pytest.mark.parametrize('kind', laws.LAW_KINDS)
+@pytest.mark.parametrize('kind', laws.paper.LAW_KINDS)
 @pytest.mark.parametrize('seed', range(4))
 def test_vectorised_law_equals_pair_loop(kind, seed):
     rng = np.random.default_rng(seed)
@@ -164,7 +166,7 @@ def test_vectorised_law_equals_pair_loop(kind, seed):
     th = rng.uniform(-math.pi, math.pi, size=n)
     leaders = np.zeros(n, bool)
     leaders[rng.choice(n, 2, replace=False)] = True
-    law = LawConfig(kind=kind, gains=PairGains(*rng.uniform(0.01, 0.5, 3), r0=rng.uniform(0.5, 2)),
+    law = paper_law(kind=kind, gains=gains(*rng.uniform(0.01, 0.5, 3), r0=rng.uniform(0.5, 2)),
                     cutoff_radius=4.0, leader_gain=rng.uniform(5, 50), q0=float(rng.choice([0, 1, 0.05])),
                     target_gain=0.05, target_normalised=bool(seed % 2), barrier_gain=3.0,
                     barrier_mode=('ahead', 'literal')[seed % 2])
@@ -188,7 +190,7 @@ def test_one_agent_view_equals_batch_bit_for_bit():
     leaders = np.zeros(n, bool)
     leaders[[1, 7]] = True
     steer = np.where(leaders, 0.01, 0.0)
-    law = LawConfig(kind='homotopy', q0=1.0, barrier_gain=5.0, target_gain=0.05)
+    law = paper_law(kind='homotopy', q0=1.0, barrier_gain=5.0, target_gain=0.05)
     c, s = heading_frame(th)
     kw = dict(lambda_=0.37, is_leader=leaders, target=(30.0, 4.0), barrier=pos[:3] + 1.0)
     batch = swarm_control(pos, c, s, np.arange(n), law, steering=steer, **kw)
@@ -215,7 +217,7 @@ def test_one_agent_view_equals_batch_with_many_row_blocks(kind, lam, q0):
     leaders = np.zeros(n, bool)
     leaders[[3, 150]] = True
     steer = np.where(leaders, 0.01, 0.0)
-    law = LawConfig(kind=kind, q0=q0, leader_gain=20.0)
+    law = paper_law(kind=kind, q0=q0, leader_gain=20.0)
     kw = dict(lambda_=lam, is_leader=leaders)
     batch = swarm_control(pos, c, s, np.arange(n), law, steering=steer, **kw)
     assert np.all(np.isfinite(batch))
@@ -225,7 +227,7 @@ def test_one_agent_view_equals_batch_with_many_row_blocks(kind, lam, q0):
 
 
 @pytest.mark.parametrize('n', [9, 80])
-@pytest.mark.parametrize('kind', laws.LAW_KINDS)
+@pytest.mark.parametrize('kind', laws.paper.LAW_KINDS)
 def test_coincident_agents_equal_pair_loop(kind, n):
     """Agents at the same point contribute exactly nothing to each other (the loop skips them),
     and no floating-point warning escapes: in a small table (the dense path looks for ρ = 0
@@ -238,7 +240,7 @@ def test_coincident_agents_equal_pair_loop(kind, n):
     th = rng.uniform(-math.pi, math.pi, n)
     leaders = np.zeros(n, bool)
     leaders[[1, 6]] = True
-    law = LawConfig(kind=kind, q0=0.05, leader_gain=15.0)
+    law = paper_law(kind=kind, q0=0.05, leader_gain=15.0)
     steering = np.full(n, 0.01)
     c, s = heading_frame(th)
     with warnings.catch_warnings():
@@ -262,7 +264,7 @@ def test_homotopy_limits():
     recv = np.arange(n)
 
     def u(kind, lam=0.0, q0=1.0):
-        return swarm_control(pos, c, s, recv, LawConfig(kind=kind, q0=q0, leader_gain=25.0), lambda_=lam,
+        return swarm_control(pos, c, s, recv, paper_law(kind=kind, q0=q0, leader_gain=25.0), lambda_=lam,
                              is_leader=leaders, steering=steer)
     # λ = 0, q0 = 1: the global, group-averaged law (eq. 4), leaders and all
     np.testing.assert_array_equal(u('homotopy', 0.0, 1.0), u('global'))
@@ -283,9 +285,9 @@ def test_follower_couples_to_its_nearest_leader():
     pos = np.array([[0.0, 0.0], [-3.0, 0.0], [1.0, 0.0]])
     c, s = heading_frame(np.array([0.0, 0.5, -0.5]))
     leaders = np.array([False, True, True])
-    law = LawConfig(kind='leader_following', leader_gain=40.0)
+    law = paper_law(kind='leader_following', leader_gain=40.0)
     u = swarm_control(pos, c, s, np.array([0]), law, is_leader=leaders)
-    g = law.gains
+    g = law
     th = [0.0, 0.5, -0.5]
     by_hand = 40.0 * _u_pair_loop(pos[0], th[0], pos[2], th[2], g) + _u_pair_loop(pos[0], th[0], pos[1], th[1], g)
     assert u[0] == pytest.approx(by_hand, abs=1e-15)
@@ -293,7 +295,7 @@ def test_follower_couples_to_its_nearest_leader():
 
 
 def test_barrier_term_turns_away_only_while_ahead():
-    law = LawConfig(kind='target', barrier_gain=5.0, barrier_mode='ahead')
+    law = paper_law(kind='target', barrier_gain=5.0, barrier_mode='ahead')
     c, s = heading_frame(np.array([0.0]))
     pos = np.array([[0.0, 0.0]])
     ahead_left = np.array([[2.0, 1.0]])
@@ -301,7 +303,7 @@ def test_barrier_term_turns_away_only_while_ahead():
     u_ahead = barrier_term(pos, c, s, ahead_left, law)[0]
     assert u_ahead < 0                                          # turn right, away from it
     assert barrier_term(pos, c, s, behind_left, law)[0] == 0.0
-    literal = LawConfig(kind='target', barrier_gain=5.0, barrier_mode='literal')
+    literal = paper_law(kind='target', barrier_gain=5.0, barrier_mode='literal')
     assert barrier_term(pos, c, s, behind_left, literal)[0] > 0   # the literal reading turns back
     far = np.array([[10.0, 0.0]])
     assert barrier_term(pos, c, s, far, law)[0] == 0.0      # not sensed beyond w
@@ -312,7 +314,7 @@ def test_neighbour_list_equals_whole_table_with_coincident_agents(kind, lam):
     """The pair-list path (KD-tree neighbours within w, summed with np.bincount) gives the
     dense result, coincident agents included, and one agent with its own list gets its batch
     value bit for bit."""
-    from swarm_core.engine.reference import neighbour_pairs
+    from swarm_core.laws.paper.pair_sums import neighbour_pairs
     from tests.helpers import pairs_of_one
     rng = np.random.default_rng(9)
     n = 200
@@ -321,7 +323,7 @@ def test_neighbour_list_equals_whole_table_with_coincident_agents(kind, lam):
     c, s = heading_frame(rng.uniform(-3, 3, n))
     leaders = np.zeros(n, bool)
     leaders[[0, 12]] = True
-    law = LawConfig(kind=kind, q0=0.0, leader_gain=20.0)
+    law = paper_law(kind=kind, q0=0.0, leader_gain=20.0)
     kw = dict(lambda_=lam, is_leader=leaders, steering=np.full(n, 0.01))
     pairs = neighbour_pairs(pos, law.cutoff_radius)
     sparse = swarm_control(pos, c, s, np.arange(n), law, pairs=pairs, **kw)

@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from swarm_core.laws import Blend, CircularFormation, LawConfig, ParallelFormation, swarm_control
+from swarm_core.laws import Blend, CircularFormation, ParallelFormation, swarm_control
 from swarm_core.model.frenet import heading_frame
+from tests.core.laws import paper_law
 
 N = 9
 #: the largest |u_law − u_by_hand| allowed (the sums are the same up to rounding)
@@ -153,11 +154,11 @@ def test_blend_at_lambda_0_and_1_is_each_law_alone_bit_for_bit(pair, seed):
     paper's global law blended into spl_circular and spl_parallel into the paper's homotopy law
     with leaders (its leader rule and steering included)."""
     if pair == 'global-circular':
-        a = LawConfig(kind='global')
+        a = paper_law(kind='global')
         b = CircularFormation(omega0=0.2, harmonics=N, phase_gain=0.1, phase_gain_last=-0.1, cutoff_radius=4.0)
     else:
         a = ParallelFormation(omega0=0.05, phase_gain=-0.3, communication=1, cutoff_radius=5.0)
-        b = LawConfig(kind='homotopy', q0=1.0, leader_gain=30.0)
+        b = paper_law(kind='homotopy', q0=1.0, leader_gain=30.0)
     blend = Blend(a, b)
     pos, cos_t, sin_t = table(seed)
     rng = np.random.default_rng(seed)

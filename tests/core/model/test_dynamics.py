@@ -6,6 +6,7 @@ import pytest
 
 from swarm_core.engine import reference as engine
 from swarm_core.laws import swarm_control
+from swarm_core.laws.paper.pair_sums import neighbour_pairs
 from swarm_core.model.frenet import heading_frame
 from swarm_core.model.integrate import rk4_step, zoh_step
 from swarm_core.scenario import loader as scenario
@@ -92,13 +93,13 @@ def test_kdtree_neighbour_search_equals_all_pairs():
     c, s = heading_frame(th)
     scn = scenario.parse(dict(name='big', agents=dict(positions=pos.tolist(), headings=th.tolist()),
                               law=dict(kind='local')))
-    pairs = engine.neighbour_pairs(pos, scn.law.cutoff_radius)
+    pairs = neighbour_pairs(pos, scn.law.cutoff_radius)
     u_tree = swarm_control(pos, c, s, np.arange(n), scn.law, pairs=pairs)
     u_all = swarm_control(pos, c, s, np.arange(n), scn.law)
     np.testing.assert_allclose(u_tree, u_all, rtol=0, atol=1e-14)   # other summation order
     assert len(pairs[0]) < n * (n - 1) / 5
     # one agent with its own neighbour list adds the same terms in the same order
-    from swarm_core.laws.pair_sums import sparse_coupling
+    from swarm_core.laws.paper.pair_sums import sparse_coupling
     from tests.helpers import pairs_of_one
     assert sparse_coupling(n, scn.law, 0.0)
     for k in (0, 17, 299):

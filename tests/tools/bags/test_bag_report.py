@@ -101,7 +101,7 @@ def test_report_without_lambda_or_leaders_and_bad_input(run, tmp_path, capsys):
 def test_report_takes_the_cutoff_radius_from_the_bag(run, tmp_path, capsys):
     """No --cutoff-radius: the report counts clusters with the cutoff_radius on /world/metrics;
     a bag without it gets the law's default and a warning."""
-    from swarm_core.laws import LawConfig
+    from swarm_core.laws import Law
     from swarm_tools.bags import report
 
     _scn, traj = run
@@ -117,6 +117,6 @@ def test_report_takes_the_cutoff_radius_from_the_bag(run, tmp_path, capsys):
     bare = write_run_bag(short, tmp_path / 'bare.mcap')
     assert report.main([str(bare), '--out', str(tmp_path / 'b'), '--no-figure']) == 0
     doc = json.loads((tmp_path / 'b' / 'metrics.json').read_text())
-    assert doc['summary']['cutoff_radius'] == LawConfig.cutoff_radius
+    assert doc['summary']['cutoff_radius'] == Law.cutoff_radius.default
     assert doc['series']['clusters'][0] == 1
     assert 'no cutoff_radius on /world/metrics' in capsys.readouterr().err

@@ -16,7 +16,7 @@ import numpy as np
 from swarm_core.analysis import metrics, outcomes
 from swarm_core.analysis.plots import plot_run
 from swarm_core.files import write_atomic
-from swarm_core.laws import LawConfig, law_mapping
+from swarm_core.laws import law_mapping
 
 
 def analyse(traj, cutoff_radius=None, *, target=None, barrier=None, scenario=None, dt=None,
@@ -153,8 +153,7 @@ def write_outputs(out_dir, scn, traj, series, checks, figure=True, extra=None):
     traj.save(out / 'trajectory.npz')
     summary = summary_of(scn, traj, series, checks)
     parameters = scn.spec.model_dump(mode='json', by_alias=True)
-    if not isinstance(scn.law, LawConfig):          # a law of another kind: its own section
-        parameters['law'] = law_mapping(scn.law)
+    parameters['law'] = law_mapping(scn.law)          # the law's section, as the law has it
     doc = dict(summary=summary, series={k: v for k, v in series.items()}, parameters=parameters, **(extra or {}))
     write_atomic(out / 'metrics.json', dumps(doc))
     if figure and len(traj.t) > 1:

@@ -35,10 +35,7 @@ from swarm_core.engine.compiled_kernels import _run, _tanh_window
 from swarm_core.engine.trajectory import Trajectory
 from swarm_core.faults.agents import event_names
 from swarm_core.faults.radio import delay_stats
-from swarm_core.laws.pair_sums import DENSE_LIMIT
-
-#: law kinds the kernel covers → code (effective λ, q0 as `LawConfig.effective_lambda_q0`)
-LAW_CODES = {'global': 0, 'local': 1, 'leader_following': 2, 'homotopy': 3, 'target': 4}
+from swarm_core.laws.paper.pair_sums import DENSE_LIMIT
 
 
 def fallback_reason(scn, integrator=None, commands=None) -> str | None:
@@ -47,7 +44,7 @@ def fallback_reason(scn, integrator=None, commands=None) -> str | None:
     checks = (
         ((integrator or spec.integrator) != 'zoh', 'integrator rk4'),
         (bool(commands), 'live commands'),
-        (scn.law.kind not in LAW_CODES, f'law {scn.law.kind}'),
+        (getattr(scn.law, 'kernel_code', -1) < 0, f'law {scn.law.kind}'),
         (len(scn.names) > DENSE_LIMIT, f'more than {DENSE_LIMIT} agents'),
         (bool(spec.faults) or spec.failover is not None, 'faults or failover'),
         (bool(spec.reunion), 'reunion'),
@@ -95,7 +92,7 @@ def _program_rows(progs):
 
 def _world(scn):
     """(world, barrier points) of `_world_terms`: the target and barrier terms where the
-    scenario has them and their gains are not 0 (as `laws._add_world_terms`)."""
+    scenario has them and their gains are not 0 (as `paper.terms.add_world_terms`)."""
     law = scn.law
     world, barrier = np.zeros(8), np.zeros((0, 2))
     if scn.target is not None and law.target_gain != 0.0:
@@ -162,8 +159,7 @@ def simulate(scn, *, integrator=None, record_every: int = 1, neighbour_search: s
         return traj
     wall = time.perf_counter()
     law, plan, steps, n = scn.law, scn.command_plan(), scn.steps, len(scn.names)
-    g = law.gains
-    gains = np.array([g.alpha, g.eta, g.mu, g.r0, law.cutoff_radius, law.leader_gain])
+    gains = np.array([law.alpha, law.eta, law.mu, law.r0, law.cutoff_radius, law.leader_gain])
     rule = plan.rule is not None
     leader_prog = np.full(n, -1, dtype=np.int64)
     if rule:
@@ -178,7 +174,7 @@ def simulate(scn, *, integrator=None, record_every: int = 1, neighbour_search: s
     model = scn.comm_model()
     radio = radio_arguments(model, n)
     chosen = _run(scn.pos0[:, 0].copy(), scn.pos0[:, 1].copy(), scn.theta0.astype(float),
-                  float(scn.dt), lams, LAW_CODES[law.kind], float(law.q0), gains, leader_prog,
+                  float(scn.dt), lams, law.kernel_code, float(law.q0), gains, leader_prog,
                   _program_rows(progs), rule, float(plan.choose_at), CHOOSE_RISE, *_world(scn), _noise(scn, steps),
                   radio, int(record_every), r, th, u, lead)
     events = []

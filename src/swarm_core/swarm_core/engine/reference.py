@@ -15,39 +15,15 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from swarm_core.command.plan import law_timeline
 from swarm_core.engine.trajectory import Trajectory
 from swarm_core.faults.agents import alive_control, event_names, reunion_law
 from swarm_core.faults.radio import Beliefs, belief_controls, delay_stats
 from swarm_core.laws import LawError, LawFailed
-from swarm_core.laws.compiled_sums import COMPILED, COMPILED_LIMIT
-from swarm_core.laws.compiled_sums import available as compiled_available
-from swarm_core.laws.pair_sums import DENSE_LIMIT, sparse_coupling
 from swarm_core.model.frenet import heading_frame, quaternion_from_heading
 from swarm_core.model.integrate import rk4_step, zoh_step
 from swarm_core.scenario.loader import Scenario
-
-
-def neighbour_pairs(pos, radius):
-    """(k, j) pairs with |r_k − r_j| ≤ radius, both directions, sorted by (k, j): a KD-tree
-    neighbour search (not all pairs), for laws that couple only within w."""
-    n = len(pos)
-    ij = cKDTree(pos).query_pairs(radius, output_type='ndarray')
-    if ij.size == 0:
-        empty = np.zeros(0, dtype=np.intp)
-        return empty, empty
-    # one sort of the keys k·n + j (both directions) orders the pairs by (k, j)
-    ij = ij.astype(np.intp, copy=False)
-    key = np.empty(2 * len(ij), dtype=np.intp)
-    np.multiply(ij[:, 0], n, out=key[:len(ij)])
-    key[:len(ij)] += ij[:, 1]
-    np.multiply(ij[:, 1], n, out=key[len(ij):])
-    key[len(ij):] += ij[:, 0]
-    key.sort()
-    k = key // n
-    return k, key - k * n
 
 
 class SwarmStepper:
@@ -76,10 +52,6 @@ class SwarmStepper:
         if neighbour_search not in ('auto', 'all', 'kdtree'):
             raise ValueError(f'neighbour_search must be auto, all or kdtree, got {neighbour_search!r}')
         self.neighbour_search = neighbour_search
-        # a table of at most DENSE_LIMIT rows is summed densely whatever λ (`sparse_coupling`)
-        self._always_dense = neighbour_search == 'all' or (neighbour_search == 'auto'
-                                                          and self.n <= DENSE_LIMIT)
-        self._compiled = neighbour_search == 'auto' and self.n >= COMPILED_LIMIT and compiled_available()
         self._is_leader = (None, None)      # (leader indices, flags) of the last step
         noise = scn.spec.noise
         self.noise_scale = np.array([noise.position, noise.position, noise.heading])
@@ -91,17 +63,9 @@ class SwarmStepper:
         self._init_comms()
 
     def _pairs(self, pos, lam, law=None):
-        """None (all pairs, dense), the KD-tree pairs within w where only those carry weight, or
-        from COMPILED_LIMIT agents on 'compiled' (`large_swarms`, to rounding); ``law``: the
-        receivers' (default the run's)."""
-        law = self.law if law is None else law
-        if self._compiled and len(pos) >= COMPILED_LIMIT:
-            return COMPILED
-        if self._always_dense or law.couples_globally(lam):
-            return None
-        if self.neighbour_search == 'auto' and not sparse_coupling(len(pos), law, lam):
-            return None
-        return neighbour_pairs(pos, law.cutoff_radius)
+        """What ``law`` (default the run's) sums over for a table at ``pos``: its own choice
+        (`Law.pair_list`) under this stepper's neighbour search."""
+        return (self.law if law is None else law).pair_list(pos, lam, self.neighbour_search)
 
     def control(self, t, pos, theta, lam, is_leader, steering, frame=None):
         if self.law_groups is not None:

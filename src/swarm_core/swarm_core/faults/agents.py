@@ -40,13 +40,13 @@ Reunion (`Rendezvous`, applied to the law by `reunion_law`)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from swarm_core.checks import PAUSE_BOUND
 from swarm_core.laws import swarm_control
-from swarm_core.laws.pair_sums import nearest_leader
+from swarm_core.laws.paper.pair_sums import nearest_leader
 
 FAULT_KINDS = ('kill', 'freeze')
 
@@ -288,10 +288,10 @@ def reunion_law(law, target, rdv):
         return law, target
     point, gain, normalised, coupling = rdv
     if point is not None:
-        law = replace(law, target_gain=gain, target_normalised=normalised)
+        law = law.with_parameters(target_gain=gain, target_normalised=normalised)
         target = np.array(point, float)
     if coupling is not None:
-        law = replace(law, q0=float(coupling))
+        law = law.with_parameters(q0=float(coupling))
     return law, target
 
 

@@ -42,7 +42,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from swarm_core.laws import LawConfig, swarm_control
 from swarm_core.model.frenet import frame_from_quaternion, heading_frame
 
 DEFAULTS = dict(seed=None, radio_range=None, loss=0.0, latency=0.0, jitter=0.0, timeout=2.0,
@@ -386,7 +385,7 @@ def dead_reckon(pos, qz, qw, u, horizon, moved=None):
     return (np.where(m[:, None], p2, pos), np.where(m, qz2, qz), np.where(m, qw2, qw))
 
 
-def belief_controls(law: LawConfig, beliefs: Beliefs, step: int, model: CommModel, own_xy, own_theta,
+def belief_controls(law, beliefs: Beliefs, step: int, model: CommModel, own_xy, own_theta,
                     lambda_, is_leader, steering, target=None, barrier=None, active=None, t=None):
     """u (K,) of the receivers ``beliefs.recv`` at ``step``, each from its own true state
     (own_xy (K, 2), own_theta (K,)) and what it believes of the others (`Beliefs.known_pairs`),
@@ -398,8 +397,8 @@ def belief_controls(law: LawConfig, beliefs: Beliefs, step: int, model: CommMode
     all agents; steering (K,); active (K,) bool or None: receivers out of the table (dead,
     frozen) get u = 0; t: the sim time of the step, for a `Law`'s view.  (A dead agent stays
     in the others' beliefs until its last state is older than the timeout: a receiver cannot
-    know it died.)  A `Law` other than the paper's reads its whole view, so each receiver gets
-    a view of its own: its own row, then its believed senders (`_own_views`)."""
+    know it died.)  How the law reads the table is its own (`Law.believed_controls`: a view per
+    receiver, or the paper's laws' one call over the pair list)."""
     K = beliefs.recv.size
     act = slice(None) if active is None else np.flatnonzero(active)
     a, j, x, y, c, s = beliefs.known_pairs(step, model, None if active is None else act)
@@ -411,38 +410,15 @@ def belief_controls(law: LawConfig, beliefs: Beliefs, step: int, model: CommMode
     oc, os_ = heading_frame(np.asarray(own_theta, float).reshape(K)[act])
     cos_t, sin_t = np.concatenate((oc, c)), np.concatenate((os_, s))
     flags = nearest = None
-    paper = isinstance(law, LawConfig)
-    if is_leader is not None and (law.uses_leaders or not paper):
+    if is_leader is not None:
         is_leader = np.asarray(is_leader, bool)
         flags = np.concatenate((is_leader[beliefs.recv[act]], is_leader[j]))
         if law.uses_leaders:
             nearest = _nearest_believed_leader(pos, a, m, flags[m:])
     u = np.zeros(K)
-    if not paper:
-        u[act] = _own_views(pos, cos_t, sin_t, a, m, law, float(lambda_), flags,
-                            np.asarray(steering, float).reshape(K)[act], target, barrier, nearest, t)
-        return u
-    u[act] = swarm_control(pos, cos_t, sin_t, np.arange(m), law, lambda_=float(lambda_), is_leader=flags,
-                           steering=np.asarray(steering, float).reshape(K)[act], target=target,
-                           barrier=barrier, pairs=(a, m + np.arange(a.size)), nearest=nearest, t=t)
-    return u
-
-
-def _own_views(pos, cos_t, sin_t, a, m, law, lambda_, flags, steering, target, barrier, nearest, t):
-    """u (m,) of the receivers of a `belief_controls` table under a `Law`: one call per
-    receiver on its own rows (its own state, then its believed senders in index order), so a
-    receiver's view is what it believes, whichever receivers are asked with it."""
-    u = np.empty(m)
-    for i in range(m):
-        p = np.flatnonzero(a == i)
-        rows = np.concatenate(([i], m + p))
-        near = None
-        if nearest is not None:     # a table row m + pair → the row in this receiver's view
-            near = np.array([-1 if nearest[i] < 0 else 1 + int(np.searchsorted(p, nearest[i] - m))], np.intp)
-        u[i] = swarm_control(pos[rows], cos_t[rows], sin_t[rows], np.zeros(1, np.intp), law, lambda_=lambda_,
-                             is_leader=None if flags is None else flags[rows], steering=steering[i:i + 1],
-                             target=target, barrier=barrier, nearest=near, t=t,
-                             pairs=(np.zeros(p.size, np.intp), 1 + np.arange(p.size)))[0]
+    u[act] = law.believed_controls(pos, cos_t, sin_t, a, m, lambda_=float(lambda_), is_leader=flags,
+                                   steering=np.asarray(steering, float).reshape(K)[act], target=target,
+                                   barrier=barrier, nearest=nearest, t=t)
     return u
 
 

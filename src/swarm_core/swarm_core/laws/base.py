@@ -10,14 +10,15 @@ computes the curvature u of some receiving agents from a table of agent states (
         def control(self, view):
             return u          # (K,), one u per receiver
 
-Every engine calls a law through `swarm_control` (`laws.control`), which hands a `Law` the
-view and checks what it returns (`Law.evaluate`); the paper's laws keep their compiled paths
-there.  Every law has the cutoff radius w (``cutoff_radius``), the range of the radio and the
-sensing, which the engines use to choose neighbours.
+`Law`'s docstring holds the rules a law keeps.  Every engine calls a law through
+`swarm_control` (`laws.control`), which asks the law to `evaluate` itself; a `Law` hands
+`control` a view and checks what it returns, and a law with a faster path of its own (the
+paper's, `laws.paper`) overrides `evaluate`.
 """
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,17 +55,34 @@ def failed_at(err: LawError, t: float | None) -> LawFailed:
 # lower case: it is used like a field declaration, ``gain = param(0.1, lo=0, hi=1)``
 @dataclass(frozen=True)
 class param:
-    """One real parameter of a law: its default, closed range [lo, hi] and description."""
+    """One parameter of a law: its default, closed range [lo, hi] and description.  A default
+    that is a bool makes a yes/no parameter; one that is a str, a choice among ``choices``."""
 
-    default: float
+    default: object
     lo: float = -1e6
     hi: float = 1e6
     doc: str = ''
     integer: bool = False
+    choices: tuple = ()
 
-    def check(self, law: str, name: str, value) -> float:
+    @property
+    def limits(self):
+        """(lo, hi), the choices, or None for a yes/no parameter (as an agent node declares it)."""
+        if isinstance(self.default, bool):
+            return None
+        return self.choices if isinstance(self.default, str) else (self.lo, self.hi)
+
+    def check(self, law: str, name: str, value):
         """``value`` as the parameter's type; LawError naming the law and the parameter if it
-        is not a number in [lo, hi]."""
+        is not a number in [lo, hi] (a bool; one of the choices)."""
+        if isinstance(self.default, bool):
+            if not isinstance(value, (bool, np.bool_)):
+                raise LawError(f'law {law}: parameter {name} must be true or false, got {value!r}')
+            return bool(value)
+        if isinstance(self.default, str):
+            if value not in self.choices:
+                raise LawError(f'law {law}: parameter {name} must be one of {", ".join(self.choices)}, got {value!r}')
+            return str(value)
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise LawError(f'law {law}: parameter {name} must be a number, got {value!r}')
         if self.integer and float(value) != int(value):
@@ -97,10 +115,44 @@ class View:
 
 
 class Law:
-    """A steering law: subclass it, declare `param`s, write `control`."""
+    """A steering law: subclass it, declare `param`s, write `control`.
+
+    The rules a law keeps (the engines and the ROS nodes rely on them, as an ODE solver relies
+    on its right-hand side):
+
+    - **No state between calls.**  `control` reads its view and its parameters only.  The batch
+      engine, every agent node and every agent container call it on their own tables, as often
+      as they need (RK4 at its stage times too); a law that keeps state answers each differently.
+    - **One receiver's u does not depend on which others are asked.**  ``view.receivers`` may
+      be the whole table (the batch engine), one agent (an agent node) or a few (a container):
+      receiver k's u must be the same in each.  Then ``swarm run`` lockstep equals ``swarm
+      simulate``, to rounding; bit for bit where each receiver's row is computed on its own.
+    - **couples_globally(λ)**: whether agents beyond w may weigh in at λ.  True (the default):
+      every agent the caller knows is in the table.  False: only agents within w carry weight,
+      and a caller may leave the others out (a neighbour list, a radio's range).
+    - **uses_leaders**: True if the law reads each receiver's nearest leader l(k) (eq. 10).  A
+      caller whose table is not one shared view (a radio model's beliefs) then gives each
+      receiver's l(k) as ``nearest``.  ``view.is_leader`` and ``view.steering`` reach every law.
+    - **Target and barrier terms** (eq. 15, 16) belong to the paper's laws: their gains come
+      from the scenario's ``target:`` and ``barrier:`` sections (`with_world`); no other law's
+      view holds the target or the barrier.
+    - **dims**: the dimensions the law supports; every law is planar today, ``(2,)``.
+
+    The rest is the framework's: `evaluate` (what every engine calls), `believed_controls` (on
+    a radio's beliefs), `pair_list` (what the law sums over) and the law as a scenario mapping
+    or as flat parameters (`mapping`, `flat`, `flat_specs`, `from_mapping`).  A law with a
+    faster path of its own overrides `evaluate` and `pair_list` (the paper's laws,
+    `laws.paper`); a law made of laws names them in ``parts`` (`Blend`).
+    """
 
     #: what a scenario calls the law (``law: {kind: ...}``); a user law's is its file or module path
     kind: str = ''
+    #: the dimensions of the agents' space the law supports
+    dims = (2,)
+    #: the laws this law is made of, by key (a blend's ``from``, ``to``); () for a law of its own
+    parts = ()
+    #: whether the law reads each receiver's nearest leader l(k) (eq. 10)
+    uses_leaders = False
     cutoff_radius = param(4.0, lo=CUTOFF_RANGE[0], hi=CUTOFF_RANGE[1],
                           doc='cutoff (communication and sensing) radius w (eq. 8)')
 
@@ -126,6 +178,13 @@ class Law:
             out.update({k: v for k, v in vars(klass).items() if isinstance(v, param)})
         return {'cutoff_radius': out.pop('cutoff_radius'), **out}
 
+    @classmethod
+    def summary(cls) -> str:
+        """The first sentence of the class's docstring, on one line."""
+        text = ' '.join((cls.__doc__ or '').split('\n\n')[0].split())
+        end = re.search(r'\.(?=\s+[A-Z`])', text)          # not "eq. 4"
+        return text if end is None else text[:end.end()]
+
     def parameters(self) -> dict:
         """The law's parameter values by name."""
         return {name: getattr(self, name) for name in self.param_specs()}
@@ -143,11 +202,6 @@ class Law:
     def __hash__(self):
         return hash((type(self), tuple(self.parameters().items())))
 
-    # what the engines ask of any law: no leader rule, no target or barrier term of the paper's
-    uses_leaders = False
-    target_gain = 0.0
-    barrier_gain = 0.0
-
     def couples_globally(self, lambda_: float) -> bool:
         """Whether agents beyond w may weigh in (then every engine sums over the whole table)."""
         return True
@@ -156,11 +210,12 @@ class Law:
         """u of each receiver, (K,)."""
         raise NotImplementedError
 
+    # ------------------------------------------------------------ what the engines call
     def evaluate(self, pos, cos_t, sin_t, receivers, *, lambda_=0.0, is_leader=None, steering=None,
                  t=None, **world) -> np.ndarray:
         """`control` on a view of the table, checked: LawError naming the law if it raises or
-        returns anything but K finite numbers.  ``world`` (target, barrier, pairs...) is the
-        paper's law's own and not part of the view."""
+        returns anything but K finite numbers.  ``world`` (target, barrier, pairs, nearest) is
+        the paper's laws' and not part of the view."""
         pos = np.asarray(pos, dtype=float)
         receivers = np.asarray(receivers, dtype=np.intp)
         cos_t, sin_t = np.asarray(cos_t, dtype=float), np.asarray(sin_t, dtype=float)
@@ -184,6 +239,62 @@ class Law:
         if not np.all(np.isfinite(u)):
             raise LawError(f'law {self.kind} returned a non-finite u ({float(u[~np.isfinite(u)][0])!r})')
         return u
+
+    def pair_list(self, pos, lambda_: float, search: str = 'auto'):
+        """What `evaluate` sums over for a table at ``pos`` (``pairs``): None, the whole table
+        (a `Law` reads its whole view).  ``search``: the engine's neighbour search (auto, all,
+        kdtree)."""
+        return None
+
+    def believed_controls(self, pos, cos_t, sin_t, a, m, *, lambda_, is_leader, steering, target, barrier,
+                          nearest, t) -> np.ndarray:
+        """u (m,) of the receivers of a radio's belief table (`step.belief_controls`: rows 0 … m−1
+        the receivers' own states, row m + i what receiver a[i] believes of one sender): one
+        call per receiver on its own rows (its own state, then its believed senders in index
+        order), so a receiver's view is what it believes, whichever receivers are asked with it."""
+        u = np.empty(m)
+        for i in range(m):
+            p = np.flatnonzero(a == i)
+            rows = np.concatenate(([i], m + p))
+            near = None
+            if nearest is not None:     # a table row m + pair → the row in this receiver's view
+                near = np.array([-1 if nearest[i] < 0 else 1 + int(np.searchsorted(p, nearest[i] - m))], np.intp)
+            u[i] = self.evaluate(pos[rows], cos_t[rows], sin_t[rows], np.zeros(1, np.intp), lambda_=lambda_,
+                                 is_leader=None if is_leader is None else is_leader[rows], steering=steering[i:i + 1],
+                                 target=target, barrier=barrier, nearest=near, t=t,
+                                 pairs=(np.zeros(p.size, np.intp), 1 + np.arange(p.size)))[0]
+        return u
+
+    # ------------------------------------------------------------ the law as a scenario and a node have it
+    def with_world(self, world: dict) -> Law:
+        """The law with the scenario's target and barrier gains (`laws.paper`'s names); a law
+        without those terms is itself."""
+        return self
+
+    def mapping(self) -> dict:
+        """The law as a scenario's ``law:`` section, as metrics.json records it."""
+        return {'kind': self.kind, **self.parameters()}
+
+    def flat(self, prefix: str = '') -> dict:
+        """The law as flat parameters ``{law: kind, name: value...}``: an agent node's."""
+        return {prefix + 'law': self.kind, **{prefix + k: v for k, v in self.parameters().items()}}
+
+    def flat_specs(self, prefix: str = '') -> dict:
+        """name → (default, description, range, choices or None) of every flat parameter."""
+        out = {prefix + 'law': (self.kind, f'control law: {self.kind}', None)}
+        for name, spec in self.param_specs().items():
+            out[prefix + name] = (int(spec.default) if spec.integer else spec.default, spec.doc, spec.limits)
+        return out
+
+    @classmethod
+    def from_mapping(cls, values: dict, base_dir=None, where: str = 'law') -> Law:
+        """The law of a ``law:`` section's values (its kind left out), checked."""
+        try:
+            return cls(**values)
+        except LawError:
+            raise
+        except Exception as err:   # a user's __init__
+            raise LawError(f'law {cls.kind}: {type(err).__name__}: {err}') from None
 
 
 def neighbours_within(view: View) -> np.ndarray:

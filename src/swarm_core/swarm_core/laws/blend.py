@@ -5,19 +5,19 @@ from __future__ import annotations
 import numpy as np
 
 from swarm_core.laws.base import Law, LawError
-from swarm_core.laws.control import swarm_control
 
 
 class Blend(Law):
     """u = (1 − λ) u_from + λ u_to: the homotopy from one law to another.  Both laws see the
-    same table and λ; w is the larger of the two laws' (``cutoff_radius`` of the blend is the
-    from-law's, for the engines' neighbour search the laws' own radii apply)."""
+    same table and λ.  Its w (``cutoff_radius``) is the larger of the two laws' radii; each law
+    still reads its own w in its own sums."""
 
     kind = 'blend'
+    parts = ('from', 'to')
 
     def __init__(self, from_law, to_law):
         for side, law in (('from', from_law), ('to', to_law)):
-            if not hasattr(law, 'kind') or isinstance(law, Blend):
+            if not isinstance(law, Law) or law.parts:
                 raise LawError(f'law blend: {side} must be a law other than a blend, got {law!r}')
         self.from_law, self.to_law = from_law, to_law
         self.cutoff_radius = max(from_law.cutoff_radius, to_law.cutoff_radius)
@@ -30,7 +30,7 @@ class Blend(Law):
         return {}
 
     def __eq__(self, other):
-        return isinstance(other, Blend) and (other.from_law, other.to_law) == (self.from_law, self.to_law)
+        return type(other) is Blend and (other.from_law, other.to_law) == (self.from_law, self.to_law)
 
     def __hash__(self):
         return hash(('blend', self.from_law, self.to_law))
@@ -49,6 +49,19 @@ class Blend(Law):
                  **world):
         lam = float(lambda_)
         kw = dict(lambda_=lam, is_leader=is_leader, steering=steering, t=t, **world)
-        u_from = swarm_control(pos, cos_t, sin_t, receivers, self.from_law, **kw)
-        u_to = swarm_control(pos, cos_t, sin_t, receivers, self.to_law, **kw)
+        u_from = self.from_law.evaluate(pos, cos_t, sin_t, receivers, **kw)
+        u_to = self.to_law.evaluate(pos, cos_t, sin_t, receivers, **kw)
         return (1.0 - lam) * np.asarray(u_from) + lam * np.asarray(u_to)
+
+    def with_world(self, world: dict) -> Blend:
+        return Blend(self.from_law.with_world(world), self.to_law.with_world(world))
+
+    def mapping(self) -> dict:
+        return {'kind': self.kind, 'from': self.from_law.mapping(), 'to': self.to_law.mapping()}
+
+    def flat(self, prefix: str = '') -> dict:
+        return {prefix + 'law': self.kind, **self.from_law.flat(prefix + 'from.'), **self.to_law.flat(prefix + 'to.')}
+
+    def flat_specs(self, prefix: str = '') -> dict:
+        return {prefix + 'law': (self.kind, 'control law: blend of from and to, u = (1 − λ) u_from + λ u_to', None),
+                **self.from_law.flat_specs(prefix + 'from.'), **self.to_law.flat_specs(prefix + 'to.')}

@@ -31,8 +31,8 @@ from swarm_core.command.spec import (
 from swarm_core.faults.agents import Fault, FaultTimeline, Rendezvous
 from swarm_core.faults.radio import CommModel
 from swarm_core.files import read_regular
-from swarm_core.laws import Blend, LawConfig, LawError, make_law, swarm_control
-from swarm_core.laws.parameters import LAW_KINDS, LAW_TABLE
+from swarm_core.laws import Law, LawError, law_class, make_law, swarm_control
+from swarm_core.laws.paper.parameters import LAW_KINDS, LAW_TABLE
 from swarm_core.model.integrate import noise_rng
 from swarm_core.robot_spec import RobotsSpec
 from swarm_core.scenario.placement import AgentsSpec, initial_conditions
@@ -59,14 +59,14 @@ class ScenarioError(ValueError):
 # ------------------------------------------------------------------ law
 
 def _law_field(p):
-    """(type, default) of a law parameter in the schema (`law_parameters.LAW_TABLE`)."""
+    """(type, default) of a law parameter in the schema (`paper.parameters.LAW_TABLE`)."""
     if p.choices:
         return Literal[p.choices], p.default
     return (bounded(p.bound) if p.bound else type(p.default)), p.default
 
 
 LawSpec = create_model('LawSpec', __base__=Strict, __module__=__name__,
-                       __doc__='The ``law:`` section: fields, defaults, bounds of `law_parameters.LAW_TABLE`.',
+                       __doc__='The ``law:`` section: fields, defaults, bounds of `paper.parameters.LAW_TABLE`.',
                        **{p.scenario_key: _law_field(p) for p in LAW_TABLE if p.section == 'law'})
 
 
@@ -142,7 +142,7 @@ class Scenario:
     names: list
     pos0: np.ndarray
     theta0: np.ndarray
-    law: LawConfig
+    law: Law
     source: str = ''
 
     # -- convenience views of the spec
@@ -294,13 +294,19 @@ def resolve(name_or_path: str) -> tuple[str, str]:
     return res.read_text(), f'{name_or_path} (shipped)'
 
 
-def law_config(spec: ScenarioSpec) -> LawConfig:
-    """The law of a validated spec: each parameter from its section (`law_parameters.LAW_TABLE`),
-    its `LawConfig` default where the scenario has no such section (no target, no barrier)."""
+def _section_values(spec: ScenarioSpec, sections) -> dict:
+    """The paper's law parameters that ``sections`` set, by name: each from its section of a
+    validated spec (`paper.parameters.LAW_TABLE`), its default where the scenario has no such
+    section (no target, no barrier: their terms are off)."""
     def value(p):
         section = getattr(spec, p.section)
         return p.default if section is None else getattr(section, p.scenario_key)
-    return LawConfig.from_parameters({p.name: value(p) for p in LAW_TABLE})
+    return {p.name: value(p) for p in LAW_TABLE if p.section in sections and p.name != 'law'}
+
+
+def law_config(spec: ScenarioSpec) -> Law:
+    """The paper's law of a validated spec (its ``law:``, ``target:`` and ``barrier:`` sections)."""
+    return law_class(spec.law.kind)(**_section_values(spec, ('law', 'target', 'barrier')))
 
 
 def _law_of_another_kind(data: dict, source: str):
@@ -316,21 +322,6 @@ def _law_of_another_kind(data: dict, source: str):
     except LawError as err:
         raise ScenarioError(f'{source}: {err}') from None
     data['law'] = {}
-    return law
-
-
-#: the paper's law parameters set by the target: and barrier: sections (not the law: section)
-WORLD_KEYS = tuple(p.name for p in LAW_TABLE if p.section != 'law')
-
-
-def _with_world_terms(law, spec):
-    """``law`` with the target and barrier gains of the scenario's sections in each paper's
-    law it holds (a blend's from or to), as the paper's law alone has them."""
-    if isinstance(law, Blend):
-        return Blend(_with_world_terms(law.from_law, spec), _with_world_terms(law.to_law, spec))
-    if isinstance(law, LawConfig):
-        world = law_config(spec).parameters()
-        return LawConfig.from_parameters({**law.parameters(), **{k: world[k] for k in WORLD_KEYS}})
     return law
 
 
@@ -360,9 +351,13 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
         spec = ScenarioSpec.model_validate(data)
     except ValidationError as err:
         raise ScenarioError(f'{source}: {_format_error(err)}') from None
-    law = law_config(spec) if plugin is None else _with_world_terms(plugin, spec)
-    if plugin is not None and spec.reunion:
-        raise ScenarioError(f'{source}: reunion: the rendezvous changes the paper\'s law, not law {plugin.kind}')
+    # the target and barrier terms reach each paper's law a law holds (a blend's from or to)
+    try:
+        law = law_config(spec) if plugin is None else plugin.with_world(_section_values(spec, ('target', 'barrier')))
+    except LawError as err:
+        raise ScenarioError(f'{source}: {err}') from None
+    if spec.reunion and not {'target_gain', 'target_normalised', 'q0'} <= set(law.param_specs()):
+        raise ScenarioError(f'{source}: reunion: the rendezvous changes the paper\'s law, not law {law.kind}')
     names = list(spec.agents.names) if spec.agents.names else None
     for who in spec.leaders.fixed:
         known = names or [f'agent_{i}' for i in range(spec.agents.count)]

@@ -9,7 +9,7 @@ from typing import Annotated, Literal, Optional, Union
 import numpy as np
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
-from swarm_core.laws.parameters import LAW_PARAMETER
+from swarm_core.laws.paper.parameters import LAW_PARAMETER
 from swarm_core.schema import Finite, NonNeg, PauseSeconds, Point, Positive, SimTime, Strict, bounded
 
 # ------------------------------------------------------------------ world

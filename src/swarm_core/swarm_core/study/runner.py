@@ -31,8 +31,8 @@ from swarm_core.analysis.outputs import analyse, summary_of
 from swarm_core.checks import InputError
 from swarm_core.engine import registry
 from swarm_core.laws import LawError
-from swarm_core.laws.parameters import LAW_KINDS
-from swarm_core.laws.plugins import law_code_hash
+from swarm_core.laws.paper.parameters import LAW_KINDS
+from swarm_core.laws.registry import law_code_hash
 from swarm_core.robot_units import ROBOT_SETS
 from swarm_core.scenario import loader as scenario
 from swarm_core.scenario import placement

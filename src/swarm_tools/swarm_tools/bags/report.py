@@ -28,7 +28,7 @@ from swarm_core.analysis.plots import plot_run
 from swarm_core.checks import LAMBDA_BOUND
 from swarm_core.engine.trajectory import Trajectory
 from swarm_core.files import atomic_path
-from swarm_core.laws import LawConfig
+from swarm_core.laws import Law
 from swarm_core.model.frenet import yaw_from_quaternion
 from swarm_core.scenario.loader import BarrierSpec
 from swarm_core.scenario.placement import AGENT_NAME
@@ -523,7 +523,7 @@ def main(argv=None) -> int:
         return 2
     w = run['w']
     if w is None:
-        w = LawConfig.cutoff_radius
+        w = Law.cutoff_radius.default
         print(f'swarm report: {bag}: no cutoff_radius on /world/metrics; using the default '
               f'{w:g} (pass --cutoff-radius to choose)', file=sys.stderr)
     series, _ = analysis.analyse(traj, w, target=run['target'], barrier=run['barrier'],

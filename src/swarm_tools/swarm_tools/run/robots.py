@@ -105,7 +105,7 @@ def apply_robots(params: dict, scn, robots: dict, mode: str) -> str | None:
     if mode == 'realtime' and 'external' in robots.values() and '/world' in params:     # not on swarm join
         params['/world']['rtf'] = units.model_time(1.0)
         head += f', sim clock at {units.model_time(1.0):.3g} model s per wall s'
-    return head + '; ' + units.describe(scn.law.cutoff_radius, getattr(getattr(scn.law, 'gains', None), 'r0', None))
+    return head + '; ' + units.describe(scn.law.cutoff_radius, getattr(scn.law, 'r0', None))
 
 
 # ------------------------------------------------------------------ the MuJoCo robot world

@@ -1,11 +1,10 @@
-"""The law's parameters, declared once (no ROS): name, default, description, bounds or choices.
+"""The paper's law's parameters, declared once (no ROS): name, default, description, bounds or choices.
 
-Everything else is derived from `LAW_TABLE`: the defaults of `laws.LawConfig` and
-`frenet.PairGains`, their flat form (`LawConfig.parameters` / `from_parameters`), the agent
-node's ROS parameters with descriptions and ranges (`laws.LAW_PARAMETERS`) and the scenario
-schema (the ``law:`` section, `scenario.LawSpec`, and the gains of ``target:`` and
-``barrier:``), so a scenario and a ROS parameter accept the same values.  Ranges are closed,
-as a ROS FloatingPointRange is.  Equation numbers are the paper's.
+Everything else is derived from `LAW_TABLE`: the `param`s of the paper's laws
+(`paper.laws.PaperLaw`) and so their flat form and the agent node's ROS parameters with
+descriptions and ranges, and the scenario schema (the ``law:`` section, `scenario.LawSpec`,
+and the gains of ``target:`` and ``barrier:``), so a scenario and a ROS parameter accept the
+same values.  Ranges are closed, as a ROS FloatingPointRange is.  Equation numbers are the paper's.
 """
 from __future__ import annotations
 
@@ -25,17 +24,12 @@ class LawParameter:
     """One law parameter.  Its type is that of its default (float, bool or str)."""
 
     name: str                   # the flat (ROS parameter) name, the paper's
-    default: object             # `LawConfig`'s (a scenario's target / barrier gain has its own)
+    default: object             # the law's (a scenario's target / barrier gain has its own)
     description: str
     bound: Bound | None = None  # a real parameter's range
     choices: tuple = ()         # a choice parameter's values
-    attr: str = ''              # its `LawConfig` / `PairGains` field ('' = name)
     section: str = 'law'        # the scenario section that sets it
     key: str = ''               # its key there ('' = name)
-
-    @property
-    def field(self) -> str:
-        return self.attr or self.name
 
     @property
     def scenario_key(self) -> str:
@@ -48,8 +42,7 @@ def _real(name, default, description, lo, hi, **kw) -> LawParameter:
 
 LAW_TABLE = (
     LawParameter('law', 'homotopy', 'control law: global (eq. 4), local (eq. 9), leader_following '
-                 '(eq. 10-11), homotopy (eq. 12-14), target (eq. 15)', choices=LAW_KINDS, attr='kind',
-                 key='kind'),
+                 '(eq. 10-11), homotopy (eq. 12-14), target (eq. 15)', choices=LAW_KINDS, key='kind'),
     _real('alpha', 0.02, 'spacing gain α of the pair term (eq. 5)', 0.0, MAX_GAIN),
     _real('eta', 0.02, 'baseline gain η of the pair term (eq. 5)', 0.0, MAX_GAIN),
     _real('mu', 0.02, 'alignment gain μ of the pair term (eq. 5)', 0.0, MAX_GAIN),

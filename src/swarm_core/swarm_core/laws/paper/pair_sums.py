@@ -4,9 +4,10 @@ formed from a few per-receiver "moments" of the pair geometry (eq. 4-5, 8, 13-15
 Two paths give bit-identical sums, both in table order and independent of how many receivers
 are asked for: dense (`_pair_sums_dense`: numpy row sums over the whole table, in row blocks
 held in reused scratch arrays) and sparse (`_pair_sums_sparse`: ``np.bincount`` over a
-neighbour list).  No Python loop runs over pairs.  `laws.swarm_control` chooses the path and
-adds the leader, target and barrier terms; the speed-ups are measured in BENCHMARKS.md
-(`scripts/bench_core.py`)."""
+neighbour list, `neighbour_pairs`).  No Python loop runs over pairs.  `PaperLaw.evaluate`
+chooses the path and adds the leader, target and barrier terms; the speed-ups are measured in
+BENCHMARKS.md (`scripts/bench_core.py`).  ``law`` is a `PaperLaw` (its gains, w, ℓc and
+``avoidance_only``, eq. 15); lam, q0 its effective λ and q0."""
 from __future__ import annotations
 
 import functools
@@ -15,8 +16,6 @@ import threading
 from dataclasses import dataclass
 
 import numpy as np
-
-from swarm_core.laws.config import LawConfig
 
 
 def nearest_leader(pos, receivers, leader_rows):
@@ -35,11 +34,32 @@ def nearest_leader(pos, receivers, leader_rows):
 DENSE_LIMIT = 64
 
 
-def sparse_coupling(n: int, law: LawConfig, lambda_: float) -> bool:
+def sparse_coupling(n: int, law, lambda_: float) -> bool:
     """Whether u is summed over neighbours within w (np.bincount) rather than densely over the
     whole table.  The batch engine and the agent node both decide with this function, so
     they add the same terms in the same order."""
     return n > DENSE_LIMIT and not law.couples_globally(lambda_)
+
+
+def neighbour_pairs(pos, radius):
+    """(k, j) pairs with |r_k − r_j| ≤ radius, both directions, sorted by (k, j): a KD-tree
+    neighbour search (not all pairs), for laws that couple only within w."""
+    from scipy.spatial import cKDTree  # the batch engine's only: no agent process pays for it
+    n = len(pos)
+    ij = cKDTree(pos).query_pairs(radius, output_type='ndarray')
+    if ij.size == 0:
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty
+    # one sort of the keys k·n + j (both directions) orders the pairs by (k, j)
+    ij = ij.astype(np.intp, copy=False)
+    key = np.empty(2 * len(ij), dtype=np.intp)
+    np.multiply(ij[:, 0], n, out=key[:len(ij)])
+    key[:len(ij)] += ij[:, 1]
+    np.multiply(ij[:, 1], n, out=key[len(ij):])
+    key[len(ij):] += ij[:, 0]
+    key.sort()
+    k = key // n
+    return k, key - k * n
 
 
 #: row block of the dense path: about this many pair entries per block (the block's scratch
@@ -222,7 +242,7 @@ def _pair_sums_dense(pos, cos_sin, receivers, law, lam, q0, leaders, recv_leader
     with a coincident pair (ρ = 0, j ≠ k), for the caller to redo with ``careful``).
     """
     sums = np.empty((6, receivers.size))
-    target = law.kind == 'target'
+    target = law.avoidance_only
     weights = None if target else _pair_weights(law, lam, q0, leaders, recv_leader, careful)
     if receivers.size == 0:
         return sums, weights is not None, None
@@ -256,7 +276,7 @@ def _block_moments(lay, terms, law, weights, a, sums):
     b = min(lay.block, lay.n_recv - a)
     z = lay.full if b == lay.block else lay.full.head(b)
     rows = None if b == lay.n_recv else slice(a, a + b)     # None: every receiver, one block
-    rr, h, const, g = z.rr, z.h, lay.const, law.gains
+    rr, h, const, g = z.rr, z.h, lay.const, law
     _block_geometry(lay, z, a, rows)
     leader_pairs = coincident = bad = None
     if terms.leader:
@@ -344,10 +364,10 @@ def _weigh(z, lay, terms, weights, rows, leader_pairs, coincident):
 def _combine(m, weighted, F, cos_sin, law):
     """Σ_j W_jk u_jk of each receiver from its moments m (6, K) (see `_pair_sums_dense`);
     F (2, K): the receivers' (sin θ_k, cos θ_k); cos_sin (2, N): the table's (cos θ, sin θ)."""
-    if law.kind == 'target':
+    if law.avoidance_only:
         p = m[2:4] * F                                           # s·Hx, c·Hy
         return p[1] - p[0]
-    g = law.gains
+    g = law
     if weighted:
         y = m[4:6] * g.mu                                        # μC, μS
         y += m[2:4]
@@ -368,7 +388,7 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
     """The moments of `_pair_sums_dense` over a pair list (receiver position k, sender row j)
     instead of the whole table, each summed with np.bincount in pair order."""
     n_recv = receivers.size
-    g = law.gains
+    g = law
     rk = receivers[k]
     x, y = pos.T.copy()
     dx = x[rk]
@@ -386,7 +406,7 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
     h = rr * (g.alpha * g.r0 * g.r0)
     h -= g.alpha                                                # −α(1 − r0²/ρ²)
     m = np.empty((6, n_recv))
-    if law.kind == 'target':
+    if law.avoidance_only:
         if law.target_normalised:
             h *= np.sqrt(rr)
         h *= within

@@ -1,6 +1,6 @@
 """Pair sums of large swarms, compiled (numba) and on every core (no ROS).
 
-The moments (A, B, Hx, Hy, C, S) of `pair_sums._pair_sums_sparse`, one receiver per
+The moments (A, B, Hx, Hy, C, S) of `paper.pair_sums._pair_sums_sparse`, one receiver per
 iteration of a ``prange`` loop (the receivers are shared among the cores): over every other
 agent where pairs beyond w carry weight (eq. 4, 8, 13-14 with q > 0), or over the agents of
 the 3 × 3 cells of side w around the receiver (a cell list; eq. 9-11, 15), where only pairs
@@ -9,8 +9,8 @@ the reference to rounding (the tests ask for 1e-9), not bit for bit.  The self p
 out (its alignment term c·s_k − s·c_k is 0 up to rounding), and so are coincident pairs
 (weight 0, as in the reference's careful pass).
 
-Used by the batch engine from COMPILED_LIMIT agents on (`laws.swarm_control` with
-``pairs=COMPILED``); ROS lockstep runs are smaller, so they keep the reference, and numba is
+Chosen by the paper's law for the batch engine from COMPILED_LIMIT agents on
+(`PaperLaw.pair_list` gives ``pairs=COMPILED``); ROS lockstep runs are smaller, so they keep the reference, and numba is
 imported here only, on first use: no agent process pays for it.
 """
 from __future__ import annotations
@@ -21,7 +21,7 @@ import numpy as np
 
 #: from this many receivers on, the batch engine sums pairs with the compiled kernels
 COMPILED_LIMIT = 4096
-#: what `laws.swarm_control` takes as ``pairs`` for the compiled kernels
+#: what `PaperLaw.evaluate` takes as ``pairs`` for the compiled kernels
 COMPILED = 'compiled'
 
 
@@ -33,10 +33,10 @@ def available() -> bool:
 def compiled_moments(pos, cos_t, sin_t, law, lam, q0, leaders, l_of_k):
     """The moments (6, N) of every agent of the table as receiver (see the module doc);
     l_of_k (N,): each receiver's nearest leader row, or None without leaders."""
-    from swarm_core.laws.compiled_sums_kernels import all_pairs, cell_pairs
+    from swarm_core.laws.paper.compiled_sums_kernels import all_pairs, cell_pairs
     n = pos.shape[0]
-    g = law.gains
-    target = law.kind == 'target'
+    g = law
+    target = law.avoidance_only
     if leaders is None:
         far = np.full(n, 0.0 if target else q0 * (1.0 - lam))
         partner = np.full(n, -1, dtype=np.int64)

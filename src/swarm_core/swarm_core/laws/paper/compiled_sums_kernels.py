@@ -1,4 +1,4 @@
-"""The compiled kernels of `large_swarms` (numba; this module is imported only from there, on
+"""The compiled kernels of `paper.compiled_sums` (numba; this module is imported only from there, on
 first use, so no agent process pays for numba).  Compiled code is cached on disk
 (``cache=True``): later processes load it."""
 import numba as nb
