@@ -42,7 +42,7 @@ from nav_msgs.msg import Odometry
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
-from swarm_agent.drivers import LockstepDriver, RealtimeDriver, follow_the_run_clock
+from swarm_agent.drivers import LockstepDriver, RealtimeDriver
 from swarm_agent.process_io import AgentStatesWriter, step_message
 from swarm_core.laws import LawError
 from swarm_core.robot_units import (
@@ -361,7 +361,6 @@ class RealtimeRobotDriver(RealtimeDriver):
         states heard, its batch writer and a timer on the container's clock (`container_node`)."""
         node = self.node
         if not node.contained:
-            follow_the_run_clock(node)
             self.batch = AgentStatesWriter(node, realtime=True)
             self.process_tag = self.batch.tag
             self.timer = node.create_timer(node.dt, self.on_tick)
