@@ -165,3 +165,33 @@ def test_a_law_that_cannot_be_used_stops_swarm_run_before_it_starts(kind, law, t
     assert code == 2 and len(lines) == 1, said
     assert lines[0].startswith(f'swarm run: {path}: law') and text in lines[0], lines
     assert not (out / 'trajectory.npz').exists() and wall < 30     # nothing started
+
+
+def test_a_law_an_installed_package_registers_runs_by_name(tmp_path, ros_domain, processes, swarm_cmd):
+    """A package on the path whose metadata declares a ``swarm_core.laws`` entry point: `swarm run`
+    names its law ``law: {kind: spin}``, every agent process finds it (PYTHONPATH), and lockstep
+    equals `swarm simulate` bit for bit."""
+    import os
+
+    from tests.core.laws.test_law_registry import installed_package
+    site = tmp_path / 'site'
+    site.mkdir()
+    installed_package(site, {'spin': 'spinlaws:Spin'})
+    path = tmp_path / 'spin.yaml'
+    path.write_text(yaml.safe_dump({'name': 'spin', 'seed': 0, 'dt': 0.1, 'duration': 4.0, 'agents': {'count': 4},
+                                    'law': {'kind': 'spin', 'rate': 0.15}}))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), os.environ.get('PYTHONPATH', '')]))
+    out = tmp_path / 'run'
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--agents-per-process', '2'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    lines = Lines(p)
+    assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
+    got = Trajectory.load(out / 'trajectory.npz')
+    sim = subprocess.run([swarm_cmd, 'simulate', path, '--out', tmp_path / 'sim', '--no-figure'],
+                         capture_output=True, text=True, env=env, timeout=300)
+    assert sim.returncode == 0, sim.stdout + sim.stderr
+    ref = Trajectory.load(tmp_path / 'sim' / 'trajectory.npz')
+    assert got.r.shape == ref.r.shape == (41, 4, 2)
+    np.testing.assert_array_equal(got.u, ref.u)
+    np.testing.assert_array_equal(got.r, ref.r)
+    assert np.all(got.u == 0.15)

@@ -13,6 +13,7 @@ uses the law (the engines, every agent node).
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import importlib.util
@@ -38,7 +39,13 @@ BUILT_IN = {
 
 def _registered() -> dict:
     """kind -> [source, ...] of every registered law: 'built-in module:Class' or 'entry point
-    module:Class (distribution)'; more than one source is a clash."""
+    module:Class (distribution)'; more than one source is a clash.  Read once per sys.path (a
+    scan of the installed packages costs milliseconds; a scenario load asks every time)."""
+    return _registered_on(tuple(sys.path))
+
+
+@functools.lru_cache(maxsize=4)
+def _registered_on(path: tuple) -> dict:
     out = {kind: [f'built-in {where}'] for kind, where in BUILT_IN.items()}
     for ep in entry_points(group=GROUP):
         dist = getattr(ep.dist, 'name', None)
