@@ -176,7 +176,7 @@ def _target_control(x, y, c, s, alpha, r0, w, normalised, u):
 @njit(cache=True)
 def _world_terms(x, y, c, s, world, barrier, alpha, r0, w, u):
     """u plus the target term (eq. 15, `laws.target_term`) and the barrier term (eq. 16,
-    `swarm_core.laws.control.barrier_term`); world = (target on, x, y, γ, normalised, barrier
+    `swarm_core.laws.paper.terms.barrier_term`); world = (target on, x, y, γ, normalised, barrier
     on, s_b, literal)."""
     for k in range(x.size):
         if world[0] != 0.0:
