@@ -5,7 +5,7 @@ law for one receiver (what an agent node computes per step).
 
     .venv/bin/python scripts/bench_laws.py [--sizes 6,1000] [--seconds 1.0] [--out bench/laws.json]
 
-Laws: the paper's global law (`LawConfig`, its own sums), the shipped spl_parallel (a `Law` in
+Laws: the paper's global law (`laws.Global`, its own sums), the shipped spl_parallel (a `Law` in
 numpy), the user's law of examples/laws/alignment.py, and a blend of the global law and
 spl_circular.  n agents on a square grid at spacing 1.5, headings in a 90° cone, dt = 0.05.
 Each number is the median over batches (a burst of load from other processes spoils a few
