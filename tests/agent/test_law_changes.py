@@ -12,8 +12,8 @@ from swarm_agent.agent_core import AgentCore
 from swarm_agent.container_core import ContainerCore
 from swarm_core.command.plan import law_with
 from swarm_core.engine.reference import SwarmStepper
-from swarm_core.faults.radio import CommModel
 from swarm_core.model.frenet import quaternion_from_heading
+from swarm_core.radio import CommModel
 from swarm_core.scenario.loader import parse
 
 BASE = dict(name='law_changes', seed=3, dt=0.05, duration=15.0,

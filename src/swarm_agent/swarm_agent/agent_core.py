@@ -10,7 +10,7 @@ order, exactly as `swarm_core.engine.reference.SwarmStepper` does for the whole 
 3. `zoh_step` on 1-element arrays, then the agent's own seeded noise (if any).
 
 With faults the table holds only the agents alive at that step, in index order, and a
-rendezvous (reunion) switches the target term on: `swarm_core.faults.agents.alive_control`, the same
+rendezvous (reunion) switches the target term on: `swarm_core.step.alive_control`, the same
 function the batch engine and an agent container call.
 
 Because `swarm_control` reduces each receiver's row of pair terms on its own (numpy row sums
@@ -18,9 +18,9 @@ over the whole table, or `np.bincount` over a neighbour list, in table order) an
 operation is elementwise, the agent's u equals the batch engine's bit for bit.
 
 With a communication model (`attach_comms`), `comms_control` first lets the agent's radio
-decide which states of the step's table it receives (`swarm_core.faults.radio`, the same pure fate
+decide which states of the step's table it receives (`swarm_core.radio`, the same pure fate
 function the batch engine uses for every link), folds them into its beliefs and computes u on
-its beliefs (`swarm_core.faults.radio.belief_controls`, itself the only receiver): again bit for bit
+its beliefs (`swarm_core.step.belief_controls`, itself the only receiver): again bit for bit
 the batch engine's u.
 """
 from __future__ import annotations
@@ -29,12 +29,13 @@ import math
 
 import numpy as np
 
-from swarm_core.faults.agents import alive_control, reunion_law
-from swarm_core.faults.radio import Beliefs, CommModel, belief_controls
+from swarm_core.faults.agents import reunion_law
 from swarm_core.laws import Law, LawError, failed_at
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.model.integrate import zoh_step
+from swarm_core.radio import Beliefs, CommModel
 from swarm_core.robot_units import reported_heading
+from swarm_core.step import alive_control, belief_controls
 
 #: a tick this few periods short of a boundary is on it (t_state sums dt in floats; the clock
 #: comes in whole ns)

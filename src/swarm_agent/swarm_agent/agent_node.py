@@ -27,7 +27,7 @@ the container feeds it the inputs its agents share (the step relay, ``/swarm/age
 the commander's decision, target, barrier, events) from one subscription each.
 
 Communication model (parameter ``comms``: the scenario's ``comms`` section as JSON, '' = a
-perfect radio; see swarm_core.faults.radio): the agent applies it on its receive side.  Lockstep: from
+perfect radio; see swarm_core.radio): the agent applies it on its receive side.  Lockstep: from
 each step's table it keeps only what its radio delivers (`AgentCore.comms_control`; equal to
 the batch engine bit for bit).  Realtime: each incoming state is lost or delayed by the same
 seeded fate function (keyed by the state's step), kept in flight until its delivery time, and
@@ -55,7 +55,6 @@ from swarm_agent.process_io import decision_leaders, shared_inputs
 from swarm_agent.robot_driver import ROBOT_DRIVERS, declare_robot
 from swarm_core.checks import DT_BOUND, LAMBDA_BOUND, STEERING_BOUND
 from swarm_core.command.plan import is_kind, law_with
-from swarm_core.faults.radio import CommModel, change_from_event
 from swarm_core.laws import (
     DEFAULTS,
     LawError,
@@ -66,6 +65,7 @@ from swarm_core.laws import (
     parameter_specs,
 )
 from swarm_core.model.integrate import noise_rng
+from swarm_core.radio import CommModel, change_from_event
 from swarm_core.robot_units import ROBOT_KINDS
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RealtimeDecision

@@ -27,10 +27,10 @@ import math
 import numpy as np
 
 from swarm_agent.agent_core import received_table
-from swarm_core.faults.agents import alive_control
 from swarm_core.laws import LawError, failed_at
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.model.integrate import zoh_step
+from swarm_core.step import alive_control
 
 #: ``auto``: one process per agent while there are at most this many agents per core
 PROCESSES_PER_CORE = 3

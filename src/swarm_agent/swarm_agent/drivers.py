@@ -17,7 +17,7 @@ from swarm_agent.process_io import (
     step_message,
 )
 from swarm_agent.realtime_core import CATCH_UP_MAX, Continued, HeardStates
-from swarm_core.faults.radio import StreamRadio
+from swarm_core.radio import StreamRadio
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, Senders, batch_states, check_values, refused
 from swarm_ros.rosutil import declare, step_time, when_matched
@@ -219,7 +219,7 @@ class RealtimeDriver:
         own = (core.pos[0, 0], core.pos[0, 1], *core.quaternion)
         if not node.radio_on:
             return known_table(node.roster, node.agent_name, own, heard.newest, node.leaders, now, self.stale_after)
-        rows, states = self.stream.table(now, own)     # what the radio delivered (`faults.radio.StreamRadio`)
+        rows, states = self.stream.table(now, own)     # what the radio delivered (`radio.StreamRadio`)
         flags = np.array([node.roster[j] in node.leaders for j in rows])
         return int(np.searchsorted(rows, node.index)), states, flags
 

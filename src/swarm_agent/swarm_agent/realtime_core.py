@@ -7,7 +7,7 @@ time.  The agents that move and hear perfectly (no radio model) read ONE table,
 `HeardStates`: the newest state of every agent heard within ``stale_after`` of now, the agents
 of the process among them with their own states (they are heard in-process, the moment they
 publish).  Their controls come from ONE call of the core law
-for those receivers (`shared_controls`; `swarm_core.faults.agents.alive_control` sums each receiver's row on its
+for those receivers (`shared_controls`; `swarm_core.step.alive_control` sums each receiver's row on its
 own, so every u is bit for bit the one that agent computes alone from the same heard states,
 `agent_core.known_table`).  An agent with a radio model has a table of its own (what its radio
 delivered) and a law call of its own.  The agents then move together, one batched ZOH step per
@@ -21,8 +21,8 @@ import threading
 import numpy as np
 
 from swarm_agent.agent_core import catch_up, received_table
-from swarm_core.faults.agents import alive_control
 from swarm_core.laws import LawError, failed_at
+from swarm_core.step import alive_control
 from swarm_ros.msg_checks import NewestStates
 
 

@@ -35,8 +35,8 @@ from __future__ import annotations
 import numpy as np
 
 from swarm_core.faults.agents import event_names
-from swarm_core.faults.radio import event_step
 from swarm_core.model.frenet import frame_from_quaternion
+from swarm_core.radio import event_step
 from swarm_ros.layouts import Step
 
 

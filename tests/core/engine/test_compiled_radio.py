@@ -1,16 +1,16 @@
 """The radio model in the study fast path (swarm_core.engine.compiled, fast_kernels) against the reference engine
-(swarm_core.faults.radio in swarm_core.engine.reference).  Pure: no ROS."""
+(swarm_core.radio in swarm_core.engine.reference).  Pure: no ROS."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import yaml
 
+from swarm_core import radio as comms
 from swarm_core import study as st
 from swarm_core.engine import compiled as fast
 from swarm_core.engine import compiled_kernels as fast_kernels
 from swarm_core.engine import reference as engine
-from swarm_core.faults import radio as comms
 from swarm_core.model.frenet import frame_from_quaternion
 from swarm_core.scenario import loader as scenario
 from tests.helpers import ROOT

@@ -13,7 +13,6 @@ from swarm_core.engine.reference import simulate
 from swarm_core.faults.agents import (
     Fault,
     FaultTimeline,
-    alive_control,
     elect_successor,
     followers_of,
     reunion_law,
@@ -22,6 +21,7 @@ from swarm_core.faults.agents import (
 from swarm_core.laws import swarm_control
 from swarm_core.model.frenet import frame_from_quaternion, heading_frame
 from swarm_core.scenario.loader import ScenarioError, load, parse
+from swarm_core.step import alive_control
 from tests.core.laws import paper_law
 
 BASE = dict(name='faulty', seed=1, dt=0.05, duration=3.0,

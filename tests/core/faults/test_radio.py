@@ -1,4 +1,4 @@
-"""The communication model (swarm_core.faults.radio) in the batch engine and in one agent's core:
+"""The communication model (swarm_core.radio) in the batch engine and in one agent's core:
 statistics of loss and delay against the configured values (binomial / CLT bounds),
 determinism by seed, partitions, radio range, bursts, forgetting, dead reckoning, and the
 agent-side radio reproducing the batch engine bit for bit."""
@@ -10,9 +10,9 @@ from scipy import stats
 
 from swarm_agent.agent_core import AgentCore
 from swarm_core.engine.reference import SwarmStepper, simulate
-from swarm_core.faults.radio import Beliefs, CommModel, StreamRadio, change_from_event, dead_reckon, link_uniforms
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.model.integrate import zoh_step
+from swarm_core.radio import Beliefs, CommModel, StreamRadio, change_from_event, dead_reckon, link_uniforms
 from swarm_core.scenario.loader import ScenarioError, load, parse
 
 #: family-wise false-alarm rate of each statistical assertion
@@ -420,7 +420,7 @@ def test_one_law_call_for_all_receivers_equals_each_receiver_alone():
     """`belief_controls` for the whole swarm equals, bit for bit, each receiver asking alone
     with its own beliefs (what an agent process does), on a run with loss, latency, jitter,
     leaders and a partition."""
-    from swarm_core.faults.radio import belief_controls
+    from swarm_core.step import belief_controls
     scn = load('homotopy_global', duration=6.0)
     scn.spec.leaders.at = 1.0
     scn = parse(dict(scn.spec.model_dump(by_alias=True, exclude_none=True),
@@ -444,8 +444,8 @@ def test_radio_that_delivers_everything_gives_the_law_of_the_true_table():
     """A radio that loses and delays nothing (a range no pair reaches): every receiver
     believes the true states, so `belief_controls` (pair list, each receiver's own nearest
     leader) equals the law on the true table to rounding, leaders and λ included."""
-    from swarm_core.faults.agents import alive_control
     from swarm_core.model.frenet import heading_frame
+    from swarm_core.step import alive_control
     scn = load('homotopy_global', duration=5.0)
     scn.spec.leaders.at = 1.0
     scn = parse(dict(scn.spec.model_dump(by_alias=True, exclude_none=True), comms=dict(radio_range=1e6)), 'x')
@@ -462,7 +462,7 @@ def test_radio_that_delivers_everything_gives_the_law_of_the_true_table():
 def test_each_message_predicted_once_gives_the_same_bits(monkeypatch):
     """Above MESSAGES_ONCE believed pairs each message (sender, stamp) is dead-reckoned once
     and shared by its receivers: the same bits as predicting every pair (an agent's path)."""
-    import swarm_core.faults.radio as comms
+    import swarm_core.radio as comms
     scn = parse(dict(name='c30', seed=1, dt=0.05, duration=3.0, law=dict(kind='global'),
                      agents=dict(count=30, positions={'rule': 'grid', 'spacing': 1.5}, headings={'rule': 'cone'}),
                      comms=dict(loss=0.5, latency=0.05, jitter=0.1)), 'test')

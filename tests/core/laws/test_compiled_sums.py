@@ -70,7 +70,7 @@ def test_engine_takes_the_compiled_path_only_for_large_swarms():
 
 def test_agent_processes_do_not_import_numba():
     """What an agent process imports (its core, the laws, the radio, faults) leaves numba out."""
-    code = ('import sys, swarm_agent.agent_core, swarm_core.laws.control, swarm_core.faults.radio, '
+    code = ('import sys, swarm_agent.agent_core, swarm_core.laws.control, swarm_core.radio, '
             'swarm_core.engine.reference; print("numba" in sys.modules)')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == 'False'

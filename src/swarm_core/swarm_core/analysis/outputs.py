@@ -111,7 +111,7 @@ def summary_of(scn, traj, series, checks) -> dict:
     if traj.meta.get('events'):
         out['events'] = traj.meta['events']        # faults, failover, reunion (faults.py)
     if traj.meta.get('comms'):
-        out['comms'] = traj.meta['comms']      # what the radio did (swarm_core.faults.radio)
+        out['comms'] = traj.meta['comms']      # what the radio did (swarm_core.radio)
     if traj.meta.get('robots'):
         out['robots'] = traj.meta['robots']    # robot contacts, time at the limits (swarm_robots)
     return out

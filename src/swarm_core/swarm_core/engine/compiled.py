@@ -34,8 +34,8 @@ from swarm_core.engine import reference as engine
 from swarm_core.engine.compiled_kernels import _run, _tanh_window
 from swarm_core.engine.trajectory import Trajectory
 from swarm_core.faults.agents import event_names
-from swarm_core.faults.radio import delay_stats
 from swarm_core.laws.paper.pair_sums import DENSE_LIMIT
+from swarm_core.radio import delay_stats
 
 
 def fallback_reason(scn, integrator=None, commands=None) -> str | None:

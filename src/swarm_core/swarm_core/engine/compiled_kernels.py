@@ -7,11 +7,11 @@ file that defines a function, so a change in a kernel called from another file w
 recompile `_run`.
 
 **The radio** (`radio_receive`, `radio_control`), each step n, as the reference engine
-does it (`swarm_core.faults.radio.CommModel.decide`, `Beliefs.receive`, `belief_controls`):
+does it (`swarm_core.radio.CommModel.decide`, `Beliefs.receive`, `belief_controls`):
 
 - every agent sends its state of t_n (x, y, the planar quaternion, the u it held over the
   step that ended at t_n); the fate of the message j → k is drawn from the same
-  counter-based hash (`swarm_core.faults.radio.link_uniforms`: splitmix64 over seed, n, k, j,
+  counter-based hash (`swarm_core.radio.link_uniforms`: splitmix64 over seed, n, k, j,
   stream), so a message is lost, cut by a partition or the radio range, or delayed by the very
   same numbers as in the reference and in every agent process;
 - each receiver folds in the messages that arrive at step n (newest stamp wins), forgets
@@ -31,7 +31,7 @@ import math
 import numpy as np
 from numba import njit
 
-from swarm_core.faults.radio import (
+from swarm_core.radio import (
     GOLDEN,
     MIX_M1,
     MIX_M2,
@@ -42,12 +42,12 @@ from swarm_core.faults.radio import (
     STREAM_DELAY,
     STREAM_LOSS,
 )
-from swarm_core.faults.radio import splitmix as _mix_array
+from swarm_core.radio import splitmix as _mix_array
 
-_UNIT = 1.0 / 9007199254740992.0            # 2⁻⁵³, as `swarm_core.faults.radio.link_uniforms`
+_UNIT = 1.0 / 9007199254740992.0            # 2⁻⁵³, as `swarm_core.radio.link_uniforms`
 #: dead-reckoned messages kept per sender and step: those up to this many steps old
 PREDICTED_AGES = 64
-#: mix(stream + G) of the two streams (`swarm_core.faults.radio.link_uniforms`' last key)
+#: mix(stream + G) of the two streams (`swarm_core.radio.link_uniforms`' last key)
 _KEY_LOSS, _KEY_DELAY = _mix_array(np.array([STREAM_LOSS, STREAM_DELAY], dtype=np.uint64) + GOLDEN)
 
 
@@ -336,7 +336,7 @@ def _tanh_window(t, rise_at, fall_at, tau, low, high):
 # ------------------------------------------------------------------ the radio
 @njit(cache=True, inline='always')
 def _mix(z):
-    """splitmix64 finaliser (`swarm_core.faults.radio.splitmix`), wrapping uint64 arithmetic."""
+    """splitmix64 finaliser (`swarm_core.radio.splitmix`), wrapping uint64 arithmetic."""
     z = (z ^ (z >> SHIFT_30)) * MIX_M1
     z = (z ^ (z >> SHIFT_27)) * MIX_M2
     return z ^ (z >> SHIFT_31)
@@ -344,7 +344,7 @@ def _mix(z):
 
 @njit(cache=True, inline='always')
 def _fold(h, key):
-    """One key of `swarm_core.faults.radio.link_uniforms`: mix(h XOR mix(key + G))."""
+    """One key of `swarm_core.radio.link_uniforms`: mix(h XOR mix(key + G))."""
     return _mix(h ^ _mix(np.uint64(key) + GOLDEN))
 
 
@@ -467,7 +467,7 @@ def _believed(i, k, rf, state):
 def _dead_reckon(sent, at, j, horizon):
     """(x, y, cos θ, sin θ) of the state sent[at, :, j] (x, y, qz, qw, u, cos θ, sin θ)
     ``horizon`` sim s ahead on the exact arc, with the sums of
-    `swarm_core.faults.radio.dead_reckon` (sin and cos of uh/2 only)."""
+    `swarm_core.radio.dead_reckon` (sin and cos of uh/2 only)."""
     qz, qw, c, s = sent[at, 2, j], sent[at, 3, j], sent[at, 5, j], sent[at, 6, j]
     half = sent[at, 4, j] * (0.5 * horizon)
     sh, ch = math.sin(half), math.cos(half)
@@ -480,7 +480,7 @@ def _dead_reckon(sent, at, j, horizon):
 @njit(cache=True, inline='always')
 def radio_control(i, x, y, c, s, lam, q0, is_leader, steer, code, gains, normalised, rf, state, u):
     """u_k of every receiver from its true state and its beliefs
-    (`swarm_core.faults.radio.belief_controls`, the sparse pair sums of
+    (`swarm_core.step.belief_controls`, the sparse pair sums of
     `pair_sums._pair_sums_sparse` and `_combine`): eq. 4-5, 8, 10-15 over the believed senders,
     in sender order; a coincident pair adds nothing (the reference's careful redo)."""
     alpha, eta, mu, r0, w, leader_gain = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5]

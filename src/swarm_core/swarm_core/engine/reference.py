@@ -18,12 +18,13 @@ import numpy as np
 
 from swarm_core.command.plan import law_timeline
 from swarm_core.engine.trajectory import Trajectory
-from swarm_core.faults.agents import alive_control, event_names, reunion_law
-from swarm_core.faults.radio import Beliefs, belief_controls, delay_stats
+from swarm_core.faults.agents import event_names, reunion_law
 from swarm_core.laws import LawError, LawFailed
 from swarm_core.model.frenet import heading_frame, quaternion_from_heading
 from swarm_core.model.integrate import rk4_step, zoh_step
+from swarm_core.radio import Beliefs, delay_stats
 from swarm_core.scenario.loader import Scenario
+from swarm_core.step import alive_control, belief_controls
 
 
 class SwarmStepper:
@@ -179,7 +180,7 @@ class SwarmStepper:
         self.step_index += 1
 
     # ---------------------------------------------------------------- communication model
-    # A separate path (swarm_core.faults.radio), taken only when the scenario's radio is not perfect:
+    # A separate path (swarm_core.radio), taken only when the scenario's radio is not perfect:
     # every receiver computes its u with THE law on its own beliefs (one law call over the
     # believed pairs of all receivers; the fates of all links of a step are drawn at once).
 

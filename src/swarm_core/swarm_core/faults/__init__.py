@@ -1,7 +1,5 @@
 """What goes wrong, without ROS (beyond the paper): agents that stop, freeze or are lost, with
-leader failover and reunion (`agents`), and an imperfect radio: loss, delay and what each agent
-believes of the others (`radio`)."""
+leader failover and reunion (`agents`).  An imperfect radio is `swarm_core.radio`."""
 from swarm_core.faults.agents import Failover, Fault, FaultTimeline, Rendezvous
-from swarm_core.faults.radio import Beliefs, CommModel, StreamRadio
 
-__all__ = ['Beliefs', 'CommModel', 'Failover', 'Fault', 'FaultTimeline', 'Rendezvous', 'StreamRadio']
+__all__ = ['Failover', 'Fault', 'FaultTimeline', 'Rendezvous']

@@ -24,7 +24,7 @@ Leader failover (`CommandPlan`, command_plan.py, uses `followers_of` and `elect_
     the lost leader's steering program and slot.  A lost leader that is heard again later
     is a follower.  Without failover (``timeout`` None) leaders never change.
 
-The table of a step (`alive_control`)
+The table of a step (`step.alive_control`)
     Only the agents alive at a step are in the table, in index order; a receiver that is not
     alive has u = 0.  The batch engine, an agent and an agent container all compute u this way.
 
@@ -45,7 +45,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from swarm_core.checks import PAUSE_BOUND
-from swarm_core.laws import swarm_control
 from swarm_core.laws.paper.pair_sums import nearest_leader
 
 FAULT_KINDS = ('kill', 'freeze')
@@ -293,33 +292,3 @@ def reunion_law(law, target, rdv):
     if coupling is not None:
         law = law.with_parameters(q0=float(coupling))
     return law, target
-
-
-def alive_control(pos, cos_t, sin_t, receivers, law, lam, is_leader, steering, target=None, barrier=None,
-                  alive=None, rendezvous=None, pairs=None, t=None):
-    """u of the agents ``receivers`` (agent indices, ascending) at one step (eq. 4, 9-16).
-
-    pos (N, 2), cos_t, sin_t, is_leader (N,): the states of all agents in index order (a
-    receiver's row holds its own state); steering: the receivers' s_k (or None).  alive (N,)
-    bool or None (all): the table holds only the agents alive, in index order; receivers not
-    alive get u = 0.  rendezvous: the reunion of the step (`reunion_law`).  pairs: None (sum
-    over the whole table) or a function of the table's positions giving its neighbour pairs
-    (`laws.swarm_control`).  t: the sim time of the step, for a `Law`'s view.  Receivers are
-    rows of the same table whoever asks, so the batch engine and every agent get the same u bit
-    for bit."""
-    law, target = reunion_law(law, target, rendezvous)
-    receivers = np.asarray(receivers, dtype=np.intp)
-    if alive is None or np.count_nonzero(alive) == len(alive):
-        return swarm_control(pos, cos_t, sin_t, receivers, law, lambda_=float(lam), is_leader=is_leader,
-                             steering=steering, target=target, barrier=barrier,
-                             pairs=None if pairs is None else pairs(pos), t=t)
-    rows = np.flatnonzero(alive)
-    heard = np.asarray(alive, bool)[receivers]
-    p = np.asarray(pos, float)[rows]
-    u = np.zeros(receivers.size)
-    u[heard] = swarm_control(p, np.asarray(cos_t)[rows], np.asarray(sin_t)[rows],
-                             np.searchsorted(rows, receivers[heard]), law, lambda_=float(lam),
-                             is_leader=None if is_leader is None else np.asarray(is_leader, bool)[rows],
-                             steering=None if steering is None else np.asarray(steering, float)[heard],
-                             target=target, barrier=barrier, pairs=None if pairs is None else pairs(p), t=t)
-    return u

@@ -29,11 +29,11 @@ from swarm_core.command.spec import (
     build_schedule,
 )
 from swarm_core.faults.agents import Fault, FaultTimeline, Rendezvous
-from swarm_core.faults.radio import CommModel
 from swarm_core.files import read_regular
 from swarm_core.laws import Law, LawError, law_class, make_law, swarm_control
 from swarm_core.laws.paper.parameters import LAW_KINDS, LAW_TABLE
 from swarm_core.model.integrate import noise_rng
+from swarm_core.radio import CommModel
 from swarm_core.robot_spec import RobotsSpec
 from swarm_core.scenario.placement import AgentsSpec, initial_conditions
 from swarm_core.scenario.sections import (
@@ -205,12 +205,12 @@ class Scenario:
                              self.names, self.spec.dt)
 
     def comms_config(self) -> dict | None:
-        """The ``comms`` section as a plain mapping (what `swarm_core.faults.radio.CommModel.from_config` and
+        """The ``comms`` section as a plain mapping (what `swarm_core.radio.CommModel.from_config` and
         the agents' ``comms`` parameter take), None without one."""
         return None if self.spec.comms is None else self.spec.comms.model_dump(mode='json')
 
     def comm_model(self):
-        """A fresh `swarm_core.faults.radio.CommModel` of this scenario, or None if its radio is perfect."""
+        """A fresh `swarm_core.radio.CommModel` of this scenario, or None if its radio is perfect."""
         m = CommModel.from_config(self.comms_config(), self.names, self.dt, self.seed)
         return None if m.perfect else m
 

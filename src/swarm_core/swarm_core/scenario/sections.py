@@ -141,7 +141,7 @@ class CommsEventSpec(Strict):
 
 
 class CommsSpec(Strict):
-    """The communication model (see swarm_core.faults.radio); the defaults are a perfect radio."""
+    """The communication model (see swarm_core.radio); the defaults are a perfect radio."""
     seed: Optional[Annotated[int, Field(ge=0)]] = None     # default: the scenario's seed
     radio_range: Optional[Positive] = None                  # None: unlimited (w still applies)
     loss: Probability = 0.0

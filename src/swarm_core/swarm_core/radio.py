@@ -1,4 +1,4 @@
-"""Communication model: what each agent's radio delivers, and what it believes (no ROS).
+"""The radio model: what each agent's radio delivers, and what it believes (no ROS).
 
 A state message is sent by every agent j at every step n (its state of t_n: x, y, the planar
 quaternion (qz, qw) and u, the curvature it held over the step that ended at t_n).  Receiver k
@@ -24,8 +24,8 @@ late older message never replaces a newer one).  Senders whose newest state is o
 ``timeout`` are forgotten (left out of the table).  With ``dead_reckoning`` the state of t_m is
 predicted to t_n on the exact arc of unit speed with the sender's known heading and u
 (the arc of `integrate.zoh_step` with dt = t_n − t_m, by angle sums: `dead_reckon`).
-`belief_controls` gives u_k of every receiver from its own state and its beliefs with THE law
-(`laws.swarm_control`), in one call over the believed (receiver, sender) pairs.
+`step.belief_controls` gives u_k of every receiver from its own state and its beliefs with
+THE law, in one call over the believed (receiver, sender) pairs.
 
 Changes in time: ``events`` at sim times (``loss``/``latency``/``jitter`` set the base values,
 ``drop`` + ``duration`` a burst loss, ``partition`` new groups, ``[]`` heals), applied from the
@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from swarm_core.model.frenet import frame_from_quaternion, heading_frame
+from swarm_core.model.frenet import frame_from_quaternion
 
 DEFAULTS = dict(seed=None, radio_range=None, loss=0.0, latency=0.0, jitter=0.0, timeout=2.0,
                 dead_reckoning=True, links=(), partition=(), events=())
@@ -383,60 +383,6 @@ def dead_reckon(pos, qz, qw, u, horizon, moved=None):
         return p2, qz2, qw2
     m = np.asarray(moved, bool)
     return (np.where(m[:, None], p2, pos), np.where(m, qz2, qz), np.where(m, qw2, qw))
-
-
-def belief_controls(law, beliefs: Beliefs, step: int, model: CommModel, own_xy, own_theta,
-                    lambda_, is_leader, steering, target=None, barrier=None, active=None, t=None):
-    """u (K,) of the receivers ``beliefs.recv`` at ``step``, each from its own true state
-    (own_xy (K, 2), own_theta (K,)) and what it believes of the others (`Beliefs.known_pairs`),
-    with THE law `swarm_control`, all receivers in one call: the table holds the receivers'
-    own rows, then one row per believed (receiver, sender) pair, and the law sums over that
-    pair list (np.bincount, each receiver's senders in index order).  A receiver's sum is
-    therefore the same whichever receivers are asked with it: an agent asking for itself
-    alone gets the batch engine's u bit for bit.  is_leader (N,): the step's leader flags of
-    all agents; steering (K,); active (K,) bool or None: receivers out of the table (dead,
-    frozen) get u = 0; t: the sim time of the step, for a `Law`'s view.  (A dead agent stays
-    in the others' beliefs until its last state is older than the timeout: a receiver cannot
-    know it died.)  How the law reads the table is its own (`Law.believed_controls`: a view per
-    receiver, or the paper's laws' one call over the pair list)."""
-    K = beliefs.recv.size
-    act = slice(None) if active is None else np.flatnonzero(active)
-    a, j, x, y, c, s = beliefs.known_pairs(step, model, None if active is None else act)
-    own_xy = np.asarray(own_xy, float).reshape(K, 2)[act]
-    m = own_xy.shape[0]
-    pos = np.empty((m + a.size, 2))
-    pos[:m] = own_xy
-    pos[m:, 0], pos[m:, 1] = x, y
-    oc, os_ = heading_frame(np.asarray(own_theta, float).reshape(K)[act])
-    cos_t, sin_t = np.concatenate((oc, c)), np.concatenate((os_, s))
-    flags = nearest = None
-    if is_leader is not None:
-        is_leader = np.asarray(is_leader, bool)
-        flags = np.concatenate((is_leader[beliefs.recv[act]], is_leader[j]))
-        if law.uses_leaders:
-            nearest = _nearest_believed_leader(pos, a, m, flags[m:])
-    u = np.zeros(K)
-    u[act] = law.believed_controls(pos, cos_t, sin_t, a, m, lambda_=float(lambda_), is_leader=flags,
-                                   steering=np.asarray(steering, float).reshape(K)[act], target=target,
-                                   barrier=barrier, nearest=nearest, t=t)
-    return u
-
-
-def _nearest_believed_leader(pos, a, m, leader_pair):
-    """l(k) (eq. 10) of each of the m receivers: the table row (m + pair index) of the believed
-    leader nearest to it (Euclidean, as `pair_sums.nearest_leader` measures it; ties to the
-    lower sender row), −1 if it believes in none."""
-    out = np.full(m, -1, dtype=np.intp)
-    p = np.flatnonzero(leader_pair)
-    if p.size:
-        d = pos[a[p]] - pos[m + p]
-        d *= d
-        order = np.lexsort((p, d[:, 0] + d[:, 1], a[p]))       # by receiver, distance, sender
-        recv = a[p][order]
-        first = np.ones(recv.size, dtype=bool)                  # the first of each receiver
-        np.not_equal(recv[1:], recv[:-1], out=first[1:])
-        out[recv[first]] = m + p[order[first]]
-    return out
 
 
 def delay_stats(delay_counts, dt: float) -> dict:
