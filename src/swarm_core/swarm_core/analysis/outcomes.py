@@ -50,7 +50,6 @@ import warnings
 import numpy as np
 
 from swarm_core.analysis.metrics import cluster_labels
-from swarm_core.laws.spl import CircularFormation
 
 TRAJECTORY_CHECKS = ('follows_program', 'circular_formation', 'splay_state')
 
@@ -149,10 +148,12 @@ def lost_leader_group(traj, w, slot=None, agent=None):
 
 
 def circular_law_omega0(law):
-    """ω0 of a spl_circular law, or of the first one in a blend (the to-law first); None if none."""
+    """ω0 of a law whose agents fly one circle (its ``circle_turn_rate``: spl_circular), or of
+    the first one in a blend (the to-law first); None if none."""
     for side in (law, getattr(law, 'to_law', None), getattr(law, 'from_law', None)):
-        if isinstance(side, CircularFormation):
-            return float(side.omega0)
+        rate = getattr(side, 'circle_turn_rate', None)
+        if rate is not None:
+            return rate()
     return None
 
 

@@ -70,6 +70,11 @@ class CircularFormation(Law):
     def couples_globally(self, lambda_: float) -> bool:
         return self.communication == ALL_TO_ALL
 
+    def circle_turn_rate(self) -> float:
+        """ω0, the turn rate of the circle the agents fly (radius 1/ω0): what the outcome
+        ``circular_formation`` judges against (`analysis.outcomes`)."""
+        return float(self.omega0)
+
     def centres(self, view: View) -> np.ndarray:
         """c_k = r_k + i e^{iθ_k}/ω0 of every table row, as complex numbers."""
         return view.pos[:, 0] + 1j * view.pos[:, 1] + 1j * (view.cos + 1j * view.sin) / self.omega0
