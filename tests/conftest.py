@@ -22,6 +22,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers import PRINTED, refused_summaries
+
 # A suite started as a background job of a script (`bash .ci/run &`) inherits SIGINT ignored,
 # and every process it starts would ignore the Ctrl-C that the tests send them: undo that here.
 if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
@@ -157,7 +159,9 @@ class ProcessGroup:
         """``p.communicate(timeout)``'s stdout; on a timeout the child is stopped (SIGINT to its
         group) and the test fails with everything it printed."""
         try:
-            return p.communicate(timeout=timeout)[0]
+            out = p.communicate(timeout=timeout)[0]
+            PRINTED.append((out or '').splitlines())
+            return out
         except subprocess.TimeoutExpired:
             try:
                 os.killpg(p.pid, signal.SIGINT)
@@ -190,6 +194,25 @@ class ProcessGroup:
                 except ProcessLookupError:
                     pass
                 p.wait(timeout=5)
+
+
+@pytest.fixture(autouse=True)
+def no_refused_inputs(request):
+    """A node that refused inputs says so at its end (``rejected N inputs in all: ...``): in a
+    child a test started (`Lines`, `ProcessGroup.communicate`, the ``swarm`` fixture's runs) that
+    line fails the test, unless the test is marked ``refuses_inputs`` (it sends bad inputs on
+    purpose).  A refusal nobody expected is a bug: a check that drops good messages hides
+    behind it (every lone agent's realtime state was once dropped, and the runs still passed)."""
+    PRINTED.clear()
+    yield
+    outputs = list(PRINTED)
+    start = request.node.funcargs.get('swarm')
+    outputs += [run.log for run in getattr(start, 'runs', ())]
+    PRINTED.clear()
+    lines = refused_summaries(outputs)
+    if lines and request.node.get_closest_marker('refuses_inputs') is None:
+        pytest.fail('a node refused inputs this test does not send (mark it refuses_inputs if it '
+                    'does):\n' + '\n'.join(lines[:20]), pytrace=False)
 
 
 @pytest.fixture

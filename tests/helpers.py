@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import os
+import re
 import subprocess
 import threading
 import time
@@ -76,11 +77,25 @@ def two_agents(path, duration):
 DRAIN = 5.0
 
 
+#: what the children of the running test printed (`Lines`, `ProcessGroup.communicate`): lists of
+#: lines, read after the test for inputs a node refused (`refused_summaries`, tests/conftest.py)
+PRINTED: list[list[str]] = []
+
+#: the line a node prints at its end when it refused inputs (`msg_checks.RejectLog.summary`)
+REFUSED_SUMMARY = re.compile(r'rejected \d+ inputs in all')
+
+
+def refused_summaries(outputs) -> list[str]:
+    """The lines of ``outputs`` (lists of lines) in which a node says it refused inputs."""
+    return [ln.rstrip() for lines in outputs for ln in list(lines) if REFUSED_SUMMARY.search(ln)]
+
+
 class Lines:
     """Collects a child's stdout lines in a thread (start it with stdout=PIPE, text=True)."""
 
     def __init__(self, proc):
         self.lines = []
+        PRINTED.append(self.lines)
         self.t = threading.Thread(target=self._read, args=(proc,), daemon=True)
         self.t.start()
 

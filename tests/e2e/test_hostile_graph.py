@@ -12,6 +12,7 @@ import threading
 import time
 
 import numpy as np
+import pytest
 import rclpy
 from geometry_msgs.msg import Point32, PointStamped, PolygonStamped
 from nav_msgs.msg import Odometry
@@ -231,6 +232,7 @@ def test_live_verbs_that_cannot_act_exit_nonzero_and_name_the_run(rclpy_context,
         sp.close()
 
 
+@pytest.mark.refuses_inputs      # two runs on one domain: each refuses the other's messages (other-run)
 def test_a_second_swarm_run_on_the_domain_refuses_and_the_first_is_not_mixed(tmp_path, ros_domain, processes,
                                                                              swarm_cmd, monkeypatch):
     """Run A (in one process) is going; run B (processes) on the same ROS_DOMAIN_ID refuses to

@@ -158,6 +158,7 @@ def swarm(ros_domain, tmp_path):
         started.append(run)
         return run
 
+    start.runs = started              # what a test (or a conftest) may read after the runs
     yield start
     left = []
     for run in started:
