@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import subprocess
 
+import pytest
+
 from tests.helpers import Lines, two_agents
 
 #: the run's topics the peer writes std_msgs/String on: presubscribed ones and one found later
 HIJACKED = ('/swarm/states', '/clock', '/world/metrics', '/lockstep/step')
 
 
+@pytest.mark.refuses_inputs      # a peer writes other types on the recorded topics
 def test_a_writer_of_another_type_on_recorded_topics_loses_nothing(rclpy_context, processes, swarm_cmd, tmp_path):
     """A peer writes std_msgs/String on /swarm/states, /clock, /world/metrics and
     /lockstep/step before the run starts.  The recorder used to re-subscribe those topics with
