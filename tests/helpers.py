@@ -363,6 +363,9 @@ def node_inputs(full_name, want, timeout=30.0):
 #: a user's law file with a law for each way a law can fail during a run (after t = 5, so that the
 #: scenario's check at t = 0 passes and the run has steps to save), and a class that is no law
 FAULTY_LAWS = '''\
+import sys
+import threading
+
 import numpy as np
 
 from swarm_core.laws import Law, param
@@ -385,6 +388,47 @@ class WrongShape(Law):
 class NotFinite(Law):
     def control(self, view):
         return np.full(view.receivers.size, np.nan if view.t > 5 else 0.0)
+
+
+class Exits(Law):
+    def control(self, view):
+        if view.t > 5:
+            sys.exit(3)
+        return np.zeros(view.receivers.size)
+
+
+class OwnInterrupt(Law):
+    def control(self, view):
+        if view.t > 5:
+            raise KeyboardInterrupt
+        return np.zeros(view.receivers.size)
+
+
+class ClosesGenerator(Law):
+    def control(self, view):
+        if view.t > 5:
+            raise GeneratorExit('closed')
+        return np.zeros(view.receivers.size)
+
+
+class BadArray(Law):
+    def control(self, view):
+        class Reads:
+            def __array__(self, dtype=None, copy=None):
+                raise RuntimeError('cannot be read')
+        return Reads() if view.t > 5 else np.zeros(view.receivers.size)
+
+
+class ComplexU(Law):
+    def control(self, view):
+        return np.zeros(view.receivers.size) + (1j if view.t > 5 else 0)
+
+
+class LeavesThread(Law):
+    def control(self, view):
+        if view.t > 5:
+            threading.Thread(target=threading.Event().wait, name='never-ends').start()
+        return np.zeros(view.receivers.size)
 
 
 class NotALaw:

@@ -118,7 +118,10 @@ def test_a_blend_split_by_swarm_lambda_ends_in_the_circle(tmp_path, ros_domain, 
 
 PROBLEM = {'Raises': 'raised RuntimeError: boom after t = 5',
            'WrongShape': 'returned shape (2,), want (1,): one u per receiver',
-           'NotFinite': 'returned a non-finite u (nan)'}
+           'NotFinite': 'returned a non-finite u (nan)',
+           'Exits': 'raised SystemExit: 3',
+           'OwnInterrupt': 'raised KeyboardInterrupt (its own: no Ctrl-C came)',
+           'LeavesThread': 'left a thread running (never-ends): a law may not start threads that outlive its call'}
 
 
 @pytest.mark.parametrize('cls, options', [
@@ -127,7 +130,11 @@ PROBLEM = {'Raises': 'raised RuntimeError: boom after t = 5',
     ('Raises', ('--mode', 'realtime')),
     ('WrongShape', ('--in-process',)),
     ('NotFinite', ('--mode', 'realtime', '--in-process')),
-], ids=['raises-processes', 'raises-containers', 'raises-realtime', 'shape-in-process', 'nan-realtime-in-process'])
+    ('OwnInterrupt', ()),
+    ('Exits', ('--mode', 'realtime')),
+    ('LeavesThread', ('--agents-per-process', '3')),
+], ids=['raises-processes', 'raises-containers', 'raises-realtime', 'shape-in-process', 'nan-realtime-in-process',
+        'interrupt-processes', 'exit-realtime', 'thread-containers'])
 def test_a_law_that_fails_stops_the_run_with_one_line(cls, options, tmp_path, ros_domain, processes, swarm_cmd):
     path = faulty_law_scenario(tmp_path, f'faulty.py:{cls}', duration=30.0)
     out = tmp_path / 'run'

@@ -406,4 +406,5 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
     node.destroy_node()
     rclpy.try_shutdown()
     watchdog.cancel()
-    return code
+    guards = sys.modules.get('swarm_core.laws.guards')     # an agent's law that left a thread running
+    return code if guards is None else guards.exit_now_if_threads_left(code, logger_name)

@@ -126,6 +126,14 @@ def _usage() -> str:
 
 
 def main(argv=None) -> int:
+    code = _main(argv)
+    # a law that left a thread running would hold the process at its exit for ever (loaded
+    # only where a law ran: the light verbs import no law)
+    guards = sys.modules.get('swarm_core.laws.guards')
+    return code if guards is None else guards.exit_now_if_threads_left(code)
+
+
+def _main(argv) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ('-h', '--help', 'help'):
         print(_usage())

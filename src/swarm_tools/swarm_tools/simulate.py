@@ -18,6 +18,7 @@ from swarm_core.command.plan import law_timeline, read_commands
 from swarm_core.engine import reference as engine
 from swarm_core.files import write_atomic
 from swarm_core.laws import LawError, LawFailed
+from swarm_core.laws.guards import exit_workers_leaving_no_thread
 from swarm_core.scenario import loader as scenario
 
 
@@ -210,6 +211,7 @@ def _init_worker(stop):
     global _STOP
     _STOP = stop
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    exit_workers_leaving_no_thread()       # a law that left a thread running must not hold the pool
 
 
 def _sweep_one(args):

@@ -19,9 +19,12 @@ from __future__ import annotations
 
 import math
 import re
+import threading
 from dataclasses import dataclass
 
 import numpy as np
+
+from swarm_core.laws import guards
 
 #: w's range, as the paper's law has it (`laws.parameters`)
 CUTOFF_RANGE = (1e-9, 1e6)
@@ -224,21 +227,44 @@ class Law:
                     cutoff_radius=self.cutoff_radius, lam=float(lambda_), t=t,
                     is_leader=np.zeros(n, bool) if is_leader is None else np.asarray(is_leader, bool),
                     steering=np.zeros(k) if steering is None else np.asarray(steering, float))
+        sigints, threads = guards.watch_interrupts(), threading.active_count()
+        before = {t.ident for t in threading.enumerate()} if threads > 1 else {threading.get_ident()}
         try:
             u = self.control(view)
+            u = self._as_numbers(u)
         except LawError:
             raise
-        except Exception as err:   # any error of a user's law is named, not a traceback
+        except KeyboardInterrupt as err:    # the user's Ctrl-C goes on; the law's own is its error
+            if guards.user_interrupted(sigints):
+                raise
+            raise LawError(f'law {self.kind} raised KeyboardInterrupt (its own: no Ctrl-C came)') from err
+        except BaseException as err:        # any error of a user's law, SystemExit too, is named
             raise LawError(f'law {self.kind} raised {type(err).__name__}: {err}') from err
-        try:
-            u = np.asarray(u, dtype=float)
-        except (TypeError, ValueError):
-            raise LawError(f'law {self.kind} returned {type(u).__name__}, not numbers') from None
+        finally:
+            left = guards.left_threads(before) if threading.active_count() > threads else ()
+        if left:
+            raise LawError(f'law {self.kind} left a thread running ({left[0].name}): a law may not start '
+                           'threads that outlive its call')
         if u.shape != (k,):
             raise LawError(f'law {self.kind} returned shape {u.shape}, want ({k},): one u per receiver')
         if not np.all(np.isfinite(u)):
             raise LawError(f'law {self.kind} returned a non-finite u ({float(u[~np.isfinite(u)][0])!r})')
         return u
+
+    def _as_numbers(self, u) -> np.ndarray:
+        """``u`` as real numbers: LawError naming the law for anything else (a complex u, an
+        object whose conversion raises)."""
+        try:
+            arr = np.asarray(u)
+        except Exception as err:
+            raise LawError(f'law {self.kind} returned {type(u).__name__}, which raised {type(err).__name__} '
+                           f'when read as numbers: {err}') from err
+        if arr.dtype.kind == 'c' or arr.dtype == object and any(isinstance(v, complex) for v in arr.flat):
+            raise LawError(f'law {self.kind} returned a complex u: a curvature is a real number')
+        try:
+            return arr.astype(float, copy=False)
+        except (TypeError, ValueError):
+            raise LawError(f'law {self.kind} returned {type(u).__name__}, not numbers') from None
 
     def pair_list(self, pos, lambda_: float, search: str = 'auto'):
         """What `evaluate` sums over for a table at ``pos`` (``pairs``): None, the whole table

@@ -31,6 +31,7 @@ from swarm_core.analysis.outputs import analyse, summary_of
 from swarm_core.checks import InputError
 from swarm_core.engine import registry
 from swarm_core.laws import LawError
+from swarm_core.laws.guards import exit_workers_leaving_no_thread
 from swarm_core.laws.paper.parameters import LAW_KINDS
 from swarm_core.laws.registry import law_code_hash
 from swarm_core.robot_units import ROBOT_SETS
@@ -348,6 +349,7 @@ def run_task(task: Task) -> dict:
 
 def _ignore_sigint():
     signal.signal(signal.SIGINT, signal.SIG_IGN)   # the parent decides what a Ctrl-C ends
+    exit_workers_leaving_no_thread()               # a law that left a thread must not hold the pool
 
 
 def _local_map(todo, jobs):
