@@ -103,7 +103,7 @@ def _law_file(kind: str, path: Path):
         module = importlib.util.module_from_spec(spec)
         sys.modules[mod_name] = module
         spec.loader.exec_module(module)
-    except Exception as err:   # a law file that does not import: named in one line
+    except (Exception, SystemExit) as err:   # a law file that does not import (or exits): one line
         sys.modules.pop(mod_name, None)
         raise LawError(f'law.kind {kind!r}: {path.name} does not import: {type(err).__name__}: {err}') from None
     _FILES[path] = (stamp, module)
@@ -116,6 +116,8 @@ def law_class(kind: str, base_dir=None, field: str = 'law') -> type[Law]:
     cls = _by_name(kind, field)
     if cls is not None:
         return cls
+    if '\0' in kind:
+        raise LawError(f'{field}.kind {kind!r}: a NUL byte is in no file\'s or module\'s name')
     source, sep, name = kind.rpartition(':')
     if not sep or not source or not name.isidentifier():
         raise LawError(f'{field}.kind {kind!r}: not a law kind ({", ".join(names())}) '
@@ -132,7 +134,7 @@ def law_class(kind: str, base_dir=None, field: str = 'law') -> type[Law]:
     else:
         try:
             module = importlib.import_module(source)
-        except Exception as err:   # a module that does not import: named in one line
+        except (Exception, SystemExit) as err:   # a module that does not import (or exits): one line
             raise LawError(f'{field}.kind {kind!r}: module {source} does not import: '
                            f'{type(err).__name__}: {err}') from None
         kind_name = kind

@@ -268,6 +268,8 @@ def read_text(path, what: str = 'file', hint: str = '') -> str:
     limits of every YAML input: a regular file (a FIFO, a device or a directory is refused,
     never read or waited on; `files.read_regular`) of at most `MAX_FILE_BYTES`, UTF-8.
     ScenarioError naming ``path`` (``what`` it is; ``hint``: how to stay within the size)."""
+    if '\0' in str(path):
+        raise ScenarioError(f'{str(path)!r}: a path with a NUL byte names no {what}')
     try:
         raw = read_regular(path, MAX_FILE_BYTES)
     except FileNotFoundError:
@@ -284,6 +286,8 @@ def read_text(path, what: str = 'file', hint: str = '') -> str:
 
 def resolve(name_or_path: str) -> tuple[str, str]:
     """(text, source) of a shipped scenario name or a YAML file path."""
+    if '\0' in str(name_or_path):
+        raise ScenarioError(f'{str(name_or_path)!r}: a path with a NUL byte names no scenario file')
     p = Path(name_or_path)
     if p.suffix in ('.yaml', '.yml') or p.exists() or p.is_symlink():
         return read_text(p, 'scenario file', ' (give large swarms a placement rule)'), str(p)
