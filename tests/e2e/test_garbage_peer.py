@@ -39,13 +39,13 @@ class Peer:
     participant for writers of another type (one participant refuses two types on a topic)."""
 
     #: the packed topics each mode's nodes read raw
-    PACKED = {'lockstep': (P.LOCK_STEP, P.LOCK_AGENT_STATES), 'realtime': (P.AGENT_STATES, P.DECISION)}
+    PACKED = {'lockstep': (P.LOCK_STEP, P.LOCK_AGENT_STATES), 'realtime': (P.AGENT_STATES, P.DECISION, P.RUN_CLOCK)}
 
     def __init__(self, ctx, domain, n, mode):
         self.n = n
-        # /clock readers in the run: realtime the commander and the agents; lockstep none (the
-        # agents and the commander take their time from the step messages)
-        self.clock_readers = 1 if mode == 'realtime' else 0
+        # /clock readers in the run: none (lockstep: the agents and the commander take their time
+        # from the step messages; realtime: from the run's clock, /swarm/clock)
+        self.clock_readers = 0
         self.node = rclpy.create_node('peer', context=ctx)
         self.ctx2 = Context()
         rclpy.init(context=self.ctx2, domain_id=domain)
@@ -155,7 +155,8 @@ def test_garbage_on_every_topic_of_a_lockstep_run_ends_no_node(tmp_path, rclpy_c
 
 def test_garbage_on_every_topic_of_a_realtime_run_ends_no_node(tmp_path, rclpy_context, ros_domain):
     """The same peer next to a realtime run: a /clock before 0 used to end every node that
-    follows the sim clock (agents, commander), an event of the run naming a leader slot by a
+    followed the sim clock (agents, commander; they follow the run's /swarm/clock now, and
+    refuse garbage there), an event of the run naming a leader slot by a
     list the world.  Every node goes on to the end, no state is NaN, and the counts say what
     each refused."""
     with run_beside_a_peer(tmp_path, rclpy_context, ros_domain, 'realtime', 5.0, 4, 0.1,
@@ -167,8 +168,8 @@ def test_garbage_on_every_topic_of_a_realtime_run_ends_no_node(tmp_path, rclpy_c
         assert np.isfinite(tr.r[-1]).all() and np.isfinite(tr.theta[-1]).all()
         for a in agents:
             assert np.isfinite(a.core.pos).all() and a.target is None
-            assert f'unreadable:{P.CLOCK}' in a.reject.kinds, a.reject.lines
-        assert f'unreadable:{P.CLOCK}' in commander.reject.kinds, commander.reject.lines
+            assert 'clock' in a.reject.kinds, a.reject.lines
+        assert 'clock' in commander.reject.kinds, commander.reject.lines
         assert {f'unreadable:{P.EVENTS}', 'state-decode'} <= set(world.reject.kinds), world.reject.lines
         for nd in (world, commander, *agents):
             assert len(nd.reject.lines) <= 2 * len(nd.reject.kinds), (nd.get_name(), nd.reject.lines)

@@ -69,6 +69,7 @@ from swarm_ros.msg_checks import (
     refused,
 )
 from swarm_ros.rosutil import declare, gid_key, require_sim_clock, run_node, steady_clock, step_time, when_matched
+from swarm_ros.run_clock import follow_run_clock
 from swarm_ros.run_control import event_text, forward_text
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
@@ -218,7 +219,10 @@ class CommanderNode(Node):
             self._join_lockstep()
 
     def _start_realtime(self):
-        """A timer at 1/dt (sim time) decides from the newest states (/swarm/agent_states)."""
+        """A timer at 1/dt (sim time) decides from the newest states (/swarm/agent_states); in a
+        run (a run id) that sim time is the run's clock alone, not /clock (`swarm_ros.run_clock`)."""
+        if self.run_id:
+            follow_run_clock(self, self.run_id, self.reject)
         self.pos = self.scn.pos0.copy()
         self.quat = np.stack(quaternion_from_heading(self.scn.theta0), axis=1)   # (n, 2) qz, qw heard
         self.last_seen = np.full(self.n, -np.inf)

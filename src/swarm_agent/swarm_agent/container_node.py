@@ -59,6 +59,7 @@ from swarm_ros import protocol as P
 from swarm_ros.layouts import RealtimeDecision
 from swarm_ros.msg_checks import RejectLog, batch_states, check_decision_time, decoded, guard_subscriptions, refused
 from swarm_ros.rosutil import ParameterError, declare, run_node, step_time
+from swarm_ros.run_clock import follow_run_clock
 
 
 class AgentContainer(Node):
@@ -99,7 +100,10 @@ class AgentContainer(Node):
                 self.clock_source.attach_clock(a.get_clock())
         if self.mode == 'realtime':
             self.clock_source.attach_clock(first.get_clock())
-        if self.mode == 'realtime' or self.lockstep_clock == 'topic':
+        if self.mode == 'realtime' and first.run_id:      # a run's: its clock alone (`run_clock`), no /clock
+            self.clock_source.ros_time_is_active = True
+            follow_run_clock(self, first.run_id, self.reject, [first.get_clock()], self.clock_source)
+        elif self.mode == 'realtime' or self.lockstep_clock == 'topic':
             self.clock_source.attach_node(self)
             self.clock_source.ros_time_is_active = True
         else:

@@ -21,6 +21,7 @@ from swarm_core.radio import StreamRadio
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, Senders, batch_states, check_values, refused
 from swarm_ros.rosutil import declare, step_time, when_matched
+from swarm_ros.run_clock import follow_the_run_clock
 
 
 class LockstepDriver:
@@ -160,6 +161,7 @@ class RealtimeDriver:
     def start(self):
         node = self.node
         if not node.contained:
+            follow_the_run_clock(node)
             now = node._now()
             if now > CATCH_UP_MAX * node.dt:     # no sim clock: its time starts at the first reading
                 node.t = now

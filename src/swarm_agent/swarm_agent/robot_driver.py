@@ -59,6 +59,7 @@ from swarm_core.robot_units import (
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import new_sender_tag
 from swarm_ros.rosutil import ParameterError, declare, fail, step_time
+from swarm_ros.run_clock import follow_the_run_clock
 from swarm_ros.run_control import command_frame, event_text
 
 #: the robot's clock: the swarm's sim clock (a simulator on /clock, lockstep) or the system
@@ -361,6 +362,7 @@ class RealtimeRobotDriver(RealtimeDriver):
         states heard, its batch writer and a timer on the container's clock (`container_node`)."""
         node = self.node
         if not node.contained:
+            follow_the_run_clock(node)
             self.batch = AgentStatesWriter(node, realtime=True)
             self.process_tag = self.batch.tag
             self.timer = node.create_timer(node.dt, self.on_tick)

@@ -50,6 +50,7 @@ from swarm_ros import protocol as P
 from swarm_ros.layouts import RobotStates, Step
 from swarm_ros.msg_checks import RejectLog, decoded, guard_subscriptions, new_sender_tag
 from swarm_ros.rosutil import ParameterError, declare, require_sim_clock, run_node, steady_clock
+from swarm_ros.run_clock import follow_run_clock
 from swarm_ros.run_control import CommandSenders, EventRefused, decode_command, run_event
 from swarm_ros.runinfo import declare_run_id
 from swarm_ros.scenario_params import declare_scenario
@@ -128,6 +129,8 @@ class RobotsNode(Node):
             self.pub_report.publish(self.report)
         else:
             self.pacer, self.asked = RealtimePacer(self.scale), 0.0
+            if self.run_id:             # the run's clock alone, not /clock (`swarm_ros.run_clock`)
+                follow_run_clock(self, self.run_id, self.reject)
             self.create_timer(TICK, self._tick, clock=steady_clock())
         self.get_logger().info(
             f'{len(self.agents)} robots ({self.mode}): L = {self.sec.length_scale:g} m, v0 = '

@@ -35,6 +35,7 @@ from swarm_ros.protocol import (
     LOCK_AGENT_STATES,
     LOCK_ROBOT_STATES,
     LOCK_STEP,
+    RUN_CLOCK,
     cdr_to_float64_array,
     float64_array_header,
 )
@@ -188,7 +189,7 @@ class Layout:
                 self.counts[f.name] = at
             assert all(d in self.counts for d in f.dims() if isinstance(d, str)), f'{topic}: {f.name}'
             at = None if at is None or any(isinstance(d, str) for d in f.dims()) else at + int(np.prod(f.dims()))
-        self.head = max(self.counts.values()) + 1    # doubles up to the last count
+        self.head = max(self.counts.values(), default=_RUN_DOUBLES - 1) + 1    # doubles up to the last count
         # a count's value when packing: the rows of the first field counted by it
         self.count_of = {c: next(f.name for f in self.fields if f.dims()[0] == c) for c in self.counts}
         assert [fl.name for fl in dataclasses.fields(cls)] == [f.name for f in self.fields if f.kind != 'count'], topic
@@ -399,4 +400,14 @@ class Step(Packed):
     rendezvous: Any
 
 
-MESSAGES = (AgentStates, RobotStates, ProcessStates, RealtimeDecision, Step)
+@declare(RUN_CLOCK, Field('tag', kind='finite'), Field('rtf', kind='finite'), Field('t'))
+@dataclasses.dataclass(eq=False)
+class RunClock(Packed):
+    """Realtime: the world's sim time ``t`` (what it also sends on /clock), sent each tick beside it
+    for the nodes of its run, which follow this clock alone (`swarm_ros.run_clock`)."""
+    tag: float               # the world's sender tag (the readers bind the clock to the first)
+    rtf: float               # sim s per wall s: how fast the run's clock can go
+    t: float
+
+
+MESSAGES = (AgentStates, RobotStates, ProcessStates, RealtimeDecision, Step, RunClock)

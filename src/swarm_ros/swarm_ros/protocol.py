@@ -35,6 +35,9 @@ AGENT_STATES = '/swarm/agent_states'
 #: the agents and the world read; /swarm/lambda and /<agent>/steering are for the record and for
 #: commands, which only the commander reads (docs/ros-graph.md, docs/commands.md)
 DECISION = '/swarm/decision'
+#: realtime: the world's sim time with the run id and its sender tag (`layouts.RunClock`): the
+#: one clock a node of a run follows (`run_clock`); /clock is for the recorder and the tools
+RUN_CLOCK = '/swarm/clock'
 #: publisher depth of /swarm/agent_states (transient-local): a late reader gets each process's
 #: newest states (the first ones included while the run starts)
 AGENT_STATES_DEPTH = 10

@@ -29,7 +29,7 @@ from swarm_core.analysis import metrics as M
 from swarm_core.command.plan import check_command
 from swarm_core.files import write_atomic
 from swarm_ros import protocol as P
-from swarm_ros.layouts import AgentStates, ProcessStates, RealtimeDecision, RobotStates
+from swarm_ros.layouts import AgentStates, ProcessStates, RealtimeDecision, RobotStates, RunClock
 from swarm_ros.msg_checks import (
     NewestStates,
     ProcessSenders,
@@ -37,6 +37,7 @@ from swarm_ros.msg_checks import (
     check_agent_states,
     check_decision_time,
     decoded,
+    new_sender_tag,
     refused,
 )
 from swarm_ros.rosutil import ParameterError
@@ -342,6 +343,9 @@ class RealtimeDriver:
         # the commander's decision of each tick (not /swarm/lambda, where a user's command is for
         # the commander alone; lockstep: in each decision)
         node.create_subscription(Float64MultiArray, P.DECISION, self.on_decision, P.qos_latched(), raw=True)
+        # the sim time for the run's own nodes, with the run id and a tag of this world (`run_clock`)
+        self.pub_run_clock = node.create_publisher(Float64MultiArray, P.RUN_CLOCK, P.qos_reliable(P.STEP_DEPTH))
+        self.clock_tag = new_sender_tag()
 
     # ------------------------------------------------------------ inputs
     def on_states(self, raw):
@@ -412,6 +416,7 @@ class RealtimeDriver:
             self.silence.start(now)
         node.sim_t = (now - node.run_wall) * self.rtf
         node.pub_clock.publish(Clock(clock=stamp(node.sim_t)))
+        self.pub_run_clock.publish(RunClock(self.clock_tag, self.rtf, node.sim_t).to_cdr(node.run_id))
         k = P.step_of(node.sim_t, node.dt)
         node.carry_out(self.schedule.comms_due(k))
         self.lose_silent(now)

@@ -20,7 +20,8 @@ from tests.helpers import node_inputs, overrides
 COMMON = {P.TARGET, P.BARRIER, P.EVENTS}
 INPUTS = {'lockstep': COMMON | {P.LOCK_STEP},
           'lockstep-clock': COMMON | {P.LOCK_STEP, P.CLOCK},        # lockstep_clock:=topic
-          'realtime': COMMON | {P.AGENT_STATES, P.DECISION, P.CLOCK}}
+          'realtime': COMMON | {P.AGENT_STATES, P.DECISION, P.CLOCK},
+          'realtime-run': COMMON | {P.AGENT_STATES, P.DECISION, P.RUN_CLOCK}}     # a run's: its clock, no /clock
 COMMANDS = {P.LAMBDA, P.LEADERS, P.steering_topic('agent_0'), P.steering_topic('agent_1')}
 
 
@@ -28,6 +29,8 @@ def _parameters(case, k):
     prm = agent_parameters(load('homotopy_global'), k, case.split('-')[0])
     if case == 'lockstep-clock':
         prm['lockstep_clock'] = 'topic'
+    if case == 'realtime-run':
+        prm['run_id'] = 'run42'
     return prm
 
 
@@ -41,7 +44,7 @@ def test_every_input_of_a_lone_agent_is_in_the_graph_from_its_start(case, rclpy_
     agent.destroy_node()
 
 
-@pytest.mark.parametrize('case', ['lockstep', 'realtime'])
+@pytest.mark.parametrize('case', ['lockstep', 'realtime', 'realtime-run'])
 def test_every_input_of_an_agent_container_is_in_the_graph_from_its_start(case, rclpy_context):
     """The host node ``/agent_container_0`` reads what its agents share; each agent node
     ``/agent_k/agent`` in it reads nothing of its own (its writer of /swarm/states is there)."""

@@ -387,10 +387,11 @@ def start_recorder(sup, record, env, params: dict, params_file) -> bool:
     """Start the recorder of ``--record`` and wait until it is ready; False if it ended first
     (e.g. a full disk): the parameters file is then written again so that no node waits for it."""
     # /lockstep/agent_states, /lockstep/robot_states and /swarm/agent_states hold the /swarm/states
-    # again, batched per process (or robot world): not kept
+    # again, batched per process (or robot world): not kept; nor /swarm/clock, /clock again
     roster = [p['agent_name'] for fqn, p in params.items() if fqn.endswith('/agent')]
-    rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record), '--exclude', P.LOCK_AGENT_STATES,
-                               P.LOCK_ROBOT_STATES, P.AGENT_STATES] + (['--agents', *roster] if roster else []),
+    excluded = [P.LOCK_AGENT_STATES, P.LOCK_ROBOT_STATES, P.AGENT_STATES, P.RUN_CLOCK]
+    rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record), '--exclude', *excluded]
+                    + (['--agents', *roster] if roster else []),
                     dds.super_client(env), stderr=subprocess.PIPE, text=True, bufsize=1)
     if wait_until_ready(rec, 'swarm record: ready', RECORDER_READY_TIMEOUT):
         return True
