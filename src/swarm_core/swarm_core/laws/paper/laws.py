@@ -105,7 +105,7 @@ class PaperLaw(Law):
         elif isinstance(pairs, str):    # large swarms: compiled, to rounding
             sums = self._compiled_sums(pos, cos_sin, F, receivers, lam, q0, leaders)
         else:
-            sums = _pair_sum_sparse(pos, cos_t, sin_t, cos_sin, F, receivers, self, lam, q0, leaders, pairs, nearest)
+            sums = _pair_sum_sparse(pos, cos_sin, F, receivers, self, lam, q0, leaders, pairs, nearest)
 
         if leaders is not None:
             s = np.zeros(receivers.size) if steering is None else np.asarray(steering, dtype=float)

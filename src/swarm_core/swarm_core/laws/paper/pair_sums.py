@@ -443,10 +443,11 @@ def _pair_sums_sparse(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_
     return m, True
 
 
-def _pair_sum_sparse(pos, cos_t, sin_t, cos_sin, F, receivers, law, lam, q0, leaders, pairs, nearest=None):
+def _pair_sum_sparse(pos, cos_sin, F, receivers, law, lam, q0, leaders, pairs, nearest=None):
     """Σ_j weight_jk·u_jk of each receiver over a pair list; a row with coincident agents
     (non-finite in the fast form) is redone with explicit masks.  nearest: l(k) of each
     receiver (default: `nearest_leader` on the table)."""
+    cos_t, sin_t = cos_sin
     l_of_k = None
     if leaders is not None:
         l_of_k = nearest_leader(pos, receivers, leaders.nonzero()[0]) if nearest is None else nearest
