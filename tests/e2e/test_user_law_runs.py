@@ -202,3 +202,22 @@ def test_a_law_an_installed_package_registers_runs_by_name(tmp_path, ros_domain,
     np.testing.assert_array_equal(got.u, ref.u)
     np.testing.assert_array_equal(got.r, ref.r)
     assert np.all(got.u == 0.15)
+
+
+def test_an_agent_whose_law_calls_os_exit_stops_the_run_as_vanished(tmp_path, ros_domain, processes, swarm_cmd):
+    """os._exit in a law ends the agent's process with no word (nothing can catch it): the
+    launcher says it vanished and stops the run, non-zero, with the steps done; an agent
+    process stopped by a signal is not taken for one (its note), as the fault runs test."""
+    (tmp_path / 'vanish.py').write_text(
+        'import os\nimport numpy as np\nfrom swarm_core.laws import Law\n\n\nclass Vanish(Law):\n'
+        '    def control(self, view):\n        if view.t > 5:\n            os._exit(0)\n'
+        '        return np.zeros(view.receivers.size)\n')
+    path = faulty_law_scenario(tmp_path, 'vanish.py:Vanish', duration=30.0)
+    out = tmp_path / 'run'
+    code, text, wall = run_swarm(processes, swarm_cmd, path, out, timeout=180)
+    assert code == 1, text[-3000:]
+    said = [ln for ln in text.splitlines() if 'vanished' in ln]
+    assert said and said[0].startswith('swarm run: agent_') and 'exited with code 0 without a word' in said[0]
+    got = Trajectory.load(out / 'trajectory.npz')
+    assert 4.9 <= got.t[-1] <= 6.0 and 'vanished' in yaml.safe_load((out / 'metrics.json').read_text())['summary'][
+        'stopped']

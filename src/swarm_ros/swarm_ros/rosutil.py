@@ -321,6 +321,23 @@ def fatal_note(logger, err) -> None:
     logger.error(str(err))
 
 
+#: the suffix of the note a node stopped by a signal leaves in `EXIT_NOTES` (`stopped_note`):
+#: its exit is no news to a launcher; a node that exits without any note vanished
+STOPPED_SUFFIX = '.stopped'
+
+
+def stopped_note(signum) -> None:
+    """A node stopped by signal ``signum`` says so in `EXIT_NOTES` (if set): a launcher then
+    knows its process did not vanish (a law that called ``os._exit``, which nothing can catch)."""
+    where = os.environ.get(EXIT_NOTES)
+    if where:
+        try:
+            with open(os.path.join(where, f'{os.getpid()}{STOPPED_SUFFIX}'), 'w') as fh:
+                fh.write(signal.Signals(signum).name)
+        except (OSError, ValueError):
+            pass
+
+
 def read_fatal_note(where) -> str | None:
     """The first line a node left in ``where`` (`fatal_note`), or None."""
     try:
@@ -384,6 +401,8 @@ def run_node(node_class, logger_name, argv=None, *, done=None, exit_code=None, o
     if failed is not None:
         fatal_note(node.get_logger(), failed)
     watch.returned()
+    if stop:
+        stopped_note(stop[0])
     if profile is not None:
         profile(f'{logger_name}-{node.get_name()}')
     if stop and on_stop is not None:

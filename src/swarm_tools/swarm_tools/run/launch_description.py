@@ -43,7 +43,15 @@ from pathlib import Path
 from swarm_ros.rosutil import EXIT_NOTES, FATAL_EXIT, read_fatal_note
 from swarm_tools.run import launch
 from swarm_tools.run.launch import NotStarted
-from swarm_tools.run.processes import REFUSED_EXIT, ProcessSpec, exit_line, note_of, refusal_line, write_pids
+from swarm_tools.run.processes import (
+    REFUSED_EXIT,
+    ProcessSpec,
+    exit_line,
+    note_of,
+    refusal_line,
+    vanished_line,
+    write_pids,
+)
 
 __all__ = ['NOT_OFFERED', 'ActionSpec', 'LaunchArgument', 'LaunchRun', 'NotStarted', 'action_spec',
            'launch_arguments', 'parse', 'prepare', 'run_argv']
@@ -231,6 +239,11 @@ class LaunchRun:
         if refused:                 # an agent that refused its parameters: as `run_processes` does
             self.run.stopped, self.code = refused, REFUSED_EXIT
             return [f'swarm run: {refused}; stopping the run'], True
+        vanished = label in self.members and vanished_line(spec, returncode, self.procs.env.get(EXIT_NOTES),
+                                                           self.pids.get(label))
+        if vanished:                # an agent process that exited without a word (os._exit in a law)
+            self.run.stopped, self.code = vanished, 1
+            return [f'swarm run: {vanished}; stopping the run'], True
         if not spec.vital:
             return [exit_line(spec, returncode, self.run.events_file)], False
         self.code = 1

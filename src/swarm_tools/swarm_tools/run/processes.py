@@ -18,7 +18,7 @@ from pathlib import Path
 
 from swarm_core.files import write_atomic
 from swarm_ros import protocol as P
-from swarm_ros.rosutil import FATAL_EXIT, read_fatal_note
+from swarm_ros.rosutil import FATAL_EXIT, STOPPED_SUFFIX, read_fatal_note
 from swarm_tools.run import dds
 from swarm_tools.run.params import write_params_file
 
@@ -342,6 +342,18 @@ def exit_line(spec: ProcessSpec, rc: int, events_file=None) -> str:
 REFUSED_EXIT = 2
 
 
+def vanished_line(spec: ProcessSpec, rc: int, notes, pid) -> str | None:
+    """The line that stops the run when the agent process of ``spec`` exited with ``rc`` on its
+    own without a word: no note (`rosutil.fatal_note`), not stopped by a signal (none came, its
+    note `rosutil.stopped_note` says; a process killed by one has ``rc`` < 0), e.g. a law that
+    called ``os._exit``.  None for any other exit (the world drops a killed agent and goes on)."""
+    if not notes or pid is None or rc < 0 or rc >= 128 or note_of(notes, pid) is not None \
+            or (Path(notes) / f'{pid}{STOPPED_SUFFIX}').exists():
+        return None
+    return (f'{spec.label} vanished: its process exited with code {rc} without a word (a law that '
+            'calls os._exit ends it so: nothing can catch that)')
+
+
 def note_of(notes, pid) -> str | None:
     """The line the process ``pid`` left in the directory ``notes`` when it stopped on an error
     or refused its parameters (`rosutil.fatal_note`), or None."""
@@ -433,6 +445,13 @@ def _stop_code(sup, by_label: dict, members: dict, gone: set, notes=None, events
             if k != 'record':                 # traceback (SIGINT would raise in it); the rest stop
                 p.send_signal(signal.SIGTERM)
         return REFUSED_EXIT
+    vanished = [line for k in dead if k in members and k not in gone
+                for line in [vanished_line(by_label[k], sup.procs[k].returncode, notes, sup.procs[k].pid)] if line]
+    if vanished:
+        print(f'swarm run: {vanished[0]}; stopping the run', file=sys.stderr, flush=True)
+        if stopped_by is not None:
+            stopped_by.append(vanished[0])
+        return 1
     for k in [k for k in dead if k in members]:
         gone.add(k)
         print(exit_line(by_label[k], sup.procs[k].returncode, events_file), file=sys.stderr, flush=True)
