@@ -66,6 +66,7 @@ from swarm_core.laws import (
 )
 from swarm_core.model.integrate import noise_rng
 from swarm_core.radio import CommModel, change_from_event
+from swarm_core.reserved import check_law_names
 from swarm_core.robot_units import ROBOT_KINDS
 from swarm_ros import protocol as P
 from swarm_ros.layouts import RealtimeDecision
@@ -193,6 +194,7 @@ class AgentNode(Node):
         try:
             kinds()
             template = default_law(values)
+            check_law_names(template)       # (a scenario refuses it too, `swarm_core.reserved`)
             for name, (default, text, limits) in parameter_specs(template).items():
                 if name.endswith('law') and name in values:
                     continue

@@ -34,6 +34,7 @@ from swarm_core.laws import Law, LawError, law_class, make_law, swarm_control
 from swarm_core.laws.paper.parameters import LAW_KINDS, LAW_TABLE
 from swarm_core.model.integrate import noise_rng
 from swarm_core.radio import CommModel
+from swarm_core.reserved import check_law_names
 from swarm_core.robot_spec import RobotsSpec
 from swarm_core.scenario.placement import AgentsSpec, initial_conditions
 from swarm_core.scenario.sections import (
@@ -323,6 +324,7 @@ def _law_of_another_kind(data: dict, source: str):
     path = Path(source)
     try:
         law = make_law(section, base_dir=path.parent if path.is_file() else None)
+        check_law_names(law)        # no parameter an agent node or Law already has (every engine alike)
     except LawError as err:
         raise ScenarioError(f'{source}: {err}') from None
     data['law'] = {}
