@@ -7,7 +7,8 @@ import time
 
 from swarm_tools.run.processes import Supervisor
 
-# a child that takes ``delay`` s after SIGINT to write its output, then exits
+# a child that takes ``delay`` s after SIGINT or SIGTERM (the launcher's stop signal, as a node
+# stops on either: `rosutil.stop_on_signals`) to write its output, then exits
 SLOW_SAVER = '''
 import signal, sys, time
 def save(*_):
@@ -15,12 +16,14 @@ def save(*_):
     open(sys.argv[1], "w").write("saved")
     sys.exit(130)
 signal.signal(signal.SIGINT, save)
+signal.signal(signal.SIGTERM, save)
 print("ready", flush=True)
 while True:
     time.sleep(0.05)
 '''
-# a child that ignores SIGINT (a process stuck in a callback)
-DEAF = 'import signal, time\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\nprint("ready", flush=True)\ntime.sleep(60)\n'
+# a child that ignores the stop signals (a process stuck in a callback)
+DEAF = ('import signal, time\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\n'
+        'signal.signal(signal.SIGTERM, signal.SIG_IGN)\nprint("ready", flush=True)\ntime.sleep(60)\n')
 
 
 def _start(sup, label, code, *args):
@@ -31,7 +34,7 @@ def _start(sup, label, code, *args):
 
 
 def test_a_process_that_writes_the_outputs_gets_time_to_save_them(tmp_path):
-    """The world saves its trajectory after SIGINT; on a loaded machine that can outlast the
+    """The world saves its trajectory after the stop signal; on a loaded machine that can outlast the
     grace the other processes get.  It is waited for (up to its own grace); the others are
     killed at theirs."""
     sup = Supervisor()
@@ -57,7 +60,7 @@ def test_a_keeper_that_never_ends_is_killed_after_its_grace(tmp_path):
 
 
 def test_the_discovery_server_stops_after_the_others_have_left(tmp_path):
-    """The processes named ``last`` (the discovery server) get SIGINT only once the others have
+    """The processes named ``last`` (the discovery server) get the stop signal only once the others have
     ended, and `LAST_LINGER` s later: time to tell the other hosts that the run's participants
     have left (`swarm join` ends on that)."""
     from swarm_tools.run.processes import LAST_LINGER
