@@ -52,6 +52,7 @@ def test_a_foreign_clock_neither_stops_nor_blinds_a_realtime_run(clock, ros_doma
     text = ''.join(lines.lines)
     assert code == 0, text[-4000:]
     assert 'from the future' not in text and 'rejected' not in text, text[-4000:]
+    assert '[world]: another writer of /clock: /peer; the nodes of this run do not read it' in text, text[-4000:]
     assert not [e for e in read_events(out / 'events.jsonl') if e['kind'] == 'lost']
     assert json.loads((out / 'metrics.json').read_text())['summary']['t_end'] == pytest.approx(10.0, abs=0.2)
     assert readers == [], f'nodes of the run read /clock: {readers}'

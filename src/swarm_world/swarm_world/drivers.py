@@ -329,6 +329,7 @@ class RealtimeDriver:
                                                  view_every=node.view_every)
         self.lateness = Lateness(node.n, node.dt, rtf)     # states on time (`lateness`)
         self.heard = NewestStates(node.n)                  # each agent's newest accepted state
+        self.next_writer_look, self.clock_writers = 0.0, set()    # `watch_clock_writers`
 
     def tick_period(self):
         """Wall s between the node's ticks: each publishes /clock (`realtime.clock_tick`)."""
@@ -417,6 +418,7 @@ class RealtimeDriver:
         node.sim_t = (now - node.run_wall) * self.rtf
         node.pub_clock.publish(Clock(clock=stamp(node.sim_t)))
         self.pub_run_clock.publish(RunClock(self.clock_tag, self.rtf, node.sim_t).to_cdr(node.run_id))
+        self.watch_clock_writers(now)
         k = P.step_of(node.sim_t, node.dt)
         node.carry_out(self.schedule.comms_due(k))
         self.lose_silent(now)
@@ -441,6 +443,21 @@ class RealtimeDriver:
         node.carry_out(acts)
         if node.sim_t >= node.scn.duration:
             node.finish()
+
+    def watch_clock_writers(self, now):
+        """Once a wall second: say once per node (at most 16) that another node writes /clock.
+        The nodes of this run do not read it (they follow /swarm/clock); the recorder and tools do."""
+        if now < self.next_writer_look or len(self.clock_writers) >= 16:
+            return
+        self.next_writer_look = now + 1.0
+        node = self.node
+        own = node.get_fully_qualified_name()
+        for w in node.get_publishers_info_by_topic(P.CLOCK):
+            name = f'{w.node_namespace.rstrip("/")}/{w.node_name}'
+            if name != own and name not in self.clock_writers:
+                self.clock_writers.add(name)
+                node.get_logger().warning(f'another writer of {P.CLOCK}: {name}; the nodes of this run do not read '
+                                          f'it (they follow {P.RUN_CLOCK}), the recorder and the tools do')
 
     def lose_silent(self, now):
         """The agents (neither dead nor frozen) silent for ``missing_timeout`` wall s are lost

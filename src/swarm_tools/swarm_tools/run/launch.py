@@ -6,7 +6,7 @@ With ``--agents-per-process K`` the agents run K to a process (agent containers,
 The launcher writes one parameter file for all nodes (agents get their name, roster, initial
 state, law and gains, w, dt; world and commander get the scenario reference), starts the
 processes in one process group of their own, prints the world's progress, stops everything on
-Ctrl-C / SIGTERM / SIGHUP (SIGINT to the group, then SIGKILL after a grace period) and, at the end,
+Ctrl-C / SIGTERM / SIGHUP (SIGTERM to the group, then SIGKILL after a grace period) and, at the end,
 writes what ``swarm simulate`` writes (trajectory.npz from what was published, metrics.json,
 a figure) to ``--out``.
 
@@ -17,7 +17,7 @@ which signals the agent processes at the right sim step (SIGKILL; SIGSTOP ... SI
 every event to ``events.jsonl`` in ``--out``.  An agent that exits is not a run failure: if
 the events name it as killed the launcher says so; otherwise it warns, and the world drops the
 agent after its ``missing_timeout``.  Stopping a run first sends SIGCONT to every child (a
-stopped process cannot handle SIGINT).
+stopped process cannot handle the stop signal).
 
 ``--foxglove [PORT]`` also starts ``swarm view`` (`swarm_tools.live.view`), the live Foxglove
 WebSocket bridge, as one more process of the run; it stops with the run.
