@@ -72,3 +72,35 @@ def test_law_timeline_applies_each_agents_changes_in_step_order():
     assert (l30.alpha, l30.eta) == (0.2, 0.1)          # the second change keeps the first
     with pytest.raises(ValueError, match='law command at step 30'):
         law_timeline({30: [dict(command='law', agent=0, parameters={'alpha': -1.0})]}, law, 3)
+
+
+LAW_FILE = '''import numpy as np
+from swarm_core.laws import Law, param
+
+class Turn(Law):
+    gain = param(0.1, lo=0.0, hi=10.0)
+
+    def control(self, view):
+        return np.full(view.receivers.size, {turn} * self.gain)
+'''
+
+
+def _u(law):
+    return float(law.evaluate([[0.0, 0.0]], [1.0], [0.0], [0])[0])
+
+
+@pytest.mark.parametrize('blend', [False, True], ids=['alone', 'in a blend'])
+def test_law_with_keeps_the_law_file_the_run_imported(tmp_path, blend):
+    """A run imports a law file once: a live set rebuilds the law from its own class, so an
+    edited file is not imported again (its new code would run from the set on)."""
+    path = tmp_path / 'turn.py'
+    path.write_text(LAW_FILE.format(turn=1.0))
+    user = {'kind': f'{path}:Turn', 'gain': 0.5}
+    law = make_law({'kind': 'blend', 'from': user, 'to': {'kind': 'global'}} if blend else user)
+    path.write_text(LAW_FILE.format(turn=100.0))             # edited during the run (size and mtime change)
+    new = law_with(law, {'from.gain' if blend else 'gain': 0.25})
+    inner = new.from_law if blend else new
+    was = law.from_law if blend else law
+    assert type(inner) is type(was)
+    assert _u(inner) == 0.25 and _u(was) == 0.5
+    assert make_law(user).evaluate([[0.0, 0.0]], [1.0], [0.0], [0])[0] == 50.0    # a new load reads the edit

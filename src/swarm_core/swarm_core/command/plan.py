@@ -22,7 +22,7 @@ from swarm_core.command.schedules import (
     SteeringProgram,
 )
 from swarm_core.faults.agents import Failover, elect_successor, followers_of
-from swarm_core.laws import LawError, flat_parameters, from_flat_parameters, parameter_specs
+from swarm_core.laws import LawError, flat_parameters, parameter_specs
 
 # ---------------------------------------------------------------- live commands
 
@@ -102,9 +102,18 @@ def law_with(law, changes: dict):
                 raise ValueError(f'law parameter {name}: {v!r} is outside [{limits[0]:g}, {limits[1]:g}]')
         out[name] = v
     try:
-        return from_flat_parameters(out)
+        return _rebuilt(law, out)
     except (LawError, TypeError, ValueError) as err:
         raise ValueError(f'law parameters {", ".join(changes)}: {err}') from None
+
+
+def _rebuilt(law, flat: dict, prefix: str = ''):
+    """A law of ``law``'s own classes with the flat parameters ``flat``: its kind is never looked
+    up again, so an edited law file is not imported again during a run (a run imports it once)."""
+    cls = type(law)
+    if cls.parts:                   # a law made of laws (a blend: its from_law and to_law)
+        return cls(*(_rebuilt(getattr(law, f'{part}_law'), flat, f'{prefix}{part}.') for part in cls.parts))
+    return cls(**{k: flat[prefix + k] for k in cls.param_specs()})
 
 
 def law_timeline(commands: dict, law, n_agents: int) -> dict:
