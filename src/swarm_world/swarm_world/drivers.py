@@ -95,8 +95,9 @@ class LockstepDriver:
         self.sub_states = node.create_subscription(Float64MultiArray, P.LOCK_AGENT_STATES, self.on_agent_states,
                                                    P.qos_latched(max(100, 4 * node.n)), raw=True)
         self.pub_step = node.create_publisher(Float64MultiArray, P.LOCK_STEP, P.qos_latched())
-        # the commander's live commands (transient-local: none is lost to a late match)
-        node.create_subscription(String, P.LOCK_COMMAND, self.on_command, P.qos_latched(100))
+        # the commander's live commands (transient-local: none is lost to a late match; all kept
+        # until taken: a flood of refused ones cannot push one out)
+        node.create_subscription(String, P.LOCK_COMMAND, self.on_command, P.qos_kept_latched())
         robots = [nm.strip() for nm in self.robot_poses.split(',') if nm.strip()]
         if robots:          # their poses from the robot world, u from their answers (`RobotPoseJoin`)
             unknown = [nm for nm in robots if nm not in node.row]

@@ -114,7 +114,25 @@ def summary_of(scn, traj, series, checks) -> dict:
         out['comms'] = traj.meta['comms']      # what the radio did (swarm_core.radio)
     if traj.meta.get('robots'):
         out['robots'] = traj.meta['robots']    # robot contacts, time at the limits (swarm_robots)
+    why = not_deterministic(traj.meta)
+    if why:
+        out['deterministic'], out['not_deterministic'] = False, why
     return out
+
+
+def not_deterministic(meta: dict) -> list[str]:
+    """Why a lockstep ROS run (``meta``: its trajectory's) is no longer the run its scenario
+    and seed make, whatever the machine: an agent the world dropped after its wall-clock time-out
+    (a ``lost`` event: a process gone, starved or crowded out), a step a robot went on without
+    its command (``commands_missed``).  Empty for any other run (a batch run; realtime, which
+    follows the wall clock anyway)."""
+    if meta.get('source') != 'ros' or meta.get('mode') != 'lockstep':
+        return []
+    events = [e for e in meta.get('events') or () if isinstance(e, dict)]
+    out = [f'{e.get("agent")} lost at t = {e.get("t")}' for e in events if e.get('kind') == 'lost']
+    missed = (meta.get('robots') or {}).get('commands_missed') or {}
+    return out + [f"{nm}'s robot went on without its command at {len(v)} step(s) from step {v[0]}"
+                  for nm, v in missed.items() if v]
 
 
 def dumps(doc) -> str:

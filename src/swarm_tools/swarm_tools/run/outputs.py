@@ -69,11 +69,9 @@ def write_run_outputs(run: RunPlan, code: int, wall: float) -> None:
         print(f'swarm run: {what}; final clusters {summary.get("final_clusters", "?")}; '
               f'wrote {out}/trajectory.npz, metrics.json' + (f', {scn.label}.png' if run.figure else ''),
               flush=True)
-        missed = (traj.meta['robots'] or {}).get('commands_missed')
-        if missed:
-            print('swarm run: not deterministic: steps went on without a robot\'s command ('
-                  + ', '.join(f'{nm} at {len(v)} steps from {v[0]}' for nm, v in missed.items())
-                  + '; metrics.json summary.robots.commands_missed)', flush=True)
+        if summary.get('deterministic') is False:     # lockstep, yet not the run its seed makes
+            print(f'swarm run: not deterministic: {"; ".join(summary["not_deterministic"][:5])} '
+                  '(metrics.json summary.not_deterministic)', flush=True)
         if timing:
             for line in (timing_line(timing), behind_line(timing, timing['rtf'])):
                 if line:
