@@ -26,6 +26,7 @@ the batch engine's u.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -76,6 +77,40 @@ def received_table(x, y, qz, qw, rows, cores):
     return pos, cos_t, sin_t
 
 
+class Seen(NamedTuple):
+    """The inputs an agent's u came from last (`AgentCore.seen`): the table (pos (N, 2), cos θ,
+    sin θ (N,)), the agent's row in it, λ, the leader flags, its s_k, target, barrier, the
+    alive mask, the rendezvous and the sim time; a live law parameter set is tried on them
+    (`AgentCore.trial`)."""
+    pos: np.ndarray
+    cos_t: np.ndarray
+    sin_t: np.ndarray
+    row: int
+    lam: float
+    is_leader: object
+    steering: float
+    target: object = None
+    barrier: object = None
+    alive: object = None
+    rendezvous: object = None
+    t: float | None = None
+
+
+class Believed(NamedTuple):
+    """The inputs an agent's u came from last through a radio model (`AgentCore.comms_control`):
+    its beliefs of step ``step`` with its own pose of then (pos (1, 2), θ (1,))."""
+    step: int
+    pos: np.ndarray
+    theta: np.ndarray
+    lam: float
+    is_leader: object
+    steering: float
+    target: object = None
+    barrier: object = None
+    rendezvous: object = None
+    t: float | None = None
+
+
 def roster_index(roster, agent_name: str, index: int) -> tuple[list, int]:
     """(roster, this agent's row in it) from the parameters agent_names, agent_name and
     agent_index (-1: look the name up; [''] : the agent alone); ValueError names the bad one."""
@@ -124,6 +159,7 @@ class AgentCore:
         self.step = 0                       # lockstep: the step whose state it holds
         self.silent = False                 # lockstep: not in the table (frozen or killed)
         self.reported = False               # lockstep on a MuJoCo robot: its pose is its row of the table
+        self.seen = None                    # the inputs of its last u (`Seen`, `Believed`; `trial`)
 
     def attach_comms(self, model: CommModel):
         """Receive through ``model`` from now on (lockstep: `comms_control`)."""
@@ -142,6 +178,8 @@ class AgentCore:
         arrival = self.comms.decide(step, [k], xy[k:k + 1], np.arange(self.n), xy)
         self.beliefs.receive(step, arrival, xy[:, 0], xy[:, 1], np.asarray(qz, float), np.asarray(qw, float),
                              np.asarray(u_sent, float), alive=alive)
+        self.seen = Believed(step, self.pos, self.theta, lam, is_leader, float(steering_own), target, barrier,
+                             rendezvous, t)
         law, target = reunion_law(self.law, target, rendezvous)
         try:
             return float(belief_controls(law, self.beliefs, step, self.comms, self.pos, self.theta, lam,
@@ -167,12 +205,39 @@ class AgentCore:
         row in the table (default: its index; realtime: its row among the agents it knows)."""
         k = self.index if row is None else int(row)
         pos, cos_t, sin_t = received_table(x, y, qz, qw, [k], [self])
+        self.seen = Seen(pos, cos_t, sin_t, k, lam, is_leader, float(steering_own), target, barrier, alive,
+                         rendezvous, t)
         try:
             u = alive_control(pos, cos_t, sin_t, [k], self.law, lam, is_leader, [float(steering_own)], target,
                               barrier, alive=alive, rendezvous=rendezvous, t=t)
         except LawError as err:       # the process stops on it (`swarm_ros.rosutil.run_node`)
             raise failed_at(err, t) from None
         return float(u[0])
+
+    def trial(self, law: Law) -> str | None:
+        """Try ``law`` on the inputs this agent's u came from last (`seen`; before its first u,
+        its own state alone at λ = 0 and the time of its step): None if it gives a u, else the
+        one line of its `LawError` (it raised, or gave no finite u there).  A live law
+        parameter set is tried so before it is taken; nothing of the agent changes."""
+        seen = self.seen
+        try:
+            if isinstance(seen, Believed):
+                law, target = reunion_law(law, seen.target, seen.rendezvous)
+                u = belief_controls(law, self.beliefs, seen.step, self.comms, seen.pos, seen.theta, seen.lam,
+                                    seen.is_leader, [seen.steering], target, seen.barrier, t=seen.t)
+            else:
+                if seen is None:
+                    c, s = self._own_frame()
+                    seen = Seen(self.pos.copy(), np.array([c]), np.array([s]), 0, 0.0, None, 0.0,
+                                t=self.step * self.dt)
+                u = alive_control(seen.pos, seen.cos_t, seen.sin_t, [seen.row], law, seen.lam, seen.is_leader,
+                                  [seen.steering], seen.target, seen.barrier, alive=seen.alive,
+                                  rendezvous=seen.rendezvous, t=seen.t)
+        except LawError as err:
+            return str(err)
+        if not np.all(np.isfinite(u)):
+            return f'law {law.kind} gives a non-finite u ({float(u[0])!r}) on this agent\'s last table'
+        return None
 
     def _own_frame(self):
         """(cos θ, sin θ) of the agent's own heading through its quaternion, as its neighbours

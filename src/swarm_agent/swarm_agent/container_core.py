@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from swarm_agent.agent_core import received_table
+from swarm_agent.agent_core import Seen, received_table
 from swarm_core.laws import LawError, failed_at
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.model.integrate import zoh_step
@@ -163,6 +163,9 @@ class ContainerCore:
                     for c in cores]
         idx = self.rows[go]
         pos, cos_t, sin_t = received_table(s.x, s.y, s.qz, s.qw, idx, cores)
+        for c in cores:             # what each agent's u came from (`AgentCore.trial`)
+            c.seen = Seen(pos, cos_t, sin_t, c.index, s.lam, s.flags, float(s.steering[c.index]), s.target,
+                          s.barrier, s.alive, s.rendezvous, s.t)
         try:
             u = alive_control(pos, cos_t, sin_t, idx, cores[0].law, s.lam, s.flags, np.asarray(s.steering, float)[idx],
                               s.target, s.barrier, alive=s.alive, rendezvous=s.rendezvous, t=s.t)

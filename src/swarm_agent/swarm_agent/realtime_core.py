@@ -20,7 +20,7 @@ import threading
 
 import numpy as np
 
-from swarm_agent.agent_core import catch_up, received_table
+from swarm_agent.agent_core import Seen, catch_up, received_table
 from swarm_core.laws import LawError, failed_at
 from swarm_core.step import alive_control
 from swarm_ros.msg_checks import NewestStates
@@ -65,8 +65,11 @@ def shared_controls(cores, heard: HeardStates, now, stale_after, lam, leader_mas
     at = np.searchsorted(rows, own[order])
     pos, cos_t, sin_t = received_table(states[:, 0], states[:, 1], states[:, 2], states[:, 3], at,
                                        [cores[j] for j in order])
+    flags = leader_mask[rows]
+    for j, r in zip(order, at):       # what each agent's u came from (`AgentCore.trial`)
+        cores[j].seen = Seen(pos, cos_t, sin_t, int(r), lam, flags, float(steering[j]), target, barrier, t=now)
     try:
-        u_sorted = alive_control(pos, cos_t, sin_t, at, cores[0].law, lam, leader_mask[rows],
+        u_sorted = alive_control(pos, cos_t, sin_t, at, cores[0].law, lam, flags,
                                  np.asarray(steering, float)[order], target, barrier, t=now)
     except LawError as err:           # the process stops on it (`swarm_ros.rosutil.run_node`)
         raise failed_at(err, now) from None
