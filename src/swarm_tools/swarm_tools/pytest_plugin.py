@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from swarm_ros.runinfo import SETTLE_ENV
+from swarm_ros.runinfo import MAX_DOMAIN, SETTLE_ENV
 
 # Domain ids 1..100 are safe on Linux (ports below the ephemeral range).  A test holds an
 # exclusive flock on <SWARM_DOMAIN_LOCK_DIR>/<id>.lock for as long as it uses the id.
@@ -33,8 +33,6 @@ _start = itertools.count((os.getpid() * 7) % 1000)
 DOMAINS = (1, 100)
 #: the environment variable that sets them (``LO-HI``; the option ``--swarm-domains`` wins)
 DOMAINS_ENV = 'SWARM_DOMAINS'
-#: the highest ROS_DOMAIN_ID there is (DDS ports past it do not fit)
-MAX_DOMAIN = 232
 _DOMAINS_KEY = pytest.StashKey()
 
 
