@@ -14,7 +14,7 @@ import numpy as np
 
 from swarm_core import study as st
 from swarm_core.analysis.outputs import analyse, check_output_dir, dumps, summary_of, write_failed, write_outputs
-from swarm_core.command.plan import law_timeline, read_commands
+from swarm_core.command.plan import law_timeline, read_commands, recorded_law_hashes
 from swarm_core.engine import reference as engine
 from swarm_core.files import write_atomic
 from swarm_core.laws import LawError, LawFailed
@@ -70,14 +70,20 @@ MAX_REPLAY_BYTES = 64 * 1024 * 1024
 
 def _replay_or_exit(path, scn) -> dict:
     """The commands of an events file by step (`swarm_core.command.plan.read_commands`), or exit 2
-    naming the problem."""
+    naming the problem.  A law file whose hash differs from the one the run recorded is said in
+    one line (the replay runs the file as it is now)."""
     try:
         with open(path, 'rb') as fh:           # at most the limit, whatever the file is (/dev/zero)
             raw = fh.read(MAX_REPLAY_BYTES + 1)
         if len(raw) > MAX_REPLAY_BYTES:
             raise ValueError(f'more than {MAX_REPLAY_BYTES} bytes')
-        commands = read_commands(raw.decode('utf-8').splitlines(), scn.names)
+        lines = raw.decode('utf-8').splitlines()
+        commands = read_commands(lines, scn.names)
         law_timeline(commands, scn.law, len(scn.names))          # an agent's law changes: each must fit its law
+        ran = [h for h in recorded_law_hashes(lines) if h != scn.law_hash]
+        if ran:                     # the run's law file is not the one this replay imports
+            print(f'swarm simulate: --replay {path}: the law file changed since the run (the run\'s hash '
+                  f'{ran[0]}, now {scn.law_hash or "none"}): the replay runs today\'s file', file=sys.stderr)
         late = [s for s in commands if s > scn.steps]
         if late:
             raise ValueError(f'a command at step {late[0]} is after the last step {scn.steps}')

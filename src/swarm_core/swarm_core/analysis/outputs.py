@@ -170,6 +170,8 @@ def write_outputs(out_dir, scn, traj, series, checks, figure=True, extra=None):
     out.mkdir(parents=True, exist_ok=True)
     traj.save(out / 'trajectory.npz')
     summary = summary_of(scn, traj, series, checks)
+    if scn.law_hash:            # a user's law: the hash of its file as the run imported it
+        summary['law_hash'] = scn.law_hash
     parameters = scn.spec.model_dump(mode='json', by_alias=True)
     parameters['law'] = law_mapping(scn.law)          # the law's section, as the law has it
     doc = dict(summary=summary, series={k: v for k, v in series.items()}, parameters=parameters, **(extra or {}))

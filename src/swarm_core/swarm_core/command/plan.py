@@ -357,3 +357,19 @@ def read_commands(lines, names) -> dict:
         except ValueError as err:
             raise ValueError(f'line {k}: {err}') from None
     return out
+
+
+def recorded_law_hashes(lines) -> list[str]:
+    """The hashes of a user's law file that a run's events record (``events.jsonl``: the
+    world's ``law`` line, an agent's ``law`` command), in order, each once; [] for a run of a
+    shipped law.  Lines that are not JSON objects are left to `read_commands`."""
+    out = []
+    for line in lines:
+        try:
+            ev = json_value(line, MAX_EVENT_CHARS) if line.strip() else None
+        except ValueError:
+            continue
+        h = ev.get('law_hash') if isinstance(ev, dict) else None
+        if isinstance(h, str) and h and h not in out:
+            out.append(h)
+    return out

@@ -105,8 +105,11 @@ class SwarmStepper:
             self.laws = [self.law] * self.n
         for k, law, parameters in changes:           # the event as the agent node publishes it
             self.laws[k] = law
-            self.events.append(dict(t=self.step_index * self.dt, kind='command', command='law',
-                                    agent=self.scn.names[k], parameters=parameters, step=self.step_index))
+            ev = dict(t=self.step_index * self.dt, kind='command', command='law', agent=self.scn.names[k],
+                      parameters=parameters, step=self.step_index)
+            if self.scn.law_hash:
+                ev['law_hash'] = self.scn.law_hash
+            self.events.append(ev)
         groups = []
         for k, law in enumerate(self.laws):
             for g in groups:

@@ -32,6 +32,7 @@ from swarm_core.faults.agents import Fault, FaultTimeline, Rendezvous
 from swarm_core.files import read_regular
 from swarm_core.laws import Law, LawError, law_class, make_law, swarm_control
 from swarm_core.laws.paper.parameters import LAW_KINDS, LAW_TABLE
+from swarm_core.laws.registry import law_code_hash
 from swarm_core.model.integrate import noise_rng
 from swarm_core.radio import CommModel
 from swarm_core.reserved import check_law_names
@@ -145,6 +146,9 @@ class Scenario:
     theta0: np.ndarray
     law: Law
     source: str = ''
+    #: a hash of the user's law file(s) as loaded ('' for a shipped law, `law_code_hash`):
+    #: metrics.json and events.jsonl record it, ``--replay`` compares it with the file now
+    law_hash: str = ''
 
     # -- convenience views of the spec
     @property
@@ -389,6 +393,7 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
         raise ScenarioError(f'{source}: {err}') from None
     scn = Scenario(spec=spec, names=names, pos0=pos0, theta0=theta0, law=law, source=source)
     if plugin is not None:
+        scn.law_hash = law_code_hash(law.mapping())         # the file as this process imported it
         _try_law(scn, source)
     return scn
 
