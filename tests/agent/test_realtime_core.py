@@ -8,7 +8,17 @@ import pytest
 
 from swarm_agent.agent_core import AgentCore, known_table
 from swarm_agent.container_core import ContainerCore
-from swarm_agent.realtime_core import Continued, HeardStates, advance_periods, due_periods, shared_controls
+from swarm_agent.realtime_core import (
+    FUTURE_TOLERANCE_MAX,
+    STALE_AFTER,
+    STALE_AFTER_MAX,
+    Continued,
+    HeardStates,
+    advance_periods,
+    due_periods,
+    shared_controls,
+    time_limits,
+)
 from swarm_core.model.frenet import quaternion_from_heading
 from tests.core.laws import paper_law
 
@@ -118,3 +128,11 @@ def test_continued_sees_a_sigcont_once_per_reader():
     else:
         pytest.fail('SIGCONT not seen')
     assert b() and not a() and not b()
+
+
+def test_realtime_time_parameters_range_from_two_periods_to_their_maximum():
+    """stale_after and future_tolerance: from two control periods (never above the default,
+    which every agent must be able to start with) to 60 and 10 sim s."""
+    assert time_limits(0.05, STALE_AFTER, STALE_AFTER_MAX) == (0.1, 60.0)
+    assert time_limits(0.05, 2.0, FUTURE_TOLERANCE_MAX) == (0.1, 10.0)
+    assert time_limits(5.0, STALE_AFTER, STALE_AFTER_MAX) == (STALE_AFTER, 60.0)    # dt of 5 s: the default

@@ -12,6 +12,7 @@ given that file's commands (``swarm simulate --replay``) reproduces the run.
 import json
 
 import numpy as np
+import yaml
 
 from tests.agent.ros.test_agent_parameters import ros2_param_set
 from tests.helpers import short_homotopy
@@ -27,7 +28,7 @@ def test_lockstep_live_law_changes_replay_in_the_batch_engine(tmp_path, rclpy_co
     import rclpy
 
     from swarm_core.command.plan import read_commands
-    from swarm_core.engine import compiled
+    from swarm_core.engine import fast as compiled
     from swarm_core.engine.reference import simulate
     from swarm_core.scenario.loader import load
     from swarm_ros.rosutil import make_executor
@@ -71,4 +72,74 @@ def test_lockstep_live_law_changes_replay_in_the_batch_engine(tmp_path, rclpy_co
     first = laws[0]['step']
     assert np.array_equal(got.r[:first + 1], plain.r[:first + 1])      # the same run up to the first change
     assert not np.array_equal(got.r[first + 2:], plain.r[first + 2:])  # and another one from it on
+    shell.destroy_node()
+
+
+PICKY = '''\
+import numpy as np
+
+from swarm_core.laws import Law, param
+
+
+class Picky(Law):
+    """Turns by gain; raises above gain 5 once it has neighbours."""
+    gain = param(1.0, lo=0.0, hi=10.0)
+
+    def control(self, view):
+        if self.gain > 5 and len(view.pos) > 1:
+            raise ValueError(f'gain {self.gain:g} with neighbours')
+        return np.full(view.receivers.size, 0.01 * self.gain) + 0.001 * view.receivers
+'''
+
+
+def test_a_set_that_makes_the_law_raise_is_refused_and_the_run_goes_on(tmp_path, rclpy_context):
+    """A lockstep run of a user's law file (nodes in one executor): ``gain 6``, in range, makes
+    the law raise on agent_1's table, so the set is refused with the law's one line and the run
+    goes on to its end; ``gain 4`` is taken.  events.jsonl starts with the law file's hash, the
+    law command carries it too, and the batch engine replays the run."""
+    import rclpy
+
+    from swarm_core.command.plan import read_commands
+    from swarm_core.engine.reference import simulate
+    from swarm_core.laws.registry import law_code_hash
+    from swarm_core.scenario.loader import load
+    from swarm_ros.rosutil import make_executor
+    from swarm_tools.run.launch import build_nodes
+    from swarm_tools.run.params import node_parameters
+    from tests.helpers import spin_for
+
+    (tmp_path / 'picky.py').write_text(PICKY)
+    path = short_homotopy(tmp_path / 'picky.yaml', duration=10, lam='{kind: constant, value: 0.0}', at=5.0)
+    data = yaml.safe_load(path.read_text())
+    data['law'] = {'kind': 'picky.py:Picky', 'gain': 1.0}
+    path.write_text(yaml.safe_dump(data))
+    scn = load(str(path))
+    law_hash = law_code_hash({'kind': 'picky.py:Picky'}, tmp_path)
+    out = tmp_path / 'out'
+    params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
+    world, commander, agents = build_nodes(params, rclpy_context, log=lambda *a, **k: None)
+    shell = rclpy.create_node('ros2cli_param', context=rclpy_context)
+    ex = make_executor(rclpy_context, events=False)
+    for nd in [world, commander, *agents, shell]:
+        ex.add_node(nd)
+    agent = agents[1]
+    assert spin_for(ex, lambda: world.driver.lock.cur >= 20, 120)
+    law = agent.law
+    res = ros2_param_set(ex, shell, '/agent_1/agent', 'gain', '6')
+    assert not res.successful
+    assert 'Picky raised ValueError: gain 6 with neighbours' in res.reason and '\n' not in res.reason, res.reason
+    assert agent.law is law and agent.get_parameter('gain').value == 1.0
+    assert 'law parameters gain=6.0' in agent.reject.lines[-1], agent.reject.lines
+    assert ros2_param_set(ex, shell, '/agent_1/agent', 'gain', '4').successful
+    assert spin_for(ex, lambda: world.done, 300)
+    assert world.failed is None and world.driver.lock.cur > scn.steps - 1
+    lines = (out / 'events.jsonl').read_text().splitlines()
+    first = json.loads(lines[0])
+    assert first == dict(t=0.0, kind='law', law=scn.law.kind, law_hash=law_hash), first
+    laws = [json.loads(ln) for ln in lines if json.loads(ln).get('command') == 'law']
+    assert [(e['agent'], e['parameters'], e['law_hash']) for e in laws] == [('agent_1', {'gain': 4.0}, law_hash)]
+    got = world.trajectory()
+    ref = simulate(scn, commands=read_commands(lines, scn.names))
+    assert np.array_equal(got.r, ref.r) and np.abs(got.u - ref.u).max() <= 1e-9
+    assert got.u[laws[0]['step'] + 1, 1] > got.u[laws[0]['step'] - 1, 1]    # gain 4 steers harder than 1
     shell.destroy_node()

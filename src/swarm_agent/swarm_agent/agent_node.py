@@ -64,6 +64,7 @@ from swarm_core.laws import (
     names,
     parameter_specs,
 )
+from swarm_core.laws.registry import law_code_hash
 from swarm_core.model.integrate import noise_rng
 from swarm_core.radio import CommModel, change_from_event
 from swarm_core.reserved import check_law_names
@@ -205,7 +206,9 @@ class AgentNode(Node):
                 else:
                     values[name] = declare(self, name, default, text, lo=limits[0], hi=limits[1])
             self.law_values = values
-            return from_flat_parameters(values)
+            law = from_flat_parameters(values)
+            self.law_hash = law_code_hash(law.mapping())      # the file as this process imported it
+            return law
         except LawError as err:
             raise ParameterError(f'parameter law: {err}') from None
 
@@ -229,8 +232,10 @@ class AgentNode(Node):
                 and isinstance(self.get_parameter(p.name).value, float) else p for p in params]
 
     def _check_params(self, params):
-        """Refuse what cannot take effect: the clock (chosen at the start) and a law change its
-        law does not accept (`law_with`); read-only parameters rclpy refuses itself."""
+        """Refuse what cannot take effect: the clock (chosen at the start), a law change its
+        law does not accept (`law_with`), and one whose law raises on the inputs of the agent's
+        last u (`AgentCore.trial`: the set is refused with the law's one line and the run goes
+        on); read-only parameters and values out of range rclpy refuses itself."""
         changes = {p.name: p.value for p in params if self._live_law(p.name)}
         for p in params:
             if p.name == 'use_sim_time':
@@ -238,28 +243,43 @@ class AgentNode(Node):
                                            'the start (restart the agent to change it)')
         if changes:
             try:
-                law_with(self.law, changes)
+                why = self.core.trial(law_with(self.law, changes))
             except ValueError as err:
-                return SetParametersResult(successful=False, reason=str(err))
+                why = str(err)
+            if why is not None:
+                self.reject('law-set', f'law parameters {", ".join(f"{k}={v!r}" for k, v in changes.items())}: '
+                            f'{why}')
+                return SetParametersResult(successful=False, reason=why)
         return SetParametersResult(successful=True)
 
     def _apply_params(self, params):
         """A law change takes effect at the agent's next step: in lockstep the step it holds
         (its next u), announced on /swarm/events as a ``command`` event (the world writes it to
         events.jsonl; ``swarm simulate --replay`` applies it at that step); in realtime at the
-        next control period.  The realtime driver's parameters take effect at its next tick."""
+        next control period; the event carries a user's law file's hash (``law_hash``).  The
+        realtime driver's parameters take effect at its next tick, logged in one line and
+        announced as a ``parameter`` event (with the values they replace, ``was``)."""
         changes = {p.name: p.value for p in params if self._live_law(p.name)}
-        for p in params:
-            if p.name in self.driver.live_parameters:
-                setattr(self.driver, p.name, p.value)
+        driver = {p.name: p.value for p in params if p.name in self.driver.live_parameters}
+        lockstep = self.mode == 'lockstep'
+        step = self.core.step if lockstep else P.step_of(self._now(), self.dt)
+        t = step * self.dt if lockstep else self._now()
+        if driver:                   # realtime: from the next tick; said and recorded (a peer may set them)
+            was = {k: getattr(self.driver, k) for k in driver}
+            for k, v in driver.items():
+                setattr(self.driver, k, v)
+            self.publish_event(dict(t=t, kind='parameter', agent=self.agent_name, parameters=driver, was=was,
+                                    step=step))
+            self.get_logger().info('realtime: ' + ', '.join(f'{k} {was[k]!r} -> {v!r}' for k, v in driver.items())
+                                   + f' from step {step}')
         if not changes:
             return
         self.law = self.core.law = law_with(self.law, changes)
         self.law_values.update(changes)
-        lockstep = self.mode == 'lockstep'
-        step = self.core.step if lockstep else P.step_of(self._now(), self.dt)
-        self.publish_event(dict(t=step * self.dt if lockstep else self._now(), kind='command', command='law',
-                                agent=self.agent_name, parameters=changes, step=step))
+        ev = dict(t=t, kind='command', command='law', agent=self.agent_name, parameters=changes, step=step)
+        if self.law_hash:            # a user's law: which file's code runs (`laws.registry.law_code_hash`)
+            ev['law_hash'] = self.law_hash
+        self.publish_event(ev)
         self.get_logger().info(f'law: {", ".join(f"{k}={v!r}" for k, v in changes.items())} from step {step}')
 
     def publish_event(self, ev):

@@ -16,7 +16,15 @@ from swarm_agent.process_io import (
     realtime_tick,
     step_message,
 )
-from swarm_agent.realtime_core import CATCH_UP_MAX, Continued, HeardStates
+from swarm_agent.realtime_core import (
+    CATCH_UP_MAX,
+    FUTURE_TOLERANCE_MAX,
+    STALE_AFTER,
+    STALE_AFTER_MAX,
+    Continued,
+    HeardStates,
+    time_limits,
+)
 from swarm_core.radio import StreamRadio
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, Senders, batch_states, check_values, refused
@@ -129,19 +137,25 @@ class RealtimeDriver:
     @staticmethod
     def declare(node):
         """This mode's parameters (every agent node declares those of every mode): live in
-        realtime (`live_parameters`), read-only in lockstep, where nothing reads them."""
+        realtime (`live_parameters`), read-only in lockstep, where nothing reads them.  Their
+        ranges (`time_limits`) keep a peer's set within what a run can use; each set is logged
+        and recorded as a ``parameter`` event (`AgentNode._apply_params`)."""
         fixed = node.mode != 'realtime'
         robot = fixed or node.robot != 'none'     # a robot agent takes its pose each tick: no catch-up
+        stale, future = time_limits(node.dt, STALE_AFTER, STALE_AFTER_MAX), time_limits(
+            node.dt, FUTURE_TOLERANCE, FUTURE_TOLERANCE_MAX)
         return dict(
-            stale_after=declare(node, 'stale_after', 2.0, 'realtime: ignore neighbour states older than this '
-                                '(sim s)', lo=0.0, hi=1e9, read_only=fixed),
+            stale_after=declare(node, 'stale_after', STALE_AFTER, 'realtime: ignore neighbour states older than '
+                                f'this (sim s, {stale[0]:g} to {stale[1]:g})',
+                                lo=stale[0], hi=stale[1], read_only=fixed),
             catch_up_limit=declare(
                 node, 'catch_up_limit', 4, 'realtime: most control periods the agent integrates (u held) after '
                 'its process was stopped (SIGSTOP ... SIGCONT); a late tick of a running process integrates '
                 f'every period that passed (up to {CATCH_UP_MAX})', lo=1, hi=CATCH_UP_MAX, read_only=robot),
             future_tolerance=declare(
-                node, 'future_tolerance', FUTURE_TOLERANCE, 'realtime: reject neighbour states stamped more '
-                'than this many sim s ahead of this clock', lo=0.0, hi=1e9, read_only=fixed))
+                node, 'future_tolerance', FUTURE_TOLERANCE, 'realtime: reject neighbour states and decisions '
+                f'stamped more than this many sim s ahead of this clock ({future[0]:g} to {future[1]:g})',
+                lo=future[0], hi=future[1], read_only=fixed))
 
     def __init__(self, node, stale_after, catch_up_limit, future_tolerance):
         self.node = node

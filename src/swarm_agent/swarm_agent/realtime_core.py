@@ -78,6 +78,24 @@ def shared_controls(cores, heard: HeardStates, now, stale_after, lam, leader_mas
     return u
 
 
+#: realtime: an agent's default ``stale_after`` (sim s)
+STALE_AFTER = 2.0
+#: the longest ``stale_after`` a set may give (sim s): a neighbour killed or gone quiet stays in
+#: the agent's table at most this long
+STALE_AFTER_MAX = 60.0
+#: the longest ``future_tolerance`` a set may give (sim s): it is how far ahead a peer's forged
+#: decision or state may be stamped and still be taken (the nodes of a run share one clock)
+FUTURE_TOLERANCE_MAX = 10.0
+
+
+def time_limits(dt: float, default: float, hi: float) -> tuple[float, float]:
+    """[lo, hi] of a realtime time parameter (``stale_after``, ``future_tolerance``) of an agent
+    with control period ``dt``: from two periods (a neighbour's newest state is up to a period
+    old at a tick, and the nodes' clocks differ by about one: below that the agent would refuse
+    or drop the states of a healthy swarm and fly blind), never above the ``default``, to ``hi``."""
+    return min(2.0 * dt, default), hi
+
+
 #: the most control periods an agent integrates in one tick (`due_periods`).  A larger gap
 #: between its state and the clock is no late tick: the clock started long before the agent
 #: (the system clock without use_sim_time, or a run it joined late) or jumped; the agent's time

@@ -128,12 +128,15 @@ class WorldNode(Node):
         return {nm: values[nm] for nm in MODE_PARAMETERS[self.mode]}
 
     def _open_events_file(self):
-        """``events_file`` (default ``output_dir/events.jsonl``) made empty."""
+        """``events_file`` (default ``output_dir/events.jsonl``) made empty; for a user's law its
+        first line is a ``law`` event with the law file's hash (`Scenario.law_hash`)."""
         if not self.events_file and self.output_dir:
             self.events_file = str(Path(self.output_dir) / 'events.jsonl')
         if self.events_file:
             Path(self.events_file).parent.mkdir(parents=True, exist_ok=True)
             open_regular(self.events_file, 'w').close()      # never through a planted link
+            if self.scn.law_hash:     # a user's law: its file's hash as this run imported it
+                self.write_event(dict(t=0.0, kind='law', law=self.scn.law.kind, law_hash=self.scn.law_hash))
         if self.output_dir:
             (Path(self.output_dir) / TIMING_FILE).unlink(missing_ok=True)     # an older run's
 

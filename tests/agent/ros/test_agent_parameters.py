@@ -270,3 +270,94 @@ def test_realtime_catch_up_limit_stays_in_its_range(text, rclpy_context):
     assert agent.driver.catch_up_limit == 4
     probe.destroy_node()
     agent.destroy_node()
+
+
+@pytest.mark.refuses_inputs
+def test_realtime_driver_parameters_are_bounded_logged_and_recorded(rclpy_context, capfd):
+    """stale_after and future_tolerance stay within what a run can use (from two control
+    periods to 60 and 10 sim s); a set in range is logged in one line and published on
+    /swarm/events as a ``parameter`` event (the world writes it to events.jsonl)."""
+    import rclpy
+    from std_msgs.msg import String
+
+    from swarm_ros.rosutil import make_executor
+    agent = _agent(rclpy_context, 'realtime')
+    probe = rclpy.create_node('ros2cli_param', context=rclpy_context)
+    events = []
+    probe.create_subscription(String, P.EVENTS, lambda m: events.append(json.loads(m.data)), P.qos_latched(100))
+    ex = make_executor(rclpy_context)
+    for nd in (agent, probe):
+        ex.add_node(nd)
+    for name, text in [('stale_after', '0.05'), ('stale_after', '61'), ('stale_after', '1e9'),
+                       ('future_tolerance', '0'), ('future_tolerance', '0.09'), ('future_tolerance', '11'),
+                       ('future_tolerance', '1e9')]:
+        was = getattr(agent.driver, name)
+        assert not ros2_param_set(ex, probe, '/agent_0/agent', name, text).successful, (name, text)
+        assert getattr(agent.driver, name) == was
+    assert not events
+    for name, text, value in [('stale_after', '0.1', 0.1), ('stale_after', '60', 60.0),
+                              ('future_tolerance', '10', 10.0), ('catch_up_limit', '7', 7)]:
+        was = getattr(agent.driver, name)
+        assert ros2_param_set(ex, probe, '/agent_0/agent', name, text).successful, (name, text)
+        assert getattr(agent.driver, name) == value
+        assert spin_for(ex, lambda name=name: any(name in e.get('parameters', {}) for e in events), 10), name
+        ev = [e for e in events if name in e.get('parameters', {})][-1]
+        assert (ev['kind'], ev['agent'], ev['parameters'], ev['was'], ev['node']) == (
+            'parameter', 'agent_0', {name: value}, {name: was}, 'agent'), ev
+        assert {'t', 'step'} <= set(ev)
+    logged = capfd.readouterr().err
+    assert 'realtime: stale_after 2.0 -> 0.1 from step' in logged, logged
+    assert 'realtime: catch_up_limit 4 -> 7 from step' in logged, logged
+    probe.destroy_node()
+    agent.destroy_node()
+
+
+@pytest.mark.refuses_inputs
+@pytest.mark.parametrize('contained', [False, True], ids=['alone', 'in a container'])
+def test_a_law_set_the_law_raises_on_is_refused(rclpy_context, contained):
+    """A law parameter set whose law raises on the agent's last table (its step's) is refused
+    with the law's one line, the agent keeps its law and goes on; alone and in an agent
+    container alike."""
+    import rclpy
+
+    from swarm_agent.container_node import AgentContainer
+    from swarm_core.scenario.loader import load
+    from swarm_ros.rosutil import make_executor
+    scn = load('homotopy_global')
+    law = dict(law='tests.agent.test_law_trial:Picky', cutoff_radius=4.0, gain=1.0)
+
+    def prm(k):
+        p = {k: v for k, v in agent_parameters(scn, k, 'lockstep').items() if k not in LAW}
+        p.update(agent_names=NAMES, x=float(POS[k, 0]), y=float(POS[k, 1]), theta=float(THETA[k]), dt=0.05, **law)
+        return overrides(p)
+    if contained:
+        box = AgentContainer(NAMES[:2], context=rclpy_context, agent_overrides={nm: prm(k) for k, nm in
+                                                                                 enumerate(NAMES[:2])})
+        agent, on_step, nodes = box.agents[1], box._on_step, [box, *box.agents]
+    else:
+        from swarm_agent.agent_node import AgentNode
+        agent = AgentNode('agent', namespace='agent_1', context=rclpy_context, parameter_overrides=prm(1))
+        on_step, nodes = agent.driver.on_input, [agent]
+    probe = rclpy.create_node('ros2cli_param', context=rclpy_context)
+    ex = make_executor(rclpy_context)
+    for nd in (*nodes, probe):
+        ex.add_node(nd)
+    flags, steering = np.zeros(6, bool), np.zeros(6)
+
+    def step():
+        n = agent.core.step
+        on_step(_step(n, 0.0, flags, steering, None, None, (*agent.core.pos[0], agent.core.theta[0])).to_cdr(''))
+        return agent.core.step == n + 1
+
+    assert step()
+    before = agent.law
+    res = ros2_param_set(ex, probe, '/agent_1/agent', 'gain', '6')
+    assert not res.successful and 'Picky raised ValueError: gain 6 with neighbours' in res.reason, res.reason
+    assert agent.law is before and agent.get_parameter('gain').value == 1.0
+    assert 'law parameters gain=6.0' in agent.reject.lines[-1]
+    assert step()                                                     # the agent goes on
+    assert ros2_param_set(ex, probe, '/agent_1/agent', 'gain', '4').successful
+    assert step() and agent.u_history[-1][1] == pytest.approx(0.04)
+    probe.destroy_node()
+    for nd in nodes[:1]:
+        nd.destroy_node()
