@@ -31,12 +31,16 @@ ROOT = Path(__file__).resolve().parents[1]
 # ------------------------------------------------------------------ worker (one measurement)
 
 def compiled_engine():
-    """The study fast path of the checkout this worker runs: `swarm_core.engine.compiled`, or
+    """The study fast path of the checkout this worker runs: `swarm_core.engine.fast`, or
+    `swarm_core.engine.compiled` (revisions before the laws chose their compiled runs), or
     `swarm_core.fast` in revisions before the sub-packages."""
     try:
-        from swarm_core.engine import compiled
+        from swarm_core.engine import fast as compiled
     except ImportError:
-        from swarm_core import fast as compiled
+        try:
+            from swarm_core.engine import compiled
+        except ImportError:
+            from swarm_core import fast as compiled
     return compiled
 
 
@@ -75,7 +79,7 @@ def steps_per_second(n, kind, min_seconds=1.0, search='auto'):
 def full_run(name, dt, comms=None, duration=None, engine_name='reference'):
     """(wall s, CPU s) of one simulate() of a shipped scenario to its duration at dt, with the
     radio ``comms`` (a scenario ``comms`` mapping) or its own, on the reference engine or the
-    fast one (`swarm_core.engine.compiled`, compiled or loaded first; the median of as many runs as fill
+    fast one (`swarm_core.engine.fast`, compiled or loaded first; the median of as many runs as fill
     0.3 s of CPU)."""
     from swarm_core import engine, scenario
     simulate = engine.simulate

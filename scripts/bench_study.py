@@ -82,7 +82,7 @@ def outcomes(rows):
 def engines_main(a, s) -> int:
     """The fast engine against the reference on the same study (see the module's doc)."""
     from swarm_core import study as st
-    from swarm_core.engine import compiled as fast
+    from swarm_core.engine import fast
     n = len(s.cells()) * len(s.seeds)
     t0 = time.perf_counter()
     compile_s = fast.warm_up()          # in this process: the forked workers inherit the kernels

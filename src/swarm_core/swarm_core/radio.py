@@ -368,7 +368,7 @@ def dead_reckon(pos, qz, qw, u, horizon, moved=None):
     θ enters only through the sent quaternion, by the angle-sum identities: (cos θ, sin θ) =
     `frame_from_quaternion`, and the half angle θ'/2 = θ/2 + uh/2 is the quaternion turned by
     uh/2, so sin and cos of uh/2 are the only ones evaluated (the compiled radio,
-    `fast_kernels._dead_reckon`, does the same sums)."""
+    `fast_run_kernels._dead_reckon`, does the same sums)."""
     pos, qz, qw, horizon = (np.asarray(v, float) for v in (pos, qz, qw, horizon))
     half = np.multiply(u, 0.5 * horizon)                        # uh/2
     sh, ch = np.sin(half), np.cos(half)

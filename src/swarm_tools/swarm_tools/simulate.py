@@ -15,6 +15,7 @@ import numpy as np
 from swarm_core import study as st
 from swarm_core.analysis.outputs import analyse, check_output_dir, dumps, summary_of, write_failed, write_outputs
 from swarm_core.command.plan import law_timeline, read_commands, recorded_law_hashes
+from swarm_core.engine import fast
 from swarm_core.engine import reference as engine
 from swarm_core.files import write_atomic
 from swarm_core.laws import LawError, LawFailed
@@ -95,14 +96,13 @@ def _replay_or_exit(path, scn) -> dict:
 
 def _engine_option(p):
     p.add_argument('--engine', choices=['fast', 'reference'], default='fast', help=(
-        'fast (default): the compiled kernel (swarm_core.engine.compiled) where it covers the run, else the '
+        'fast (default): the law\'s compiled run (swarm_core.engine.fast) where it covers the run, else the '
         'reference; reference: the numpy engine the ROS nodes are checked against (a study with '
         'robot_set runs on the robot engine, swarm_robots.engine)'))
 
 
 def _simulator(name):
-    """``simulate`` of engine ``name`` (the fast module is imported only when asked for)."""
-    from swarm_core.engine import compiled as fast
+    """``simulate`` of engine ``name`` (a law's compiled run is imported only when it runs)."""
     if name == 'reference':
         return engine.simulate
     return fast.simulate
@@ -414,7 +414,6 @@ def study_main(p, a) -> int:
     """`swarm sweep --set ... / --study FILE`: validate every cell, run (cached), write
     runs.csv and runs.parquet (one row per run), rates.csv and rates.md (rate per cell and check, 95 % Wilson
     CI) and a figure into --out."""
-    from swarm_core.engine import compiled as fast
     if a.study and a.scenarios:
         p.error('give a study file or a scenario with --set, not both')
     if not a.study and len(a.scenarios) != 1:

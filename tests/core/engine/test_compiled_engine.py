@@ -1,5 +1,6 @@
-"""The study fast path (swarm_core.engine.compiled) against the reference engine, and the study outputs a
-data scientist reads (runs.parquet next to runs.csv).  Pure: no ROS."""
+"""The study fast path (swarm_core.engine.fast: the paper's laws' compiled run) against the
+reference engine, and the study outputs a data scientist reads (runs.parquet next to runs.csv).
+Pure: no ROS."""
 from __future__ import annotations
 
 import csv
@@ -13,7 +14,7 @@ import yaml
 
 from swarm_core import study as st
 from swarm_core.analysis import metrics
-from swarm_core.engine import compiled as fast
+from swarm_core.engine import fast
 from swarm_core.engine import reference as engine
 from swarm_core.scenario import loader as scenario
 from swarm_core.study.tables import _cell_str
@@ -120,6 +121,7 @@ def test_dense_metric_samples_equal_the_per_sample_loop():
 def test_agent_processes_do_not_import_numba():
     code = ('import sys, swarm_agent.agent_core, swarm_agent.container_core, swarm_world.lockstep, '
             'homotopy_commander.commander_node, swarm_core.engine.reference\n'
-            'print(sorted(m for m in sys.modules if m.startswith(("numba", "swarm_core.engine.compiled", "pyarrow"))))')
+            'print(sorted(m for m in sys.modules\n'
+            '             if m.startswith(("numba", "swarm_core.laws.paper.fast_run", "pyarrow"))))')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == '[]'

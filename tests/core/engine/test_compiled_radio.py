@@ -1,5 +1,5 @@
-"""The radio model in the study fast path (swarm_core.engine.compiled, fast_kernels) against the reference engine
-(swarm_core.radio in swarm_core.engine.reference).  Pure: no ROS."""
+"""The radio model in the study fast path (swarm_core.laws.paper.fast_run, fast_run_kernels) against
+the reference engine (swarm_core.radio in swarm_core.engine.reference).  Pure: no ROS."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,9 +8,10 @@ import yaml
 
 from swarm_core import radio as comms
 from swarm_core import study as st
-from swarm_core.engine import compiled as fast
-from swarm_core.engine import compiled_kernels as fast_kernels
+from swarm_core.engine import fast
 from swarm_core.engine import reference as engine
+from swarm_core.laws.paper import fast_run
+from swarm_core.laws.paper import fast_run_kernels as fast_kernels
 from swarm_core.model.frenet import frame_from_quaternion
 from swarm_core.scenario import loader as scenario
 from tests.helpers import ROOT
@@ -104,7 +105,7 @@ def test_compiled_fates_are_the_reference_fates():
                                              partition=[names[:3]], links=[{'sender': 'a1', 'loss': 0.0},
                                                                            {'receiver': 'a6', 'jitter': 1.0}]),
                                         names, 0.1)
-    rf, seed, link, labels, stats = fast.radio_arguments(model, n)
+    rf, seed, link, labels, stats = fast_run.radio_arguments(model, n)
     keys = fast_kernels.radio_state(n, 1, 1)[7]
     rng = np.random.default_rng(1)
     arrival = np.empty((n, n), np.int64)

@@ -1,7 +1,8 @@
 """Engines that run a whole scenario without ROS, and what they write.
 
 `reference`: the batch engine in numpy, the reference the ROS nodes equal bit for bit;
-`compiled`: the study fast path (numba, imported on first use); `trajectory`: a run's states;
+`fast`: the study fast path, a law's compiled whole run where it has one (numba, imported on
+first use); `trajectory`: a run's states;
 `registry`: engines by name, including those other packages register."""
 from swarm_core.engine.reference import SwarmStepper, simulate
 from swarm_core.engine.trajectory import Trajectory

@@ -10,7 +10,7 @@ from importlib.metadata import entry_points
 
 GROUP = 'swarm_core.engines'
 #: the engines of swarm_core itself: name -> 'module:function' (imported on first use)
-BUILT_IN = {'reference': 'swarm_core.engine.reference:simulate', 'fast': 'swarm_core.engine.compiled:simulate'}
+BUILT_IN = {'reference': 'swarm_core.engine.reference:simulate', 'fast': 'swarm_core.engine.fast:simulate'}
 
 
 def names() -> list[str]:

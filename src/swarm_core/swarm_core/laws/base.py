@@ -142,9 +142,10 @@ class Law:
     - **dims**: the dimensions the law supports; every law is planar today, ``(2,)``.
 
     The rest is the framework's: `evaluate` (what every engine calls), `believed_controls` (on
-    a radio's beliefs), `pair_list` (what the law sums over) and the law as a scenario mapping
-    or as flat parameters (`mapping`, `flat`, `flat_specs`, `from_mapping`).  A law with a
-    faster path of its own overrides `evaluate` and `pair_list` (the paper's laws,
+    a radio's beliefs), `pair_list` (what the law sums over), `compiled_run` (a whole run in
+    compiled code, for the fast engine) and the law as a scenario mapping or as flat
+    parameters (`mapping`, `flat`, `flat_specs`, `from_mapping`).  A law with faster paths of
+    its own overrides `evaluate`, `pair_list` and `compiled_run` (the paper's laws,
     `laws.paper`); a law made of laws names them in ``parts`` (`Blend`).
     """
 
@@ -270,6 +271,13 @@ class Law:
         """What `evaluate` sums over for a table at ``pos`` (``pairs``): None, the whole table
         (a `Law` reads its whole view).  ``search``: the engine's neighbour search (auto, all,
         kdtree)."""
+        return None
+
+    @classmethod
+    def compiled_run(cls):
+        """The module of the law's compiled whole run (``fallback_reason``, ``run``, ``warm_up``),
+        which the fast engine (`engine.fast`) takes where it covers a run; None: the fast
+        engine hands the law's runs to the reference engine."""
         return None
 
     def believed_controls(self, pos, cos_t, sin_t, a, m, *, lambda_, is_leader, steering, target, barrier,

@@ -255,7 +255,7 @@ class Task:
     robot_set: str | None = None      # engine 'robots': which agents are robots
 
 
-#: the engines a study runs on: 'fast' (`swarm_core.engine.compiled.simulate`: the compiled kernel where it covers
+#: the engines a study runs on: 'fast' (`swarm_core.engine.fast.simulate`: the compiled kernel where it covers
 #: the run, else the reference) and 'reference' (`engine.simulate`); a cell with a `ROBOT_SET`
 #: runs on ROBOTS_ENGINE (registered by swarm_robots, `engine.registry`) whatever the engine asked for
 ENGINES = ('fast', 'reference')

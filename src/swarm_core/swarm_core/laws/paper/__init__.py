@@ -1,7 +1,8 @@
 """The paper's laws (no ROS): Morgan & Schwartz's global, local, leader-following, homotopy and
 target laws as `Law`s (`laws`), their world terms, target and barrier (`terms`, eq. 15-16),
-their parameters (`parameters`) and their fast paths beside them: the pair sums (`pair_sums`)
-and, for large swarms, compiled pair sums (`compiled_sums`)."""
+their parameters (`parameters`) and their fast paths beside them: the pair sums (`pair_sums`),
+compiled pair sums for large swarms (`compiled_sums`) and a whole run in compiled code for
+the fast engine (`fast_run`, `fast_run_kernels`)."""
 from swarm_core.laws.paper.laws import (
     PAPER_LAWS,
     WORLD_KEYS,

@@ -52,7 +52,7 @@ class PaperLaw(Law):
 
     #: eq. 15: the pair term is only collision avoidance within w (the target law)
     avoidance_only = False
-    #: the law's code in the compiled whole-run kernel (`engine.compiled`)
+    #: the law's code in the compiled whole run (`fast_run`); -1: none
     kernel_code = -1
 
     @classmethod
@@ -133,6 +133,12 @@ class PaperLaw(Law):
         if search == 'auto' and (n <= DENSE_LIMIT or not sparse_coupling(n, self, lambda_)):
             return None
         return neighbour_pairs(pos, self.cutoff_radius)
+
+    @classmethod
+    def compiled_run(cls):
+        """`fast_run`: the whole run in compiled code (numba, imported here, on first use)."""
+        from swarm_core.laws.paper import fast_run
+        return fast_run
 
     def believed_controls(self, pos, cos_t, sin_t, a, m, *, lambda_, is_leader, steering, target, barrier,
                           nearest, t) -> np.ndarray:

@@ -1,8 +1,9 @@
-"""The study fast path: a whole run of a small swarm as one compiled loop (numba), no ROS.
+"""The paper's laws' compiled whole run: a whole run of a small swarm as one compiled loop
+(numba), no ROS; the fast engine (`engine.fast`) takes it from the law (`PaperLaw.compiled_run`).
 
-`simulate` takes the runs the kernels (`fast_kernels`) cover and hands every other run to
-the reference engine (`engine.simulate`, today's numpy engine, which the ROS nodes are
-checked against bit for bit); `fallback_reason` says why a run is not covered.  Covered: the
+`run` runs what the kernels (`fast_run_kernels`) cover; `fallback_reason` says why a run is
+not covered, and the fast engine then hands it to the reference engine (today's numpy engine,
+which the ROS nodes are checked against bit for bit).  Covered: the
 zoh integrator; the laws global, local, leader_following, homotopy and target (eq. 4, 9,
 10-15) with the target and barrier terms (eq. 15, 16) over all pairs of at most
 `pair_sums.DENSE_LIMIT` agents; fixed leaders or the lateral_extremes rule; constant and
@@ -30,10 +31,9 @@ import numpy as np
 
 from swarm_core.command.plan import CHOOSE_RISE
 from swarm_core.command.schedules import ConstantLambda, ConstantSteering, SinusoidSteering, TanhWindow
-from swarm_core.engine import reference as engine
-from swarm_core.engine.compiled_kernels import _run, _tanh_window
 from swarm_core.engine.trajectory import Trajectory
 from swarm_core.faults.agents import event_names
+from swarm_core.laws.paper.fast_run_kernels import _run, _tanh_window
 from swarm_core.laws.paper.pair_sums import DENSE_LIMIT
 from swarm_core.radio import delay_stats
 
@@ -44,7 +44,7 @@ def fallback_reason(scn, integrator=None, commands=None) -> str | None:
     checks = (
         ((integrator or spec.integrator) != 'zoh', 'integrator rk4'),
         (bool(commands), 'live commands'),
-        (getattr(scn.law, 'kernel_code', -1) < 0, f'law {scn.law.kind}'),
+        (scn.law.kernel_code < 0, f'law {scn.law.kind}'),
         (len(scn.names) > DENSE_LIMIT, f'more than {DENSE_LIMIT} agents'),
         (bool(spec.faults) or spec.failover is not None, 'faults or failover'),
         (bool(spec.reunion), 'reunion'),
@@ -108,7 +108,7 @@ RF_FIELDS = 6
 
 
 def radio_arguments(model, n: int):
-    """The radio arguments of `fast_kernels._run` for a `comms.CommModel` (None: the perfect radio):
+    """The radio arguments of `fast_run_kernels._run` for a `comms.CommModel` (None: the perfect radio):
     (rf, seed (1,) uint64, link (4, n, n): loss, latency, jitter and the delay in steps
     without jitter, partition labels (n,), stats (2 + ring,) int64 filled by the kernel:
     sent, delivered, the histogram of delays)."""
@@ -147,16 +147,9 @@ def _noise(scn, steps):
     return draws * scale
 
 
-def simulate(scn, *, integrator=None, record_every: int = 1, neighbour_search: str = 'auto',
-             progress=None, commands=None) -> Trajectory:
-    """`engine.simulate` on the fast kernel where it covers the run (`fallback_reason`), else
-    the reference engine; ``meta['engine']`` says which ran (and ``meta['fallback']`` why)."""
-    reason = fallback_reason(scn, integrator, commands)
-    if reason is not None:
-        traj = engine.simulate(scn, integrator=integrator, record_every=record_every,
-                               neighbour_search=neighbour_search, progress=progress, commands=commands)
-        traj.meta.update(engine='reference', fallback=reason)
-        return traj
+def run(scn, *, record_every: int = 1, neighbour_search: str = 'auto', progress=None) -> Trajectory:
+    """A run the kernels cover (`fallback_reason` None) as one compiled loop, recorded every
+    ``record_every`` steps; ``meta['engine']`` is 'fast'."""
     wall = time.perf_counter()
     law, plan, steps, n = scn.law, scn.command_plan(), scn.steps, len(scn.names)
     gains = np.array([law.alpha, law.eta, law.mu, law.r0, law.cutoff_radius, law.leader_gain])

@@ -1,6 +1,6 @@
 """The compiled kernels of the study fast path (numba): a whole run of a small swarm as one
-loop (`_run`), the law over all pairs, and the radio model (`comms`) on beliefs.  `fast`
-prepares their arguments and runs them; no ROS process imports this module.
+loop (`_run`), the law over all pairs, and the radio model (`radio`) on beliefs.
+`fast_run` prepares their arguments and runs them; no ROS process imports this module.
 
 Every kernel lives in this one file: numba's on-disk cache (``cache=True``) is keyed by the
 file that defines a function, so a change in a kernel called from another file would not
@@ -259,7 +259,7 @@ def _run(x, y, theta, dt, lams, code, q0, gains, leader_prog, progs, rule, choos
          world, barrier, noise, radio, every, r_rec, th_rec, u_rec, lead_rec):
     """Every step of a run (the commander's plan, the radio, the law, the zoh step, the noise)
     with the records of every ``every``-th step filled in place; returns the step at which
-    the rule chose the leaders (−1: none).  radio: `swarm_core.engine.compiled.radio_arguments`."""
+    the rule chose the leaders (−1: none).  radio: `swarm_core.laws.paper.fast_run.radio_arguments`."""
     n = x.size
     steps = lams.size - 1
     alpha, eta, mu, r0, w, leader_gain = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5]
