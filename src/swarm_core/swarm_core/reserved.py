@@ -24,8 +24,9 @@ AGENT_PARAMETERS = (
 
 
 def law_attributes() -> tuple:
-    """The names of `Law`'s methods and its ``kind``: a parameter of that name would hide them."""
-    return tuple(sorted({'kind'} | {n for n in dir(Law) if not n.startswith('_') and callable(getattr(Law, n))}))
+    """The names of `Law`'s methods and attributes (``kind``, ``dims``, ``parts``,
+    ``uses_leaders``), its parameters aside: a parameter of that name would hide them."""
+    return tuple(sorted({'kind'} | {n for n in dir(Law) if not n.startswith('_')} - set(Law.param_specs())))
 
 
 def reserved_names() -> tuple:
