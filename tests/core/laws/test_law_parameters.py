@@ -150,3 +150,13 @@ def test_a_bound_names_its_range():
     b = Bound('dt', 1e-6, 10.0)
     assert b.error(0.0) == 'dt=0.0: must be a finite number in [1e-06, 10]'
     assert b.check(10) == 10.0 and not b.ok(10.5)
+
+
+def test_a_paper_law_checks_its_choice_and_yes_no_parameters():
+    from swarm_core.laws import LawError
+    target = law_class('target')
+    assert target(barrier_mode='literal', target_normalised=True).barrier_mode == 'literal'
+    with pytest.raises(LawError, match=r"parameter barrier_mode must be one of ahead, literal, got 'magic'"):
+        target(barrier_mode='magic')
+    with pytest.raises(LawError, match=r'law target: parameter target_normalised must be true or false, got 1'):
+        target(target_normalised=1)
