@@ -174,7 +174,7 @@ def spin_for(ex, cond, timeout=10.0):
 
 
 def pairs_of_one(pairs, k):
-    """The pairs of receiver ``k`` out of `engine.neighbour_pairs`' (k, j) arrays, as one
+    """The pairs of receiver ``k`` out of `laws.paper.pair_sums.neighbour_pairs`' (k, j) arrays, as one
     receiver's (position 0, sender row) list for ``swarm_control(..., receivers=[k])``."""
     mine = pairs[0] == k
     return np.zeros(np.count_nonzero(mine), dtype=np.intp), pairs[1][mine]
