@@ -241,7 +241,9 @@ def test_a_second_swarm_run_on_the_domain_refuses_and_the_first_is_not_mixed(tmp
     from swarm_core.engine.reference import Trajectory, simulate
     from swarm_ros.runinfo import SETTLE_ENV
     from tests.helpers import Lines
-    monkeypatch.delenv(SETTLE_ENV)               # the worlds listen for another run, as by default
+    # the worlds listen for another run, as by default, but longer: under a loaded suite B's world
+    # once heard no sign of A within the default 3 s (B stops as soon as it hears A)
+    monkeypatch.setenv(SETTLE_ENV, '12')
     a = processes.start([swarm_cmd, 'run', 'homotopy_global', '--in-process', '--out', tmp_path / 'a',
                          '--no-figure', '--progress-every', '5'],
                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

@@ -258,14 +258,14 @@ def test_bad_startup_parameters_are_named(rclpy_context):
 
 
 def test_agent_declares_each_law_parameter_with_the_tables_description_and_range(rclpy_context):
-    """The agent's ROS parameters come from `law_parameters.LAW_TABLE`: the same default,
+    """The agent's ROS parameters come from `laws.paper.parameters.LAW_TABLE`: the same default,
     description and range (or choices) a scenario is checked against."""
-    from swarm_core.laws import KINDS
+    from swarm_core.laws import names
     from swarm_core.laws.paper.parameters import LAW_TABLE
     node = AgentNode('agent', namespace='described', context=rclpy_context)
     try:
         law = node.describe_parameter('law')        # any kind: the paper's, shipped, a user's (docs/laws.md)
-        assert all(kind in law.description for kind in KINDS) and 'FILE.py:Class' in law.description
+        assert all(kind in law.description for kind in names()) and 'FILE.py:Class' in law.description
         for p in LAW_TABLE:
             if p.name == 'law':
                 assert node.get_parameter('law').value == p.default
