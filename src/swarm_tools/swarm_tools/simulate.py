@@ -8,6 +8,7 @@ import signal
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +22,7 @@ from swarm_core.files import write_atomic
 from swarm_core.laws import LawError, LawFailed
 from swarm_core.laws.guards import exit_workers_leaving_no_thread
 from swarm_core.scenario import loader as scenario
+from swarm_core.study.runner import VANISHED_WORKER
 
 
 class _Progress:
@@ -269,7 +271,11 @@ def sweep(name, seeds, jobs=1, progress=True, **over):
             futures = [pool.submit(_sweep_one, w) for w in work]
             try:
                 for f in futures:
-                    take(f.result())
+                    try:
+                        r = f.result()
+                    except BrokenProcessPool:
+                        raise SweepFailed(f'{name}: {VANISHED_WORKER}', results) from None
+                    take(r)
             except KeyboardInterrupt as why:
                 stop.set()
                 for f in futures:

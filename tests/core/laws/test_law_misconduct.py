@@ -50,3 +50,22 @@ def test_a_nul_in_a_path_is_one_line(tmp_path):
     data = {'name': 'x', 'agents': {'count': 3}, 'law': {'kind': 'ex\0its.py:Law'}}
     with pytest.raises((ScenarioError, InputError), match="a NUL byte is in no file's or module's name"):
         parse(data, 'inline')
+
+
+VANISH = ('import os\nimport numpy as np\nfrom swarm_core.laws import Law, param\n\n\nclass Vanish(Law):\n'
+          '    gain = param(0.1, lo=0.0, hi=1.0)\n\n    def control(self, view):\n        if view.t > 5:\n'
+          '            os._exit(0)\n        return np.zeros(view.receivers.size)\n')
+
+
+@pytest.mark.parametrize('study', [False, True], ids=['sweep', 'study'])
+def test_a_worker_whose_law_calls_os_exit_stops_the_sweep_with_one_line(tmp_path, study):
+    """os._exit in a law ends a sweep's worker without a word: one line, exit 1, no
+    BrokenProcessPool traceback (a study keeps its cache)."""
+    (tmp_path / 'vanish.py').write_text(VANISH)
+    path = faulty_law_scenario(tmp_path, 'vanish.py:Vanish')
+    more = ['--set', 'law.gain=0.1,0.2', '--out', str(tmp_path / 'study'), '--no-figure'] if study else []
+    r = subprocess.run([SWARM, 'sweep', str(path), '--seeds', '2', '--jobs', '2', '--quiet', *more],
+                       capture_output=True, text=True, timeout=120)
+    said = [ln for ln in r.stderr.splitlines() if 'ended without a word' in ln]
+    assert r.returncode == 1 and len(said) == 1 and 'Traceback' not in r.stderr, r.stderr
+    assert 'the study stops' in said[0] if study else said[0].endswith('the sweep stops')

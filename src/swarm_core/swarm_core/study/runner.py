@@ -20,6 +20,7 @@ import sys
 import warnings
 from concurrent import futures
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import get_args
@@ -352,6 +353,11 @@ def _ignore_sigint():
     exit_workers_leaving_no_thread()               # a law that left a thread must not hold the pool
 
 
+#: what a study or a sweep says of a worker process that ended without a word
+VANISHED_WORKER = ('a worker process ended without a word (a law that calls os._exit ends its process so: '
+                   'nothing can catch that)')
+
+
 def _local_map(todo, jobs):
     """Yield run_task results as they finish, in local processes (``jobs`` 1: in this one)."""
     if jobs <= 1:
@@ -363,7 +369,10 @@ def _local_map(todo, jobs):
     try:
         futs = [pool.submit(run_task, t) for t in todo]
         for f in futures.as_completed(futs):
-            yield f.result()
+            try:
+                yield f.result()
+            except BrokenProcessPool:
+                raise LawError(VANISHED_WORKER) from None
         done = True
     finally:
         if not done:                       # Ctrl-C or an error: end the runs in flight now
