@@ -60,7 +60,8 @@ def test_the_built_in_laws_are_registered_by_kind():
     assert names()[:len(BUILT_IN)] == list(BUILT_IN)
     for kind in BUILT_IN:
         cls = law_class(kind)
-        assert cls.kind == kind and issubclass(cls, Law) and cls.dims == (2,)
+        assert cls.kind == kind and issubclass(cls, Law)
+        assert cls.dims == ((2,) if kind.startswith('spl_') else (2, 3))     # the paper's lifted to 3D; SPL planar
     assert law_class('global')().couples_globally(0.3) and not law_class('local')().couples_globally(0.3)
 
 
@@ -114,9 +115,9 @@ def test_swarm_laws_lists_every_law_with_its_parameters(capsys):
     out = capsys.readouterr().out.splitlines()
     heads = [ln for ln in out if not ln.startswith(' ')]
     assert [h.split()[0] for h in heads] == names()
-    assert all(h.split()[1] == '[2D]' for h in heads)
-    assert heads[0] == 'global  [2D]  Global coupling of every pair (eq. 4).'
-    assert heads[names().index('blend')].startswith('blend  [2D]  u = (1 − λ) u_from + λ u_to')
+    assert all(h.split('  ')[1] == ('[2D]' if h.startswith('spl_') else '[2D, 3D]') for h in heads)
+    assert heads[0] == 'global  [2D, 3D]  Global coupling of every pair (eq. 4).'
+    assert heads[names().index('blend')].startswith('blend  [2D, 3D]  u = (1 − λ) u_from + λ u_to')
     # each parameter's line: its name, default, range or choices, description
     table = {ln.split()[0]: ln for ln in out[1:out.index(heads[1])]}
     assert table['alpha'].split() == ['alpha', '0.02', '[0,', '1e+06]', 'spacing', 'gain', 'α', 'of', 'the', 'pair',

@@ -2,7 +2,7 @@
 
 Writing a law:  `Law` (its docstring holds the rules a law keeps), `param`, `View`,
                 `neighbours_within`.
-Calling a law:  `swarm_control`, the one call every engine makes.
+Calling a law:  `swarm_control`, the one call every engine makes (`natural_control` in 3D).
 Laws by name:   `make_law`, `law_class`, `names` (`registry`: built-in, entry points
                 ``swarm_core.laws``, ``FILE.py:Class``, ``module:Class``).
 The shipped laws: the paper's (`paper`: `Global`, `Local`, `LeaderFollowing`, `Homotopy`,
@@ -14,7 +14,7 @@ Errors:         `LawError`, `LawFailed`, `failed_at`.
 """
 from swarm_core.laws.base import Law, LawError, LawFailed, View, failed_at, neighbours_within, param
 from swarm_core.laws.blend import Blend
-from swarm_core.laws.control import swarm_control
+from swarm_core.laws.control import natural_control, swarm_control
 from swarm_core.laws.paper import DEFAULTS, Global, Homotopy, LeaderFollowing, Local, PaperLaw, Target, target_term
 from swarm_core.laws.registry import (
     default_law,
@@ -32,7 +32,7 @@ __all__ = [
     # writing a law
     'Law', 'View', 'neighbours_within', 'param',
     # calling a law
-    'swarm_control',
+    'natural_control', 'swarm_control',
     # laws by name
     'law_class', 'make_law', 'names',
     # the shipped laws

@@ -103,7 +103,10 @@ class View:
     pos (N, 2), theta (N,), cos/sin (N,) of θ (from the planar quaternions agents exchange),
     receivers (K,): rows of the table whose u is wanted, cutoff_radius: w, lam: λ, t: the sim
     time (None where the caller has none), is_leader (N,) bool, steering (K,): the receivers'
-    leader programs s_k."""
+    leader programs s_k.
+
+    In three dimensions (`Law.evaluate_natural`): pos (N, 3), the frames x, y, z (N, 3) each,
+    steering (K, 2): s_k = (s_u, s_v); theta, cos and sin are None."""
 
     pos: np.ndarray
     theta: np.ndarray
@@ -115,6 +118,9 @@ class View:
     t: float | None
     is_leader: np.ndarray
     steering: np.ndarray
+    x: np.ndarray | None = None
+    y: np.ndarray | None = None
+    z: np.ndarray | None = None
 
 
 class Law:
@@ -139,7 +145,9 @@ class Law:
     - **Target and barrier terms** (eq. 15, 16) belong to the paper's laws: their gains come
       from the scenario's ``target:`` and ``barrier:`` sections (`with_world`); no other law's
       view holds the target or the barrier.
-    - **dims**: the dimensions the law supports; every law is planar today, ``(2,)``.
+    - **dims**: the dimensions the law supports, ``(2,)`` (planar) by default.  A law with 3 in
+      its dims runs in 3D scenarios: its view then holds the frames x, y, z (N, 3) and
+      `control` returns (K, 2), (u, v) per receiver (`evaluate_natural`).
 
     The rest is the framework's: `evaluate` (what every engine calls), `believed_controls` (on
     a radio's beliefs), `pair_list` (what the law sums over), `compiled_run` (a whole run in
@@ -228,6 +236,26 @@ class Law:
                     cutoff_radius=self.cutoff_radius, lam=float(lambda_), t=t,
                     is_leader=np.zeros(n, bool) if is_leader is None else np.asarray(is_leader, bool),
                     steering=np.zeros(k) if steering is None else np.asarray(steering, float))
+        return self._guarded_control(view, (k,), 'one u per receiver')
+
+    def evaluate_natural(self, pos, frames, receivers, *, lambda_=0.0, is_leader=None, steering=None,
+                         t=None, **world) -> np.ndarray:
+        """(u, v) (K, 2) of the receivers in three dimensions: `control` on a view with the
+        frames (`View`), checked as `evaluate` checks u.  pos (N, 3); frames (x, y, z), (N, 3)
+        each; steering (K, 2).  ``world`` (target, barrier, ground) is the paper's laws'."""
+        pos = np.asarray(pos, dtype=float)
+        receivers = np.asarray(receivers, dtype=np.intp)
+        x, y, z = (np.asarray(f, dtype=float) for f in frames)
+        n, k = len(pos), receivers.size
+        view = View(pos=pos, theta=None, cos=None, sin=None, receivers=receivers, cutoff_radius=self.cutoff_radius,
+                    lam=float(lambda_), t=t, is_leader=np.zeros(n, bool) if is_leader is None else
+                    np.asarray(is_leader, bool), steering=np.zeros((k, 2)) if steering is None else
+                    np.asarray(steering, float), x=x, y=y, z=z)
+        return self._guarded_control(view, (k, 2), '(u, v) per receiver')
+
+    def _guarded_control(self, view, shape, what) -> np.ndarray:
+        """`control` of ``view``: LawError naming the law if it raises, leaves a thread running or
+        returns anything but finite numbers of ``shape`` (``what`` they are)."""
         sigints, threads = guards.watch_interrupts(), threading.active_count()
         before = {t.ident for t in threading.enumerate()} if threads > 1 else {threading.get_ident()}
         try:
@@ -246,8 +274,9 @@ class Law:
         if left:
             raise LawError(f'law {self.kind} left a thread running ({left[0].name}): a law may not start '
                            'threads that outlive its call')
-        if u.shape != (k,):
-            raise LawError(f'law {self.kind} returned shape {u.shape}, want ({k},): one u per receiver')
+        if u.shape != shape:
+            want = f'({shape[0]},)' if len(shape) == 1 else str(shape)
+            raise LawError(f'law {self.kind} returned shape {u.shape}, want {want}: {what}')
         if not np.all(np.isfinite(u)):
             raise LawError(f'law {self.kind} returned a non-finite u ({float(u[~np.isfinite(u)][0])!r})')
         return u

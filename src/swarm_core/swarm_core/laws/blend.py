@@ -14,6 +14,8 @@ class Blend(Law):
 
     kind = 'blend'
     parts = ('from', 'to')
+    #: a blend runs in the dimensions both its laws support (an instance's own)
+    dims = (2, 3)
 
     def __init__(self, from_law, to_law):
         for side, law in (('from', from_law), ('to', to_law)):
@@ -21,6 +23,7 @@ class Blend(Law):
                 raise LawError(f'law blend: {side} must be a law other than a blend, got {law!r}')
         self.from_law, self.to_law = from_law, to_law
         self.cutoff_radius = max(from_law.cutoff_radius, to_law.cutoff_radius)
+        self.dims = tuple(d for d in from_law.dims if d in to_law.dims)
 
     @classmethod
     def param_specs(cls):
@@ -52,6 +55,14 @@ class Blend(Law):
         u_from = self.from_law.evaluate(pos, cos_t, sin_t, receivers, **kw)
         u_to = self.to_law.evaluate(pos, cos_t, sin_t, receivers, **kw)
         return (1.0 - lam) * np.asarray(u_from) + lam * np.asarray(u_to)
+
+    def evaluate_natural(self, pos, frames, receivers, *, lambda_=0.0, is_leader=None, steering=None, t=None,
+                         **world):
+        lam = float(lambda_)
+        kw = dict(lambda_=lam, is_leader=is_leader, steering=steering, t=t, **world)
+        uv_from = self.from_law.evaluate_natural(pos, frames, receivers, **kw)
+        uv_to = self.to_law.evaluate_natural(pos, frames, receivers, **kw)
+        return (1.0 - lam) * np.asarray(uv_from) + lam * np.asarray(uv_to)
 
     def with_world(self, world: dict) -> Blend:
         return Blend(self.from_law.with_world(world), self.to_law.with_world(world))

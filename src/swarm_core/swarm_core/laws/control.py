@@ -1,5 +1,5 @@
 """The one call every engine makes (no ROS): u_k of some receivers from a table of agent states,
-by any law (the paper's, a shipped one, a blend, a user's)."""
+by any law (the paper's, a shipped one, a blend, a user's); in three dimensions (u_k, v_k)."""
 from __future__ import annotations
 
 from swarm_core.laws.base import Law
@@ -25,3 +25,14 @@ def swarm_control(pos, cos_t, sin_t, receivers, law: Law, *, lambda_=0.0, is_lea
     """
     return law.evaluate(pos, cos_t, sin_t, receivers, lambda_=lambda_, is_leader=is_leader, steering=steering,
                         target=target, barrier=barrier, pairs=pairs, nearest=nearest, t=t)
+
+
+def natural_control(pos, frames, receivers, law: Law, *, lambda_=0.0, is_leader=None, steering=None,
+                    target=None, barrier=None, ground=None, t=None):
+    """(u_k, v_k) (K, 2) of the receivers in three dimensions: ``law.evaluate_natural``.
+
+    pos (N, 3); frames (x, y, z), each (N, 3), from `swarm_core.model.natural`; steering (K, 2):
+    s_k = (s_u, s_v) of each receiver; target (3,), barrier (m, 3), ground (the floor's height)
+    or None.  The law must have 3 in its ``dims``."""
+    return law.evaluate_natural(pos, frames, receivers, lambda_=lambda_, is_leader=is_leader, steering=steering,
+                                target=target, barrier=barrier, ground=ground, t=t)

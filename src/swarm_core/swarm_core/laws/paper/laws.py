@@ -22,6 +22,7 @@ import numpy as np
 
 from swarm_core.laws.base import Law, LawError, param
 from swarm_core.laws.paper import compiled_sums
+from swarm_core.laws.paper.natural_sums import natural_controls
 from swarm_core.laws.paper.pair_sums import (
     DENSE_LIMIT,
     _combine,
@@ -54,6 +55,8 @@ class PaperLaw(Law):
     avoidance_only = False
     #: the law's code in the compiled whole run (`fast_run`); -1: none
     kernel_code = -1
+    #: planar, and lifted to 3D (`natural_sums`)
+    dims = (2, 3)
 
     @classmethod
     def param_specs(cls) -> dict[str, param]:
@@ -113,6 +116,20 @@ class PaperLaw(Law):
         else:
             u = sums
         return add_world_terms(u, pos, F, receivers, self, target, barrier)
+
+    def evaluate_natural(self, pos, frames, receivers, *, lambda_=0.0, is_leader=None, steering=None,
+                         target=None, barrier=None, ground=None, t=None, **unused):
+        """(u_k, v_k) (K, 2) of the receivers in 3D: the paper's law lifted (`natural_sums`).
+        pos (N, 3), frames (x, y, z) (N, 3) each, steering (K, 2), target (3,), barrier (m, 3),
+        ground: the floor's height or None.  t is not read."""
+        pos = np.asarray(pos, dtype=float)
+        receivers = np.asarray(receivers, dtype=np.intp)
+        lam, q0 = self.effective_lambda_q0(lambda_)
+        leaders = None
+        if self.uses_leaders and is_leader is not None and np.count_nonzero(is_leader):
+            leaders = np.asarray(is_leader, dtype=bool)
+        frames = tuple(np.asarray(f, dtype=float) for f in frames)
+        return natural_controls(self, pos, frames, receivers, lam, q0, leaders, steering, target, barrier, ground)
 
     def _compiled_sums(self, pos, cos_sin, F, receivers, lam, q0, leaders):
         """Σ_j W_jk u_jk of the receivers from `compiled_sums.compiled_moments` (every table row
