@@ -18,6 +18,7 @@ from swarm_core.checks import (
     RAMP_BOUND,
     STEERING_BOUND,
     Bound,
+    InputError,
 )
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -25,6 +26,8 @@ NonNeg = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 Coord = Annotated[float, Field(ge=-MAX_COORD, le=MAX_COORD, allow_inf_nan=False)]
 Point = tuple[Coord, Coord]
+#: a point of a 3D scenario (``dim: 3``)
+Point3 = tuple[Coord, Coord, Coord]
 #: a gain or curvature: bounded so that u_k and dt·u_k stay finite
 Gain = Annotated[float, Field(ge=0, le=MAX_GAIN, allow_inf_nan=False)]
 Length = Annotated[float, Field(gt=0, le=MAX_COORD, allow_inf_nan=False)]
@@ -52,6 +55,18 @@ StepSeconds = bounded(DT_BOUND)
 RunSeconds = bounded(DURATION_BOUND)
 #: a time within a run (sim s)
 SimTime = Annotated[float, Field(ge=0, le=MAX_TIME, allow_inf_nan=False)]
+
+
+def three_vectors(value, what: str = 'a point'):
+    """``value`` (a 3-vector, or a list of them) as it is if each item has 3 numbers; else
+    InputError saying that a 3D scenario takes [x, y, z] (a planar value in ``dim: 3``)."""
+    items = value if isinstance(value, list) and value and isinstance(value[0], (list, tuple)) else [value]
+    for i, item in enumerate(items):
+        if isinstance(item, (list, tuple)) and len(item) != 3:
+            at = f' (item {i})' if items is value else ''
+            raise InputError(f'{what} of a 3D scenario (dim: 3) has 3 coordinates [x, y, z], '
+                             f'got {len(item)}{at}')
+    return value
 
 
 class Strict(BaseModel):

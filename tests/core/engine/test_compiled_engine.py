@@ -23,7 +23,8 @@ from swarm_core.study.tables import _cell_str
 FALLBACK = {'homotopy_reunion': 'reunion', 'leader_failover': 'faults or failover',
             'leader_no_failover': 'faults or failover',
             # laws of the Law interface run on the reference engine
-            'spl_parallel': 'law spl_parallel', 'spl_circular': 'law spl_circular', 'flock_to_circle': 'law blend'}
+            'spl_parallel': 'law spl_parallel', 'spl_circular': 'law spl_circular', 'flock_to_circle': 'law blend',
+            'homotopy_global_3d': 'a 3D scenario'}
 
 
 def _max_diff(a, b):

@@ -59,7 +59,8 @@ class Barrier:
         pos = np.atleast_2d(np.asarray(pos, dtype=float))
         if self._eq is None:
             return np.zeros(len(pos), dtype=bool)
-        s = pos @ self._eq[:, :2].T + self._eq[:, 2]
+        d = self.points.shape[1]                        # 2, or 3 (a 3D barrier's hull)
+        s = pos @ self._eq[:, :d].T + self._eq[:, d]
         return np.all(s < margin, axis=1)
 
     def clearance(self, pos):
@@ -134,17 +135,21 @@ def _each_sample(r, theta, leader, w, idx):
     return out
 
 
-def time_series(t, r, theta, leader, w, *, target=None, barrier_points=None, every: int = 1):
+def time_series(t, r, theta, leader, w, *, target=None, barrier_points=None, every: int = 1, ground=None):
     """Metric time series over a trajectory, sampled every ``every`` records.
 
     Returns a dict of arrays: t, clusters, polarisation, min_distance, centroid (T, 2),
     one_leader_per_cluster (bool: each cluster holds exactly one leader), and, where the
     scenario has them, centroid_target_distance, min_target_distance, intrusions.
-    Agents whose row is not finite (dead: faults.py) are left out of each sample."""
+    Agents whose row is not finite (dead: faults.py) are left out of each sample.
+    In 3D (r (T, n, 3)) ``theta`` is the headings x (T, n, 3) and ``ground`` the floor's
+    height (`_natural_series`)."""
     barrier = Barrier(barrier_points) if barrier_points is not None else None
     idx = np.arange(0, len(t), every)
     if idx[-1] != len(t) - 1:
         idx = np.append(idx, len(t) - 1)
+    if np.shape(r)[-1] == 3:
+        return _natural_series(t, r, theta, leader, w, idx, target, barrier, ground)
     if 2 <= r.shape[1] <= DENSE_SAMPLES and np.isfinite(r[idx]).all() and np.isfinite(theta[idx]).all():
         out = _dense_samples(r[idx], theta[idx], np.asarray(leader)[idx], w)   # no dead agents
     else:
@@ -166,3 +171,53 @@ def time_series(t, r, theta, leader, w, *, target=None, barrier_points=None, eve
         res['intrusions'] = inside[idx]
         res['barrier_clearance'] = float(np.nanmin(barrier.clearance(flat)))
     return res
+
+
+def _natural_series(t, r, headings, leader, w, idx, target, barrier, ground):
+    """`time_series` of a 3D run: clusters (ρ < w in space), polarisation |mean_k x_k|, minimum
+    distance and leaders per cluster at each sample; intrusions (inside the barrier's hull or
+    below the ground) at every record."""
+    out = {k: [] for k in ('clusters', 'polarisation', 'min_distance', 'one_leader_per_cluster')}
+    for i in idx:
+        count, labels = cluster_labels_3d(r[i], w)
+        out['clusters'].append(count)
+        out['polarisation'].append(float(np.linalg.norm(headings[i].mean(axis=0))))
+        d, _ = cKDTree(r[i]).query(r[i], k=2) if len(r[i]) > 1 else (np.full((1, 2), np.inf), None)
+        out['min_distance'].append(float(d[:, 1].min()))
+        lead = np.flatnonzero(leader[i])
+        per = [len(v) for v in leader_membership(labels, lead).values()] if len(lead) else [0]
+        out['one_leader_per_cluster'].append(all(p == 1 for p in per))
+    res = {k: np.asarray(v) for k, v in out.items()}
+    res['t'] = np.asarray(t)[idx]
+    res['centroid'] = r[idx].mean(axis=1)
+    if target is not None:
+        tgt = np.asarray(target, dtype=float)
+        res['centroid_target_distance'] = np.linalg.norm(res['centroid'] - tgt, axis=1)
+        res['min_target_distance'] = np.linalg.norm(r[idx] - tgt, axis=2).min(axis=1)
+    if barrier is not None or ground is not None:
+        flat = np.asarray(r, dtype=float).reshape(-1, 3)
+        inside = np.zeros(len(flat), dtype=bool)
+        if barrier is not None:
+            inside |= barrier.inside(flat)
+            res['barrier_clearance'] = float(barrier.clearance(flat).min())
+        if ground is not None:
+            below = flat[:, 2] < ground                                  # floor intrusions
+            inside |= below
+            res['floor_intrusions_total'] = int(below.sum())
+            res['floor_clearance'] = float((flat[:, 2] - ground).min())
+        inside = inside.reshape(len(t), -1).sum(axis=1)
+        res['intrusions_total'] = int(inside.sum())
+        res['intrusions'] = inside[idx]
+    return res
+
+
+def cluster_labels_3d(pos, w):
+    """`cluster_labels` in space: connected components of ρ_jk < w, (count, labels (n,))."""
+    n = len(pos)
+    ij = cKDTree(pos).query_pairs(w, output_type='ndarray')
+    if ij.size:
+        d = pos[ij[:, 0]] - pos[ij[:, 1]]
+        ij = ij[np.einsum('pc,pc->p', d, d) < w * w]                    # strict ρ < w
+    graph = coo_matrix((np.ones(len(ij)), (ij[:, 0], ij[:, 1])), shape=(n, n))
+    count, labels = connected_components(graph, directed=False)
+    return int(count), labels

@@ -34,8 +34,13 @@ def analyse(traj, cutoff_radius=None, *, target=None, barrier=None, scenario=Non
     elif dt is None:
         dt = traj.meta.get('dt') or 1.0
     every = max(1, int(round(every_time / dt))) if dt > 0 else 1
-    series = metrics.time_series(traj.t, traj.r, traj.theta, traj.leader, cutoff_radius,
-                                 target=target, barrier_points=barrier, every=every)
+    if traj.dim == 3:             # headings x in place of θ; the floor of a 3D barrier
+        series = metrics.time_series(traj.t, traj.r, traj.x, traj.leader, cutoff_radius, target=target,
+                                     barrier_points=barrier, every=every,
+                                     ground=None if scenario is None else scenario.ground)
+    else:
+        series = metrics.time_series(traj.t, traj.r, traj.theta, traj.leader, cutoff_radius,
+                                     target=target, barrier_points=barrier, every=every)
     checks = {}
     if scenario is not None and len(traj.t):
         checks = outcomes.evaluate(scenario.spec.expect, series, traj, scenario)
@@ -92,7 +97,9 @@ def run_summary(traj, series) -> dict:
                cluster_changes=cluster_changes(series))
     if 'intrusions_total' in series:
         out['intrusions_total'] = series['intrusions_total']
-        out['barrier_clearance'] = series['barrier_clearance']
+        for key in ('barrier_clearance', 'floor_intrusions_total', 'floor_clearance'):   # 3D: a floor
+            if key in series:
+                out[key] = series[key]
     if 'centroid_target_distance' in series:
         out['closest_centroid_target_distance'] = float(series['centroid_target_distance'].min())
     return out

@@ -12,13 +12,16 @@ from swarm_core.files import atomic_path
 def plot_run(traj, series, path, *, title: str = '', w: float = 4.0, target=None, barrier=None):
     """Write the run's figure to ``path`` (PNG) and return the path.
 
-    traj: a `engine.Trajectory`; series: `metrics.time_series` of it (needs t, clusters)."""
+    traj: a `engine.Trajectory`; series: `metrics.time_series` of it (needs t, clusters).
+    A 3D run is drawn from above (x, y)."""
     import matplotlib
     import matplotlib.pyplot as plt
     from scipy.spatial import ConvexHull
     matplotlib.use('Agg')
 
     n = traj.r.shape[1]
+    top = traj.r.shape[2] == 3
+    r = traj.r[..., :2]                                 # 3D: the top view
     cmap = plt.get_cmap('tab10' if n <= 10 else 'viridis')
     colours = [cmap(i % 10) if n <= 10 else cmap(i / max(1, n - 1)) for i in range(n)]
     fig = plt.figure(figsize=(10, 10), constrained_layout=True)
@@ -26,22 +29,22 @@ def plot_run(traj, series, path, *, title: str = '', w: float = 4.0, target=None
     ax = fig.add_subplot(grid[0])
     stride = max(1, len(traj.t) // 4000)
     for k in range(n):
-        ax.plot(traj.r[::stride, k, 0], traj.r[::stride, k, 1], lw=0.8, color=colours[k])
-        ax.plot(*traj.r[-1, k], 'o', ms=3, color=colours[k])
+        ax.plot(r[::stride, k, 0], r[::stride, k, 1], lw=0.8, color=colours[k])
+        ax.plot(*r[-1, k], 'o', ms=3, color=colours[k])
     leaders = np.flatnonzero(traj.leader.any(axis=0))
     for k in leaders:
-        ax.plot(*traj.r[-1, k], marker='*', ms=12, color=colours[k], mec='k')
-    ax.plot(*traj.r[0].T, 'k.', ms=4, label='start')
+        ax.plot(*r[-1, k], marker='*', ms=12, color=colours[k], mec='k')
+    ax.plot(*r[0].T, 'k.', ms=4, label='start')
     if target is not None:
-        ax.plot(*np.asarray(target), 'rx', ms=12, mew=2, label='target')
+        ax.plot(*np.asarray(target)[:2], 'rx', ms=12, mew=2, label='target')
     if barrier is not None:
-        pts = np.asarray(barrier, dtype=float)
+        pts = np.asarray(barrier, dtype=float)[:, :2]
         hull = pts[ConvexHull(pts).vertices] if len(pts) >= 3 else pts
         ax.fill(*hull.T, color='0.3', alpha=0.8, label='barrier')
     ax.set_aspect('equal', adjustable='datalim')
     ax.set_xlabel('x')
     ax.set_ylabel('y')
-    ax.set_title(title or 'trajectories (stars: leaders at the end)')
+    ax.set_title((title or 'trajectories (stars: leaders at the end)') + (' (top view)' if top else ''))
     ax.legend(loc='best', fontsize=8)
 
     ax_x = fig.add_subplot(grid[1])

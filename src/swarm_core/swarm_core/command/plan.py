@@ -199,6 +199,8 @@ class CommandPlan:
     leaders: dict = field(default_factory=dict)   # current: agent index → program
     failover_timeout: float | None = None
     rendezvous: Sequence = ()
+    #: the shape of one leader's s_k: () planar, (2,) in 3D (s_u, s_v)
+    steering_shape: tuple = ()
 
     def __post_init__(self):
         if not self.leaders:
@@ -261,7 +263,7 @@ class CommandPlan:
                                     slots=[self.slots[k] for k in sorted(self.slots)]))
         if self.failover is not None and self.leaders:
             self._failover(t, pos, heard)
-        steering = np.zeros(n)
+        steering = np.zeros((n, *self.steering_shape))
         for idx, prog in self.leaders.items():
             heading = math.atan2(float(sin_t[idx]), float(cos_t[idx]))
             steering[idx] = prog.value(t, pos[idx], heading)

@@ -160,6 +160,20 @@ class SinusoidSteering(SteeringProgram):
 
 
 @dataclass(frozen=True)
+class HelixSteering(SteeringProgram):
+    """A 3D leader's program s = κ (cos(τt + phase), sin(τt + phase)) in its own (y, z): the
+    curvatures rotate at rate τ, so the leader alone flies a helix of curvature κ, torsion τ."""
+
+    curvature: float = 0.01
+    torsion: float = 0.01
+    phase: float = 0.0
+
+    def value(self, t, pos=None, heading=None):
+        a = self.torsion * t + self.phase
+        return (self.curvature * math.cos(a), self.curvature * math.sin(a))
+
+
+@dataclass(frozen=True)
 class WaypointSteering(SteeringProgram):
     """Pursuit of a point: s = clip(gain · bearing error, ±max_curvature), the bearing error
     being the angle from the heading x_k to the direction of the waypoint."""

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from typing import Annotated, Literal, Optional, Union
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
-from swarm_core.checks import DT_BOUND, MAX_GAIN, MAX_TIME, STEERING_BOUND
+from swarm_core.checks import DT_BOUND, MAX_GAIN, MAX_TIME, STEERING_BOUND, InputError
 from swarm_core.command.schedules import (
     ConstantLambda,
     ConstantSteering,
+    HelixSteering,
     RampSchedule,
     SinusoidSteering,
     TanhWindow,
@@ -78,6 +79,30 @@ class WaypointProgram(Strict):
 ProgramSpec = Annotated[Union[ConstantProgram, SinusoidProgram, WaypointProgram], Field(discriminator='kind')]
 
 
+class ConstantProgram3(Strict):
+    """A 3D leader's constant program s_k = (s_u, s_v), in its own (y, z)."""
+    kind: Literal['constant']
+    curvature: tuple[Curvature, Curvature] = (0.0, 0.0)
+
+    @field_validator('curvature', mode='before')
+    @classmethod
+    def _pair(cls, v):
+        if not isinstance(v, (list, tuple)) or len(v) != 2:
+            raise InputError('a 3D scenario (dim: 3) steers a leader by [s_u, s_v], two curvatures')
+        return v
+
+
+class HelixProgram(Strict):
+    """s_k = κ (cos(τt + phase), sin(τt + phase)): a helix of curvature κ and torsion τ."""
+    kind: Literal['helix']
+    curvature: Curvature = 0.01
+    torsion: Annotated[float, Field(ge=-MAX_GAIN, le=MAX_GAIN, allow_inf_nan=False)] = 0.01
+    phase: Finite = 0.0
+
+
+ProgramSpec3 = Annotated[Union[ConstantProgram3, HelixProgram], Field(discriminator='kind')]
+
+
 class LeadersSpec(Strict):
     """Fixed leaders (agent name → program) or a rule that chooses them at time ``at``."""
     fixed: dict[str, ProgramSpec] = Field(default_factory=dict)
@@ -94,6 +119,20 @@ class LeadersSpec(Strict):
         return self
 
 
+class LeadersSpec3(LeadersSpec):
+    """``leaders:`` of a 3D scenario: programs are `ProgramSpec3` (constant [s_u, s_v], helix)."""
+    fixed: dict[str, ProgramSpec3] = Field(default_factory=dict)
+    programs: list[ProgramSpec3] = Field(default_factory=list)
+
+    @field_validator('fixed', 'programs', mode='before')
+    @classmethod
+    def _three_d(cls, v):
+        for p in (v.values() if isinstance(v, dict) else v if isinstance(v, list) else ()):
+            if isinstance(p, dict) and p.get('kind') in ('sinusoid', 'waypoint'):
+                raise InputError(f'program {p["kind"]} is planar: a 3D scenario (dim: 3) takes constant or helix')
+        return v
+
+
 def build_schedule(spec):
     if spec.kind == 'constant':
         return ConstantLambda(spec.value)
@@ -108,6 +147,8 @@ def build_schedule(spec):
 def build_program(spec):
     if spec.kind == 'constant':
         return ConstantSteering(spec.curvature)
+    if spec.kind == 'helix':
+        return HelixSteering(spec.curvature, spec.torsion, spec.phase)
     if spec.kind == 'sinusoid':
         return SinusoidSteering(spec.amplitude, spec.period, spec.phase, spec.offset)
     return WaypointSteering(tuple(spec.point), spec.gain, spec.max_curvature)

@@ -11,6 +11,8 @@ from swarm_core.laws.registry import BUILT_IN, law_class
 
 def fallback_reason(scn, integrator=None, commands=None) -> str | None:
     """None if the law's compiled run covers this run, else why the reference engine runs it."""
+    if scn.dim == 3:
+        return 'a 3D scenario'
     compiled = scn.law.compiled_run()
     if compiled is None:
         return f'law {scn.law.kind}'

@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 from swarm_core.command.plan import law_timeline
+from swarm_core.engine import natural
 from swarm_core.engine.trajectory import Trajectory
 from swarm_core.faults.agents import event_names, reunion_law
 from swarm_core.laws import LawError, LawFailed
@@ -238,7 +239,10 @@ def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int 
     """Run a scenario to its duration; ``progress(step, steps)`` is called now and then.
     ``commands``: live commands to replay, {step: [command, ...]} (`read_commands`).
     ``stepper``: a prepared `SwarmStepper` of ``scn`` (one that moves some agents otherwise:
-    `swarm_robots.engine`); the other arguments are then its own."""
+    `swarm_robots.engine`); the other arguments are then its own.  A 3D scenario runs in
+    `engine.natural`."""
+    if scn.dim == 3 and stepper is None:
+        return natural.simulate(scn, integrator=integrator, record_every=record_every, progress=progress)
     stepper = stepper or SwarmStepper(scn, integrator, neighbour_search, commands)
     steps = scn.steps
     n = stepper.n

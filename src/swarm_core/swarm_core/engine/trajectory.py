@@ -20,31 +20,49 @@ class Trajectory:
 
     names: list
     t: np.ndarray          # (T,)
-    r: np.ndarray          # (T, n, 2) positions
-    theta: np.ndarray      # (T, n)    headings
+    r: np.ndarray          # (T, n, 2) positions; (T, n, 3) in 3D
+    theta: np.ndarray      # (T, n)    headings; None in 3D
     u: np.ndarray          # (T, n)    the control applied from that sample on
     lam: np.ndarray        # (T,)      λ
     leader: np.ndarray     # (T, n)    bool, leader flags
     meta: dict = field(default_factory=dict)
+    x: np.ndarray | None = None    # 3D: the frames x, y, z (T, n, 3) and the second control v (T, n)
+    y: np.ndarray | None = None
+    z: np.ndarray | None = None
+    v: np.ndarray | None = None
+
+    @property
+    def dim(self) -> int:
+        """2 (planar) or 3."""
+        return 2 if self.x is None else 3
 
     def save(self, path):
         """Write ``path`` atomically (a temporary file in the same directory, then renamed):
-        a failed write (full disk) leaves no partial or 0-byte file behind."""
+        a failed write (full disk) leaves no partial or 0-byte file behind.  A 3D run holds
+        x, y, z and v in place of theta."""
+        if self.x is None:
+            states = dict(theta=self.theta)
+        else:
+            states = dict(x=self.x, y=self.y, z=self.z, v=self.v)
         with atomic_open(path, 'wb') as fh:
-            np.savez_compressed(fh, t=self.t, r=self.r, theta=self.theta, u=self.u, lam=self.lam,
+            np.savez_compressed(fh, t=self.t, r=self.r, **states, u=self.u, lam=self.lam,
                                 leader=self.leader, names=np.array(self.names))
         return path
 
     @classmethod
     def load(cls, path):
         with np.load(path) as z:
-            return cls(names=[str(s) for s in z['names']], t=z['t'], r=z['r'], theta=z['theta'],
-                       u=z['u'], lam=z['lam'], leader=z['leader'])
+            frames = {k: z[k] for k in ('x', 'y', 'z', 'v') if k in z.files}
+            return cls(names=[str(s) for s in z['names']], t=z['t'], r=z['r'],
+                       theta=z['theta'] if 'theta' in z.files else None,
+                       u=z['u'], lam=z['lam'], leader=z['leader'], **frames)
 
     def head(self, rows: int) -> 'Trajectory':
         """The first ``rows`` samples (an interrupted run's part)."""
-        return Trajectory(self.names, self.t[:rows], self.r[:rows], self.theta[:rows], self.u[:rows],
-                          self.lam[:rows], self.leader[:rows], meta=dict(self.meta, interrupted=True))
+        cut = {k: None if getattr(self, k) is None else getattr(self, k)[:rows] for k in ('x', 'y', 'z', 'v')}
+        return Trajectory(self.names, self.t[:rows], self.r[:rows], None if self.theta is None else self.theta[:rows],
+                          self.u[:rows], self.lam[:rows], self.leader[:rows], meta=dict(self.meta, interrupted=True),
+                          **cut)
 
 
 class TrajectoryRecorder:

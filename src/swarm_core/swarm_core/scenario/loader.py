@@ -18,28 +18,32 @@ import numpy as np
 import yaml
 from pydantic import ConfigDict, Field, ValidationError, create_model, field_validator, model_validator
 
+from swarm_core.analysis.outcomes import TRAJECTORY_CHECKS
 from swarm_core.checks import InputError, check_run_size
 from swarm_core.command.plan import CommandPlan
 from swarm_core.command.spec import (
     ConstantLambdaSpec,
     LambdaSpec,
     LeadersSpec,
+    LeadersSpec3,
     ProgramSpec,
     build_program,
     build_schedule,
 )
 from swarm_core.faults.agents import Fault, FaultTimeline, Rendezvous
 from swarm_core.files import read_regular
-from swarm_core.laws import Law, LawError, law_class, make_law, swarm_control
+from swarm_core.laws import Law, LawError, law_class, make_law, natural_control, swarm_control
 from swarm_core.laws.paper.parameters import LAW_KINDS, LAW_TABLE
 from swarm_core.laws.registry import law_code_hash
 from swarm_core.model.integrate import noise_rng
+from swarm_core.model.natural import initial_frames
 from swarm_core.radio import CommModel
 from swarm_core.reserved import check_law_names
 from swarm_core.robot_spec import RobotsSpec
-from swarm_core.scenario.placement import AgentsSpec, initial_conditions
+from swarm_core.scenario.placement import AgentsSpec, AgentsSpec3, initial_conditions, initial_conditions_3d
 from swarm_core.scenario.sections import (
     BarrierSpec,
+    BarrierSpec3,
     CommsSpec,
     ExpectSpec,
     FailoverSpec,
@@ -47,6 +51,7 @@ from swarm_core.scenario.sections import (
     NoiseSpec,
     ReunionSpec,
     TargetSpec,
+    TargetSpec3,
 )
 from swarm_core.schema import RunSeconds, StepSeconds, Strict, bounded
 
@@ -134,6 +139,21 @@ class ScenarioSpec(Strict):
         return self
 
 
+#: the sections a 3D scenario cannot have yet
+NOT_YET_3D = ('faults', 'failover', 'reunion', 'comms', 'robots', 'noise')
+
+
+class ScenarioSpec3(ScenarioSpec):
+    """A scenario in three dimensions (``dim: 3``): 3D agents, leader programs (s_u, s_v),
+    target and barrier (with a ground); the paper's law lifted to 3D (docs/model.md)."""
+    dim: Literal[3]
+    agents: AgentsSpec3
+    leaders: LeadersSpec3 = Field(default_factory=LeadersSpec3)
+    target: Optional[TargetSpec3] = None
+    barrier: Optional[BarrierSpec3] = None
+
+
+
 # ------------------------------------------------------------------ runtime scenario
 
 @dataclass
@@ -149,6 +169,18 @@ class Scenario:
     #: a hash of the user's law file(s) as loaded ('' for a shipped law, `law_code_hash`):
     #: metrics.json and events.jsonl record it, ``--replay`` compares it with the file now
     law_hash: str = ''
+    #: a 3D scenario's initial frames (x, y, z), (N, 3) each (its theta0 is None)
+    frames0: tuple | None = None
+
+    @property
+    def dim(self) -> int:
+        """2 (planar) or 3."""
+        return getattr(self.spec, 'dim', 2)
+
+    @property
+    def ground(self):
+        """The floor's height of a 3D barrier, or None."""
+        return getattr(self.spec.barrier, 'ground', None)
 
     # -- convenience views of the spec
     @property
@@ -189,7 +221,9 @@ class Scenario:
 
     @property
     def barrier(self):
-        return None if self.spec.barrier is None else np.array(self.spec.barrier.points, float)
+        if self.spec.barrier is None or not self.spec.barrier.points:
+            return None
+        return np.array(self.spec.barrier.points, float)
 
     def command_plan(self) -> CommandPlan:
         """A fresh commander plan (λ schedule and leaders) for this scenario."""
@@ -202,7 +236,8 @@ class Scenario:
                            rendezvous=[Rendezvous(r.at, r.for_, None if r.point == 'centroid' else
                                                   r.point if r.point == 'none' else tuple(r.point),
                                                   r.gain, r.normalised, r.track, r.coupling)
-                                       for r in self.spec.reunion])
+                                       for r in self.spec.reunion],
+                           steering_shape=() if self.dim == 2 else (2,))
 
     def fault_timeline(self) -> FaultTimeline:
         """A fresh timeline of the scenario's faults (faults.py)."""
@@ -342,10 +377,32 @@ def _try_law(scn, source):
     th = scn.theta0
     try:
         lam = float(scn.command_plan().schedule.value(0.0))
-        swarm_control(scn.pos0, np.cos(th), np.sin(th), np.arange(len(th)), scn.law, lambda_=lam,
-                      target=scn.target, barrier=scn.barrier, t=0.0)
+        if scn.dim == 3:
+            natural_control(scn.pos0, scn.frames0, np.arange(len(scn.pos0)), scn.law, lambda_=lam,
+                            target=scn.target, barrier=scn.barrier, ground=scn.ground, t=0.0)
+        else:
+            swarm_control(scn.pos0, np.cos(th), np.sin(th), np.arange(len(th)), scn.law, lambda_=lam,
+                          target=scn.target, barrier=scn.barrier, t=0.0)
     except LawError as err:
         raise ScenarioError(f'{source}: {err} (at t = 0, on the initial state)') from None
+
+
+def _spec_model(data: dict, source: str):
+    """`ScenarioSpec` (``dim`` 2 or left out: taken out of ``data``, so a planar scenario is what
+    it was) or `ScenarioSpec3` (``dim: 3``); ScenarioError for any other ``dim``."""
+    dim = data.get('dim', 2)
+    if isinstance(dim, bool) or dim not in (2, 3):
+        raise ScenarioError(f'{source}: dim: must be 2 or 3 (got {dim!r})')
+    if dim == 2:
+        data.pop('dim', None)
+        return ScenarioSpec
+    for key in NOT_YET_3D:
+        if data.get(key):
+            raise ScenarioError(f'{source}: {key}: not in 3D scenarios yet (dim: 3)')
+    for key in data.get('expect') or ():
+        if key in TRAJECTORY_CHECKS:
+            raise ScenarioError(f'{source}: expect.{key}: a planar check, not in 3D scenarios (dim: 3)')
+    return ScenarioSpec3
 
 
 def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
@@ -356,9 +413,10 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
     for key, val in overrides.items():
         if val is not None:
             data[key] = val
+    model = _spec_model(data, source)
     plugin = _law_of_another_kind(data, source)
     try:
-        spec = ScenarioSpec.model_validate(data)
+        spec = model.model_validate(data)
     except ValidationError as err:
         raise ScenarioError(f'{source}: {_format_error(err)}') from None
     # the target and barrier terms reach each paper's law a law holds (a blend's from or to)
@@ -366,6 +424,9 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
         law = law_config(spec) if plugin is None else plugin.with_world(_section_values(spec, ('target', 'barrier')))
     except LawError as err:
         raise ScenarioError(f'{source}: {err}') from None
+    if model is ScenarioSpec3 and 3 not in law.dims:
+        raise ScenarioError(f'{source}: law {law.kind} is planar only (its dims: {law.dims}): a 3D scenario '
+                            '(dim: 3) needs a law with 3 in its dims')
     if spec.reunion and not {'target_gain', 'target_normalised', 'q0'} <= set(law.param_specs()):
         raise ScenarioError(f'{source}: reunion: the rendezvous changes the paper\'s law, not law {law.kind}')
     names = list(spec.agents.names) if spec.agents.names else None
@@ -379,7 +440,12 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
         if not f.agent.startswith('leader:') and f.agent not in known:
             raise ScenarioError(f'{source}: faults.{i}.{f.kind}: unknown agent {f.agent!r} (agents are '
                                 f'{", ".join(known[:8])}{", ..." if len(known) > 8 else ""})')
-    names, pos0, theta0 = initial_conditions(spec)
+    frames0 = None
+    if model is ScenarioSpec3:
+        names, pos0, headings = initial_conditions_3d(spec)
+        theta0, frames0 = None, initial_frames(headings)
+    else:
+        names, pos0, theta0 = initial_conditions(spec)
     if spec.comms is not None:
         try:
             CommModel.from_config(spec.comms.model_dump(mode='json'), names, spec.dt, spec.seed)
@@ -391,7 +457,7 @@ def parse(data: dict, source: str = '<dict>', **overrides) -> Scenario:
         read_description(spec.robots, Path(source).parent if Path(source).is_file() else None)
     except ScenarioError as err:
         raise ScenarioError(f'{source}: {err}') from None
-    scn = Scenario(spec=spec, names=names, pos0=pos0, theta0=theta0, law=law, source=source)
+    scn = Scenario(spec=spec, names=names, pos0=pos0, theta0=theta0, law=law, source=source, frames0=frames0)
     if plugin is not None:
         scn.law_hash = law_code_hash(law.mapping())         # the file as this process imported it
         _try_law(scn, source)

@@ -10,7 +10,19 @@ import numpy as np
 from pydantic import ConfigDict, Field, field_validator, model_validator
 
 from swarm_core.laws.paper.parameters import LAW_PARAMETER
-from swarm_core.schema import Finite, NonNeg, PauseSeconds, Point, Positive, SimTime, Strict, bounded
+from swarm_core.schema import (
+    Coord,
+    Finite,
+    NonNeg,
+    PauseSeconds,
+    Point,
+    Point3,
+    Positive,
+    SimTime,
+    Strict,
+    bounded,
+    three_vectors,
+)
 
 # ------------------------------------------------------------------ world
 
@@ -48,6 +60,53 @@ class BarrierSpec(Strict):
                              f'the hull ({len(inner)} such point{"s" if len(inner) > 1 else ""}); '
                              'give the corners of a convex barrier')
         return pts
+
+
+class TargetSpec3(TargetSpec):
+    """The target of a 3D scenario: a point [x, y, z]."""
+    position: Point3
+
+    @field_validator('position', mode='before')
+    @classmethod
+    def _three(cls, v):
+        return three_vectors(v, 'the target')
+
+
+class BarrierSpec3(Strict):
+    """The barrier of a 3D scenario: the convex hull of 3D points (at least 4, not in one
+    plane), a ``ground`` floor z = ground that no agent may cross, or both."""
+    points: list[Point3] = Field(default_factory=list, max_length=MAX_BARRIER_POINTS)
+    ground: Optional[Coord] = None
+    gain: bounded(LAW_PARAMETER['barrier_gain'].bound) = 5.0      # s_b
+    mode: Literal[LAW_PARAMETER['barrier_mode'].choices] = LAW_PARAMETER['barrier_mode'].default
+
+    @field_validator('points', mode='before')
+    @classmethod
+    def _three(cls, v):
+        return three_vectors(v, 'a barrier point')
+
+    @field_validator('points')
+    @classmethod
+    def _convex(cls, pts):
+        if not pts:
+            return pts
+        from scipy.spatial import ConvexHull, QhullError
+        try:
+            corners = set(ConvexHull(np.asarray(pts, dtype=float)).vertices.tolist())
+        except (QhullError, ValueError):
+            raise ValueError('the barrier points do not span a volume: a 3D barrier needs at least 4 points '
+                             'not in one plane') from None
+        inner = [i for i in range(len(pts)) if i not in corners]
+        if inner:
+            raise ValueError(f'not a convex polyhedron: point {inner[0]} {tuple(pts[inner[0]])} is not a corner '
+                             'of the hull; give the corners of a convex barrier')
+        return pts
+
+    @model_validator(mode='after')
+    def _something(self):
+        if not self.points and self.ground is None:
+            raise ValueError('a 3D barrier needs points, a ground, or both')
+        return self
 
 
 class NoiseSpec(Strict):

@@ -37,6 +37,10 @@ def load_scenario(prog: str, a):
     except ScenarioError as err:
         print(f'{prog}: {err}', file=sys.stderr)
         return None, None
+    if scn.dim == 3:
+        print(f'{prog}: {scn.source}: a 3D scenario (dim: 3) runs in `swarm simulate` and `swarm sweep`; '
+              'the ROS nodes are planar for now', file=sys.stderr)
+        return None, None
     ref = a.scenario
     if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
         ref = str(Path(a.scenario).resolve())
