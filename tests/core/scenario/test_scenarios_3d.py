@@ -127,3 +127,30 @@ def test_the_shipped_3d_scenario_forms_splits_in_two_and_reforms():
     assert c[(t >= 300) & (t <= 400)].max() == 1
     assert c[(t >= 450) & (t <= 600)].min() == 2                       # two subswarms near λ = 1
     assert checks['split_between']['t_split'] == 448.0 and checks['one_cluster_at_end']['t_reform'] == 916.0
+
+
+def test_rotating_every_normal_pair_about_x_at_the_start_leaves_the_motion():
+    scn = parse(_scenario(law={'kind': 'global'}, duration=100))
+    base = engine.simulate(scn)
+    x, y, z = scn.frames0
+    phi = np.linspace(0.3, 2.9, 6)[:, None]
+    scn.frames0 = (x, np.cos(phi) * y + np.sin(phi) * z, -np.sin(phi) * y + np.cos(phi) * z)
+    turned = engine.simulate(scn)
+    assert np.abs(turned.u - base.u).max() > 1e-3                   # (u, v) are read in other normals
+    np.testing.assert_allclose(turned.r, base.r, atol=1e-8)
+    np.testing.assert_allclose(turned.x, base.x, atol=1e-8)
+
+
+@pytest.mark.parametrize('seed', range(5))
+def test_two_agents_end_abreast_at_r0_from_random_3d_starts(seed):
+    rng = np.random.default_rng(seed)
+    law = {'kind': 'global', 'eta': 1.0, 'alpha': 1.0, 'mu': 1.0, 'r0': 1.0}
+    scn = parse(dict(name='two', dim=3, dt=0.05, duration=20, law=law,
+                     agents=dict(positions=rng.uniform(-3, 3, (2, 3)).tolist(),
+                                 headings={'vectors': rng.normal(size=(2, 3)).tolist()})))
+    traj = engine.simulate(scn)
+    d = traj.r[-1, 1] - traj.r[-1, 0]
+    rho = np.linalg.norm(d)
+    assert abs(rho - 1.0) < 1e-3                                      # spacing r0
+    assert 1 - traj.x[-1, 0] @ traj.x[-1, 1] < 1e-6                   # parallel headings
+    assert abs(d @ traj.x[-1, 0]) / rho < 1e-3                        # a baseline across the heading
