@@ -152,15 +152,15 @@ def test_rk4_reference_run_does_not_overwrite_the_zoh_run(tmp_path):
 
 def test_a_3d_scenario_is_simulated_but_refused_by_the_ros_commands(tmp_path):
     for args in (('run',), ('join', '--agents', 'agent_0', '--server', '127.0.0.1:11811')):
-        r = _swarm(*args, 'homotopy_global_3d')
+        r = _swarm(*args, 'homotopy_3d')
         _one_clean_line(r, 'a 3D scenario (dim: 3)', 'planar for now')
         assert len(r.stderr.strip().splitlines()) == 1
     bad = tmp_path / 'bad.yaml'
     bad.write_text('name: bad\ndim: 3\nagents: {positions: [[0, 0], [1, 0]]}\n')
     r = _swarm('simulate', bad, '--quiet', '--out', tmp_path / 'out')
     _one_clean_line(r, 'agents.positions: a position of a 3D scenario (dim: 3) has 3 coordinates')
-    r = _swarm('simulate', 'homotopy_global_3d', '--duration', '20', '--quiet', '--out', tmp_path / 'out3')
+    r = _swarm('simulate', 'homotopy_3d', '--duration', '20', '--quiet', '--out', tmp_path / 'out3')
     assert r.returncode == 0, r.stderr
     with np.load(tmp_path / 'out3' / 'trajectory.npz') as z:
         assert z['r'].shape == (201, 6, 3) and z['v'].shape == (201, 6)
-    assert (tmp_path / 'out3' / 'homotopy_global_3d.png').exists()
+    assert (tmp_path / 'out3' / 'homotopy_3d.png').exists()

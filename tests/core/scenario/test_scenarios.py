@@ -14,7 +14,7 @@ from swarm_core.scenario import loader as scenario
 
 SHIPPED = ['global_alignment', 'homotopy_global', 'homotopy_local', 'target_barrier',
            'leader_failover', 'leader_no_failover', 'homotopy_reunion',
-           'spl_parallel', 'spl_circular', 'flock_to_circle', 'homotopy_global_3d']
+           'spl_parallel', 'spl_circular', 'flock_to_circle', 'homotopy_3d']
 #: checks a shipped scenario is meant to fail: leader_no_failover is the contrast to
 #: leader_failover (without a successor the lost leader's subswarm does not keep its program)
 CONTRAST = {'leader_no_failover': {'follows_program'}}

@@ -118,7 +118,7 @@ def test_metrics_in_3d_count_clusters_polarisation_and_floor_intrusions_by_hand(
 
 
 def test_the_shipped_3d_scenario_forms_splits_in_two_and_reforms():
-    scn = load('homotopy_global_3d')
+    scn = load('homotopy_3d')
     traj = engine.simulate(scn)
     series, checks = analyse(traj, scenario=scn)
     assert traj.r.shape[2] == 3 and np.abs(traj.v).max() > 1e-3        # it leaves the plane
