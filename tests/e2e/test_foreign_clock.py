@@ -38,7 +38,7 @@ def test_a_foreign_clock_neither_stops_nor_blinds_a_realtime_run(clock, ros_doma
     pub = peer.create_publisher(Clock, P.CLOCK, P.qos_reliable(10))
     ex = make_executor(rclpy_context)
     ex.add_node(peer)
-    since, readers, run_clock_readers = time.monotonic(), None, []
+    since, readers, run_clock_readers = time.monotonic(), None, 0
     while p.poll() is None and time.monotonic() - since < 150:
         sec, ns = P.time_to_stamp(peer_time(clock, since))
         msg = Clock()
@@ -47,7 +47,8 @@ def test_a_foreign_clock_neither_stops_nor_blinds_a_realtime_run(clock, ros_doma
         spin_for(ex, lambda: False, 0.01)
         if readers is None and any('[world] t=' in ln for ln in lines.lines):     # the run goes
             readers = [f'{r.node_namespace}/{r.node_name}' for r in peer.get_subscriptions_info_by_topic(P.CLOCK)]
-            run_clock_readers = peer.get_subscriptions_info_by_topic('/swarm/clock')
+        if readers is not None and run_clock_readers < 7:      # the peer's graph may learn of them one by one
+            run_clock_readers = len(peer.get_subscriptions_info_by_topic('/swarm/clock'))
     code = lines.wait(p, 60)
     text = ''.join(lines.lines)
     assert code == 0, text[-4000:]
@@ -56,4 +57,4 @@ def test_a_foreign_clock_neither_stops_nor_blinds_a_realtime_run(clock, ros_doma
     assert not [e for e in read_events(out / 'events.jsonl') if e['kind'] == 'lost']
     assert json.loads((out / 'metrics.json').read_text())['summary']['t_end'] == pytest.approx(10.0, abs=0.2)
     assert readers == [], f'nodes of the run read /clock: {readers}'
-    assert len(run_clock_readers) == 7, run_clock_readers          # six agent processes, the commander
+    assert run_clock_readers == 7, run_clock_readers               # six agent processes, the commander
