@@ -16,6 +16,7 @@ import numpy as np
 from swarm_core.engine.trajectory import Trajectory
 from swarm_core.faults.agents import event_names
 from swarm_core.laws import LawError, LawFailed, natural_control
+from swarm_core.model.integrate import chosen_integrator
 from swarm_core.model.natural import ORTHONORMALISE_EVERY, natural_rk4_step, natural_step, orthonormalise
 
 
@@ -25,9 +26,7 @@ class NaturalStepper:
     def __init__(self, scn, integrator: str | None = None):
         self.scn = scn
         self.law = scn.law
-        self.integrator = integrator or scn.spec.integrator
-        if self.integrator not in ('zoh', 'rk4'):
-            raise ValueError(f'integrator must be zoh or rk4, got {self.integrator!r}')
+        self.integrator = chosen_integrator(integrator or scn.spec.integrator)
         self.n = len(scn.names)
         self.dt = scn.dt
         self.pos = scn.pos0.copy()

@@ -22,7 +22,7 @@ from swarm_core.engine.trajectory import Trajectory
 from swarm_core.faults.agents import event_names, reunion_law
 from swarm_core.laws import LawError, LawFailed
 from swarm_core.model.frenet import heading_frame, quaternion_from_heading
-from swarm_core.model.integrate import rk4_step, zoh_step
+from swarm_core.model.integrate import chosen_integrator, rk4_step, zoh_step
 from swarm_core.radio import Beliefs, delay_stats
 from swarm_core.scenario.loader import Scenario
 from swarm_core.step import alive_control, belief_controls
@@ -40,9 +40,7 @@ class SwarmStepper:
         # agent's law and `law_groups` [(law, agent indices)] (None: every agent has `law`)
         self.law_changes = law_timeline(self.commands, self.law, len(scn.names))
         self.laws = self.law_groups = None
-        self.integrator = integrator or scn.spec.integrator
-        if self.integrator not in ('zoh', 'rk4'):
-            raise ValueError(f'integrator must be zoh or rk4, got {self.integrator!r}')
+        self.integrator = chosen_integrator(integrator or scn.spec.integrator)
         self.n = len(scn.names)
         self.dt = scn.dt
         self.pos = scn.pos0.copy()

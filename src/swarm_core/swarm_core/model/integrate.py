@@ -8,6 +8,16 @@ from __future__ import annotations
 
 import numpy as np
 
+#: the integrators a run may use: the exact zero-order-hold step, and RK4 as the reference
+INTEGRATORS = ('zoh', 'rk4')
+
+
+def chosen_integrator(name: str) -> str:
+    """``name`` if it is one of `INTEGRATORS`; ValueError naming it otherwise."""
+    if name not in INTEGRATORS:
+        raise ValueError(f'integrator must be zoh or rk4, got {name!r}')
+    return name
+
 
 def noise_rng(seed: int, index: int) -> np.random.Generator:
     """Agent ``index``'s own noise stream of a run with ``seed`` (the same in the batch engine
