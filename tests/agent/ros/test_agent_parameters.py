@@ -99,23 +99,29 @@ def _agent(ctx, mode, **extra):
     return AgentNode('agent', namespace='agent_0', context=ctx, parameter_overrides=overrides(prm))
 
 
-def test_lockstep_every_parameter_takes_effect_at_the_next_step_or_is_refused(rclpy_context):
-    """Lockstep: each law parameter set (a double typed as an integer too: ``mu 1``) changes the
-    u agent_0 publishes from the step it holds on, to the u of its law with that value (bit for
-    bit), and the change goes to /swarm/events as a ``command`` event with that step; a value
-    out of range and the law's kind are refused; every other parameter is read-only."""
+def _probe_of(ctx, agent):
+    """(a ``ros2 param``-like node, an executor spinning it and ``agent``, the /swarm/events it hears)."""
     import rclpy
     from std_msgs.msg import String
 
     from swarm_ros.rosutil import make_executor
-    ctx = rclpy_context
-    agent = _agent(ctx, 'lockstep')
     probe = rclpy.create_node('ros2cli_param', context=ctx)
     events = []
     probe.create_subscription(String, P.EVENTS, lambda m: events.append(json.loads(m.data)), P.qos_latched(100))
     ex = make_executor(ctx)
     for nd in (agent, probe):
         ex.add_node(nd)
+    return probe, ex, events
+
+
+def test_lockstep_every_parameter_takes_effect_at_the_next_step_or_is_refused(rclpy_context):
+    """Lockstep: each law parameter set (a double typed as an integer too: ``mu 1``) changes the
+    u agent_0 publishes from the step it holds on, to the u of its law with that value (bit for
+    bit), and the change goes to /swarm/events as a ``command`` event with that step; a value
+    out of range and the law's kind are refused; every other parameter is read-only."""
+    ctx = rclpy_context
+    agent = _agent(ctx, 'lockstep')
+    probe, ex, events = _probe_of(ctx, agent)
     lam, flags, steering = 0.4, np.eye(6, dtype=bool)[2], np.full(6, 0.03)
     target, barrier = np.array([8.0, 3.0]), np.array([[1.0, 0.8], [1.5, 0.0], [1.0, -0.8]])
 
@@ -277,17 +283,8 @@ def test_realtime_driver_parameters_are_bounded_logged_and_recorded(rclpy_contex
     """stale_after and future_tolerance stay within what a run can use (from two control
     periods to 60 and 10 sim s); a set in range is logged in one line and published on
     /swarm/events as a ``parameter`` event (the world writes it to events.jsonl)."""
-    import rclpy
-    from std_msgs.msg import String
-
-    from swarm_ros.rosutil import make_executor
     agent = _agent(rclpy_context, 'realtime')
-    probe = rclpy.create_node('ros2cli_param', context=rclpy_context)
-    events = []
-    probe.create_subscription(String, P.EVENTS, lambda m: events.append(json.loads(m.data)), P.qos_latched(100))
-    ex = make_executor(rclpy_context)
-    for nd in (agent, probe):
-        ex.add_node(nd)
+    probe, ex, events = _probe_of(rclpy_context, agent)
     for name, text in [('stale_after', '0.05'), ('stale_after', '61'), ('stale_after', '1e9'),
                        ('future_tolerance', '0'), ('future_tolerance', '0.09'), ('future_tolerance', '11'),
                        ('future_tolerance', '1e9')]:
