@@ -52,14 +52,21 @@ class FakeWorld:
 ROBOTS = {'length_scale': 0.3, 'cruise_speed': 0.15}
 
 
-@pytest.fixture
-def robots_node(tmp_path, rclpy_context, monkeypatch):
+def lockstep_robots(tmp_path, ctx, monkeypatch, **params):
+    """(the robot world node in lockstep on `FakeWorld`, with ``params``; its six-agent scenario)."""
     monkeypatch.setattr(M.RobotsNode, '_make_world', lambda self, desc: FakeWorld(
         M.start_poses(self.scn, self.rows, self.units)))
     path = short_homotopy(tmp_path / 'six.yaml', duration=10, lam='{kind: constant, value: 0}', at=1, robots=ROBOTS)
-    node = M.RobotsNode(context=rclpy_context, parameter_overrides=overrides(dict(
-        scenario=str(path), mode='lockstep', robots='agent_1,agent_3', output_dir=str(tmp_path))))
-    yield node, load(str(path))
+    node = M.RobotsNode(context=ctx, parameter_overrides=overrides(dict(scenario=str(path), mode='lockstep',
+                                                                          **params)))
+    return node, load(str(path))
+
+
+@pytest.fixture
+def robots_node(tmp_path, rclpy_context, monkeypatch):
+    node, scn = lockstep_robots(tmp_path, rclpy_context, monkeypatch, robots='agent_1,agent_3',
+                                output_dir=str(tmp_path))
+    yield node, scn
     node.destroy_node()
 
 
@@ -136,13 +143,8 @@ def test_a_step_goes_on_without_a_silent_robot_hold_timeout_after_its_message(tm
     goes out again every half second while nothing moves), and the world's repeat of the step
     does not bring the released robot back."""
     import time
-    monkeypatch.setattr(M.RobotsNode, '_make_world', lambda self, desc: FakeWorld(
-        M.start_poses(self.scn, self.rows, self.units)))
-    path = short_homotopy(tmp_path / 'six.yaml', duration=10, lam='{kind: constant, value: 0}', at=1, robots=ROBOTS)
-    scn = load(str(path))
     ctx = rclpy_context
-    node = M.RobotsNode(context=ctx, parameter_overrides=overrides(dict(
-        scenario=str(path), mode='lockstep', robots='agent_1,agent_3', hold_timeout=1.5)))
+    node, scn = lockstep_robots(tmp_path, ctx, monkeypatch, robots='agent_1,agent_3', hold_timeout=1.5)
     peer = rclpy.create_node('peer', context=ctx)
     got = []
     peer.create_subscription(Odometry, M.odom_topic('agent_1'), got.append, P.qos_reliable(10))
@@ -261,14 +263,9 @@ def test_a_flood_of_refused_commands_does_not_push_out_the_agents_own(tmp_path, 
     time-out without it (a reader history of depth 10 lost it under the flood).  A step that does
     go on without a command is recorded (robots.json: not deterministic)."""
     from swarm_ros.run_control import command_frame
-    monkeypatch.setattr(M.RobotsNode, '_make_world', lambda self, desc: FakeWorld(
-        M.start_poses(self.scn, self.rows, self.units)))
-    path = short_homotopy(tmp_path / 'six.yaml', duration=10, lam='{kind: constant, value: 0}', at=1, robots=ROBOTS)
-    scn = load(str(path))
     ctx = rclpy_context
-    node = M.RobotsNode(context=ctx, parameter_overrides=overrides(dict(
-        scenario=str(path), mode='lockstep', robots='agent_1', hold_timeout=3.0, run_id='ours',
-        output_dir=str(tmp_path))))
+    node, scn = lockstep_robots(tmp_path, ctx, monkeypatch, robots='agent_1', hold_timeout=3.0, run_id='ours',
+                                output_dir=str(tmp_path))
     peer = rclpy.create_node('peer', context=ctx)
     cmd = peer.create_publisher(TwistStamped, M.cmd_vel_topic('agent_1'), P.qos_cmd_vel(True))
     flood = peer.create_publisher(TwistStamped, M.cmd_vel_topic('agent_1'), P.qos_latched(1000))
