@@ -18,6 +18,23 @@ from tests.agent.ros.test_agent_parameters import ros2_param_set
 from tests.helpers import short_homotopy
 
 
+def lockstep_in_one_executor(path, scn, out, ctx):
+    """(world, agents, a ``ros2 param``-like node, the executor of them all): the run of the
+    scenario file ``path`` (loaded: ``scn``) in lockstep, writing to ``out``."""
+    import rclpy
+
+    from swarm_ros.rosutil import make_executor
+    from swarm_tools.run.launch import build_nodes
+    from swarm_tools.run.params import node_parameters
+    params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
+    world, commander, agents = build_nodes(params, ctx, log=lambda *a, **k: None)
+    shell = rclpy.create_node('ros2cli_param', context=ctx)
+    ex = make_executor(ctx, events=False)
+    for nd in [world, commander, *agents, shell]:
+        ex.add_node(nd)
+    return world, agents, shell, ex
+
+
 def test_lockstep_live_law_changes_replay_in_the_batch_engine(tmp_path, rclpy_context):
     """Three sets during a lockstep run (nodes in one executor): agent_1 alpha 0.3 near step
     100, agent_3 mu 1 (an integer in the shell) near step 200, agent_1 cutoff_radius 2.5 near
@@ -25,26 +42,17 @@ def test_lockstep_live_law_changes_replay_in_the_batch_engine(tmp_path, rclpy_co
     (reference, and the default fast engine, which falls back to it) reproduces the ROS
     trajectory: positions, λ and leaders bit for bit, θ and u to 1e-9 (θ travels as a
     quaternion); without them it does not."""
-    import rclpy
 
     from swarm_core.command.plan import read_commands
     from swarm_core.engine import fast as compiled
     from swarm_core.engine.reference import simulate
     from swarm_core.scenario.loader import load
-    from swarm_ros.rosutil import make_executor
-    from swarm_tools.run.launch import build_nodes
-    from swarm_tools.run.params import node_parameters
     from tests.helpers import spin_for
 
     path = short_homotopy(tmp_path / 'law.yaml', duration=20, lam='{kind: constant, value: 0.3}', at=5.0)
     scn = load(str(path))
     out = tmp_path / 'out'
-    params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
-    world, commander, agents = build_nodes(params, rclpy_context, log=lambda *a, **k: None)
-    shell = rclpy.create_node('ros2cli_param', context=rclpy_context)
-    ex = make_executor(rclpy_context, events=False)
-    for nd in [world, commander, *agents, shell]:
-        ex.add_node(nd)
+    world, agents, shell, ex = lockstep_in_one_executor(path, scn, out, rclpy_context)
     sets = [(100, 'agent_1', 'alpha', '0.3'), (200, 'agent_3', 'mu', '1'), (300, 'agent_1', 'cutoff_radius', '2.5')]
     for k, (at_step, agent, name, text) in enumerate(sets):
         assert spin_for(ex, lambda at_step=at_step: world.driver.lock.cur >= at_step, 120)
@@ -97,15 +105,11 @@ def test_a_set_that_makes_the_law_raise_is_refused_and_the_run_goes_on(tmp_path,
     the law raise on agent_1's table, so the set is refused with the law's one line and the run
     goes on to its end; ``gain 4`` is taken.  events.jsonl starts with the law file's hash, the
     law command carries it too, and the batch engine replays the run."""
-    import rclpy
 
     from swarm_core.command.plan import read_commands
     from swarm_core.engine.reference import simulate
     from swarm_core.laws.registry import law_code_hash
     from swarm_core.scenario.loader import load
-    from swarm_ros.rosutil import make_executor
-    from swarm_tools.run.launch import build_nodes
-    from swarm_tools.run.params import node_parameters
     from tests.helpers import spin_for
 
     (tmp_path / 'picky.py').write_text(PICKY)
@@ -116,12 +120,7 @@ def test_a_set_that_makes_the_law_raise_is_refused_and_the_run_goes_on(tmp_path,
     scn = load(str(path))
     law_hash = law_code_hash({'kind': 'picky.py:Picky'}, tmp_path)
     out = tmp_path / 'out'
-    params = node_parameters(scn, str(path), 'lockstep', output_dir=str(out))
-    world, commander, agents = build_nodes(params, rclpy_context, log=lambda *a, **k: None)
-    shell = rclpy.create_node('ros2cli_param', context=rclpy_context)
-    ex = make_executor(rclpy_context, events=False)
-    for nd in [world, commander, *agents, shell]:
-        ex.add_node(nd)
+    world, agents, shell, ex = lockstep_in_one_executor(path, scn, out, rclpy_context)
     agent = agents[1]
     assert spin_for(ex, lambda: world.driver.lock.cur >= 20, 120)
     law = agent.law
