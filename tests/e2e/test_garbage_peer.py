@@ -136,7 +136,9 @@ def test_garbage_on_every_topic_of_a_lockstep_run_ends_no_node(tmp_path, rclpy_c
     take their time from the steps; no node of a lockstep run reads /clock, the realtime test
     below covers it).  Every message any node cannot read is counted and logged once: the run
     finishes equal to `simulate`, and each node's count says what it refused."""
-    with run_beside_a_peer(tmp_path, rclpy_context, ros_domain, 'lockstep', 8.0, 8, 0.2,
+    # 30 s (600 steps): at 8 s a clean clone's run ended after the peer's third round (all eight
+    # rounds take about 370 steps here)
+    with run_beside_a_peer(tmp_path, rclpy_context, ros_domain, 'lockstep', 30.0, 8, 0.2,
                            extra_world=dict(stall_timeout=0.3)) as (scn, ex, world, commander, agents, rounds):
         assert rounds >= 4, 'the run ended before the peer wrote four rounds'
         assert spin_for(ex, lambda: world.done, 60.0)
