@@ -19,7 +19,8 @@ pytestmark = pytest.mark.ros
 
 
 def test_raising_lambda_splits_the_swarm(swarm):
-    run = swarm(SCENARIO, duration=60, no_figure=True)
+    # realtime at 4× wall speed: a lockstep run of 60 s can end before the test has looked at it
+    run = swarm(SCENARIO, mode='realtime', rtf=4, duration=60, no_figure=True)
     before = run.wait_until(lambda m: m['t'] >= 3, timeout=10)
     assert before['clusters'] == 1 and before['lambda'] == 0.0
 
