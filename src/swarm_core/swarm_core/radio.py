@@ -216,7 +216,7 @@ class CommModel:
     def decide(self, step: int, recv, recv_xy, send, send_xy) -> np.ndarray:
         """Arrival step of the messages of ``step`` from senders ``send`` (J,) to receivers
         ``recv`` (K,): an int array (K, J), −1 where lost.  recv_xy (K, 2), send_xy (J, 2):
-        positions at t_step (for the radio range).  A receiver always has its own message."""
+        positions at t_step (for the radio range; (K, 3), (J, 3) in 3D).  A receiver always has its own message."""
         self.advance_to(step)
         recv = np.asarray(recv, dtype=np.intp)
         send = np.asarray(send, dtype=np.intp)
@@ -232,7 +232,11 @@ class CommModel:
             rx, sx = np.asarray(recv_xy, float), np.asarray(send_xy, float)
             dx = rx[:, 0][:, None] - sx[:, 0][None, :]
             dy = rx[:, 1][:, None] - sx[:, 1][None, :]
-            ok &= dx * dx + dy * dy <= self.radio_range * self.radio_range
+            d2 = dx * dx + dy * dy
+            if rx.shape[1] == 3:                    # in 3D: the distance in space
+                dz = rx[:, 2][:, None] - sx[:, 2][None, :]
+                d2 = d2 + dz * dz
+            ok &= d2 <= self.radio_range * self.radio_range
         delay_t = self._param('latency', recv, send)
         jit = self._param('jitter', recv, send)
         if np.ndim(delay_t) == 0 and np.ndim(jit) == 0 and jit == 0.0:     # one delay for all links
@@ -271,11 +275,14 @@ class CommModel:
 class Beliefs:
     """Newest received state per (receiver, sender) for receivers ``recv`` (K,) of N agents."""
 
+    #: the numbers of one state message: x, y, qz, qw, u
+    FIELDS = 5
+
     def __init__(self, recv, n_agents: int):
         self.recv = np.asarray(recv, dtype=np.intp)
         K, N = self.recv.size, int(n_agents)
         self.stamp = np.full((K, N), -1, dtype=np.int64)       # step of the newest state held
-        self.state = np.zeros((5, K, N))                       # x, y, qz, qw, u
+        self.state = np.zeros((self.FIELDS, K, N))             # x, y, qz, qw, u
         self.pending = []                                      # (step, arrival (K, N), state (5, N))
         self.other = self.recv[:, None] != np.arange(N)[None, :]
         # statistics of what the radio did (links j ≠ k): counts and delays in steps
@@ -289,6 +296,10 @@ class Beliefs:
 
         alive (N,) bool, faults: agents out of the table (dead, frozen) neither send nor listen
         at this step; their links carry nothing and are not counted as sent."""
+        self.receive_states(step, arrival, np.array([x, y, qz, qw, u], dtype=float), alive)
+
+    def receive_states(self, step: int, arrival, states, alive=None):
+        """`receive` with the states sent at ``step`` as one array (FIELDS, N)."""
         arrival = np.asarray(arrival, dtype=np.int64)
         links = self.other
         if alive is not None and not np.all(alive):
@@ -305,7 +316,7 @@ class Beliefs:
             self.delay_counts = d
         else:
             self.delay_counts[:d.size] += d
-        self.pending.append((step, arrival, np.array([x, y, qz, qw, u], dtype=float)))
+        self.pending.append((step, arrival, states))
         keep = []
         for m, arr, st in self.pending:
             due = (arr >= 0) & (arr <= step) & (m > self.stamp)

@@ -33,7 +33,7 @@ def _scenario(**over):
     (dict(leaders={'fixed': {'agent_0': {'kind': 'constant', 'curvature': 0.01}}}),
      'leaders.fixed.agent_0.constant.curvature: a 3D scenario (dim: 3) steers a leader by [s_u, s_v]'),
     (dict(law={'kind': 'spl_parallel'}), 'law spl_parallel is planar only'),
-    (dict(faults=[{'at': 1, 'kill': 'agent_0'}]), 'faults: not in 3D scenarios yet'),
+    (dict(robots={'scale': 1.0}), 'robots: not in 3D scenarios yet'),
     (dict(dim=4), 'dim: must be 2 or 3 (got 4)'),
 ])
 def test_a_planar_value_in_a_3d_scenario_is_one_line_naming_the_key(over, text):

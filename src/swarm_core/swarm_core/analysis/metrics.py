@@ -176,35 +176,39 @@ def time_series(t, r, theta, leader, w, *, target=None, barrier_points=None, eve
 def _natural_series(t, r, headings, leader, w, idx, target, barrier, ground):
     """`time_series` of a 3D run: clusters (ρ < w in space), polarisation |mean_k x_k|, minimum
     distance and leaders per cluster at each sample; intrusions (inside the barrier's hull or
-    below the ground) at every record."""
+    below the ground) at every record.  Agents whose row is not finite (dead) are left out."""
     out = {k: [] for k in ('clusters', 'polarisation', 'min_distance', 'one_leader_per_cluster')}
+    finite = bool(np.isfinite(r[idx]).all())
     for i in idx:
-        count, labels = cluster_labels_3d(r[i], w)
+        ok = slice(None) if finite else np.isfinite(r[i]).all(axis=1)
+        ri = r[i][ok]
+        count, labels = cluster_labels_3d(ri, w)
         out['clusters'].append(count)
-        out['polarisation'].append(float(np.linalg.norm(headings[i].mean(axis=0))))
-        d, _ = cKDTree(r[i]).query(r[i], k=2) if len(r[i]) > 1 else (np.full((1, 2), np.inf), None)
+        out['polarisation'].append(float(np.linalg.norm(headings[i][ok].mean(axis=0))) if len(ri) else float('nan'))
+        d, _ = cKDTree(ri).query(ri, k=2) if len(ri) > 1 else (np.full((1, 2), np.inf), None)
         out['min_distance'].append(float(d[:, 1].min()))
-        lead = np.flatnonzero(leader[i])
+        lead = np.flatnonzero(np.asarray(leader[i])[ok])
         per = [len(v) for v in leader_membership(labels, lead).values()] if len(lead) else [0]
         out['one_leader_per_cluster'].append(all(p == 1 for p in per))
     res = {k: np.asarray(v) for k, v in out.items()}
     res['t'] = np.asarray(t)[idx]
-    res['centroid'] = r[idx].mean(axis=1)
+    res['centroid'] = r[idx].mean(axis=1) if finite else np.nanmean(r[idx], axis=1)
     if target is not None:
         tgt = np.asarray(target, dtype=float)
         res['centroid_target_distance'] = np.linalg.norm(res['centroid'] - tgt, axis=1)
-        res['min_target_distance'] = np.linalg.norm(r[idx] - tgt, axis=2).min(axis=1)
+        d = np.linalg.norm(r[idx] - tgt, axis=2)
+        res['min_target_distance'] = d.min(axis=1) if finite else np.nanmin(d, axis=1)
     if barrier is not None or ground is not None:
         flat = np.asarray(r, dtype=float).reshape(-1, 3)
         inside = np.zeros(len(flat), dtype=bool)
         if barrier is not None:
             inside |= barrier.inside(flat)
-            res['barrier_clearance'] = float(barrier.clearance(flat).min())
+            res['barrier_clearance'] = float(np.nanmin(barrier.clearance(flat)))
         if ground is not None:
             below = flat[:, 2] < ground                                  # floor intrusions
             inside |= below
             res['floor_intrusions_total'] = int(below.sum())
-            res['floor_clearance'] = float((flat[:, 2] - ground).min())
+            res['floor_clearance'] = float(np.nanmin(flat[:, 2] - ground))
         inside = inside.reshape(len(t), -1).sum(axis=1)
         res['intrusions_total'] = int(inside.sum())
         res['intrusions'] = inside[idx]

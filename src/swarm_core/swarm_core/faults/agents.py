@@ -22,7 +22,8 @@ Leader failover (`CommandPlan`, command_plan.py, uses `followers_of` and `elect_
     step it was heard, the one nearest to the lost leader's last heard position; ties go to
     the lower agent index; no successor if there is no such agent.  The successor takes over
     the lost leader's steering program and slot.  A lost leader that is heard again later
-    is a follower.  Without failover (``timeout`` None) leaders never change.
+    is a follower.  Without failover (``timeout`` None) leaders never change.  In 3D
+    (positions (N, 3)) l(k) and "nearest" are measured in space.
 
 The table of a step (`step.alive_control`)
     Only the agents alive at a step are in the table, in index order; a receiver that is not
@@ -31,7 +32,8 @@ The table of a step (`step.alive_control`)
 Reunion (`Rendezvous`, applied to the law by `reunion_law`)
     From ``at`` for ``for`` seconds either every agent also steers to a shared rendezvous
     point with the target term of eq. 15 (`laws.target_term`, gain γ = ``gain``; the point is
-    given, or the centroid of the heard agents at the first step of the window; ``track``: at
+    given ([x, y], or [x, y, z] in 3D), or the centroid of the heard agents at the first step
+    of the window; ``track``: at
     every step, a rendezvous that moves with the swarm), and/or the far-coupling weight q0 of
     the homotopy law is set to ``coupling`` (weak global coupling, eq. 12-14, the paper's own
     cohesion mechanism).  After the window only the law's own (local) coupling holds the
@@ -45,6 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from swarm_core.checks import PAUSE_BOUND
+from swarm_core.laws.paper.natural_sums import nearest_leader_3d
 from swarm_core.laws.paper.pair_sums import nearest_leader
 
 FAULT_KINDS = ('kill', 'freeze')
@@ -214,8 +217,9 @@ def track_slots(slots: dict, ev: dict, row: dict) -> None:
 # ---------------------------------------------------------------- leader failover
 
 def followers_of(pos, heard, leader_rows):
-    """l(k) for every agent: the index of the heard leader nearest to it (eq. 10), −1 for
-    agents not heard, leaders and when no leader is heard."""
+    """l(k) for every agent: the index of the heard leader nearest to it (eq. 10; in space
+    where pos is (N, 3), as the 3D law measures it), −1 for agents not heard, leaders and when
+    no leader is heard."""
     pos = np.asarray(pos, float)
     heard = np.asarray(heard, bool)
     leaders = np.array([i for i in leader_rows if heard[i]], dtype=np.intp)
@@ -223,7 +227,7 @@ def followers_of(pos, heard, leader_rows):
     recv = np.flatnonzero(heard)
     recv = recv[~np.isin(recv, leaders)]
     if leaders.size and recv.size:
-        out[recv] = nearest_leader(pos, recv, leaders)
+        out[recv] = nearest_leader(pos, recv, leaders) if pos.shape[1] == 2 else nearest_leader_3d(pos, recv, leaders)
     return out
 
 
@@ -234,7 +238,10 @@ def elect_successor(lost_position, pos, eligible) -> int:
     if eligible.size == 0:
         return -1
     d = np.asarray(pos, float)[eligible] - np.asarray(lost_position, float)
-    return int(eligible[np.argmin(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])])
+    d2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
+    if d.shape[1] == 3:                    # in 3D: the distance in space
+        d2 = d2 + d[:, 2] * d[:, 2]
+    return int(eligible[np.argmin(d2)])
 
 
 @dataclass
@@ -255,7 +262,7 @@ class Rendezvous:
 
     at: float
     duration: float
-    point: tuple | str | None = None   # (x, y); None: the centroid at ``at``; 'none': no target
+    point: tuple | str | None = None   # (x, y) or (x, y, z); None: the centroid at ``at``; 'none': no target
     gain: float = 0.05              # γ of eq. 15
     normalised: bool = False
     track: bool = False             # centroid: re-taken at every step (a moving rendezvous)
@@ -273,10 +280,10 @@ class Rendezvous:
             return None, 0.0, False, self.coupling
         if self.chosen is None or (self.track and self.point is None):
             if self.point is not None:
-                self.chosen = (float(self.point[0]), float(self.point[1]))
-            else:
+                self.chosen = tuple(float(v) for v in self.point)
+            else:                              # (x, y), or (x, y, z) in 3D
                 c = np.asarray(pos, float)[np.asarray(heard, bool)].mean(axis=0)
-                self.chosen = (float(c[0]), float(c[1]))
+                self.chosen = tuple(float(v) for v in c)
         return self.chosen, float(self.gain), bool(self.normalised), self.coupling
 
 

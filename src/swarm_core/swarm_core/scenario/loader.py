@@ -50,6 +50,7 @@ from swarm_core.scenario.sections import (
     FaultSpec,
     NoiseSpec,
     ReunionSpec,
+    ReunionSpec3,
     TargetSpec,
     TargetSpec3,
 )
@@ -140,17 +141,19 @@ class ScenarioSpec(Strict):
 
 
 #: the sections a 3D scenario cannot have yet
-NOT_YET_3D = ('faults', 'failover', 'reunion', 'comms', 'robots', 'noise')
+NOT_YET_3D = ('robots',)
 
 
 class ScenarioSpec3(ScenarioSpec):
     """A scenario in three dimensions (``dim: 3``): 3D agents, leader programs (s_u, s_v),
-    target and barrier (with a ground); the paper's law lifted to 3D (docs/model.md)."""
+    target, barrier (with a ground) and rendezvous point; the paper's law lifted to 3D
+    (docs/model.md).  Faults, failover, the radio and noise are the planar sections."""
     dim: Literal[3]
     agents: AgentsSpec3
     leaders: LeadersSpec3 = Field(default_factory=LeadersSpec3)
     target: Optional[TargetSpec3] = None
     barrier: Optional[BarrierSpec3] = None
+    reunion: list[ReunionSpec3] = Field(default_factory=list)
 
 
 

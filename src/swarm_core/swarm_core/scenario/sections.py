@@ -164,6 +164,16 @@ class ReunionSpec(Strict):
     model_config = ConfigDict(extra='forbid', populate_by_name=True)
 
 
+class ReunionSpec3(ReunionSpec):
+    """The reunion of a 3D scenario: its point is [x, y, z] (or centroid, or none)."""
+    point: Union[Literal['centroid', 'none'], Point3] = 'centroid'
+
+    @field_validator('point', mode='before')
+    @classmethod
+    def _three(cls, v):
+        return v if isinstance(v, str) else three_vectors(v, 'the rendezvous point')
+
+
 # ------------------------------------------------------------------ communication (comms.py)
 
 Probability = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
