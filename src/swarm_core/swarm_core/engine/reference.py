@@ -240,7 +240,8 @@ def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int 
     `swarm_robots.engine`); the other arguments are then its own.  A 3D scenario runs in
     `engine.natural`."""
     if scn.dim == 3 and stepper is None:
-        return natural.simulate(scn, integrator=integrator, record_every=record_every, progress=progress)
+        return natural.simulate(scn, integrator=integrator, record_every=record_every, progress=progress,
+                                commands=commands)
     stepper = stepper or SwarmStepper(scn, integrator, neighbour_search, commands)
     steps = scn.steps
     n = stepper.n
