@@ -24,7 +24,7 @@ FALLBACK = {'homotopy_reunion': 'reunion', 'leader_failover': 'faults or failove
             'leader_no_failover': 'faults or failover',
             # laws of the Law interface run on the reference engine
             'spl_parallel': 'law spl_parallel', 'spl_circular': 'law spl_circular', 'flock_to_circle': 'law blend',
-            'homotopy_3d': 'a 3D scenario'}
+            'homotopy_3d': 'a 3D scenario', 'ground_3d': 'a 3D scenario', 'target_3d': 'a 3D scenario'}
 
 
 def _max_diff(a, b):

@@ -14,7 +14,7 @@ from swarm_core.scenario import loader as scenario
 
 SHIPPED = ['global_alignment', 'homotopy_global', 'homotopy_local', 'target_barrier',
            'leader_failover', 'leader_no_failover', 'homotopy_reunion',
-           'spl_parallel', 'spl_circular', 'flock_to_circle', 'homotopy_3d']
+           'spl_parallel', 'spl_circular', 'flock_to_circle', 'homotopy_3d', 'ground_3d', 'target_3d']
 #: checks a shipped scenario is meant to fail: leader_no_failover is the contrast to
 #: leader_failover (without a successor the lost leader's subswarm does not keep its program)
 CONTRAST = {'leader_no_failover': {'follows_program'}}
@@ -87,6 +87,30 @@ def test_fig5_barrier_never_entered_and_target_reached(runs):
     assert series['centroid_target_distance'].min() < 10.0
     x = series['centroid'][:, 0]
     assert series['clusters'][(x > 190) & (x < 215)].max() >= 2      # split around the barrier
+
+
+def test_ground_3d_flies_low_over_the_ground_and_never_below_it(runs):
+    """The target on the ground pulls the swarm down; the ground holds it about w above the
+    floor, from the glide to the end, and it mills over the target."""
+    scn, traj, series, checks = runs['ground_3d']
+    z = traj.r[..., 2]
+    assert scn.ground == 0.0 and z.min() > scn.ground + 3.0            # never near, never below
+    assert series['floor_intrusions_total'] == 0
+    late = traj.t >= 100
+    assert np.median(z[late]) < scn.law.cutoff_radius + 0.5             # low: about w above the floor
+    t, d = series['t'], series['centroid_target_distance']
+    assert d.min() < 8.0 and d[t >= 250].max() < 30.0                   # over the target to the end
+
+
+def test_target_3d_reaches_the_target_and_mills_around_it(runs):
+    """The swarm reaches the 3D target as one flock and stays near it, looping through it."""
+    scn, traj, series, checks = runs['target_3d']
+    t, d = series['t'], series['centroid_target_distance']
+    assert d.min() < 5.0
+    assert d[t >= 250].max() < 30.0                                     # it stays: it mills
+    close = (d < 5.0).astype(int)
+    assert np.count_nonzero(np.diff(close[t >= 200]) == 1) >= 3         # and passes through it again and again
+    assert np.all(series['clusters'][t >= 250] == 1)
 
 
 def test_literal_barrier_reading_is_available():
