@@ -20,24 +20,25 @@ from swarm_core.laws import law_mapping
 
 
 def analyse(traj, cutoff_radius=None, *, target=None, barrier=None, scenario=None, dt=None,
-            every_time: float = 1.0):
+            every_time: float = 1.0, ground=None):
     """Metric time series (sampled every ``every_time`` units) and the scenario's checks.
 
-    Without a ``scenario`` (a bag): the given ``cutoff_radius``, ``target`` and ``barrier``,
-    the recorded step ``dt`` (default ``traj.meta['dt']``), and no checks.  With one: its
-    cutoff radius, target, barrier, recorded step and ``expect`` checks, unless given."""
+    Without a ``scenario`` (a bag): the given ``cutoff_radius``, ``target``, ``barrier`` and
+    (3D) ``ground``, the recorded step ``dt`` (default ``traj.meta['dt']``), and no checks.
+    With one: its cutoff radius, target, barrier, ground, recorded step and ``expect`` checks,
+    unless given."""
     if scenario is not None:
         cutoff_radius = scenario.law.cutoff_radius if cutoff_radius is None else cutoff_radius
         target = scenario.target if target is None else target
         barrier = scenario.barrier if barrier is None else barrier
+        ground = scenario.ground if ground is None else ground
         dt = scenario.dt * traj.meta.get('record_every', 1) if dt is None else dt
     elif dt is None:
         dt = traj.meta.get('dt') or 1.0
     every = max(1, int(round(every_time / dt))) if dt > 0 else 1
     if traj.dim == 3:             # headings x in place of θ; the floor of a 3D barrier
         series = metrics.time_series(traj.t, traj.r, traj.x, traj.leader, cutoff_radius, target=target,
-                                     barrier_points=barrier, every=every,
-                                     ground=None if scenario is None else scenario.ground)
+                                     barrier_points=barrier, every=every, ground=ground)
     else:
         series = metrics.time_series(traj.t, traj.r, traj.theta, traj.leader, cutoff_radius,
                                      target=target, barrier_points=barrier, every=every)
@@ -186,5 +187,5 @@ def write_outputs(out_dir, scn, traj, series, checks, figure=True, extra=None):
     if figure and len(traj.t) > 1:
         plot_run(traj, series, out / f'{scn.label}.png',
                  title=f'{scn.name}, seed {scn.seed}: {scn.law.kind} law, n = {len(scn.names)}',
-                 w=scn.law.cutoff_radius, target=scn.target, barrier=scn.barrier)
+                 w=scn.law.cutoff_radius, target=scn.target, barrier=scn.barrier, ground=scn.ground)
     return summary

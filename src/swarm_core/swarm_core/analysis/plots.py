@@ -1,27 +1,30 @@
 """Figures like the paper's (Figs. 3-5): trajectories in the plane coloured by agent,
-x(t), λ(t) and clusters(t).  matplotlib with the Agg backend (no screen needed)."""
+x(t), λ(t) and clusters(t); a 3D run's figure is `plots3d.plot_run_3d`.  matplotlib with the
+Agg backend (no screen needed)."""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
+from swarm_core.analysis.plots3d import plot_run_3d
 from swarm_core.files import atomic_path
 
 
-def plot_run(traj, series, path, *, title: str = '', w: float = 4.0, target=None, barrier=None):
+def plot_run(traj, series, path, *, title: str = '', w: float = 4.0, target=None, barrier=None, ground=None):
     """Write the run's figure to ``path`` (PNG) and return the path.
 
     traj: a `engine.Trajectory`; series: `metrics.time_series` of it (needs t, clusters).
-    A 3D run is drawn from above (x, y)."""
+    A 3D run gets `plot_run_3d` (a 3D view, top and side views; ``ground``: its floor)."""
+    if traj.r.shape[2] == 3:
+        return plot_run_3d(traj, series, path, title=title, w=w, target=target, barrier=barrier, ground=ground)
     import matplotlib
     import matplotlib.pyplot as plt
     from scipy.spatial import ConvexHull
     matplotlib.use('Agg')
 
     n = traj.r.shape[1]
-    top = traj.r.shape[2] == 3
-    r = traj.r[..., :2]                                 # 3D: the top view
+    r = traj.r
     cmap = plt.get_cmap('tab10' if n <= 10 else 'viridis')
     colours = [cmap(i % 10) if n <= 10 else cmap(i / max(1, n - 1)) for i in range(n)]
     fig = plt.figure(figsize=(10, 10), constrained_layout=True)
@@ -36,15 +39,15 @@ def plot_run(traj, series, path, *, title: str = '', w: float = 4.0, target=None
         ax.plot(*r[-1, k], marker='*', ms=12, color=colours[k], mec='k')
     ax.plot(*r[0].T, 'k.', ms=4, label='start')
     if target is not None:
-        ax.plot(*np.asarray(target)[:2], 'rx', ms=12, mew=2, label='target')
+        ax.plot(*np.asarray(target), 'rx', ms=12, mew=2, label='target')
     if barrier is not None:
-        pts = np.asarray(barrier, dtype=float)[:, :2]
+        pts = np.asarray(barrier, dtype=float)
         hull = pts[ConvexHull(pts).vertices] if len(pts) >= 3 else pts
         ax.fill(*hull.T, color='0.3', alpha=0.8, label='barrier')
     ax.set_aspect('equal', adjustable='datalim')
     ax.set_xlabel('x')
     ax.set_ylabel('y')
-    ax.set_title((title or 'trajectories (stars: leaders at the end)') + (' (top view)' if top else ''))
+    ax.set_title(title or 'trajectories (stars: leaders at the end)')
     ax.legend(loc='best', fontsize=8)
 
     ax_x = fig.add_subplot(grid[1])

@@ -1,4 +1,5 @@
-"""``swarm report BAG.mcap``: metrics and figures from a recorded run, from the bag alone.
+"""``swarm report BAG.mcap``: metrics and figures from a recorded run, from the bag alone
+(a run directory without a bag, or a trajectory.npz: `run_report`).
 
 The trajectory is rebuilt from ``/swarm/states`` (``nav_msgs/Odometry``: ``child_frame_id`` =
 agent, stamp = sim time, pose = position + planar quaternion, ``twist.angular.z`` = the u held
@@ -40,6 +41,7 @@ from swarm_tools.bags.mcap_io import (
     parse_string,
     resolve_bag,
 )
+from swarm_tools.bags.run_report import report_run, run_trajectory
 
 STATES = '/swarm/states'
 LAMBDA = '/swarm/lambda'
@@ -482,7 +484,7 @@ def parse_args(argv):
         description='Metrics (metrics.json), trajectory (trajectory.npz) and a figure like the '
                     "paper's from a recorded MCAP bag, from the bag alone.")
     p.add_argument('bag', help='an .mcap file or a bag directory written by swarm record / '
-                               'swarm run --record')
+                               'swarm run --record; or a run directory (trajectory.npz, metrics.json)')
     p.add_argument('--out', default=None, help='output directory (default: BAG without .mcap + _report)')
     p.add_argument('--cutoff-radius', '-w', type=float, default=None,
                    help='cluster radius w: agents closer than w are connected (default: from '
@@ -502,6 +504,9 @@ def parse_args(argv):
 def main(argv=None) -> int:
     a = parse_args(sys.argv[1:] if argv is None else argv)
     given = Path(a.bag)
+    npz = run_trajectory(given)
+    if npz is not None:                   # a run directory without a bag (a 3D run: 3D views)
+        return report_run(npz, a, _warn, animate)
     try:
         bag = resolve_bag(given)
     except FileNotFoundError as err:
