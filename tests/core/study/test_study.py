@@ -24,21 +24,9 @@ def _study():
     return st.make_study('homotopy_global', SETS, seeds=3, fixed=SHORT)
 
 
-def test_same_table_for_jobs_1_jobs_2_and_dask(tmp_path, processes):
-    """--jobs 1, --jobs 2 and a Dask cluster (a scheduler and two single-threaded workers
-    started here on 127.0.0.1, ended by the `processes` fixture also on failure) give the
-    same tidy table, byte for byte."""
-    s = _study()
-    st.validate(s)
-    rows1, c1 = st.run_study(s, tmp_path / 'j1')
-    rows2, c2 = st.run_study(s, tmp_path / 'j2', jobs=2)
-    assert c1 == c2 == {'total': 12, 'cached': 0, 'ran': 12}
-    csv1, csv2 = st.to_csv(s, rows1), st.to_csv(s, rows2)
-    assert csv1 == csv2
-    assert len(csv1.splitlines()) == 13
-    assert {r['seed'] for r in rows1} == {0, 1, 2}
-    assert len({r['min_distance'] for r in rows1}) > 1      # the runs differ
-
+def _dask_cluster(processes, tmp_path) -> str:
+    """A Dask scheduler and two single-threaded workers on 127.0.0.1 (ended by the `processes`
+    fixture, also on failure); the scheduler's address once both workers are in."""
     sched_file = tmp_path / 'scheduler.json'
     processes.start([VENV_BIN / 'dask', 'scheduler', '--host', '127.0.0.1', '--port', '0',
                      '--no-dashboard', '--scheduler-file', sched_file])
@@ -54,6 +42,25 @@ def test_same_table_for_jobs_1_jobs_2_and_dask(tmp_path, processes):
     from distributed import Client
     with Client(addr, timeout=60) as client:
         client.wait_for_workers(2, timeout=180)
+    return addr
+
+
+def test_same_table_for_jobs_1_jobs_2_and_dask(tmp_path, processes):
+    """--jobs 1, --jobs 2 and a Dask cluster (a scheduler and two single-threaded workers
+    started here on 127.0.0.1, ended by the `processes` fixture also on failure) give the
+    same tidy table, byte for byte."""
+    s = _study()
+    st.validate(s)
+    rows1, c1 = st.run_study(s, tmp_path / 'j1')
+    rows2, c2 = st.run_study(s, tmp_path / 'j2', jobs=2)
+    assert c1 == c2 == {'total': 12, 'cached': 0, 'ran': 12}
+    csv1, csv2 = st.to_csv(s, rows1), st.to_csv(s, rows2)
+    assert csv1 == csv2
+    assert len(csv1.splitlines()) == 13
+    assert {r['seed'] for r in rows1} == {0, 1, 2}
+    assert len({r['min_distance'] for r in rows1}) > 1      # the runs differ
+
+    addr = _dask_cluster(processes, tmp_path)
     out = tmp_path / 'dask'
     rc = simulate_cli.sweep_main(['homotopy_global', *sum((['--set', x] for x in SETS), []), '--seeds', '3',
                                   '--duration', '40', '--scheduler', addr, '--out', str(out), '--quiet'])
@@ -62,6 +69,29 @@ def test_same_table_for_jobs_1_jobs_2_and_dask(tmp_path, processes):
     assert (out / 'homotopy_global.png').stat().st_size > 0
     rates = (out / 'rates.csv').read_text().splitlines()
     assert rates[0] == 'law.leader_gain,lambda.tau,check,passed,n,rate,ci_low,ci_high'
+
+
+def test_a_3d_study_gives_the_same_table_on_dask_and_from_its_cache(tmp_path, processes):
+    """homotopy_3d (dim: 3) over a grid: --jobs 1 and the Dask cluster give the same table,
+    byte for byte; run again, every row comes from the cache, and the table is the same."""
+    sets = ['law.leader_gain=10,30']
+    s = st.make_study('homotopy_3d', sets, seeds=2, fixed={'duration': 40.0})
+    st.validate(s)
+    rows, counts = st.run_study(s, tmp_path / 'j1')
+    assert counts == {'total': 4, 'cached': 0, 'ran': 4}
+    csv1 = st.to_csv(s, rows)
+    assert len({r['min_distance'] for r in rows}) > 1 and all(r['one_cluster_at_end'] for r in rows)
+    addr = _dask_cluster(processes, tmp_path)
+    out = tmp_path / 'dask'
+    argv = ['homotopy_3d', '--set', sets[0], '--seeds', '2', '--duration', '40', '--scheduler', addr,
+            '--out', str(out), '--quiet']
+    assert simulate_cli.sweep_main(argv) == 0
+    assert (out / 'runs.csv').read_text() == csv1
+    assert (out / 'homotopy_3d.png').stat().st_size > 0
+    (out / 'runs.csv').unlink()
+    assert simulate_cli.sweep_main(argv) == 0                   # the 3D rows read back from the cache
+    assert (out / 'runs.csv').read_text() == csv1
+    assert st.run_study(s, out / 'cache')[1] == {'total': 4, 'cached': 4, 'ran': 0}
 
 
 class _Stop(KeyboardInterrupt):

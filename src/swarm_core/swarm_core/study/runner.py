@@ -425,7 +425,8 @@ def _cached(cache, task):
     if doc is None and why is None:
         return None
     if why is None:
-        agents = placement.AgentsSpec.model_validate(task.data['agents']).count
+        spec = placement.AgentsSpec3 if task.data.get('dim') == 3 else placement.AgentsSpec
+        agents = spec.model_validate(task.data['agents']).count
         why = row_error(doc, task.cell, task.seed, agents, task.key)
     if why is None:
         return doc['result']
