@@ -19,16 +19,19 @@ from swarm_core.scenario.loader import load
 from tests.helpers import short_homotopy
 
 
-def drive(scn, groups):
+def drive(scn, groups, compiled=False, silent_at_least=2):
     """Run the agents as containers (``groups``: agent indices per process) on the batch
     engine's own step inputs (what the world relays: λ, leaders, s_k, who is in the table),
-    checking u and positions against the engine step by step; returns the agent-steps moved."""
+    checking u and positions against the engine step by step; returns the agent-steps moved.
+    ``compiled``: both sum pairs in the compiled kernels (a run's ``--compiled on``)."""
     from swarm_core.engine.reference import SwarmStepper
     from swarm_core.model.frenet import quaternion_from_heading
-    eng = SwarmStepper(scn)
+    eng = SwarmStepper(scn, neighbour_search='compiled' if compiled else 'auto')
     n = len(scn.names)
     cores = [AgentCore(i, n, *scn.pos0[i], scn.theta0[i], scn.law, scn.dt,
                        (scn.spec.noise.position, scn.spec.noise.heading), scn.noise_rng(i)) for i in range(n)]
+    for c in cores if compiled else ():
+        c.sums_compiled()
     boxes = [ContainerCore([cores[i] for i in g]) for g in groups]
     x, y = scn.pos0[:, 0].copy(), scn.pos0[:, 1].copy()
     qz, qw = quaternion_from_heading(scn.theta0)
@@ -57,7 +60,7 @@ def drive(scn, groups):
                 x[i], y[i] = c.pos[0]
                 qz[i], qw[i] = c.quaternion
         np.testing.assert_array_equal(np.stack([x, y], 1), eng.pos)
-    assert silent >= 2                         # the frozen one and the dead one left the table
+    assert silent >= silent_at_least           # the frozen one and the dead one left the table
     return moved, in_table
 
 
@@ -91,6 +94,33 @@ def test_containers_equal_simulate_with_faults(tmp_path, counted, groups):
     idle = sum(int(sum(not alive[k, g].any() for k in range(scn.steps))) for g in groups)
     assert counted['n'] == scn.steps * len(groups) - idle
     assert moved == in_table                           # every agent in the table moved, once
+
+
+COMPILED_CASES = {
+    'homotopy': {},
+    'global': {'law': {'kind': 'global'}},
+    'local': {'law': {'kind': 'local', 'cutoff_radius': 1.5}, 'seed': 3},
+}
+
+
+@pytest.mark.parametrize('case', COMPILED_CASES, ids=list(COMPILED_CASES))
+def test_containers_equal_simulate_compiled(tmp_path, case):
+    """With the compiled pair sums on (`compiled_sums`: a container asks the kernel for its own
+    rows, the batch engine for all), the containers' u and positions equal the batch engine's
+    bit for bit, with faults, noise and leaders; and they differ from the numpy sums' (the
+    kernel is another path, not the reference again)."""
+    pytest.importorskip('numba')
+    path = short_homotopy(tmp_path / 'c.yaml', name=f'compiled_{case}', duration=8, at=1, curvature=0.05,
+                          lam={'kind': 'tanh_window', 'rise_at': 3, 'fall_at': 1000, 'tau': 1},
+                          faults=[{'at': 2, 'freeze': 'agent_1', 'for': 2.0}, {'at': 5, 'kill': 'agent_4'}],
+                          noise={'position': 0.001, 'heading': 0.001}, **COMPILED_CASES[case])
+    scn = load(str(path))
+    moved, in_table = drive(scn, [[0, 1, 2], [3, 4, 5]], compiled=True)
+    assert moved == in_table
+    fast, ref = simulate(scn, compiled='on'), simulate(scn, compiled='off')
+    assert fast.meta['neighbour_search'] == 'compiled' and ref.meta['neighbour_search'] == 'numpy'
+    assert not np.array_equal(fast.u, ref.u, equal_nan=True)
+    np.testing.assert_allclose(fast.u, ref.u, rtol=0, atol=1e-9)
 
 
 def test_repeat_reject_and_kill():

@@ -109,6 +109,32 @@ faults:
   - {at: 3, freeze: agent_1, for: 2.0}
   - {at: 6, kill: agent_4}
 """
+RADIO = """\
+comms: {loss: 0.3, latency: 0.1}
+"""
+
+
+@pytest.mark.parametrize('extra', [FAULTS, RADIO], ids=['faults', 'radio'])
+def test_compiled_containers_equal_simulate(extra, tmp_path, ros_domain, processes, swarm_cmd):
+    """``--compiled on``: two containers of three sum their rows in the compiled kernels, and
+    the run equals ``simulate(compiled='on')`` bit for bit, with faults and with the radio."""
+    pytest.importorskip('numba')
+    path = scenario(tmp_path, 6, duration=8.0)
+    path.write_text(path.read_text() + extra)
+    out = tmp_path / 'run'
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--agents-per-process', '3',
+                         '--compiled', 'on'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
+    scn = load(str(path))
+    ref = simulate(scn, compiled='on')
+    assert ref.meta['neighbour_search'] == 'compiled'
+    got = Trajectory.load(out / 'trajectory.npz')
+    np.testing.assert_array_equal(got.r, ref.r)                 # NaN where dead, in both
+    both = np.isfinite(got.u) & np.isfinite(ref.u)              # (a frozen agent's u is not recorded)
+    assert np.isnan(got.u[np.isnan(ref.u)]).all() and both.mean() > 0.9
+    np.testing.assert_array_equal(got.u[both], ref.u[both])
+    assert np.array_equal(got.lam, ref.lam) and np.array_equal(got.leader, ref.leader)
 
 
 def test_container_fault_one_agent_killed_one_frozen(tmp_path, ros_domain, processes, swarm_cmd):

@@ -32,6 +32,7 @@ import numpy as np
 
 from swarm_core.faults.agents import reunion_law
 from swarm_core.laws import Law, LawError, failed_at
+from swarm_core.laws.paper.compiled_sums import COMPILED
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.model.integrate import zoh_step
 from swarm_core.radio import Beliefs, CommModel
@@ -139,11 +140,104 @@ def known_table(roster, own: str, own_state, newest: dict, leaders, now: float, 
     return names.index(own), rows, flags
 
 
+class States:
+    """The own states of the agents of one process, a row each: position (K, 2), heading θ (K,),
+    the u held, the step held, whether each is out of the table (``silent``), and the
+    quaternion and frame each publishes (``qz``, ``qw``, ``cos``, ``sin``; valid where
+    ``fresh``).  An agent's `AgentCore` reads and writes its own row; an agent container steps
+    all rows at once (`swarm_agent.container_core`), with no Python per agent."""
+
+    __slots__ = ('pos', 'theta', 'u', 'step', 'silent', 'qz', 'qw', 'cos', 'sin', 'fresh', 'shared', 'table')
+
+    def __init__(self, k: int):
+        self.pos = np.zeros((k, 2))
+        self.theta, self.u, self.qz, self.qw, self.cos, self.sin = (np.zeros(k) for _ in range(6))
+        self.step = np.zeros(k, dtype=np.int64)
+        self.silent = np.zeros(k, dtype=bool)
+        self.fresh = np.zeros(k, dtype=bool)
+        self.shared = np.zeros(k, dtype=bool)     # the row's last u came from `table`
+        self.table = None       # the inputs of one call's u of several rows (`SharedTable`)
+
+    @classmethod
+    def of(cls, cores) -> States:
+        """One bank for ``cores``: their rows copied in, each core reading and writing its row
+        here from now on."""
+        bank = cls(len(cores))
+        for j, c in enumerate(cores):
+            c.seen = c.seen               # a shared table's row becomes the core's own
+            old, i = c.states, c.slot
+            for name in cls.__slots__[:-1]:
+                getattr(bank, name)[j] = getattr(old, name)[i]
+            c.states, c.slot = bank, j
+        return bank
+
+    def share(self, table, rows, cores):
+        """``table`` (a `SharedTable`) gave the u of ``rows``: their `Seen` is their row of it
+        from now on; a row that still read the table before gets its own `Seen` first."""
+        if self.table is not None:
+            left = self.shared.copy()
+            left[rows] = False
+            for j in np.flatnonzero(left):
+                cores[j].seen = cores[j].seen
+        self.table = table
+        self.shared[rows] = True
+
+    def refresh(self, rows):
+        """The quaternions and frames of ``rows`` (stale ones) from their headings: elementwise,
+        so the same bits as one agent's alone."""
+        qz, qw = quaternion_from_heading(self.theta[rows])
+        self.qz[rows], self.qw[rows] = qz, qw
+        self.cos[rows], self.sin[rows] = frame_from_quaternion(qz, qw)
+        self.fresh[rows] = True
+
+
+class SharedTable(NamedTuple):
+    """The inputs of one u call of several agents (`States.table`): each agent's `Seen` is its
+    row of it (made when asked, `AgentCore.seen`)."""
+    pos: np.ndarray
+    cos_t: np.ndarray
+    sin_t: np.ndarray
+    lam: float
+    is_leader: object
+    steering: np.ndarray
+    target: object
+    barrier: object
+    alive: object
+    rendezvous: object
+    t: float | None
+
+
+def _row(name, kind):
+    """A property of `AgentCore` that is the agent's row of its bank's array ``name``: read as a
+    fresh (1,) / (1, 2) array (pos, theta) or a number, written into the row."""
+    if kind == 'array':
+        def get(self):
+            return getattr(self.states, name)[self.slot:self.slot + 1].copy()
+
+        def put(self, value):
+            getattr(self.states, name)[self.slot] = np.reshape(value, getattr(self.states, name).shape[1:])
+    else:
+        def get(self):
+            return kind(getattr(self.states, name)[self.slot])
+
+        def put(self, value):
+            getattr(self.states, name)[self.slot] = value
+    return property(get, put)
+
+
 class AgentCore:
+    pos = _row('pos', 'array')            # (1, 2) float64
+    theta = _row('theta', 'array')        # (1,), unwrapped
+    u_last = _row('u', float)
+    step = _row('step', int)              # lockstep: the step whose state it holds
+    silent = _row('silent', bool)         # lockstep: not in the table (frozen or killed)
+
     def __init__(self, index: int, n_agents: int, x: float, y: float, theta: float,
                  law: Law, dt: float, noise=(0.0, 0.0), noise_rng=None):
         self.index = int(index)
         self.n = int(n_agents)
+        self.states, self.slot = States(1), 0         # its row (an agent container's bank: `States.of`)
+        self._seen = None
         self.pos = np.array([[float(x), float(y)]])
         self.theta = np.array([float(theta)])
         self.law = law
@@ -151,15 +245,30 @@ class AgentCore:
         self.noise_scale = np.array([noise[0], noise[0], noise[1]], dtype=float)
         self.noisy = bool(np.any(self.noise_scale > 0))
         self.rng = noise_rng
-        self.u_last = 0.0
         self.comms = None
         self.beliefs = None
-        self._frame = None                  # own (cos θ, sin θ), see `_own_frame`
-        self._quat = None                   # own (qz, qw) as published (cached until it moves)
-        self.step = 0                       # lockstep: the step whose state it holds
-        self.silent = False                 # lockstep: not in the table (frozen or killed)
         self.reported = False               # lockstep on a MuJoCo robot: its pose is its row of the table
-        self.seen = None                    # the inputs of its last u (`Seen`, `Believed`; `trial`)
+        self.pairs = None                   # the law's pairs (`alive_control`): None, or the compiled sums'
+
+    @property
+    def seen(self):
+        """The inputs of its last u (`Seen`, `Believed`; `trial`), or None."""
+        b = self.states
+        if b.shared[self.slot]:            # its row of the table, made once
+            table, j = b.table, self.index
+            self.seen = Seen(table.pos, table.cos_t, table.sin_t, j, table.lam, table.is_leader,
+                             float(table.steering[j]), table.target, table.barrier, table.alive, table.rendezvous,
+                             table.t)
+        return self._seen
+
+    @seen.setter
+    def seen(self, value):
+        self._seen = value
+        self.states.shared[self.slot] = False
+
+    def sums_compiled(self):
+        """Sum the law's pairs in the compiled kernels (`compiled_sums`: a run's ``--compiled``)."""
+        self.pairs = lambda _pos: COMPILED
 
     def attach_comms(self, model: CommModel):
         """Receive through ``model`` from now on (lockstep: `comms_control`)."""
@@ -190,10 +299,10 @@ class AgentCore:
     # -- what the agent publishes
     @property
     def quaternion(self):
-        if self._quat is None:
-            qz, qw = quaternion_from_heading(self.theta)
-            self._quat = (float(qz[0]), float(qw[0]))
-        return self._quat
+        b, j = self.states, self.slot
+        if not b.fresh[j]:
+            b.refresh([j])
+        return float(b.qz[j]), float(b.qw[j])
 
     def control(self, x, y, qz, qw, lam, is_leader, steering_own, target=None, barrier=None,
                 alive=None, rendezvous=None, row=None, t=None):
@@ -209,7 +318,7 @@ class AgentCore:
                          rendezvous, t)
         try:
             u = alive_control(pos, cos_t, sin_t, [k], self.law, lam, is_leader, [float(steering_own)], target,
-                              barrier, alive=alive, rendezvous=rendezvous, t=t)
+                              barrier, alive=alive, rendezvous=rendezvous, pairs=self.pairs, t=t)
         except LawError as err:       # the process stops on it (`swarm_ros.rosutil.run_node`)
             raise failed_at(err, t) from None
         return float(u[0])
@@ -232,7 +341,7 @@ class AgentCore:
                                 t=self.step * self.dt)
                 u = alive_control(seen.pos, seen.cos_t, seen.sin_t, [seen.row], law, seen.lam, seen.is_leader,
                                   [seen.steering], seen.target, seen.barrier, alive=seen.alive,
-                                  rendezvous=seen.rendezvous, t=seen.t)
+                                  rendezvous=seen.rendezvous, pairs=self.pairs, t=seen.t)
         except LawError as err:
             return str(err)
         if not np.all(np.isfinite(u)):
@@ -242,10 +351,10 @@ class AgentCore:
     def _own_frame(self):
         """(cos θ, sin θ) of the agent's own heading through its quaternion, as its neighbours
         see it (cached until the next `advance`)."""
-        if self._frame is None:
-            c, s = frame_from_quaternion(*quaternion_from_heading(self.theta))
-            self._frame = (c[0], s[0])
-        return self._frame
+        b, j = self.states, self.slot
+        if not b.fresh[j]:
+            b.refresh([j])
+        return b.cos[j], b.sin[j]
 
     def advance(self, u: float):
         """One ZOH step with the held control u (a non-finite u is replaced by 0)."""
@@ -259,7 +368,7 @@ class AgentCore:
         no noise draw (the robot's own motion and errors are real)."""
         self.pos = np.array([[float(x), float(y)]])
         self.theta = np.array([float(theta)])
-        self._frame = self._quat = None
+        self.states.fresh[self.slot] = False
         self.u_last = float(u)
 
     def take_reported(self, x: float, y: float, qz: float, qw: float):
@@ -269,15 +378,16 @@ class AgentCore:
         qz, qw = float(qz), float(qw)
         self.pos = np.array([[float(x), float(y)]])
         self.theta = np.array([reported_heading(qz, qw, float(self.theta[0]))])
-        self._quat = (qz, qw)
+        b, j = self.states, self.slot
         c, s = frame_from_quaternion(np.array([qz]), np.array([qw]))
-        self._frame = (c[0], s[0])
+        b.qz[j], b.qw[j], b.cos[j], b.sin[j] = qz, qw, c[0], s[0]
+        b.fresh[j] = True
 
     def moved_to(self, pos, theta, u: float):
         """Take the state (pos (1, 2), θ (1,)) that one ZOH step with u gave (`advance`, or
         the batched step of a container), then the agent's own noise draw."""
         self.pos, self.theta = pos, theta
-        self._frame = self._quat = None
+        self.states.fresh[self.slot] = False
         if self.noisy:
             draw = self.rng.uniform(-1.0, 1.0, size=3) * self.noise_scale
             self.pos = self.pos + draw[None, :2]

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 
 import numpy as np
@@ -84,6 +85,8 @@ from swarm_ros.rosutil import ParameterError, declare, run_node
 from swarm_ros.run_control import event_text, run_event
 from swarm_ros.runinfo import declare_run_id
 
+#: values of the parameter ``pair_sums`` (`swarm_core.laws.paper.compiled_sums.run_sums`)
+PAIR_SUMS = ('numpy', 'compiled')
 #: wall s an agent stopped by a signal waits for its states to be acknowledged (`flush_states`):
 #: one heartbeat of the run's DDS profile (0.25 s), within the 1 s a stop may take
 ACK_WAIT = 0.3
@@ -114,6 +117,9 @@ class AgentNode(Node):
         self.n = len(self.roster)
         self.row = {nm: i for i, nm in enumerate(self.roster)}
         self.core = AgentCore(self.index, self.n, *pose, self.law, self.dt, noise, noise_rng(seed, self.index))
+        if self.pair_sums == 'compiled':
+            os.environ.setdefault('NUMBA_NUM_THREADS', '1')     # before numba's import: one thread per process
+            self.core.sums_compiled()
         self.reject = RejectLog(self.get_logger())
         self.radio = self._radio(comms, seed)
         self.radio_on = not self.radio.perfect
@@ -137,7 +143,8 @@ class AgentNode(Node):
                 self.create_subscription(typ, topic, cb, qos, raw=raw)
         self.sender_tag = new_sender_tag()     # who we are on /swarm/states (protocol.SENDER_TAG_INDEX)
         self.serialize_state = P.OdometryWriter(self.agent_name, tag=self.sender_tag)
-        self.own = None          # (sec, nanosec, x, y, qz, qw, u) last published
+        self._own = None         # (sec, nanosec, x, y, qz, qw, u) last published (`own`)
+        self.own_due = False     # moved in a container's batch, its state not made yet (`own`)
         self.states_held = None  # lockstep: states serialised but not yet sent (`send_held_states`)
         self.pub_events = None   # /swarm/events, made at the first live law change (`publish_event`)
         self.driver.start()
@@ -178,6 +185,9 @@ class AgentNode(Node):
             self.robot_parameters = declare_robot(self)
         comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect; "
                   'changes during a run: swarm drop, swarm partition)', read_only=True)
+        self.pair_sums = d('pair_sums', 'numpy', "how the law sums pairs: numpy, or compiled (numba; `swarm run "
+                           "--compiled` chooses per run as `swarm simulate` does, so both sum alike)",
+                           choices=PAIR_SUMS, read_only=True)
         self.run_id = declare_run_id(self, 'lockstep steps of another run are rejected')
         return leader, pose, noise, seed, mode_parameters, comms
 
@@ -291,14 +301,30 @@ class AgentNode(Node):
         self.pub_events.publish(String(data=event_text(dict(ev, node='agent'), self.run_id)))
 
     # ------------------------------------------------------------ output
+    @property
+    def own(self):
+        """(sec, nanosec, x, y, qz, qw, u): the state this agent published last, or holds
+        (a container's batch moved it without a reader of /swarm/states: made when asked)."""
+        if self.own_due:
+            self.own_due = False
+            self._own = self._state_now()
+        return self._own
+
+    @own.setter
+    def own(self, value):
+        self._own, self.own_due = value, False
+
+    def _state_now(self, u=None):
+        sec, nsec = P.time_to_stamp(self.t)
+        qz, qw = self.core.quaternion
+        b, j = self.core.states, self.core.slot
+        return (sec, nsec, float(b.pos[j, 0]), float(b.pos[j, 1]), qz, qw, float(b.u[j] if u is None else u))
+
     def publish_state(self, u=None):
         """Publish the own state of t (pre-serialised: no message object per step), carrying
         ``u`` (default: the u held last).  Lockstep, past the first `P.STATES_DEPTH` steps, a
         state no reader is matched for is not sent (`unread`)."""
-        sec, nsec = P.time_to_stamp(self.t)
-        qz, qw = self.core.quaternion
-        self.own = (sec, nsec, float(self.core.pos[0, 0]), float(self.core.pos[0, 1]), qz, qw,
-                    float(self.core.u_last if u is None else u))
+        self.own = self._state_now(u)
         if self.unread():
             return
         if self.states_held is None:

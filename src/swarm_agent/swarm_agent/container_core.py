@@ -22,13 +22,11 @@ Rules per agent and step message ``s`` (as an agent process has always followed 
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from swarm_agent.agent_core import Seen, received_table
+from swarm_agent.agent_core import SharedTable, States
 from swarm_core.laws import LawError, failed_at
-from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
+from swarm_core.model.frenet import frame_from_quaternion
 from swarm_core.model.integrate import zoh_step
 from swarm_core.step import alive_control
 
@@ -79,7 +77,8 @@ def split_agents(names, k: int) -> list[list]:
 
 
 class ContainerCore:
-    """Lockstep of K agents in one process; see the module docstring."""
+    """Lockstep of K agents in one process; see the module docstring.  Their states are one
+    bank (`States`, ``bank``): the rules, the law call and the move run over its rows at once."""
 
     def __init__(self, cores):
         self.cores = list(cores)
@@ -87,7 +86,8 @@ class ContainerCore:
             raise ValueError('a container needs at least one agent')
         self.n = self.cores[0].n
         self.rows = np.array([c.index for c in self.cores], dtype=np.intp)
-        self.dead = [False] * len(self.cores)
+        self.bank = States.of(self.cores)
+        self.dead = np.zeros(len(self.cores), dtype=bool)
         self._laws = self._one_law = None
 
     @property
@@ -109,48 +109,62 @@ class ContainerCore:
         (j, kind, detail) with kind 'repeat' (publish the last state again), 'silent' (left the
         table at step detail), 'back' (back in the table; detail: the step it held),
         'reject' (detail: (key, text)), 'moved' (detail: u; the agent advanced one step)."""
-        out, go = [], []
-        full = len(s.alive) == self.n
-        for j, c in enumerate(self.cores):
-            if self.dead[j]:
-                continue
-            if s.n == c.step - 1:
-                out.append((j, 'repeat', None))
-                continue
-            if full and not s.alive[c.index]:
-                if s.n >= c.step and not c.silent:
-                    c.silent = True
-                    out.append((j, 'silent', s.n))
-                continue
-            if s.n > c.step:
-                out.append((j, 'back', c.step))
-                c.step = s.n
-            if s.n != c.step:
-                out.append((j, 'reject', ('step', f'/lockstep/step for step {s.n} (this agent is at step {c.step})')))
-                continue
-            if len(s.x) != self.n:
-                out.append((j, 'reject', ('step-n', f'/lockstep/step with {len(s.x)} agents (roster has {self.n})')))
-                continue
-            c.silent = False
-            go.append(j)
-        if not go:
-            return out
-        for j in go:
+        moved, repeat, out, nan = self.step_rows(s)
+        out += [(int(j), 'repeat', None) for j in repeat]
+        out.sort(key=lambda o: o[0])       # each agent's outcomes in container order
+        return out + nan + [(int(j), 'moved', float(self.bank.u[j])) for j in moved]
+
+    def step_rows(self, s):
+        """`on_step` over the bank's rows at once: (the positions that moved, those that repeat
+        their answer, [(j, kind, detail)] of the rules' other outcomes: silent, back, reject,
+        and the moved agents' 'u-nan' rejects), the rules of the module docstring as masks, no
+        Python per agent but for the rare outcomes."""
+        b, n = self.bank, s.n
+        live = ~self.dead
+        repeat = live & (b.step == n + 1)
+        rest = live & ~repeat
+        out = []
+        if len(s.alive) == self.n:
+            in_table = s.alive[self.rows]
+            gone = rest & ~in_table
+            went = gone & (b.step <= n) & ~b.silent
+            b.silent[went] = True
+            out += [(int(j), 'silent', n) for j in np.flatnonzero(went)]
+            rest &= in_table
+        back = rest & (b.step < n)
+        if back.any():
+            out += [(int(j), 'back', int(b.step[j])) for j in np.flatnonzero(back)]
+            b.step[back] = n
+        ahead = rest & (b.step != n)
+        out += [(int(j), 'reject', ('step', f'/lockstep/step for step {n} (this agent is at step {b.step[j]})'))
+                for j in np.flatnonzero(ahead)]
+        go = np.flatnonzero(rest & ~ahead)
+        if go.size and len(s.x) != self.n:
+            out += [(int(j), 'reject', ('step-n', f'/lockstep/step with {len(s.x)} agents (roster has {self.n})'))
+                    for j in go]
+            go = go[:0]
+        if not go.size:
+            return go, np.flatnonzero(repeat), out, []
+        b.silent[go] = False
+        for j in go.tolist() if self.any_reported else ():
             c = self.cores[j]
             if c.reported:
                 c.take_reported(s.x[c.index], s.y[c.index], s.qz[c.index], s.qw[c.index])
-        us = self.controls(s, go)
-        for j, u in zip(go, us):
-            if not math.isfinite(u):
-                out.append((j, 'reject', ('u-nan', f'non-finite control u={u} at step {s.n}; holding u=0')))
+        us = np.asarray(self.controls(s, go), dtype=float)
+        nan = [(int(go[i]), 'reject', ('u-nan', f'non-finite control u={us[i]} at step {n}; holding u=0'))
+               for i in np.flatnonzero(~np.isfinite(us))]
         self.advance(go, us)
-        for j, _u in zip(go, us):
-            self.cores[j].step = s.n + 1
-            out.append((j, 'moved', self.cores[j].u_last))
-        return out
+        b.step[go] = n + 1
+        return go, np.flatnonzero(repeat), out, nan
+
+    @property
+    def any_reported(self) -> bool:
+        """Is any agent on a MuJoCo robot in lockstep (its pose from the table)?"""
+        return any(c.reported for c in self.cores)
 
     def controls(self, s, go) -> list[float]:
         """u of the agents ``go`` (positions in the container) at step message ``s``."""
+        go = np.asarray(go, dtype=np.intp)
         cores = [self.cores[j] for j in go]
         alive = s.alive if len(s.alive) == self.n else None
         if not self.one_law or any(c.comms is not None for c in cores):
@@ -161,44 +175,50 @@ class ContainerCore:
                     c.control(s.x, s.y, s.qz, s.qw, s.lam, s.flags, s.steering[c.index], s.target,
                               s.barrier, alive=s.alive, rendezvous=s.rendezvous, t=s.t)
                     for c in cores]
-        idx = self.rows[go]
-        pos, cos_t, sin_t = received_table(s.x, s.y, s.qz, s.qw, idx, cores)
-        for c in cores:             # what each agent's u came from (`AgentCore.trial`)
-            c.seen = Seen(pos, cos_t, sin_t, c.index, s.lam, s.flags, float(s.steering[c.index]), s.target,
-                          s.barrier, s.alive, s.rendezvous, s.t)
+        b, idx = self.bank, self.rows[go]
+        stale = go[~b.fresh[go]]
+        if stale.size:
+            b.refresh(stale)
+        pos = np.empty((len(s.x), 2))              # the table as received, own rows the agents' own
+        pos[:, 0] = s.x
+        pos[:, 1] = s.y
+        cos_t, sin_t = frame_from_quaternion(s.qz, s.qw)
+        pos[idx] = b.pos[go]
+        cos_t[idx], sin_t[idx] = b.cos[go], b.sin[go]
+        steering = np.asarray(s.steering, float)
+        b.share(SharedTable(pos, cos_t, sin_t, s.lam, s.flags, steering, s.target, s.barrier, s.alive,
+                            s.rendezvous, s.t), go, self.cores)          # what each u came from (`trial`)
         try:
-            u = alive_control(pos, cos_t, sin_t, idx, cores[0].law, s.lam, s.flags, np.asarray(s.steering, float)[idx],
-                              s.target, s.barrier, alive=s.alive, rendezvous=s.rendezvous, t=s.t)
+            return alive_control(pos, cos_t, sin_t, idx, cores[0].law, s.lam, s.flags, steering[idx], s.target,
+                                 s.barrier, alive=s.alive, rendezvous=s.rendezvous, pairs=cores[0].pairs, t=s.t)
         except LawError as err:       # the process stops on it (`swarm_ros.rosutil.run_node`)
             raise failed_at(err, s.t) from None
-        return [float(v) for v in u]
 
     def advance(self, go, us):
         """One ZOH step of the agents ``go`` with controls ``us`` (non-finite -> 0): one
-        elementwise `zoh_step` over all of them (the same bits as one call per agent), then each
-        agent's own noise draw."""
-        u = np.array([v if math.isfinite(v) else 0.0 for v in us])
-        for j, v in zip(go, u.tolist()):
-            if self.cores[j].reported:        # its robot moves (no integration, no noise draw)
-                self.cores[j].u_last = v
-        keep = [i for i, j in enumerate(go) if not self.cores[j].reported]
-        if len(keep) < len(go):
-            go, u = [go[i] for i in keep], u[keep]
-        if not go:
+        elementwise `zoh_step` over all their rows (the same bits as one call per agent), then
+        each noisy agent's own draw, then their quaternions and frames (`States.refresh`).  An
+        agent on a MuJoCo robot in lockstep does not move here: its robot moves."""
+        b = self.bank
+        go = np.asarray(go, dtype=np.intp)
+        u = np.asarray(us, dtype=float).copy()
+        u[~np.isfinite(u)] = 0.0
+        b.u[go] = u
+        if self.any_reported:
+            keep = np.array([not self.cores[j].reported for j in go], dtype=bool)
+            go, u = go[keep], u[keep]
+        if not go.size:
             return
-        cores = [self.cores[j] for j in go]
-        if len(cores) == 1:
-            cores[0].advance(float(u[0]))
-            return
-        pos = np.concatenate([c.pos for c in cores])
-        theta = np.concatenate([c.theta for c in cores])
-        pos, theta = zoh_step(pos, theta, u, cores[0].dt)
-        for i, c in enumerate(cores):
-            c.moved_to(pos[i:i + 1].copy(), theta[i:i + 1].copy(), float(u[i]))
-        # what each agent publishes (qz, qw) and its own frame next step, for all at once
-        # (elementwise: the same bits as `AgentCore.quaternion` and `_own_frame` one by one)
-        qz, qw = quaternion_from_heading(np.concatenate([c.theta for c in cores]))
-        cos_t, sin_t = frame_from_quaternion(qz, qw)
-        for i, c in enumerate(cores):
-            c._quat = (float(qz[i]), float(qw[i]))
-            c._frame = (cos_t[i], sin_t[i])
+        pos, theta = zoh_step(b.pos[go], b.theta[go], u, self.cores[go[0]].dt)
+        b.pos[go], b.theta[go] = pos, theta
+        for j in go.tolist() if self.any_noisy else ():
+            c = self.cores[j]
+            if c.noisy:
+                draw = c.rng.uniform(-1.0, 1.0, size=3) * c.noise_scale
+                b.pos[j] = (b.pos[j:j + 1] + draw[None, :2])[0]
+                b.theta[j] = (b.theta[j:j + 1] + draw[2:3])[0]
+        b.refresh(go)
+
+    @property
+    def any_noisy(self) -> bool:
+        return any(c.noisy for c in self.cores)

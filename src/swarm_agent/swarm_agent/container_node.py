@@ -90,16 +90,16 @@ class AgentContainer(Node):
         for j, a in enumerate(self.agents):
             a.lock_kill = (lambda j=j: self.lock.kill(j))
         # one sim clock for all agents: their own /clock readers go, their clocks follow one source
-        # (realtime: the agents read the first one's clock, so a /clock message sets one clock, not K)
+        # (realtime: the agents read the first one's clock, so a /clock message sets one clock, not K;
+        # lockstep: every agent node's clock IS the first one's, so a step sets one clock, not K)
         self.clock_source = TimeSource()
         for a in self.agents:
             a._time_source.detach_node()
             if self.mode == 'realtime':
                 a.sim_clock = first.get_clock()
             else:
-                self.clock_source.attach_clock(a.get_clock())
-        if self.mode == 'realtime':
-            self.clock_source.attach_clock(first.get_clock())
+                a._clock = first.get_clock()        # rclpy's Node keeps its clock there (get_clock)
+        self.clock_source.attach_clock(first.get_clock())
         if self.mode == 'realtime' and first.run_id:      # a run's: its clock alone (`run_clock`), no /clock
             self.clock_source.ros_time_is_active = True
             follow_run_clock(self, first.run_id, self.reject, [first.get_clock()], self.clock_source)
@@ -134,7 +134,7 @@ class AgentContainer(Node):
     def _on_step(self, raw):
         s = step_message(raw, self.lock, self.agents, self.reject, self.answers)
         if s is not None and self.lockstep_clock == 'step':
-            step_time(self.agents, s)
+            step_time(self.agents[:1], s)           # the clock of every agent (see __init__)
 
     def _to_every_agent(name):                             # builds a method of the class
         def handler(self, msg):

@@ -83,6 +83,17 @@ class AgentStatesWriter:
             msg = AgentStates(self.tag, rows[0], rows[1], rows[2:6], rows[6])
         self.pub.publish(msg.to_cdr(agents[0].run_id))
 
+    def publish_rows(self, lock, js, run_id):
+        """Lockstep: the states of the agents at positions ``js`` of ``lock`` (a
+        `ContainerCore`) straight from its bank of states: one message, no Python per agent."""
+        b = lock.bank
+        stale = js[~b.fresh[js]]
+        if stale.size:
+            b.refresh(stale)
+        msg = AgentStates(self.tag, lock.rows[js], b.step[js], (b.pos[js, 0], b.pos[js, 1], b.qz[js], b.qw[js]),
+                          b.u[js])
+        self.pub.publish(msg.to_cdr(run_id))
+
 
 def step_message(raw, lock, agents, reject, batch):
     """One ``/lockstep/step`` message for the agents of a process: decoded once, decided by
@@ -96,6 +107,8 @@ def step_message(raw, lock, agents, reject, batch):
         return None
     if refused(reject, check_step_time(s)):
         return None
+    if len(agents) > 1 and type(batch) is AgentStatesWriter:
+        return _rows_step(s, lock, agents, batch)
     said = []
     try:
         outcomes = lock.on_step(s)
@@ -113,6 +126,38 @@ def step_message(raw, lock, agents, reject, batch):
     finally:                        # then /swarm/states, for the recorder and the user
         for a in agents:
             a.send_held_states()
+    return s
+
+
+def _rows_step(s, lock, agents, batch):
+    """`step_message` of a container of kinematic agents: the rules, the law and the move over
+    the bank's rows (`ContainerCore.step_rows`), the answer to the world from the bank
+    (`AgentStatesWriter.publish_rows`), then each moved agent's bookkeeping (a few
+    attributes); /swarm/states only where it has a reader (or in the first `P.STATES_DEPTH`
+    steps), each agent its own, as alone."""
+    try:
+        moved, repeat, rules, nan = lock.step_rows(s)
+    except LawError as err:         # the agents' law failed: the process stops with one line
+        fail(err)
+        return None
+    said = np.concatenate((repeat, moved))
+    if said.size:
+        batch.publish_rows(lock, said, agents[0].run_id)
+    n1, lam, u = s.n + 1, s.lam, lock.bank.u
+    t1 = n1 * agents[0].dt
+    for j in moved.tolist():
+        a = agents[j]
+        a.lam, a.step, a.t, a.own_due = lam, n1, t1, True
+        h = a.u_history
+        h.append((s.n, float(u[j])))
+        if len(h) > 10000:                  # bounded as `AgentNode.applied` keeps it
+            del h[:5000]
+    for j, kind, detail in rules + nan:     # the rare outcomes, one agent at a time
+        agents[j].driver.lockstep_outcome(kind, detail, s)
+    first = agents[int(said[0])] if said.size else None
+    if first is not None and not first.unread():          # a reader of /swarm/states: each agent sends
+        for j in said.tolist():
+            agents[j].publish_state()
     return s
 
 

@@ -15,7 +15,7 @@ from swarm_core.laws import Law, LawError
 #: robot_driver), rclpy's own among them; ``law`` is the law's kind
 AGENT_PARAMETERS = (
     'agent_index', 'agent_name', 'agent_names', 'catch_up_limit', 'comms', 'dt', 'future_tolerance', 'law',
-    'leader', 'lockstep_clock', 'mode', 'noise_heading', 'noise_position', 'robot', 'run_id', 'seed',
+    'leader', 'lockstep_clock', 'mode', 'noise_heading', 'noise_position', 'pair_sums', 'robot', 'run_id', 'seed',
     'stale_after', 'start_type_description_service', 'state_subscribers', 'theta', 'use_sim_time', 'x', 'y',
     # a robot agent's
     'cmd_type', 'cruise_speed', 'length_scale', 'max_angular', 'max_jump', 'neighbour_timeout',

@@ -21,6 +21,7 @@ from swarm_core.engine import reference as engine
 from swarm_core.files import write_atomic
 from swarm_core.laws import LawError, LawFailed
 from swarm_core.laws.guards import exit_workers_leaving_no_thread
+from swarm_core.laws.paper import compiled_sums
 from swarm_core.scenario import loader as scenario
 from swarm_core.study.runner import VANISHED_WORKER
 
@@ -128,6 +129,7 @@ def simulate_main(argv) -> int:
         "re-apply a run's live commands (the 'command' events of its events.jsonl: λ, steering, an "
         "agent's law parameters) at their steps"))
     _engine_option(p)
+    p.add_argument('--compiled', choices=compiled_sums.CHOICES, default='auto', help=compiled_sums.HELP)
     a = p.parse_args(argv)
     if a.record_every < 1:
         p.error('--record-every must be ≥ 1')
@@ -145,7 +147,7 @@ def simulate_main(argv) -> int:
               f'dt {scn.dt}, t = 0..{scn.duration:g} ({scn.steps} steps), seed {scn.seed}', file=sys.stderr)
     commands = _replay_or_exit(a.replay, scn) if a.replay else None
     try:
-        traj = _simulator(a.engine)(scn, record_every=a.record_every, commands=commands,
+        traj = _simulator(a.engine)(scn, record_every=a.record_every, commands=commands, compiled=a.compiled,
                                     progress=_Progress(f'{scn.name} seed {scn.seed}', not a.quiet))
     except LawFailed as err:        # the steps done are saved, with one line
         return _law_failed(err, out, scn, a.no_figure)

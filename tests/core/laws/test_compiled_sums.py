@@ -74,3 +74,30 @@ def test_agent_processes_do_not_import_numba():
             'swarm_core.engine.reference; print("numba" in sys.modules)')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == 'False'
+
+
+def test_a_row_is_summed_alike_whichever_receivers_are_asked():
+    """The kernel sums each receiver's row on its own: an agent container asking for its rows
+    gets the bits of the batch engine asking for all (global all pairs, local cell list)."""
+    pos, c, s, leaders, steer = table(n=800)
+    for law, lam in ((paper_law(kind='homotopy', q0=1.0), 0.4), (paper_law(kind='local'), 0.0)):
+        kw = dict(lambda_=lam, is_leader=leaders, pairs=large_swarms.COMPILED)
+        every = swarm_control(pos, c, s, np.arange(800), law, steering=steer, **kw)
+        for rows in (np.arange(100, 200), np.array([799]), np.array([0, 7, 8, 400])):
+            part = swarm_control(pos, c, s, rows, law, steering=steer[rows], **kw)
+            np.testing.assert_array_equal(part, every[rows])
+
+
+def test_the_run_chooses_compiled_sums_by_size_and_length():
+    """`run_sums` (``--compiled``): auto keeps numpy for short or small runs (every test run of
+    a few agents), takes the kernels for long large ones and from COMPILED_LIMIT agents on;
+    on and off force it; the batch engine follows the same choice."""
+    from swarm_core.engine.reference import run_search
+    run_sums = large_swarms.run_sums
+    assert run_sums(6, 10000) == 'numpy' and run_sums(100, 1000) == 'numpy'
+    assert run_sums(1000, 200) == 'compiled' and run_sums(large_swarms.COMPILED_LIMIT, 1) == 'compiled'
+    assert run_sums(6, 10, 'on') == 'compiled' and run_sums(5000, 10 ** 6, 'off') == 'numpy'
+    with pytest.raises(ValueError, match='compiled must be one of auto, on, off'):
+        run_sums(6, 10, 'yes')
+    assert run_search(1000, 200) == 'compiled' and run_search(6, 100) == 'numpy'
+    assert run_search(1000, 200, 'all') == 'all' and run_search(1000, 200, compiled='off') == 'numpy'

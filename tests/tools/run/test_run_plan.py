@@ -46,6 +46,16 @@ def test_containers_for_agents_per_process(scenario_of):
     assert 'agent nodes without services' in big.summary()
 
 
+def test_the_agents_sum_pairs_as_the_run_chooses(scenario_of):
+    """``--compiled``: every agent gets the run's `compiled_sums.run_sums` as its read-only
+    ``pair_sums`` (auto: numpy for this short run of ten; on, off), and `swarm join` the same."""
+    for args, want in (((), 'numpy'), (('--compiled', 'on'), 'compiled'), (('--compiled', 'off'), 'numpy')):
+        assert {p['pair_sums'] for p in agents(run_plan(scenario_of(10), *args)).values()} == {want}
+    scn, ref = scenario_of(10)
+    a = join._parser().parse_args([ref, '--agents', '1', '--server', '127.0.0.1:11811', '--compiled', 'on'])
+    assert join.plan(a, scn, ref).params['/agent_1/agent']['pair_sums'] == 'compiled'
+
+
 def test_in_process_plans_one_process_and_ignores_process_options(scenario_of):
     run = run_plan(scenario_of(6), '--in-process', '--record', 'x.mcap', '--foxglove', '--agents-per-process', '3')
     assert run.in_process and run.record is None and run.foxglove is None and not run.use_server

@@ -20,13 +20,14 @@ def fallback_reason(scn, integrator=None, commands=None) -> str | None:
 
 
 def simulate(scn, *, integrator=None, record_every: int = 1, neighbour_search: str = 'auto',
-             progress=None, commands=None) -> Trajectory:
+             progress=None, commands=None, compiled: str = 'auto') -> Trajectory:
     """`engine.simulate` on the law's compiled run where it covers the run (`fallback_reason`),
-    else on the reference engine."""
+    else on the reference engine (with the run's ``compiled`` pair sums, `reference.run_search`)."""
     reason = fallback_reason(scn, integrator, commands)
     if reason is not None:
         traj = reference.simulate(scn, integrator=integrator, record_every=record_every,
-                                  neighbour_search=neighbour_search, progress=progress, commands=commands)
+                                  neighbour_search=neighbour_search, progress=progress, commands=commands,
+                                  compiled=compiled)
         traj.meta.update(engine='reference', fallback=reason)
         return traj
     return scn.law.compiled_run().run(scn, record_every=record_every, neighbour_search=neighbour_search,

@@ -21,11 +21,25 @@ from swarm_core.engine import natural
 from swarm_core.engine.trajectory import Trajectory
 from swarm_core.faults.agents import event_names, reunion_law
 from swarm_core.laws import LawError, LawFailed
+from swarm_core.laws.paper.compiled_sums import run_sums
 from swarm_core.model.frenet import heading_frame, quaternion_from_heading
 from swarm_core.model.integrate import chosen_integrator, rk4_step, zoh_step
 from swarm_core.radio import Beliefs, delay_stats
 from swarm_core.scenario.loader import Scenario
 from swarm_core.step import alive_control, belief_controls
+
+#: what a stepper's law sums over (`Law.pair_list`): auto, all, kdtree, and the run's choice of
+#: compiled sums (`compiled_sums.run_sums`): compiled, or numpy (auto without them)
+SEARCHES = ('auto', 'all', 'kdtree', 'compiled', 'numpy')
+
+
+def run_search(n: int, steps: int, neighbour_search: str = 'auto', compiled: str = 'auto') -> str:
+    """The neighbour search of a run of n agents and ``steps`` steps: auto becomes compiled or
+    numpy by the run's ``compiled`` choice (`compiled_sums.run_sums`, as every ROS agent of such
+    a run decides); all and kdtree stay."""
+    if neighbour_search != 'auto':
+        return neighbour_search
+    return run_sums(n, steps, compiled)
 
 
 class SwarmStepper:
@@ -49,8 +63,8 @@ class SwarmStepper:
         self.receivers = np.arange(self.n)
         self.target = scn.target
         self.barrier = scn.barrier
-        if neighbour_search not in ('auto', 'all', 'kdtree'):
-            raise ValueError(f'neighbour_search must be auto, all or kdtree, got {neighbour_search!r}')
+        if neighbour_search not in SEARCHES:
+            raise ValueError(f'neighbour_search must be one of {", ".join(SEARCHES)}, got {neighbour_search!r}')
         self.neighbour_search = neighbour_search
         self._is_leader = (None, None)      # (leader indices, flags) of the last step
         noise = scn.spec.noise
@@ -233,8 +247,10 @@ class SwarmStepper:
 
 
 def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int = 1,
-             neighbour_search: str = 'auto', progress=None, commands=None, stepper=None) -> Trajectory:
+             neighbour_search: str = 'auto', progress=None, commands=None, stepper=None,
+             compiled: str = 'auto') -> Trajectory:
     """Run a scenario to its duration; ``progress(step, steps)`` is called now and then.
+    ``compiled``: auto, on or off, the compiled pair sums (`run_search`).
     ``commands``: live commands to replay, {step: [command, ...]} (`read_commands`).
     ``stepper``: a prepared `SwarmStepper` of ``scn`` (one that moves some agents otherwise:
     `swarm_robots.engine`); the other arguments are then its own.  A 3D scenario runs in
@@ -242,7 +258,8 @@ def simulate(scn: Scenario, *, integrator: str | None = None, record_every: int 
     if scn.dim == 3 and stepper is None:
         return natural.simulate(scn, integrator=integrator, record_every=record_every, progress=progress,
                                 commands=commands)
-    stepper = stepper or SwarmStepper(scn, integrator, neighbour_search, commands)
+    stepper = stepper or SwarmStepper(scn, integrator, run_search(len(scn.names), scn.steps, neighbour_search,
+                                                                  compiled), commands)
     steps = scn.steps
     n = stepper.n
     n_rec = steps // record_every + 1

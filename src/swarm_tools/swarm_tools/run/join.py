@@ -30,6 +30,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from swarm_core.laws.paper import compiled_sums
 from swarm_ros.runinfo import RunWatch, describe, join_error, one_run, run_robots
 from swarm_tools.run import dds
 from swarm_tools.run.launch import add_network_options, check_interface, parse_agents, set_state_readers
@@ -54,6 +55,8 @@ def _parser():
     p.add_argument('--duration', type=float, help="as the run (default: the scenario's)")
     p.add_argument('--seed', type=int, help="as the run (default: the scenario's)")
     p.add_argument('--dt', type=float, help="as the run (default: the scenario's)")
+    p.add_argument('--compiled', choices=compiled_sums.CHOICES, default='auto',
+                   help='as the run: ' + compiled_sums.HELP)
     p.add_argument('--recorded', action='store_true',
                    help='the run records (swarm run --record): wait for the recorder too')
     p.add_argument('--wait', type=float, default=180.0,
@@ -95,7 +98,7 @@ def plan(a, scn, ref: str) -> JoinPlan:
     if not a.wait > 0:
         raise ValueError(f'--wait {a.wait}: must be > 0')
     names = [scn.names[i] for i in idx]
-    params = node_parameters(scn, ref, a.mode, duration=scn.duration)
+    params = node_parameters(scn, ref, a.mode, duration=scn.duration, compiled=a.compiled)
     params = {f'/{nm}/agent': params[f'/{nm}/agent'] for nm in names}
     set_state_readers(params, 1 if a.recorded else 0, a.mode)
     return JoinPlan(scenario=a.scenario, roster=list(scn.names), agents=a.agents, names=names, params=params,

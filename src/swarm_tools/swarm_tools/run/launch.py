@@ -48,6 +48,7 @@ from pathlib import Path
 from swarm_agent.container_core import agent_services, agents_per_process, split_agents
 from swarm_core.analysis.outputs import check_output_dir
 from swarm_core.laws import LawError
+from swarm_core.laws.paper import compiled_sums
 from swarm_robots.world_setup import SUMMARY_FILE
 from swarm_ros.rosutil import (
     EXIT_NOTES,
@@ -187,6 +188,7 @@ def _parser():
     p.add_argument('--agents-per-process', default='1', metavar='K', help=(
         'processes: K agents per process (agent containers; each agent still its own node), or auto '
         '(1 for a small swarm, larger containers when the agents outnumber the cores; default 1)'))
+    p.add_argument('--compiled', choices=compiled_sums.CHOICES, default='auto', help=compiled_sums.HELP)
     p.add_argument('--agent-services', choices=('auto', 'on', 'off'), default='auto', help=(
         'processes: do the agent nodes in containers keep their parameter services, type-description '
         'service and /rosout writer (15 of their 17 DDS endpoints)? auto: yes up to 100 agents in the '
@@ -339,7 +341,7 @@ def agents_per_process_option(a, n: int, cores) -> int:
 def run_parameters(a, scn, ref, out: Path, run_id: str) -> dict:
     """Every node's parameters for the run ``a`` asks for (`node_parameters` and the options)."""
     processes = not a.in_process
-    params = node_parameters(scn, ref, a.mode, a.rtf, str(out), scn.duration,
+    params = node_parameters(scn, ref, a.mode, a.rtf, str(out), scn.duration, compiled=a.compiled,
                              extra_world=dict(progress_every=float(a.progress_every), clock_every=int(a.clock_every),
                                               missing_timeout=float(a.missing_timeout),
                                               start_timeout=float(a.start_timeout)))

@@ -9,6 +9,7 @@ from pathlib import Path
 import yaml
 
 from swarm_core.laws import flat_parameters
+from swarm_core.laws.paper.compiled_sums import run_sums
 from swarm_core.scenario.loader import ScenarioError, load
 from swarm_ros.scenario_params import scenario_parameters
 
@@ -47,9 +48,9 @@ def load_scenario(prog: str, a):
     return scn, ref
 
 
-def agent_parameters(scn, i: int, mode: str) -> dict:
+def agent_parameters(scn, i: int, mode: str, pair_sums: str = 'numpy') -> dict:
     noise = scn.spec.noise
-    return dict(agent_name=scn.names[i], agent_index=i, agent_names=list(scn.names), leader=False,
+    return dict(agent_name=scn.names[i], agent_index=i, agent_names=list(scn.names), leader=False, pair_sums=pair_sums,
                 x=float(scn.pos0[i, 0]), y=float(scn.pos0[i, 1]), theta=float(scn.theta0[i]),
                 **flat_parameters(scn.law), dt=scn.dt, mode=mode,
                 noise_position=float(noise.position), noise_heading=float(noise.heading),
@@ -58,15 +59,17 @@ def agent_parameters(scn, i: int, mode: str) -> dict:
 
 
 def node_parameters(scn, scenario_ref: str, mode: str, rtf: float = 1.0, output_dir: str = '',
-                    duration: float = 0.0, extra_world=None) -> dict:
+                    duration: float = 0.0, extra_world=None, compiled: str = 'auto') -> dict:
     """{fully qualified node name: parameters} for every node of a run: the world and the
     commander load the scenario themselves (by reference: swarm_ros.scenario_params), the
-    agents get values (`agent_parameters`)."""
+    agents get values (`agent_parameters`), with the run's pair sums (``compiled``: auto, on,
+    off; `compiled_sums.run_sums` of the run's agents and steps, as `swarm simulate` chooses)."""
+    pair_sums = run_sums(len(scn.names), scn.steps, compiled)
     common = dict(scenario_parameters(scn, scenario_ref, duration), mode=mode)
     world = dict(common, rtf=float(rtf), output_dir=str(output_dir), use_sim_time=False, **(extra_world or {}))
     out = {'/world': world, '/commander': dict(common, use_sim_time=True)}
     for i, nm in enumerate(scn.names):
-        out[f'/{nm}/agent'] = agent_parameters(scn, i, mode)
+        out[f'/{nm}/agent'] = agent_parameters(scn, i, mode, pair_sums)
     return out
 
 

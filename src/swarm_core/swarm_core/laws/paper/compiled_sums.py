@@ -9,9 +9,14 @@ the reference to rounding (the tests ask for 1e-9), not bit for bit.  The self p
 out (its alignment term c·s_k − s·c_k is 0 up to rounding), and so are coincident pairs
 (weight 0, as in the reference's careful pass).
 
-Chosen by the paper's law for the batch engine from COMPILED_LIMIT agents on
-(`PaperLaw.pair_list` gives ``pairs=COMPILED``); ROS lockstep runs are smaller, so they keep the reference, and numba is
-imported here only, on first use: no agent process pays for it.
+One kernel serves every engine: a receiver's row is summed by the same compiled code in the
+same order whichever receivers are asked with it, so an agent container that asks for its own
+rows gets the batch engine's sums bit for bit (both with the compiled path on).
+
+Chosen per run (`run_sums`: ``--compiled auto|on|off``): auto takes them from COMPILED_LIMIT
+agents on, or where a run's pair work (agents² × steps) reaches COMPILED_WORK; short or small
+runs keep the numpy reference.  numba is imported here only, on first use: a process that
+never sums compiled never pays for it.
 """
 from __future__ import annotations
 
@@ -21,8 +26,31 @@ import numpy as np
 
 #: from this many receivers on, the batch engine sums pairs with the compiled kernels
 COMPILED_LIMIT = 4096
+#: from this much pair work on (agents² × steps), ``--compiled auto`` takes the compiled sums:
+#: a 1,000-agent run of 50 steps, a 100-agent run of 5,000
+COMPILED_WORK = 5e7
 #: what `PaperLaw.evaluate` takes as ``pairs`` for the compiled kernels
 COMPILED = 'compiled'
+#: the values of ``--compiled`` (swarm simulate, swarm run): auto (`run_sums`), on, off
+CHOICES = ('auto', 'on', 'off')
+#: the help of ``--compiled``, the same in every command that has it
+HELP = ('the pair sums in compiled kernels (numba): auto (default) from 4,096 agents on or where '
+        'agents² × steps reaches 5e7, on, off (numpy).  swarm simulate and swarm run choose alike, so '
+        'the batch engine and the ROS agents sum the same way')
+
+
+def run_sums(n: int, steps: int, choice: str = 'auto') -> str:
+    """How a run of n agents and ``steps`` steps sums its pairs: 'compiled' or 'numpy'.  The
+    batch engine and every agent process of a ROS run decide with this function (from the
+    same n, steps and choice), so they sum alike.  on without numba installed: 'numpy'
+    (`available`)."""
+    if choice not in CHOICES:
+        raise ValueError(f'compiled must be one of {", ".join(CHOICES)}, got {choice!r}')
+    if choice == 'off' or not available():
+        return 'numpy'
+    if choice == 'on' or int(n) >= COMPILED_LIMIT or float(n) * float(n) * float(steps) >= COMPILED_WORK:
+        return 'compiled'
+    return 'numpy'
 
 
 def available() -> bool:
@@ -30,24 +58,26 @@ def available() -> bool:
     return importlib.util.find_spec('numba') is not None
 
 
-def compiled_moments(pos, cos_t, sin_t, law, lam, q0, leaders, l_of_k):
-    """The moments (6, N) of every agent of the table as receiver (see the module doc);
-    l_of_k (N,): each receiver's nearest leader row, or None without leaders."""
+def compiled_moments(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k):
+    """The moments (6, K) of the receivers (table rows) over the whole table (see the module
+    doc); l_of_k (K,): each receiver's nearest leader row, or None without leaders."""
     from swarm_core.laws.paper.compiled_sums_kernels import all_pairs, cell_pairs
-    n = pos.shape[0]
+    k = receivers.size
     g = law
     target = law.avoidance_only
     if leaders is None:
-        far = np.full(n, 0.0 if target else q0 * (1.0 - lam))
-        partner = np.full(n, -1, dtype=np.int64)
-        gain = np.ones(n)
+        far = np.full(k, 0.0 if target else q0 * (1.0 - lam))
+        partner = np.full(k, -1, dtype=np.int64)
+        gain = np.ones(k)
     else:                           # q0 beyond w for leaders, q0(1 − λ) for followers (eq. 13)
-        far = np.where(leaders, q0, q0 * (1.0 - lam))
-        partner = np.where(leaders, -1, l_of_k).astype(np.int64)
-        gain = np.full(n, (law.leader_gain - 1.0) * lam + 1.0)
+        recv_leader = leaders[receivers]
+        far = np.where(recv_leader, q0, q0 * (1.0 - lam))
+        partner = np.where(recv_leader, -1, l_of_k).astype(np.int64)
+        gain = np.full(k, (law.leader_gain - 1.0) * lam + 1.0)
     x, y = np.ascontiguousarray(pos[:, 0]), np.ascontiguousarray(pos[:, 1])
     args = (np.ascontiguousarray(cos_t, dtype=float), np.ascontiguousarray(sin_t, dtype=float))
     consts = (far, partner, gain, g.alpha, g.alpha * g.r0 * g.r0, target, bool(law.target_normalised))
+    rows = np.ascontiguousarray(receivers, dtype=np.int64)
     if np.any(far != 0.0):
-        return all_pairs(x, y, *args, law.cutoff_radius ** 2, *consts)
-    return cell_pairs(x, y, *args, float(law.cutoff_radius), *consts)
+        return all_pairs(x, y, *args, rows, law.cutoff_radius ** 2, *consts)
+    return cell_pairs(x, y, *args, rows, float(law.cutoff_radius), *consts)

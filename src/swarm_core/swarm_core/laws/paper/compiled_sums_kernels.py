@@ -35,17 +35,20 @@ def add_moments(acc, t):
 
 
 @nb.njit(parallel=True, cache=True, fastmath=FASTMATH)
-def all_pairs(x, y, cos_t, sin_t, w2, far, partner, gain, alpha, ar02, target, normalised):
-    """Moments (6, n): every receiver k against every agent j (far, partner, gain per k)."""
+def all_pairs(x, y, cos_t, sin_t, receivers, w2, far, partner, gain, alpha, ar02, target, normalised):
+    """Moments (6, K): each receiver k (a table row; far, partner, gain per receiver) against
+    every agent j.  A row's sum is the same whichever receivers are asked with it (one body,
+    one order, whatever the threads)."""
     n = x.size
-    m = np.empty((6, n))
-    for k in nb.prange(n):
+    m = np.empty((6, receivers.size))
+    for r in nb.prange(receivers.size):
+        k = receivers[r]
         a = b = hx = hy = c = s = 0.0
-        xk, yk, fk, pk, gk = x[k], y[k], far[k], partner[k], gain[k]
+        xk, yk, fk, pk, gk = x[k], y[k], far[r], partner[r], gain[r]
         for j in range(n):
             a, b, hx, hy, c, s = add_moments((a, b, hx, hy, c, s), pair(
                 xk - x[j], yk - y[j], cos_t[j], sin_t[j], j == pk, w2, fk, gk, alpha, ar02, target, normalised))
-        m[0, k], m[1, k], m[2, k], m[3, k], m[4, k], m[5, k] = a, b, hx, hy, c, s
+        m[0, r], m[1, r], m[2, r], m[3, r], m[4, r], m[5, r] = a, b, hx, hy, c, s
     return m
 
 
@@ -69,18 +72,21 @@ def cells(x, y, w):
 
 
 @nb.njit(parallel=True, cache=True, fastmath=FASTMATH)
-def cell_pairs(x, y, cos_t, sin_t, w, far, partner, gain, alpha, ar02, target, normalised):
-    """Moments (6, n): every receiver against the agents of its 3 × 3 cells (pairs within w)."""
+def cell_pairs(x, y, cos_t, sin_t, receivers, w, far, partner, gain, alpha, ar02, target, normalised):
+    """Moments (6, K): each receiver (a table row) against the agents of its 3 × 3 cells
+    (pairs within w), the cells of the whole table: a row's sum is the same whichever
+    receivers are asked with it."""
     order, sorted_key, ny, start = cells(x, y, w)
     xs, ys, cs, ss = x[order], y[order], cos_t[order], sin_t[order]
     where = np.empty(x.size, dtype=np.int64)
     where[order] = np.arange(x.size)
-    m = np.empty((6, x.size))
-    for i in nb.prange(x.size):
-        k = order[i]
+    m = np.empty((6, receivers.size))
+    for r in nb.prange(receivers.size):
+        k = receivers[r]
+        i = where[k]
         a = b = hx = hy = c = s = 0.0
-        xk, yk, fk, gk = xs[i], ys[i], far[k], gain[k]
-        pk = where[partner[k]] if partner[k] >= 0 else -1
+        xk, yk, fk, gk = xs[i], ys[i], far[r], gain[r]
+        pk = where[partner[r]] if partner[r] >= 0 else -1
         for col in range(-1, 2):                    # cells (cx + col, cy − 1 … cy + 1)
             first = sorted_key[i] + col * ny - 1
             if start.size:
@@ -91,5 +97,5 @@ def cell_pairs(x, y, cos_t, sin_t, w, far, partner, gain, alpha, ar02, target, n
             for jj in range(lo, hi):
                 a, b, hx, hy, c, s = add_moments((a, b, hx, hy, c, s), pair(
                     xk - xs[jj], yk - ys[jj], cs[jj], ss[jj], jj == pk, w * w, fk, gk, alpha, ar02, target, normalised))
-        m[0, k], m[1, k], m[2, k], m[3, k], m[4, k], m[5, k] = a, b, hx, hy, c, s
+        m[0, r], m[1, r], m[2, r], m[3, r], m[4, r], m[5, r] = a, b, hx, hy, c, s
     return m

@@ -132,19 +132,24 @@ class PaperLaw(Law):
         return natural_controls(self, pos, frames, receivers, lam, q0, leaders, steering, target, barrier, ground)
 
     def _compiled_sums(self, pos, cos_sin, F, receivers, lam, q0, leaders):
-        """Σ_j W_jk u_jk of the receivers from `compiled_sums.compiled_moments` (every table row
-        is summed; numba is imported on first use only)."""
-        l_of_k = None if leaders is None else nearest_leader(pos, np.arange(len(pos)), leaders.nonzero()[0])
-        m = compiled_sums.compiled_moments(pos, cos_sin[0], cos_sin[1], self, lam, q0, leaders, l_of_k)
-        return _combine(m[:, receivers], True, F, cos_sin, self)
+        """Σ_j W_jk u_jk of the receivers from `compiled_sums.compiled_moments` (their rows
+        only; numba is imported on first use only)."""
+        l_of_k = None if leaders is None else nearest_leader(pos, receivers, leaders.nonzero()[0])
+        m = compiled_sums.compiled_moments(pos, cos_sin[0], cos_sin[1], receivers, self, lam, q0, leaders, l_of_k)
+        return _combine(m, True, F, cos_sin, self)
 
     def pair_list(self, pos, lambda_: float, search: str = 'auto'):
-        """The compiled kernels from `compiled_sums.COMPILED_LIMIT` agents on (search auto, numba
-        installed); the whole table where pairs beyond w carry weight, where search is all, or
-        (auto) at most `pair_sums.DENSE_LIMIT` agents; else the KD-tree pairs within w."""
+        """The compiled kernels where search is compiled, or auto from
+        `compiled_sums.COMPILED_LIMIT` agents on (numba installed); the whole table where pairs
+        beyond w carry weight, where search is all, or (auto, numpy) at most
+        `pair_sums.DENSE_LIMIT` agents; else the KD-tree pairs within w.  numpy is auto without
+        the compiled kernels (a run's `compiled_sums.run_sums` chose them off)."""
         n = len(pos)
-        if search == 'auto' and n >= compiled_sums.COMPILED_LIMIT and compiled_sums.available():
+        if search == 'compiled' or search == 'auto' and n >= compiled_sums.COMPILED_LIMIT and \
+                compiled_sums.available():
             return compiled_sums.COMPILED
+        if search == 'numpy':
+            search = 'auto'
         if search == 'all' or self.couples_globally(lambda_):
             return None
         if search == 'auto' and (n <= DENSE_LIMIT or not sparse_coupling(n, self, lambda_)):
