@@ -9,7 +9,10 @@ Also measures one call of the control law `swarm_control` on the paper's n = 6 t
 (homotopy_global at t = 450, λ ≈ 0.97, and at λ = 0), for the whole swarm and for ONE
 receiver (what every ROS agent computes per step), and `AgentCore.control`; each the median
 over batches of 200 calls.  ``--global-n`` / ``--local-n`` choose the swarm sizes (comma
-lists; empty: none), ``--no-runs`` skips the full homotopy_global runs.  ``--compare REV``
+lists; empty: none), ``--no-runs`` skips the full homotopy_global runs.  ``--dim 2,3`` measures
+the same swarms in 3D too (natural frames, the same grid, headings in a π/4 cap about +x), each
+3D row right after its planar one, and for full runs only the 3D Fig. 3 run (homotopy_3d) beside
+homotopy_global on the reference engine; ``--volume`` adds 3D swarms on a cubic lattice.  ``--compare REV``
 measures revision REV's engine too, each measurement right before this checkout's; the fast
 engine's runs and start-up as well where REV has the fast engine.
 """
@@ -58,19 +61,65 @@ def swarm(n, kind, spacing=1.5, seed=0):
     return scenario.parse(data)
 
 
-def steps_per_second(n, kind, min_seconds=1.0, search='auto'):
-    """(steps/s by wall time, steps/s by process CPU time, pair search) of a SwarmStepper;
-    search 'kdtree' keeps the reference numpy path at any n (no compiled kernels)."""
+def swarm_3d(n, kind, layout='grid', spacing=1.5, seed=0):
+    """`swarm` in 3D: the same grid (or a cubic lattice, ``layout`` 'cube'), headings in a π/4
+    cap about +x, leaders' programs (±0.01, 0) in their own (y, z)."""
+    import numpy as np
+
+    from swarm_core import scenario
+    data = dict(name=f'bench3_{kind}_{n}', dim=3, seed=seed, dt=0.05, duration=1.0,
+                agents=dict(count=n, positions={'rule': 'grid', 'spacing': spacing},
+                            headings={'rule': 'cap', 'axis': [1, 0, 0]}),
+                law=dict(kind='homotopy' if kind == 'local' else 'global', q0=0.0 if kind == 'local' else 1.0))
+    if kind == 'local':
+        data['lambda'] = {'kind': 'constant', 'value': 1.0}
+        data['leaders'] = {'fixed': {'agent_0': {'kind': 'constant', 'curvature': [0.01, 0.0]},
+                                     f'agent_{n - 1}': {'kind': 'constant', 'curvature': [-0.01, 0.0]}}}
+    scn = scenario.parse(data)
+    if layout == 'cube':
+        side = int(np.ceil(n ** (1 / 3) - 1e-9))
+        cube = np.stack(np.meshgrid(*(np.arange(side),) * 3, indexing='ij'), -1).reshape(-1, 3)[:n] * spacing
+        scn.pos0 = cube - cube.mean(axis=0)
+    return scn
+
+
+def natural_stepper(n, kind, search, layout):
+    """A 3D stepper and its step(); search 'kdtree' (the numpy sums at any n) raises the
+    compiled limit in this worker process."""
+    from swarm_core.engine.natural import NaturalStepper
+    from swarm_core.laws.paper import compiled_sums
+    if search == 'kdtree':
+        compiled_sums.COMPILED_LIMIT = 1 << 62
+    st = NaturalStepper(swarm_3d(n, kind, layout))
+
+    def step():
+        t, lam, is_leader, steering = st.inputs()
+        st.advance(t, st.control(t, st.pos, (st.x, st.y, st.z), lam, is_leader, steering), is_leader)
+    if not (n >= compiled_sums.COMPILED_LIMIT and compiled_sums.available()):
+        return step, 'numpy (dense)'
+    return step, 'compiled, ' + ('all pairs' if kind == 'global' else 'cell list')
+
+
+def steps_per_second(n, kind, min_seconds=1.0, search='auto', dim=2, layout='grid'):
+    """(steps/s by wall time, steps/s by process CPU time, pair search) of a SwarmStepper
+    (a NaturalStepper in 3D); search 'kdtree' keeps the reference numpy path at any n (no
+    compiled kernels)."""
     from swarm_core import engine
-    stepper = engine.SwarmStepper(swarm(n, kind), neighbour_search=search)
-    stepper.step()                                   # warm-up (caches, scratch arrays)
+    if dim == 3:
+        step, how = natural_stepper(n, kind, search, layout)
+    else:
+        stepper = engine.SwarmStepper(swarm(n, kind), neighbour_search=search)
+        step = stepper.step
+    step()                                           # warm-up (caches, scratch arrays)
     steps, t0, c0 = 0, time.perf_counter(), time.process_time()
     while True:
-        stepper.step()
+        step()
         steps += 1
         el = time.perf_counter() - t0
         if el >= min_seconds and steps >= 3:
             cpu = time.process_time() - c0
+            if dim == 3:
+                return steps / el, steps / max(cpu, 1e-9), how
             pairs = stepper._pairs(stepper.pos, stepper.plan.schedule.value(0.0))
             search = pairs if isinstance(pairs, str) else 'kdtree' if pairs is not None else 'all pairs'
             return steps / el, steps / max(cpu, 1e-9), search
@@ -178,7 +227,8 @@ def worker(spec):
         out = dict(wall=wall, cpu=cpu, agent_module=swarm_agent.__file__)
     elif spec['what'] == 'sps':
         wall, cpu, search = steps_per_second(spec['n'], spec['kind'], spec['min_seconds'],
-                                             spec.get('search', 'auto'))
+                                             spec.get('search', 'auto'), spec.get('dim', 2),
+                                             spec.get('layout', 'grid'))
         out = dict(wall=wall, cpu=cpu, search=search)
     elif spec['what'] == 'start':
         wall, cpu = fast_start(spec['cold'])
@@ -244,6 +294,9 @@ def main(argv=None):
     p.add_argument('--radio-breakdown', action='store_true',
                    help='also the fast engine over radios that leave out one cost at a time (what bounds '
                         'the lossy radio against the perfect one)')
+    p.add_argument('--dim', default='2', help='dimensions of the steps/s rows, a comma list of 2 and 3 '
+                   '(default 2); with 3 the full runs are the 3D Fig. 3 run and the planar one')
+    p.add_argument('--volume', action='store_true', help='with --dim 3: also 3D swarms on a cubic lattice')
     p.add_argument('--worker', help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.worker:
@@ -259,17 +312,27 @@ def main(argv=None):
                 sizes[kind] = [int(v) for v in arg.split(',') if v.strip()]
             except ValueError:
                 p.error(f'--{kind}-n: a comma list of integers, got {arg!r}')
+    try:
+        dims = sorted({int(v) for v in a.dim.split(',') if v.strip()})
+    except ValueError:
+        dims = None
+    if not dims or not set(dims) <= {2, 3}:
+        p.error(f'--dim: a comma list of 2 and 3, got {a.dim!r}')
+    layouts = [(d, 'grid') for d in dims] + ([(3, 'cube')] if a.volume and 3 in dims else [])
     repeats = a.repeats or (1 if a.quick else 3)
     min_s = 0.5 if a.quick else 1.5
     specs = [dict(what='law', receivers=r, lam=lam, min_seconds=min_s)
              for r in ('one', 'all') for lam in (None, 0.0)]
     specs += [dict(what='agent', min_seconds=min_s)]
-    specs += [dict(what='sps', kind=kind, n=n, min_seconds=min_s) for kind, ns in sizes.items() for n in ns]
+    specs += [sps_spec(kind, n, min_s, d, lay) for kind, ns in sizes.items() for n in ns for d, lay in layouts]
     if a.reference:
-        from swarm_core.laws.compiled_sums import COMPILED_LIMIT
-        specs += [dict(what='sps', kind=kind, n=n, min_seconds=min_s, search='kdtree')
-                  for kind, ns in sizes.items() for n in ns if n >= COMPILED_LIMIT]
-    if not a.no_runs:
+        from swarm_core.laws.paper.compiled_sums import COMPILED_LIMIT
+        specs += [sps_spec(kind, n, min_s, d, lay, search='kdtree')
+                  for kind, ns in sizes.items() for n in ns if n >= COMPILED_LIMIT for d, lay in layouts]
+    if not a.no_runs and 3 in dims:       # Fig. 3 in 3D beside the planar run, the same steps
+        specs += [dict(what='run', name=name, dt=0.1, duration=a.duration, engine='reference')
+                  for name in ('homotopy_global', 'homotopy_3d')]
+    if not a.no_runs and dims == [2]:
         specs += [dict(what='run', name='homotopy_global', dt=dt, duration=a.duration, engine=eng)
                   for dt in (0.05, 0.1) for eng in ('reference', 'fast')]
         specs += [dict(what='run', name='homotopy_global', dt=0.1, duration=a.duration, comms=dict(loss=0.5),
@@ -320,9 +383,16 @@ def main(argv=None):
 RADIO_BREAKDOWN = (dict(radio_range=1e9), dict(loss=0.5, dead_reckoning=False), dict(loss=0.5, latency=0.3))
 
 
+def sps_spec(kind, n, min_seconds, dim=2, layout='grid', **more):
+    """The spec of one steps/s measurement (planar ones as before: no dim key)."""
+    spec = dict(what='sps', kind=kind, n=n, min_seconds=min_seconds, **more)
+    return spec if dim == 2 else dict(spec, dim=dim, layout=layout)
+
+
 def spec_key(spec):
     if spec['what'] == 'sps':
-        return f'{spec["kind"]} n={spec["n"]}' + (' reference' if spec.get('search') == 'kdtree' else '')
+        where = '' if spec.get('dim', 2) == 2 else ' 3D' + (' cube' if spec.get('layout') == 'cube' else '')
+        return f'{spec["kind"]} n={spec["n"]}{where}' + (' reference' if spec.get('search') == 'kdtree' else '')
     if spec['what'] == 'law':
         lam = 'λ=0.97' if spec['lam'] is None else f'λ={spec["lam"]:g}'
         return f'law {spec["receivers"]} {lam}'
@@ -360,10 +430,11 @@ def table(res):
         lam = 'λ ≈ 0.97, two leaders' if row['lam'] is None else f'λ = {row["lam"]:g}'
         return f'| {who}, {lam} |'
 
-    section(('sps',), '| law | n | pair search | steps/s | steps/s per CPU s |',
+    section(('sps',), '| law | n | space | pair search | steps/s | steps/s per CPU s |',
             f' before ({res["compare"]}) steps/s | before, per CPU s | speed-up (wall) |',
-            lambda key, row: f'| {row["kind"]} | {row["n"]} | {row.get("search", "")} |', 1,
+            lambda key, row: f'| {row["kind"]} | {row["n"]} | {space(row)} | {row.get("search", "")} |', 1,
             lambda row, b: f'{row["wall"] / b["wall"]:.1f}×')
+    lines.extend(dim_ratios(res))
     section(('run',), '| run (engine) | steps | wall (s) | CPU (s) |',
             ' before: wall (s) | before: CPU (s) | speed-up (CPU) |',
             lambda key, row: f'| {key} to t = {row.get("duration") or 1000:g} | '
@@ -377,6 +448,30 @@ def table(res):
             ' before: µs/call | before: µs CPU/call | speed-up (CPU) |', call_label, 1,
             lambda row, b: f'{b["cpu"] / row["cpu"]:.2f}×')
     return '\n'.join(lines)
+
+
+def space(row):
+    """2D, 3D (the planar grid, headings in a cap) or 3D cube."""
+    return f'{row.get("dim", 2)}D' + (' cube' if row.get('layout') == 'cube' else '')
+
+
+def dim_ratios(res):
+    """Lines of 3D against 2D, measured side by side: steps/s of each swarm (3D / 2D) and the
+    CPU of the 3D Fig. 3 run over the planar one (homotopy_3d / homotopy_global, same steps)."""
+    cur, out = res['current'], []
+    for key, row in cur.items():
+        twin = cur.get(f'{row.get("kind")} n={row.get("n")}' + (' reference' if row.get('search') == 'kdtree' else ''))
+        if row['what'] == 'sps' and row.get('dim') == 3 and twin is not None:
+            out.append(f'{key}: {row["wall"] / twin["wall"]:.2f}× the planar steps/s (wall), '
+                       f'{row["cpu"] / twin["cpu"]:.2f}× per CPU s')
+    runs = {r['name']: r for r in cur.values() if r['what'] == 'run' and r.get('engine') == 'reference'
+            and r['dt'] == 0.1 and not r.get('comms')}
+    if {'homotopy_3d', 'homotopy_global'} <= set(runs):
+        per = [b['cpu'] / a['cpu'] for a, b in zip(runs['homotopy_global']['runs'], runs['homotopy_3d']['runs'])]
+        out.append(f'Fig. 3 run, 3D / 2D CPU (homotopy_3d / homotopy_global, dt = 0.1): median '
+                   f'{runs["homotopy_3d"]["cpu"] / runs["homotopy_global"]["cpu"]:.2f}×, per round '
+                   + ', '.join(f'{r:.2f}' for r in per))
+    return ['', *out] if out else []
 
 
 def radio_ratios(res):

@@ -48,13 +48,16 @@ def _turn_factors(kappa, dt):
     """S = sin(κdt)/κ and C = (1 − cos κdt)/κ², each with its series for small κdt."""
     z = kappa * dt
     small = np.abs(z) < SMALL_TURN
+    if not small.any():                                                    # no series, no zero: sinc inline
+        half = 0.5 * z
+        half = np.sin(half) / half
+        return dt * (np.sin(z) / z), 0.5 * dt * dt * half * half
     S = dt * sinc(z)
     half = sinc(0.5 * z)
     C = 0.5 * dt * dt * half * half                                        # 2 sin²(κdt/2)/κ²
-    if small.any():
-        z2 = z[small] * z[small]
-        S[small] = dt * (1.0 - z2 / 6.0)
-        C[small] = dt * dt * (0.5 - z2 / 24.0)
+    z2 = z[small] * z[small]
+    S[small] = dt * (1.0 - z2 / 6.0)
+    C[small] = dt * dt * (0.5 - z2 / 24.0)
     return S, C
 
 

@@ -10,11 +10,15 @@ The cutoff (eq. 8), the nearest leader l(k) (Euclidean), ℓc, q(λ) and the hom
 apply to (u, v) component by component; a leader's program is s_k = (s_u, s_v).  Target (eq. 15)
 and barrier (eq. 16) are the planar terms' vector forms, read the same way; a ``ground`` height
 h is a floor z = h whose closest point is sensed as one more barrier point.  Dense numpy sums
-over the table, in blocks of receiver rows; no Python loop over pairs.  ``law`` is a `PaperLaw`.
+over the table, in blocks of receiver rows; no Python loop over pairs; from
+`compiled_sums.COMPILED_LIMIT` agents on, compiled kernels (`natural_compiled`, equal to
+rounding), as the planar engine chooses them.  ``law`` is a `PaperLaw`.
 """
 from __future__ import annotations
 
 import numpy as np
+
+from swarm_core.laws.paper.natural_compiled import compiled_controls_3d, use_compiled
 
 #: about this many pair entries per block of receiver rows
 BLOCK = 1 << 16
@@ -28,28 +32,24 @@ def nearest_leader_3d(pos, receivers, leader_rows):
     return leader_rows[np.einsum('klc,klc->kl', d, d).argmin(axis=1)]
 
 
-def _weights(law, rr, rows, recv_leader, lam, q0, partner):
+def _weights(law, rr, recv_leader, lam, q0, partner):
     """W_jk (b, N): c(ρ, q, w) with q = q0 (1 − λ) (a follower) or q0 (a leader), eq. 8, 13, 14,
     times (ℓc − 1)λ + 1 on the pair with l(k) (a follower); 0 on the self and coincident pairs."""
     within = rr < law.cutoff_radius * law.cutoff_radius
-    far = np.full(rows.size, q0 * (1.0 - lam)) if recv_leader is None else \
-        np.where(recv_leader[rows], q0, q0 * (1.0 - lam))
-    W = np.where(within, 1.0, far[:, None])
+    far = q0 * (1.0 - lam) if recv_leader is None else np.where(recv_leader, q0, q0 * (1.0 - lam))[:, None]
+    W = np.where(within, 1.0, far)
     if partner is not None:
-        follower = partner[rows] >= 0
-        idx = np.flatnonzero(follower)
-        W[idx, partner[rows][idx]] *= (law.leader_gain - 1.0) * lam + 1.0
+        follower = partner >= 0
+        W[follower, partner[follower]] *= (law.leader_gain - 1.0) * lam + 1.0
     W[~np.isfinite(rr)] = 0.0
     return W
 
 
-def _block_sum(law, pos, x, receivers, rows, lam, q0, recv_leader, partner):
-    """Σ_j W_jk g_jk (b, 3) of the receivers ``rows`` (positions in ``receivers``)."""
-    recv = receivers[rows]
+def _block_sum(law, pos, x, recv, lam, q0, recv_leader, partner):
+    """Σ_j W_jk g_jk (b, 3) of the receivers ``recv`` (table rows); recv_leader, partner: theirs."""
     d = pos[recv][:, None, :] - pos[None, :, :]                  # r_jk = r_k − r_j
     rr = np.einsum('bnc,bnc->bn', d, d)
-    rr[np.arange(rows.size), recv] = np.inf                       # the self pair
-    rr[rr == 0.0] = np.inf                                         # coincident agents add 0
+    rr[rr == 0.0] = np.inf                                         # the self pair, coincident agents: 0
     inv = 1.0 / rr
     f = law.alpha * (1.0 - law.r0 * law.r0 * inv)
     if law.avoidance_only:                                         # eq. 15: −f r_jk within w
@@ -57,7 +57,7 @@ def _block_sum(law, pos, x, receivers, rows, lam, q0, recv_leader, partner):
         if law.target_normalised:
             h *= np.sqrt(inv)
         return np.einsum('bn,bnc->bc', h, d)
-    W = _weights(law, rr, rows, recv_leader, lam, q0, partner)
+    W = _weights(law, rr, recv_leader, lam, q0, partner)
     unit = d * np.sqrt(inv)[:, :, None]                           # r̂
     along = np.einsum('bnc,bc->bn', unit, x[recv])                 # r̂·x_k
     radial = np.einsum('bn,bnc->bc', W * (-law.eta * along - f), unit)
@@ -65,24 +65,41 @@ def _block_sum(law, pos, x, receivers, rows, lam, q0, recv_leader, partner):
 
 
 def pair_sums_3d(law, pos, x, receivers, lam, q0, leaders):
-    """Σ_j W_jk g_jk (K, 3) of every receiver (the pair term of eq. 4, 9, 13 as a vector)."""
+    """Σ_j W_jk g_jk (K, 3) of every receiver (the pair term of eq. 4, 9, 13 as a vector), in
+    blocks of receiver rows."""
     recv_leader = partner = None
     if leaders is not None:
         recv_leader = leaders[receivers]
-        partner = np.where(recv_leader, -1, nearest_leader_3d(pos, receivers, np.flatnonzero(leaders)))
-    out = np.empty((receivers.size, 3))
+        partner = np.where(recv_leader, -1, nearest_leader_3d(pos, receivers, leaders.nonzero()[0]))
     step = max(1, BLOCK // max(1, len(pos)))
+    if receivers.size <= step:                                     # one block (small swarms)
+        return _block_sum(law, pos, x, receivers, lam, q0, recv_leader, partner)
+    out = np.empty((receivers.size, 3))
     for a in range(0, receivers.size, step):
-        rows = np.arange(a, min(a + step, receivers.size))
-        out[rows] = _block_sum(law, pos, x, receivers, rows, lam, q0,
-                               None if recv_leader is None else np.asarray(recv_leader), partner)
+        b = min(a + step, receivers.size)
+        out[a:b] = _block_sum(law, pos, x, receivers[a:b], lam, q0, None if recv_leader is None else
+                              recv_leader[a:b], None if partner is None else partner[a:b])
     return out
 
 
-def world_vector_3d(law, pos_k, x_k, target, barrier, ground):
-    """The target (eq. 15) and barrier (eq. 16) terms as vectors (K, 3), before projection."""
+def read_normal(vec, yk, zk):
+    """(a·y_k, a·z_k) (K, 2) of vectors a (K, 3): their components in each receiver's normal plane."""
+    out = np.empty((len(vec), 2))
+    np.einsum('kc,kc->k', vec, yk, out=out[:, 0])
+    np.einsum('kc,kc->k', vec, zk, out=out[:, 1])
+    return out
+
+
+def world_vector_3d(law, pos, x, receivers, target, barrier, ground):
+    """The target (eq. 15) and barrier (eq. 16) terms of the receivers as vectors (K, 3), before
+    projection; None where neither applies."""
+    aims = target is not None and law.target_gain != 0.0
+    senses = law.barrier_gain != 0.0 and (ground is not None or (barrier is not None and len(barrier)))
+    if not (aims or senses):
+        return None
+    pos_k, x_k = pos[receivers], x[receivers]
     out = np.zeros_like(pos_k)
-    if target is not None and law.target_gain != 0.0:
+    if aims:
         rbar = np.asarray(target, float)[None, :] - pos_k
         d2 = np.einsum('kc,kc->k', rbar, rbar)
         inv = np.divide(1.0, d2, out=np.zeros_like(d2), where=d2 > 0.0)
@@ -90,7 +107,7 @@ def world_vector_3d(law, pos_k, x_k, target, barrier, ground):
         if law.target_normalised:
             scale = scale * np.sqrt(inv)
         out += scale[:, None] * rbar
-    if law.barrier_gain != 0.0 and (ground is not None or (barrier is not None and len(barrier))):
+    if senses:
         v = barrier_direction_3d(pos_k, barrier, ground, law.cutoff_radius)
         ahead = np.einsum('kc,kc->k', v, x_k)
         gate = (ahead > 0.0).astype(float) if law.barrier_mode == 'ahead' else np.sign(ahead)
@@ -114,16 +131,16 @@ def barrier_direction_3d(pos_k, barrier, ground, w):
 
 
 def natural_controls(law, pos, frames, receivers, lam, q0, leaders, steering, target, barrier, ground):
-    """(u_k, v_k) (K, 2) of the receivers: the pair sums read in each receiver's (y, z), the
-    leader's line of eq. 14 component by component, plus the world terms."""
+    """(u_k, v_k) (K, 2) of the receivers: the pair sums read in each receiver's (y, z) (compiled
+    for large tables, `natural_compiled.use_compiled`), the leader's line of eq. 14 component by
+    component, plus the world terms."""
     x, y, z = frames
-    yk, zk = y[receivers], z[receivers]
-
-    def read(vec):                                                 # (a·y_k, a·z_k)
-        return np.stack([np.einsum('kc,kc->k', vec, yk), np.einsum('kc,kc->k', vec, zk)], axis=1)
-
-    uv = read(pair_sums_3d(law, pos, x, receivers, lam, q0, leaders))
+    if use_compiled(len(pos)):
+        uv = compiled_controls_3d(law, pos, frames, receivers, lam, q0, leaders)
+    else:
+        uv = read_normal(pair_sums_3d(law, pos, x, receivers, lam, q0, leaders), y[receivers], z[receivers])
     if leaders is not None:
         s = np.zeros((receivers.size, 2)) if steering is None else np.asarray(steering, float).reshape(-1, 2)
         uv = np.where(leaders[receivers][:, None], (1.0 - lam) * uv + lam * s, uv)
-    return uv + read(world_vector_3d(law, pos[receivers], x[receivers], target, barrier, ground))
+    world = world_vector_3d(law, pos, x, receivers, target, barrier, ground)
+    return uv if world is None else uv + read_normal(world, y[receivers], z[receivers])
