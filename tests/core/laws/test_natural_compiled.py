@@ -75,13 +75,14 @@ def test_compiled_equals_the_numpy_sums_to_1e_9(monkeypatch, law, lam):
 @pytest.mark.parametrize('kind', ('local', 'global'))
 def test_sparse_cells_and_any_receivers(monkeypatch, kind):
     """Few agents in a large box (the cell list searches its keys); a shuffled subset of
-    receivers gets the same numbers, bit for bit, as the whole table's rows."""
+    receivers, one twice, gets the same numbers, bit for bit, as the whole table's rows."""
     pos, frames, leaders, steer = table(n=400, spread=60.0, seed=3)
     law = paper_law(kind=kind)
     ref, fast = both(monkeypatch, law, pos, frames, np.arange(400), is_leader=leaders, steering=steer)
     assert np.abs(fast - ref).max() <= 1e-9 * max(1.0, np.abs(ref).max())
     assert np.count_nonzero(ref) > 100
     some = np.random.default_rng(1).permutation(400)[:37]
+    some = np.append(some, some[5])                        # one receiver asked twice
     _, part = both(monkeypatch, law, pos, frames, some, is_leader=leaders, steering=steer[some])
     np.testing.assert_array_equal(part, fast[some])
 

@@ -10,6 +10,8 @@ Arrays: r, x, y, z (N, 3); u, v (N,).  docs/model.md, "Three dimensions", states
 """
 from __future__ import annotations
 
+import importlib.util
+
 import numpy as np
 
 from swarm_core.model.integrate import sinc
@@ -18,6 +20,8 @@ from swarm_core.model.integrate import sinc
 SMALL_TURN = 1e-4
 #: the engine re-orthonormalises every frame (Gram-Schmidt from x) every this many steps
 ORTHONORMALISE_EVERY = 100
+#: from this many agents on the step's arithmetic is compiled (`natural_kernels`, the same bits)
+COMPILED_STEP_LIMIT = 4096
 
 
 def initial_frames(headings):
@@ -73,6 +77,10 @@ def natural_step(r, x, y, z, u, v, dt):
     u = np.asarray(u, dtype=float)
     v = np.asarray(v, dtype=float)
     S, C = _turn_factors(np.hypot(u, v), dt)
+    if u.size >= COMPILED_STEP_LIMIT and importlib.util.find_spec('numba') is not None:
+        from swarm_core.model.natural_kernels import frame_step
+        f = [np.ascontiguousarray(a, dtype=float) for a in (r, x, y, z)]
+        return tuple(frame_step(*f, np.ascontiguousarray(u), np.ascontiguousarray(v), S, C))
     turn = u[:, None] * y + v[:, None] * z                                 # κ n
     cos_k = 1.0 - C * (u * u + v * v)                                      # cos κdt
     r_new = r + S[:, None] * x + C[:, None] * turn

@@ -77,7 +77,8 @@ def nearest_rows_3d(px, py, pz, receivers, leader_rows):
         k = receivers[i]
         best, best_d = -1, np.inf
         for leader in leader_rows:
-            d = (px[k] - px[leader]) ** 2 + (py[k] - py[leader]) ** 2 + (pz[k] - pz[leader]) ** 2
+            dx, dy, dz = px[k] - px[leader], py[k] - py[leader], pz[k] - pz[leader]
+            d = dx * dx + dy * dy + dz * dz
             if d < best_d or best < 0:
                 best, best_d = leader, d
         out[i] = best
@@ -86,22 +87,39 @@ def nearest_rows_3d(px, py, pz, receivers, leader_rows):
 
 @nb.njit(cache=True)
 def cells_3d(px, py, pz, w):
-    """A cell list of side w: the agents in cell order, their keys (cx·ny + cy)·nz + cz (one
-    empty cell all round), ny, nz, and the first position of each cell (empty: binary search)."""
+    """A cell list of side w: the agents in cell order (stable), their keys (cx·ny + cy)·nz + cz
+    (one empty cell all round), ny, nz, and the first position of each cell (empty: binary
+    search; then the order comes from a merge sort, else from counting)."""
     cx = np.floor((px - px.min()) / w).astype(np.int64) + 1
     cy = np.floor((py - py.min()) / w).astype(np.int64) + 1
     cz = np.floor((pz - pz.min()) / w).astype(np.int64) + 1
     ny, nz = cy.max() + 2, cz.max() + 2
     key = (cx * ny + cy) * nz + cz
-    order = np.argsort(key, kind='mergesort')
-    sorted_key = key[order]
     ncells = (cx.max() + 2) * ny * nz
-    start = np.zeros(ncells + 1 if ncells <= 8 * px.size + 64 else 0, dtype=np.int64)
-    if start.size:
-        for i in range(px.size):
-            start[sorted_key[i] + 1] += 1
-        start = np.cumsum(start)                    # start[c]: first position of cell c
-    return order, sorted_key, ny, nz, start
+    if ncells > 8 * px.size + 64:
+        order = np.argsort(key, kind='mergesort')
+        return order, key[order], ny, nz, np.zeros(0, dtype=np.int64)
+    start = np.zeros(ncells + 1, dtype=np.int64)
+    for i in range(px.size):
+        start[key[i] + 1] += 1
+    start = np.cumsum(start)                        # start[c]: first position of cell c
+    fill = start[:-1].copy()
+    order = np.empty(px.size, dtype=np.int64)
+    for i in range(px.size):                        # counting sort: stable, as the merge sort
+        order[fill[key[i]]] = i
+        fill[key[i]] += 1
+    return order, key[order], ny, nz, start
+
+
+@nb.njit(cache=True)
+def cell_order(where, receivers):
+    """The receivers' indices in the cell order of their agents (``where``: an agent's place in
+    it): by marking each place, or by sorting where a receiver is asked twice."""
+    mark = np.full(where.size, -1, dtype=np.int64)
+    for i in range(receivers.size):
+        mark[where[receivers[i]]] = i
+    visit = mark[mark >= 0]
+    return visit if visit.size == receivers.size else np.argsort(where[receivers])
 
 
 @nb.njit(parallel=True, cache=True, fastmath=FASTMATH)
@@ -114,7 +132,7 @@ def cell_pairs_3d(px, py, pz, xx, xy, xz, yx, yy, yz, zx, zy, zz, receivers, w, 
     s = (px[order], py[order], pz[order], xx[order], xy[order], xz[order])
     where = np.empty(px.size, dtype=np.int64)
     where[order] = np.arange(px.size)
-    visit = np.argsort(where[receivers])
+    visit = cell_order(where, receivers)
     out = np.empty((receivers.size, 2))
     for v in nb.prange(receivers.size):
         i = visit[v]
