@@ -151,7 +151,8 @@ def test_repeat_reject_and_kill():
 def test_auto_rule_and_groups():
     assert agents_per_process(6, 2) == 1 and agents_per_process(PROCESSES_PER_CORE * 4, 4) == 1
     assert agents_per_process(7, 2) == 4 and agents_per_process(24, 2) == 12
-    assert agents_per_process(1000, 2) == 100 and agents_per_process(1000, 32) == 32
+    assert agents_per_process(1000, 2) == 500 and agents_per_process(1000, 32) == 32
+    assert agents_per_process(10000, 2) == CONTAINER_SIZE
     for n in (24, 96, 240, 500, 1000, 5000):
         k = agents_per_process(n, 2)
         groups = split_agents([f'a{i}' for i in range(n)], k)

@@ -32,7 +32,7 @@ import numpy as np
 
 from swarm_core.faults.agents import reunion_law
 from swarm_core.laws import Law, LawError, failed_at
-from swarm_core.laws.paper.compiled_sums import COMPILED
+from swarm_core.laws.paper.compiled_sums import COMPILED, warm_up
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_core.model.integrate import zoh_step
 from swarm_core.radio import Beliefs, CommModel
@@ -147,7 +147,10 @@ class States:
     ``fresh``).  An agent's `AgentCore` reads and writes its own row; an agent container steps
     all rows at once (`swarm_agent.container_core`), with no Python per agent."""
 
-    __slots__ = ('pos', 'theta', 'u', 'step', 'silent', 'qz', 'qw', 'cos', 'sin', 'fresh', 'shared', 'table')
+    #: the arrays of one row per agent (`of` copies them)
+    ROWS = ('pos', 'theta', 'u', 'step', 'silent', 'qz', 'qw', 'cos', 'sin', 'fresh', 'shared', 'radio', 'robot',
+            'noisy')
+    __slots__ = ROWS + ('table', 'law_changes')
 
     def __init__(self, k: int):
         self.pos = np.zeros((k, 2))
@@ -156,7 +159,11 @@ class States:
         self.silent = np.zeros(k, dtype=bool)
         self.fresh = np.zeros(k, dtype=bool)
         self.shared = np.zeros(k, dtype=bool)     # the row's last u came from `table`
+        self.radio = np.zeros(k, dtype=bool)      # the agent hears through a radio model (`comms`)
+        self.robot = np.zeros(k, dtype=bool)      # on a MuJoCo robot in lockstep (`reported`)
+        self.noisy = np.zeros(k, dtype=bool)      # draws its own noise each step
         self.table = None       # the inputs of one call's u of several rows (`SharedTable`)
+        self.law_changes = 0    # laws given to the rows' agents so far (`AgentCore.law`)
 
     @classmethod
     def of(cls, cores) -> States:
@@ -166,7 +173,7 @@ class States:
         for j, c in enumerate(cores):
             c.seen = c.seen               # a shared table's row becomes the core's own
             old, i = c.states, c.slot
-            for name in cls.__slots__[:-1]:
+            for name in cls.ROWS:
                 getattr(bank, name)[j] = getattr(old, name)[i]
             c.states, c.slot = bank, j
         return bank
@@ -232,6 +239,32 @@ class AgentCore:
     step = _row('step', int)              # lockstep: the step whose state it holds
     silent = _row('silent', bool)         # lockstep: not in the table (frozen or killed)
 
+    def _flag(name, row):
+        """An attribute whose state its bank's row ``row`` mirrors (a container looks at one
+        array, not at each agent): comms (a radio model), reported (a robot's pose)."""
+        def get(self):
+            return getattr(self, '_' + name)
+
+        def put(self, value):
+            setattr(self, '_' + name, value)
+            getattr(self.states, row)[self.slot] = value is not None if name == 'comms' else bool(value)
+        return property(get, put)
+
+    comms = _flag('comms', 'radio')       # a radio model (`attach_comms`), or None
+    reported = _flag('reported', 'robot')  # lockstep on a MuJoCo robot: its pose is its row of the table
+    del _flag
+
+    @property
+    def law(self):
+        return self._law
+
+    @law.setter
+    def law(self, law):
+        """A new law (a live parameter set): its container looks again at whether one law
+        serves all its agents (`ContainerCore.one_law`)."""
+        self._law = law
+        self.states.law_changes += 1
+
     def __init__(self, index: int, n_agents: int, x: float, y: float, theta: float,
                  law: Law, dt: float, noise=(0.0, 0.0), noise_rng=None):
         self.index = int(index)
@@ -244,10 +277,11 @@ class AgentCore:
         self.dt = float(dt)
         self.noise_scale = np.array([noise[0], noise[0], noise[1]], dtype=float)
         self.noisy = bool(np.any(self.noise_scale > 0))
+        self.states.noisy[0] = self.noisy
         self.rng = noise_rng
         self.comms = None
         self.beliefs = None
-        self.reported = False               # lockstep on a MuJoCo robot: its pose is its row of the table
+        self.reported = False
         self.pairs = None                   # the law's pairs (`alive_control`): None, or the compiled sums'
 
     @property
@@ -267,7 +301,9 @@ class AgentCore:
         self.states.shared[self.slot] = False
 
     def sums_compiled(self):
-        """Sum the law's pairs in the compiled kernels (`compiled_sums`: a run's ``--compiled``)."""
+        """Sum the law's pairs in the compiled kernels (`compiled_sums`: a run's ``--compiled``),
+        loaded now (`compiled_sums.warm_up`), not at the first step."""
+        warm_up()
         self.pairs = lambda _pos: COMPILED
 
     def attach_comms(self, model: CommModel):

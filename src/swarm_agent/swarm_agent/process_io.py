@@ -143,13 +143,13 @@ def _rows_step(s, lock, agents, batch):
     said = np.concatenate((repeat, moved))
     if said.size:
         batch.publish_rows(lock, said, agents[0].run_id)
-    n1, lam, u = s.n + 1, s.lam, lock.bank.u
+    n, n1, lam = s.n, s.n + 1, s.lam
     t1 = n1 * agents[0].dt
-    for j in moved.tolist():
+    for j, u in zip(moved.tolist(), lock.bank.u[moved].tolist()):
         a = agents[j]
         a.lam, a.step, a.t, a.own_due = lam, n1, t1, True
         h = a.u_history
-        h.append((s.n, float(u[j])))
+        h.append((n, u))
         if len(h) > 10000:                  # bounded as `AgentNode.applied` keeps it
             del h[:5000]
     for j, kind, detail in rules + nan:     # the rare outcomes, one agent at a time

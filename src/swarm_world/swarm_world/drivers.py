@@ -234,7 +234,7 @@ class LockstepDriver:
         node = self.node
         pos = node.rec.r[k, idx]
         t = k * node.dt
-        md, complaints = node.obs.check(t, pos, [node.names[i] for i in idx], node.barrier_geom)
+        md, complaints = node.obs.check(t, pos, lambda: [node.names[i] for i in idx], node.barrier_geom)
         for kind, text in complaints:
             node.reject(kind, text)
         el = time.monotonic() - (node.run_wall or node.wall_start)

@@ -133,6 +133,7 @@ class LockstepBarrier:
                  geometry=lambda: (None, None)):
         self.names = list(names)
         self.n = len(self.names)
+        self.row = {nm: i for i, nm in enumerate(self.names)}
         self.steps = steps
         self.dt = dt
         self.faults = faults
@@ -249,7 +250,8 @@ class LockstepBarrier:
         acts.append(('observe', k, np.flatnonzero(alive)))     # the table of step k: not the next's
         d = self._decide(t, alive)
         acts += [('event', ev) for ev in self.plan_events(d.events, k)]
-        self.slots = {int(sl): int(i) for i, sl in enumerate(d.slots) if sl >= 0}
+        has = np.flatnonzero(np.asarray(d.slots) >= 0)          # the leaders' slots (few), not every agent
+        self.slots = dict(zip(np.asarray(d.slots)[has].tolist(), has.tolist()))
         self.lam, self.leaders = d.lam, d.flags & alive
         self.rec.record_decision(k, d.lam, self.leaders)
         target, barrier = self.geometry()
@@ -299,9 +301,8 @@ class LockstepBarrier:
         if k > self.steps:
             return []
         acts = []
-        row = {nm: i for i, nm in enumerate(self.names)}
         for ev in self.faults.apply(k, self.slots):
-            i = row.get(ev['agent'])
+            i = self.row.get(ev['agent'])
             acts.append(('event', ev))          # first: the launcher reads it when the agent dies
             if ev['kind'] == 'kill':
                 acts.append(('signal', i, 'kill'))

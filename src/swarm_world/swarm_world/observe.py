@@ -20,7 +20,8 @@ class Observer:
         self.intrusions = 0
 
     def check(self, t, pos, names, barrier=None):
-        """Agents ``names`` at ``pos`` at time t → (minimum distance, complaints as (kind, text))."""
+        """Agents ``names`` (a sequence, or a function giving it: called only for a complaint
+        that names them) at ``pos`` at time t → (minimum distance, complaints as (kind, text))."""
         md = M.min_distance(pos)
         out = []
         if md < self.collision_distance:
@@ -29,6 +30,7 @@ class Observer:
         if barrier is not None:
             inside = barrier.inside(pos)
             if inside.any():
+                names = names() if callable(names) else names
                 self.intrusions += int(inside.sum())
                 out.append(('intrusion', f'nothing: barrier intrusion at t={t:.2f} by '
                             + ', '.join(names[i] for i in np.flatnonzero(inside))))

@@ -66,9 +66,9 @@ from swarm_tools.run.params import load_scenario, node_parameters, write_params_
 from swarm_tools.run.processes import process_specs, run_processes
 from swarm_tools.run.robots import ROBOTS_NODE, add_robot_world, apply_robots, parse_robots, robot_steps
 
-#: most agents of one ``swarm run`` (each is an OS process, or a node of one executor);
-#: larger swarms are for ``swarm simulate``
-MAX_RUN_AGENTS = 2000
+#: most agents of one ``swarm run`` (each its own node; beyond a few per core, in agent
+#: containers); larger swarms are for ``swarm simulate``
+MAX_RUN_AGENTS = 5000
 
 
 def build_nodes(params: dict, context, log=print):

@@ -21,6 +21,7 @@ never sums compiled never pays for it.
 from __future__ import annotations
 
 import importlib.util
+import time
 
 import numpy as np
 
@@ -56,6 +57,21 @@ def run_sums(n: int, steps: int, choice: str = 'auto') -> str:
 def available() -> bool:
     """Whether numba is installed (without it the reference runs); looked up, not imported."""
     return importlib.util.find_spec('numba') is not None
+
+
+def warm_up() -> float:
+    """Import numba and load (or compile) both kernels on a table of two agents; returns the
+    seconds it took.  A process that will sum compiled does it before its first step, so
+    that the first step is not the one that waits for it."""
+    t0 = time.perf_counter()
+    pos, c = np.array([[0.0, 0.0], [1.0, 0.5]]), np.ones(2)
+    rows = np.arange(2)
+
+    class Law:       # the attributes a kernel reads, both couplings
+        avoidance_only, target_normalised, alpha, r0, cutoff_radius, leader_gain = False, False, 1.0, 1.0, 2.0, 1.0
+    for q0 in (1.0, 0.0):
+        compiled_moments(pos, c, c * 0.0, rows, Law, 0.0, q0, None, None)
+    return time.perf_counter() - t0
 
 
 def compiled_moments(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k):
