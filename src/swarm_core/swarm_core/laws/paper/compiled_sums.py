@@ -59,10 +59,16 @@ def available() -> bool:
     return importlib.util.find_spec('numba') is not None
 
 
+_WARM = []
+
+
 def warm_up() -> float:
     """Import numba and load (or compile) both kernels on a table of two agents; returns the
-    seconds it took.  A process that will sum compiled does it before its first step, so
-    that the first step is not the one that waits for it."""
+    seconds it took (0 after the first call).  A process that will sum compiled does it
+    before its first step, so that the first step is not the one that waits for it."""
+    if _WARM:
+        return 0.0
+    _WARM.append(True)
     t0 = time.perf_counter()
     pos, c = np.array([[0.0, 0.0], [1.0, 0.5]]), np.ones(2)
     rows = np.arange(2)
