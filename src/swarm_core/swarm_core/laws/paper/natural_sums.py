@@ -45,10 +45,15 @@ def _weights(law, rr, recv_leader, lam, q0, partner):
     return W
 
 
-def _block_sum(law, pos, x, recv, lam, q0, recv_leader, partner):
-    """Σ_j W_jk g_jk (b, 3) of the receivers ``recv`` (table rows); recv_leader, partner: theirs."""
+def _block_sum(law, pos, x, recv, lam, q0, recv_leader, leader_rows):
+    """Σ_j W_jk g_jk (b, 3) of the receivers ``recv`` (table rows); recv_leader: which of them
+    lead, leader_rows: the leaders' rows (or None); l(k) from the same ρ² as
+    `nearest_leader_3d` (ties to the lower row)."""
     d = pos[recv][:, None, :] - pos[None, :, :]                  # r_jk = r_k − r_j
     rr = np.einsum('bnc,bnc->bn', d, d)
+    partner = None
+    if leader_rows is not None:                                    # before the self pair is masked
+        partner = np.where(recv_leader, -1, leader_rows[rr[:, leader_rows].argmin(axis=1)])
     rr[rr == 0.0] = np.inf                                         # the self pair, coincident agents: 0
     inv = 1.0 / rr
     f = law.alpha * (1.0 - law.r0 * law.r0 * inv)
@@ -67,18 +72,17 @@ def _block_sum(law, pos, x, recv, lam, q0, recv_leader, partner):
 def pair_sums_3d(law, pos, x, receivers, lam, q0, leaders):
     """Σ_j W_jk g_jk (K, 3) of every receiver (the pair term of eq. 4, 9, 13 as a vector), in
     blocks of receiver rows."""
-    recv_leader = partner = None
-    if leaders is not None:
-        recv_leader = leaders[receivers]
-        partner = np.where(recv_leader, -1, nearest_leader_3d(pos, receivers, leaders.nonzero()[0]))
+    recv_leader = leader_rows = None
+    if leaders is not None and leaders.any():
+        recv_leader, leader_rows = leaders[receivers], leaders.nonzero()[0]
     step = max(1, BLOCK // max(1, len(pos)))
     if receivers.size <= step:                                     # one block (small swarms)
-        return _block_sum(law, pos, x, receivers, lam, q0, recv_leader, partner)
+        return _block_sum(law, pos, x, receivers, lam, q0, recv_leader, leader_rows)
     out = np.empty((receivers.size, 3))
     for a in range(0, receivers.size, step):
         b = min(a + step, receivers.size)
         out[a:b] = _block_sum(law, pos, x, receivers[a:b], lam, q0, None if recv_leader is None else
-                              recv_leader[a:b], None if partner is None else partner[a:b])
+                              recv_leader[a:b], leader_rows)
     return out
 
 
