@@ -72,6 +72,17 @@ def test_compiled_equals_the_numpy_sums_to_1e_9(monkeypatch, law, lam):
         assert np.abs(plain - ref).max() > 1e-6
 
 
+def test_a_run_s_choice_is_taken():
+    """sums='compiled' / 'numpy' (a run's `compiled_sums.run_sums`) whatever the table's size."""
+    pos, frames, leaders, steer = table(n=300, seed=5)
+    law = paper_law(kind='homotopy', q0=0.3)
+    kw = dict(lambda_=0.5, is_leader=leaders, steering=steer)
+    auto = law.evaluate_natural(pos, frames, np.arange(300), **kw)
+    np.testing.assert_array_equal(law.evaluate_natural(pos, frames, np.arange(300), sums='numpy', **kw), auto)
+    fast = law.evaluate_natural(pos, frames, np.arange(300), sums='compiled', **kw)
+    assert 0 < np.abs(fast - auto).max() <= 1e-9 * np.abs(auto).max()
+
+
 @pytest.mark.parametrize('kind', ('local', 'global'))
 def test_sparse_cells_and_any_receivers(monkeypatch, kind):
     """Few agents in a large box (the cell list searches its keys); a shuffled subset of
@@ -92,6 +103,9 @@ def test_the_3d_engine_takes_the_compiled_sums_from_the_planar_limit(monkeypatch
     from swarm_core.scenario.loader import parse
     assert not use_compiled(compiled_sums.COMPILED_LIMIT - 1)
     assert use_compiled(compiled_sums.COMPILED_LIMIT)
+    assert use_compiled(3, 'compiled') and not use_compiled(compiled_sums.COMPILED_LIMIT, 'numpy')
+    with pytest.raises(ValueError):
+        use_compiled(3, 'on')
     scn = parse(dict(name='big3d', dim=3, dt=0.05, duration=1.0, law=dict(kind='global'),
                      agents=dict(count=300, positions={'rule': 'grid', 'spacing': 1.5})))
     st = NaturalStepper(scn)

@@ -118,10 +118,12 @@ class PaperLaw(Law):
         return add_world_terms(u, pos, F, receivers, self, target, barrier)
 
     def evaluate_natural(self, pos, frames, receivers, *, lambda_=0.0, is_leader=None, steering=None,
-                         target=None, barrier=None, ground=None, t=None, **unused):
+                         target=None, barrier=None, ground=None, t=None, sums='auto', **unused):
         """(u_k, v_k) (K, 2) of the receivers in 3D: the paper's law lifted (`natural_sums`).
         pos (N, 3), frames (x, y, z) (N, 3) each, steering (K, 2), target (3,), barrier (m, 3),
-        ground: the floor's height or None.  t is not read."""
+        ground: the floor's height or None.  sums: 'compiled' or 'numpy' (a run's
+        `compiled_sums.run_sums`), or 'auto': compiled from `compiled_sums.COMPILED_LIMIT`
+        agents on (`natural_compiled.use_compiled`).  t is not read."""
         pos = np.asarray(pos, dtype=float)
         receivers = np.asarray(receivers, dtype=np.intp)
         lam, q0 = self.effective_lambda_q0(lambda_)
@@ -129,7 +131,8 @@ class PaperLaw(Law):
         if self.uses_leaders and is_leader is not None and np.count_nonzero(is_leader):
             leaders = np.asarray(is_leader, dtype=bool)
         frames = tuple(np.asarray(f, dtype=float) for f in frames)
-        return natural_controls(self, pos, frames, receivers, lam, q0, leaders, steering, target, barrier, ground)
+        return natural_controls(self, pos, frames, receivers, lam, q0, leaders, steering, target, barrier, ground,
+                                sums)
 
     def _compiled_sums(self, pos, cos_sin, F, receivers, lam, q0, leaders):
         """Σ_j W_jk u_jk of the receivers from `compiled_sums.compiled_moments` (their rows

@@ -17,10 +17,15 @@ import numpy as np
 from swarm_core.laws.paper import compiled_sums
 
 
-def use_compiled(n: int) -> bool:
-    """Whether the 3D sums of a table of n agents are compiled: from
-    `compiled_sums.COMPILED_LIMIT` agents on, numba installed (the planar engine's rule)."""
-    return n >= compiled_sums.COMPILED_LIMIT and compiled_sums.available()
+def use_compiled(n: int, sums: str = 'auto') -> bool:
+    """Whether the 3D sums of a table of n agents are compiled: ``sums`` 'compiled' or 'numpy'
+    as a run chose (`compiled_sums.run_sums`, the planar rule), or 'auto': from
+    `compiled_sums.COMPILED_LIMIT` agents on; never without numba."""
+    if sums not in ('auto', 'compiled', 'numpy'):
+        raise ValueError(f"sums must be auto, compiled or numpy, got {sums!r}")
+    if sums == 'numpy' or not compiled_sums.available():
+        return False
+    return sums == 'compiled' or n >= compiled_sums.COMPILED_LIMIT
 
 
 def compiled_controls_3d(law, pos, frames, receivers, lam, q0, leaders):

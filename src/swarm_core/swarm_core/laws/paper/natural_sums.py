@@ -134,12 +134,13 @@ def barrier_direction_3d(pos_k, barrier, ground, w):
     return np.divide(v, norm[:, None], out=np.zeros_like(v), where=norm[:, None] > 0.0)
 
 
-def natural_controls(law, pos, frames, receivers, lam, q0, leaders, steering, target, barrier, ground):
+def natural_controls(law, pos, frames, receivers, lam, q0, leaders, steering, target, barrier, ground,
+                     sums='auto'):
     """(u_k, v_k) (K, 2) of the receivers: the pair sums read in each receiver's (y, z) (compiled
-    for large tables, `natural_compiled.use_compiled`), the leader's line of eq. 14 component by
-    component, plus the world terms."""
+    where `natural_compiled.use_compiled` says so for ``sums``), the leader's line of eq. 14
+    component by component, plus the world terms."""
     x, y, z = frames
-    if use_compiled(len(pos)):
+    if use_compiled(len(pos), sums):
         uv = compiled_controls_3d(law, pos, frames, receivers, lam, q0, leaders)
     else:
         uv = read_normal(pair_sums_3d(law, pos, x, receivers, lam, q0, leaders), y[receivers], z[receivers])
