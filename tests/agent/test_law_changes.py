@@ -29,16 +29,23 @@ def commands():
     return {step: [dict(command='law', agent=k, parameters=p) for k, p in cs] for step, cs in CHANGES.items()}
 
 
-@pytest.mark.parametrize('groups,comms', [
-    ([[0], [1], [2], [3], [4], [5]], None),
-    ([[0, 1, 2], [3, 4, 5]], None),
-    ([[0, 1, 2, 3, 4, 5]], dict(loss=0.3, latency=0.1)),
-], ids=['alone', 'containers', 'radio'])
-def test_agents_with_live_law_changes_equal_the_engines_replay(groups, comms):
+@pytest.mark.parametrize('groups,comms,compiled', [
+    ([[0], [1], [2], [3], [4], [5]], None, False),
+    ([[0, 1, 2], [3, 4, 5]], None, False),
+    ([[0, 1, 2], [3, 4, 5]], None, True),
+    ([[0, 1, 2, 3, 4, 5]], dict(loss=0.3, latency=0.1), False),
+], ids=['alone', 'containers', 'containers-compiled', 'radio'])
+def test_agents_with_live_law_changes_equal_the_engines_replay(groups, comms, compiled):
+    """A set on one agent of a container changes that agent alone, from its step: the
+    container then calls the law once per agent (its own law each), compiled sums or not."""
+    if compiled:
+        pytest.importorskip('numba')
     scn = parse(dict(BASE, **({'comms': comms} if comms else {})), 'test')
     n = len(scn.names)
-    eng = SwarmStepper(scn, commands=commands())
+    eng = SwarmStepper(scn, commands=commands(), neighbour_search='compiled' if compiled else 'auto')
     cores = [AgentCore(i, n, *scn.pos0[i], scn.theta0[i], scn.law, scn.dt) for i in range(n)]
+    for c in cores if compiled else ():
+        c.sums_compiled()
     if comms:
         for c in cores:
             c.attach_comms(CommModel.from_config(scn.comms_config(), scn.names, scn.dt, scn.seed))
