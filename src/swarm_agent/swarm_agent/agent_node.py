@@ -103,9 +103,14 @@ class AgentNode(Node):
         if not services:         # in a big container: no parameter/type-description services, no /rosout
             parameter_overrides = list(parameter_overrides or []) + [
                 Parameter('start_type_description_service', value=False)]
+        if contained:            # no /clock reader made only for the container to remove it (see below)
+            parameter_overrides = list(parameter_overrides or []) + [Parameter('use_sim_time', value=False)]
         super().__init__(node_name, namespace=namespace, context=context, cli_args=cli_args,
                          parameter_overrides=parameter_overrides, enable_rosout=services,
                          start_parameter_services=services)
+        if contained:            # the container sets its agents' clocks (container_node): sim time, no reader
+            self._time_source.detach_node()
+            self.set_parameters([Parameter('use_sim_time', value=True)])
         self.contained = contained
         self.sim_clock = self.get_clock()   # a realtime container's agents share its first agent's
         self.halted = None       # contained: 'kill' or 'freeze' (fault events for this agent)
