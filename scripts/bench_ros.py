@@ -282,6 +282,8 @@ def main(argv=None) -> int:
         'a swarm executable to measure, with a label; repeat to measure several interleaved, case by '
         'case (e.g. after=.venv/bin/swarm before=/tmp/old/swarm); default: this=' + DEFAULT_SWARM))
     ap.add_argument('--timeout', type=float, default=900, help='give up on one run after this many s')
+    ap.add_argument('--run-args', default='', metavar='ARGS',
+                    help="more options of every swarm run but the full one, e.g. '--start-timeout 900'")
     ap.add_argument('--out', default='bench/ros.json', help='results JSON (default bench/ros.json)')
     a = ap.parse_args(argv)
     try:
@@ -340,6 +342,7 @@ def main(argv=None) -> int:
                                 args.append('--in-process')
                             if k != '1':
                                 args += ['--agents-per-process', k]
+                            args += a.run_args.split()
                             if kind == 'no-agent-clock':
                                 args += ['--clock-every', '1000000']
                         load0 = loadavg()
