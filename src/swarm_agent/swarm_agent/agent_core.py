@@ -150,7 +150,7 @@ class States:
     #: the arrays of one row per agent (`of` copies them)
     ROWS = ('pos', 'theta', 'u', 'step', 'silent', 'qz', 'qw', 'cos', 'sin', 'fresh', 'shared', 'radio', 'robot',
             'noisy')
-    __slots__ = ROWS + ('table', 'law_changes')
+    __slots__ = ROWS + ('table', 'changes')
 
     def __init__(self, k: int):
         self.pos = np.zeros((k, 2))
@@ -163,7 +163,7 @@ class States:
         self.robot = np.zeros(k, dtype=bool)      # on a MuJoCo robot in lockstep (`reported`)
         self.noisy = np.zeros(k, dtype=bool)      # draws its own noise each step
         self.table = None       # the inputs of one call's u of several rows (`SharedTable`)
-        self.law_changes = 0    # laws given to the rows' agents so far (`AgentCore.law`)
+        self.changes = 0        # laws and flags given to the rows' agents so far (`AgentCore.law`, comms, reported)
 
     @classmethod
     def of(cls, cores) -> States:
@@ -248,6 +248,7 @@ class AgentCore:
         def put(self, value):
             setattr(self, '_' + name, value)
             getattr(self.states, row)[self.slot] = value is not None if name == 'comms' else bool(value)
+            self.states.changes += 1
         return property(get, put)
 
     comms = _flag('comms', 'radio')       # a radio model (`attach_comms`), or None
@@ -263,7 +264,7 @@ class AgentCore:
         """A new law (a live parameter set): its container looks again at whether one law
         serves all its agents (`ContainerCore.one_law`)."""
         self._law = law
-        self.states.law_changes += 1
+        self.states.changes += 1
 
     def __init__(self, index: int, n_agents: int, x: float, y: float, theta: float,
                  law: Law, dt: float, noise=(0.0, 0.0), noise_rng=None):

@@ -22,6 +22,8 @@ Rules per agent and step message ``s`` (as an agent process has always followed 
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from swarm_agent.agent_core import SharedTable, States
@@ -82,6 +84,14 @@ class ContainerCore:
     """Lockstep of K agents in one process; see the module docstring.  Their states are one
     bank (`States`, ``bank``): the rules, the law call and the move run over its rows at once."""
 
+    n_dead = 0          # agents killed (`kill`)
+    _seen = None        # the bank's changes when `_look` last looked
+
+    @functools.cached_property
+    def every(self):
+        """0 … K − 1: every position in the container."""
+        return np.arange(len(self.cores))
+
     def __init__(self, cores):
         self.cores = list(cores)
         if not self.cores:
@@ -90,20 +100,27 @@ class ContainerCore:
         self.rows = np.array([c.index for c in self.cores], dtype=np.intp)
         self.bank = States.of(self.cores)
         self.dead = np.zeros(len(self.cores), dtype=bool)
-        self._laws_seen = self._one_law = None
+
+    def _look(self):
+        """Whether one law (and dt) serves all the agents, and whether any hears through a
+        radio, rides a robot or draws noise: looked at again only when an agent's law or
+        flags changed (a live parameter set, `AgentCore.law`; `comms`, `reported`)."""
+        b = self.bank
+        if self._seen != b.changes:
+            self._seen = b.changes
+            law, dt = self.cores[0].law, self.cores[0].dt
+            self._one_law = all(c.law == law and c.dt == dt for c in self.cores)
+            self._radio, self._robot, self._noisy = bool(b.radio.any()), bool(b.robot.any()), bool(b.noisy.any())
 
     @property
     def one_law(self) -> bool:
-        """Do all the agents have one law (and dt)?  Looked at again when an agent's law
-        changed (a live parameter set: `AgentCore.law`)."""
-        if self._laws_seen != self.bank.law_changes:
-            self._laws_seen = self.bank.law_changes
-            law, dt = self.cores[0].law, self.cores[0].dt
-            self._one_law = all(c.law == law and c.dt == dt for c in self.cores)
+        """Do all the agents have one law (and dt)?"""
+        self._look()
         return self._one_law
 
     def kill(self, j: int):
         """Agent j (position in the container) is dead: it never computes or speaks again."""
+        self.n_dead += not self.dead[j]
         self.dead[j] = True
 
     def on_step(self, s) -> list[tuple]:
@@ -121,6 +138,29 @@ class ContainerCore:
         their answer, [(j, kind, detail)] of the rules' other outcomes: silent, back, reject,
         and the moved agents' 'u-nan' rejects), the rules of the module docstring as masks, no
         Python per agent but for the rare outcomes."""
+        b, n = self.bank, s.n
+        if not self.n_dead and len(s.x) == self.n and (b.step == n).all() and (
+                len(s.alive) != self.n or s.alive[self.rows].all()):
+            go, repeat, out = self.every, self.every[:0], []       # the usual step: every agent moves
+        else:
+            go, repeat, out = self._rules(s)
+        if not go.size:
+            return go, repeat, out, []
+        b.silent[go] = False
+        for j in go.tolist() if self.any_reported else ():
+            c = self.cores[j]
+            if c.reported:
+                c.take_reported(s.x[c.index], s.y[c.index], s.qz[c.index], s.qw[c.index])
+        us = np.asarray(self.controls(s, go), dtype=float)
+        nan = [(int(go[i]), 'reject', ('u-nan', f'non-finite control u={us[i]} at step {n}; holding u=0'))
+               for i in np.flatnonzero(~np.isfinite(us))]
+        self.advance(go, us)
+        b.step[go] = n + 1
+        return go, repeat, out, nan
+
+    def _rules(self, s):
+        """The rules of `step_rows` for a step where some agent does not simply move: (the
+        positions that move, those that repeat, the other outcomes)."""
         b, n = self.bank, s.n
         live = ~self.dead
         repeat = live & (b.step == n + 1)
@@ -145,31 +185,20 @@ class ContainerCore:
             out += [(int(j), 'reject', ('step-n', f'/lockstep/step with {len(s.x)} agents (roster has {self.n})'))
                     for j in go]
             go = go[:0]
-        if not go.size:
-            return go, np.flatnonzero(repeat), out, []
-        b.silent[go] = False
-        for j in go.tolist() if self.any_reported else ():
-            c = self.cores[j]
-            if c.reported:
-                c.take_reported(s.x[c.index], s.y[c.index], s.qz[c.index], s.qw[c.index])
-        us = np.asarray(self.controls(s, go), dtype=float)
-        nan = [(int(go[i]), 'reject', ('u-nan', f'non-finite control u={us[i]} at step {n}; holding u=0'))
-               for i in np.flatnonzero(~np.isfinite(us))]
-        self.advance(go, us)
-        b.step[go] = n + 1
-        return go, np.flatnonzero(repeat), out, nan
+        return go, np.flatnonzero(repeat), out
 
     @property
     def any_reported(self) -> bool:
         """Is any agent on a MuJoCo robot in lockstep (its pose from the table)?"""
-        return bool(self.bank.robot.any())
+        self._look()
+        return self._robot
 
     def controls(self, s, go) -> list[float]:
         """u of the agents ``go`` (positions in the container) at step message ``s``."""
         go = np.asarray(go, dtype=np.intp)
         cores = [self.cores[j] for j in go]
         alive = s.alive if len(s.alive) == self.n else None
-        if not self.one_law or self.bank.radio[go].any():
+        if not self.one_law or self._radio and self.bank.radio[go].any():
             # a radio model (each agent its own beliefs) or different laws: one call per agent
             return [c.comms_control(s.n, s.x, s.y, s.qz, s.qw, s.u, s.lam, s.flags, s.steering[c.index],
                                     s.target, s.barrier, alive=alive, rendezvous=s.rendezvous, t=s.t)
@@ -178,9 +207,8 @@ class ContainerCore:
                               s.barrier, alive=s.alive, rendezvous=s.rendezvous, t=s.t)
                     for c in cores]
         b, idx = self.bank, self.rows[go]
-        stale = go[~b.fresh[go]]
-        if stale.size:
-            b.refresh(stale)
+        if not b.fresh[go].all():
+            b.refresh(go[~b.fresh[go]])
         pos = np.empty((len(s.x), 2))              # the table as received, own rows the agents' own
         pos[:, 0] = s.x
         pos[:, 1] = s.y
@@ -203,8 +231,9 @@ class ContainerCore:
         agent on a MuJoCo robot in lockstep does not move here: its robot moves."""
         b = self.bank
         go = np.asarray(go, dtype=np.intp)
-        u = np.asarray(us, dtype=float).copy()
-        u[~np.isfinite(u)] = 0.0
+        u = np.array(us, dtype=float)
+        if not np.isfinite(u).all():
+            u[~np.isfinite(u)] = 0.0
         b.u[go] = u
         if self.any_reported:
             keep = np.array([not self.cores[j].reported for j in go], dtype=bool)
@@ -223,4 +252,5 @@ class ContainerCore:
 
     @property
     def any_noisy(self) -> bool:
-        return bool(self.bank.noisy.any())
+        self._look()
+        return self._noisy
