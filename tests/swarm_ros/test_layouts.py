@@ -27,7 +27,9 @@ def sample(cls, rng, n=3):
         values[f.name] = {
             'float': v, 'finite': v, 'whole': rng.integers(0, 1000, size=shape), 'int': rng.integers(-1, 5, size=shape),
             'flag': v > 0, 'point': np.array([1.5, -2.5]), 'points': np.array([[0.0, 1.0], [2.0, 3.0]]),
-            'rendezvous': ((1.0, 2.0), 0.5, True, None),
+            'rendezvous': ((1.0, 2.0), 0.5, True, None), 'point3': np.array([1.5, -2.5, 3.0]),
+            'points3': np.array([[0.0, 1.0, 2.0], [2.0, 3.0, 4.0]]), 'height': -1.5,
+            'rendezvous3': ((1.0, 2.0, 3.0), 0.5, True, None),
         }[f.kind]
         if not shape and f.kind in ('float', 'finite'):
             values[f.name] = float(v)

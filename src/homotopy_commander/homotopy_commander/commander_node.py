@@ -56,7 +56,7 @@ from swarm_core.command.plan import check_command
 from swarm_core.faults.agents import event_names
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_ros import protocol as P
-from swarm_ros.layouts import ProcessStates, RealtimeDecision, Step
+from swarm_ros.layouts import NaturalStep, ProcessStates, RealtimeDecision, Step
 from swarm_ros.msg_checks import (
     FUTURE_TOLERANCE,
     ProcessSenders,
@@ -115,6 +115,9 @@ class CommanderNode(Node):
         self.n = len(self.names)
         self.row = {nm: i for i, nm in enumerate(self.names)}
         self.dt = self.scn.dt
+        self.dim = self.scn.dim
+        # s_k on /<agent>/steering: a curvature (Float64), in 3D (s_u, s_v) (Float64MultiArray)
+        self.steer_type = Float64 if self.dim == 2 else Float64MultiArray
         self.plan = self.scn.command_plan()
         self.reject = RejectLog(self.get_logger())
         self.senders = ProcessSenders(self.n)    # realtime: each agent bound to its first process
@@ -174,7 +177,8 @@ class CommanderNode(Node):
         self.pub_lambda = self.create_publisher(Float64, P.LAMBDA, P.qos_latched(P.STEP_DEPTH))
         self.pub_leaders = self.create_publisher(String, P.LEADERS, P.qos_latched())
         self.pub_events = self.create_publisher(String, P.EVENTS, P.qos_latched(100))
-        self.pub_steer = {nm: self.create_publisher(Float64, P.steering_topic(nm), P.qos_latched(P.STEP_DEPTH))
+        self.pub_steer = {nm: self.create_publisher(self.steer_type, P.steering_topic(nm),
+                                                    P.qos_latched(P.STEP_DEPTH))
                           for nm in self.names}
 
     def _create_command_readers(self):
@@ -185,7 +189,7 @@ class CommanderNode(Node):
         self.own_sent = {}
         self.commands = {P.LAMBDA: CommandReader(P.LAMBDA, Float64, self._on_lambda, P.LAMBDA)}
         for nm in self.names:
-            self.commands[nm] = CommandReader(P.steering_topic(nm), Float64,
+            self.commands[nm] = CommandReader(P.steering_topic(nm), self.steer_type,
                                               lambda msg, nm=nm: self._on_steering(nm, msg), nm)
         # λ every tick, the steering topics in turn (every one every tick up to 64 agents), and
         # those a node other than the swarm's writes, for a while after it appeared
@@ -307,7 +311,7 @@ class CommanderNode(Node):
             del fifo[:-OWN_ECHO]
         elif len(fifo) > 1000:
             del fifo[:500]
-        pub.publish(Float64(data=value))
+        pub.publish(Float64(data=value) if isinstance(value, float) else Float64MultiArray(data=list(value)))
 
     def _from_self(self, topic, value):
         fifo = self.own_sent.get(topic)
@@ -335,13 +339,21 @@ class CommanderNode(Node):
                            f'λ set-point {value:g} over {ramp:g} s (from {source})')
 
     def _on_steering(self, name, msg):
-        if self._from_self(name, msg.data):
+        value = msg.data if self.dim == 2 else tuple(msg.data)
+        if self._from_self(name, value):
             return
-        self.set_steering(name, msg.data, P.steering_topic(name))
+        if self.dim == 3 and len(value) != 2:
+            self.reject('steer', f'{P.steering_topic(name)} with {len(value)} values (want [s_u, s_v])')
+            return
+        self.set_steering(name, value, P.steering_topic(name))
 
     def set_steering(self, name, value, source):
+        """Queue agent ``name``'s constant program ``value`` (3D: (s_u, s_v); a number is (s_u, 0))."""
+        if self.dim == 3 and isinstance(value, float):
+            value = (value, 0.0)
+        shown = f'{value:g}' if isinstance(value, float) else '(' + ', '.join(f'{v:g}' for v in value) + ')'
         return self._queue(dict(command='steer', agent=self.row[name], value=value, source=source),
-                           f'steering of {name} set to {value:g} (from {source})')
+                           f'steering of {name} set to {shown} (from {source})')
 
     def _queue(self, cmd, text):
         try:
@@ -422,9 +434,10 @@ class CommanderNode(Node):
             self.publish_leaders(leaders)
         for i in np.flatnonzero(flags):
             nm = self.names[i]
-            if force or self.steer_sent.get(nm) != steering[i]:
-                self.steer_sent[nm] = steering[i]
-                self._send(nm, self.pub_steer[nm], float(steering[i]))
+            s = float(steering[i]) if self.dim == 2 else tuple(float(v) for v in steering[i])
+            if force or self.steer_sent.get(nm) != s:
+                self.steer_sent[nm] = s
+                self._send(nm, self.pub_steer[nm], s)
 
     def publish_leaders(self, leaders):
         self.leaders_sent = list(leaders)
@@ -434,7 +447,7 @@ class CommanderNode(Node):
 
     def _on_step(self, raw):
         """Lockstep: the world's step message, with its decision: published for the record."""
-        s = decoded(Step, raw, self.run_id, self.reject, 'step-decode')
+        s = decoded(Step if self.dim == 2 else NaturalStep, raw, self.run_id, self.reject, 'step-decode')
         if s is None or s.n <= self.last_step or refused(self.reject, check_step_time(s)):     # a repeat, a bad time
             return
         if len(s.flags) != self.n:

@@ -52,6 +52,7 @@ from std_msgs.msg import String
 
 from swarm_agent.agent_core import AgentCore, roster_index
 from swarm_agent.drivers import DRIVERS, MODES
+from swarm_agent.natural_core import NaturalAgentCore
 from swarm_agent.process_io import decision_leaders, shared_inputs
 from swarm_agent.robot_driver import ROBOT_DRIVERS, declare_robot
 from swarm_core.checks import DT_BOUND, LAMBDA_BOUND, STEERING_BOUND
@@ -121,7 +122,11 @@ class AgentNode(Node):
             raise ParameterError(str(err)) from None
         self.n = len(self.roster)
         self.row = {nm: i for i, nm in enumerate(self.roster)}
-        self.core = AgentCore(self.index, self.n, *pose, self.law, self.dt, noise, noise_rng(seed, self.index))
+        if self.dim == 3:       # a 3D run (dim: 3): r and the frame [x y z] (`natural_core`)
+            self.core = NaturalAgentCore(self.index, self.n, (pose[0], pose[1], self.z0), self.frame0, self.law,
+                                         self.dt, noise, noise_rng(seed, self.index))
+        else:
+            self.core = AgentCore(self.index, self.n, *pose, self.law, self.dt, noise, noise_rng(seed, self.index))
         if self.pair_sums == 'compiled':
             os.environ.setdefault('NUMBA_NUM_THREADS', '1')     # before numba's import: one thread per process
             self.core.sums_compiled()
@@ -174,6 +179,7 @@ class AgentNode(Node):
         leader = d('leader', False, 'leader (true) or follower until the commander decides', read_only=True)
         pose = (d('x', 0.0, 'initial x position', read_only=True), d('y', 0.0, 'initial y position', read_only=True),
                 d('theta', 0.0, 'initial heading θ (rad)', read_only=True))
+        self._declare_3d(d)
         self.law = self._declare_law()
         self.dt = d('dt', 0.05, 'control period / integration step (sim s)', lo=DT_BOUND.lo, hi=DT_BOUND.hi,
                     read_only=True)
@@ -195,6 +201,21 @@ class AgentNode(Node):
                            choices=PAIR_SUMS, read_only=True)
         self.run_id = declare_run_id(self, 'lockstep steps of another run are rejected')
         return leader, pose, noise, seed, mode_parameters, comms
+
+    def _declare_3d(self, d):
+        """``dim`` (2, or 3: a 3D run), and in 3D the initial ``z`` and ``frame`` (x, y, z of the
+        initial frame, 9 numbers, orthonormal and right-handed)."""
+        self.dim = d('dim', 2, 'dimensions: 2 (planar) or 3 (r and the frame [x y z]; docs/model.md)', lo=2, hi=3,
+                     read_only=True)
+        self.z0 = d('z', 0.0, '3D: initial z position', read_only=True)
+        self.frame0 = list(d('frame', [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], '3D: initial frame x, y, z '
+                             '(9 numbers, orthonormal, right-handed)', read_only=True))
+        if self.dim == 3:
+            f = np.asarray(self.frame0, float)
+            if f.size != 9 or not np.all(np.isfinite(f)) or not np.allclose(f.reshape(3, 3) @ f.reshape(3, 3).T,
+                                                                             np.eye(3), atol=1e-9) \
+                    or np.linalg.det(f.reshape(3, 3)) < 0:
+                raise ParameterError('parameter frame: 9 finite numbers x, y, z of an orthonormal right-handed frame')
 
     def _declare_law(self):
         """The law's parameters: its kind (``law``; a blend's ``from.law``, ``to.law`` too), then
@@ -321,6 +342,11 @@ class AgentNode(Node):
 
     def _state_now(self, u=None):
         sec, nsec = P.time_to_stamp(self.t)
+        if self.dim == 3:      # (sec, nanosec, x, y, qz, qw, u, z, qx, qy, v): the planar tuple, then 3D's
+            qx, qy, qz, qw = self.core.quaternion
+            b, j = self.core.states, self.core.slot
+            return (sec, nsec, float(b.pos[j, 0]), float(b.pos[j, 1]), qz, qw, float(b.u[j] if u is None else u),
+                    float(b.pos[j, 2]), qx, qy, float(b.v[j]))
         qz, qw = self.core.quaternion
         b, j = self.core.states, self.core.slot
         return (sec, nsec, float(b.pos[j, 0]), float(b.pos[j, 1]), qz, qw, float(b.u[j] if u is None else u))
@@ -332,10 +358,13 @@ class AgentNode(Node):
         self.own = self._state_now(u)
         if self.unread():
             return
+        o = self.own
+        raw = self.serialize_state(*o) if self.dim == 2 else \
+            self.serialize_state.full(o[0], o[1], (o[2], o[3], o[7]), (o[8], o[9], o[4], o[5]), o[6], o[10])
         if self.states_held is None:
-            self.pub.publish(self.serialize_state(*self.own))
+            self.pub.publish(raw)
         else:                    # the process answers the world first (`process_io.step_message`)
-            self.states_held.append(self.serialize_state(*self.own))
+            self.states_held.append(raw)
 
     def unread(self) -> bool:
         """Lockstep: nobody would get this state (no reader of /swarm/states matched, the step

@@ -31,6 +31,7 @@ from swarm_core.laws import LawError, failed_at
 from swarm_core.model.frenet import frame_from_quaternion
 from swarm_core.model.integrate import zoh_step
 from swarm_core.step import alive_control
+from swarm_ros.layouts import Step
 
 #: ``auto``: one process per agent while there are at most this many agents per core
 PROCESSES_PER_CORE = 3
@@ -82,8 +83,10 @@ def split_agents(names, k: int) -> list[list]:
 
 class ContainerCore:
     """Lockstep of K agents in one process; see the module docstring.  Their states are one
-    bank (`States`, ``bank``): the rules, the law call and the move run over its rows at once."""
+    bank (`States`, ``bank``): the rules, the law call and the move run over its rows at once.
+    (A 3D run's: `natural_core.NaturalContainerCore`.)"""
 
+    dim = 2
     n_dead = 0          # agents killed (`kill`)
     _seen = None        # the bank's changes when `_look` last looked
 
@@ -91,6 +94,7 @@ class ContainerCore:
     def every(self):
         """0 … K − 1: every position in the container."""
         return np.arange(len(self.cores))
+    step_layout = Step
 
     def __init__(self, cores):
         self.cores = list(cores)
@@ -117,6 +121,10 @@ class ContainerCore:
         """Do all the agents have one law (and dt)?"""
         self._look()
         return self._one_law
+
+    def finite(self, us):
+        """Which of the controls ``us`` are finite."""
+        return np.isfinite(us)
 
     def kill(self, j: int):
         """Agent j (position in the container) is dead: it never computes or speaks again."""
@@ -153,7 +161,7 @@ class ContainerCore:
                 c.take_reported(s.x[c.index], s.y[c.index], s.qz[c.index], s.qw[c.index])
         us = np.asarray(self.controls(s, go), dtype=float)
         nan = [(int(go[i]), 'reject', ('u-nan', f'non-finite control u={us[i]} at step {n}; holding u=0'))
-               for i in np.flatnonzero(~np.isfinite(us))]
+               for i in np.flatnonzero(~self.finite(us))]
         self.advance(go, us)
         b.step[go] = n + 1
         return go, repeat, out, nan

@@ -42,6 +42,7 @@ from rclpy.utilities import remove_ros_args
 
 from swarm_agent.agent_node import AgentNode
 from swarm_agent.container_core import ContainerCore
+from swarm_agent.natural_core import container_of
 from swarm_agent.process_io import (
     CLOCKS,
     AgentStatesWriter,
@@ -86,7 +87,7 @@ class AgentContainer(Node):
         self.lockstep_clock = declare(self, 'lockstep_clock', 'step', "lockstep: the agents' sim time from each "
                                       'step message (step) or from /clock (topic)', choices=CLOCKS, read_only=True)
         self.reject = RejectLog(self.get_logger())
-        self.lock = ContainerCore([a.core for a in self.agents])
+        self.lock = container_of([a.core for a in self.agents])
         for j, a in enumerate(self.agents):
             a.lock_kill = (lambda j=j: self.lock.kill(j))
         # one sim clock for all agents: their own /clock readers go, their clocks follow one source

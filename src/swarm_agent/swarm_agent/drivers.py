@@ -7,6 +7,7 @@ import numpy as np
 
 from swarm_agent.agent_core import known_table
 from swarm_agent.container_core import ContainerCore
+from swarm_agent.natural_core import container_of
 from swarm_agent.process_io import (
     CLOCKS,
     AgentStatesWriter,
@@ -58,7 +59,7 @@ class LockstepDriver:
         self.node = node
         self.state_subscribers = state_subscribers
         self.lockstep_clock = lockstep_clock
-        self.lock = None if node.contained else ContainerCore([node.core])
+        self.lock = None if node.contained else container_of([node.core])
         self.batch = None
 
     def start(self):

@@ -14,7 +14,7 @@ from std_msgs.msg import Float64MultiArray, String
 from swarm_agent.realtime_core import CATCH_UP_MAX, advance_periods, due_periods, shared_controls
 from swarm_core.laws import LawError
 from swarm_ros import protocol as P
-from swarm_ros.layouts import AgentStates, ProcessStates, Step
+from swarm_ros.layouts import AgentStates, ProcessStates
 from swarm_ros.msg_checks import batch_ok, check_step_time, decoded, new_sender_tag, refused
 from swarm_ros.rosutil import fail
 
@@ -69,6 +69,11 @@ class AgentStatesWriter:
         """The state each of ``agents`` last published on /swarm/states (realtime: with its stamp)."""
         if not agents:
             return
+        if getattr(agents[0], 'dim', 2) == 3:                # a 3D run: from the bank (`NaturalStates`)
+            b = agents[0].core.states
+            msg = b.message(self.tag, [a.index for a in agents], [a.core.slot for a in agents])
+            self.pub.publish(msg.to_cdr(agents[0].run_id))
+            return
         if len(agents) == 1 and not self.realtime:          # a lone agent, each step: no message object
             a = agents[0]
             if self.pack_one is None or self.pack_one[0] != a.run_id:
@@ -87,6 +92,9 @@ class AgentStatesWriter:
         """Lockstep: the states of the agents at positions ``js`` of ``lock`` (a
         `ContainerCore`) straight from its bank of states: one message, no Python per agent."""
         b = lock.bank
+        if lock.dim == 3:
+            self.pub.publish(b.message(self.tag, lock.rows[js], js).to_cdr(run_id))
+            return
         stale = js[~b.fresh[js]]
         if stale.size:
             b.refresh(stale)
@@ -102,12 +110,12 @@ def step_message(raw, lock, agents, reject, batch):
     `AgentStatesWriter`), and only after it each agent's state on /swarm/states.  A step of
     another run (its id, swarm_ros.runinfo), or whose time is no sim time a stamp can hold, is
     rejected (``reject``: the process's `RejectLog`)."""
-    s = decoded(Step, raw, agents[0].run_id, reject, 'step-decode')
+    s = decoded(lock.step_layout, raw, agents[0].run_id, reject, 'step-decode')
     if s is None:
         return None
     if refused(reject, check_step_time(s)):
         return None
-    if len(agents) > 1 and type(batch) is AgentStatesWriter:
+    if (len(agents) > 1 or lock.dim == 3) and type(batch) is AgentStatesWriter:
         return _rows_step(s, lock, agents, batch)
     said = []
     try:

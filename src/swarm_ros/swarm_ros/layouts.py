@@ -93,6 +93,22 @@ def _from_rendezvous(r):
     return point, float(r[4]), bool(r[5] > 0.5), None if r[6] < 0 else float(r[6])
 
 
+def _rendezvous3(rdv) -> list:
+    if rdv is None:
+        return [0.0] * 8
+    point, gain, norm, coupling = rdv
+    x, y, z = (0.0, 0.0, 0.0) if point is None else point
+    return [1.0, 0.0 if point is None else 1.0, float(x), float(y), float(z), float(gain), 1.0 if norm else 0.0,
+            -1.0 if coupling is None else float(coupling)]
+
+
+def _from_rendezvous3(r):
+    if r[0] < 0.5:
+        return None
+    point = (float(r[2]), float(r[3]), float(r[4])) if r[1] > 0.5 else None
+    return point, float(r[5]), bool(r[6] > 0.5), None if r[7] < 0 else float(r[7])
+
+
 #: kind → (value → what the record holds, what the record holds → value); None = as is
 _CODECS = {
     'float': (None, None), 'finite': (None, None), 'count': (None, None),
@@ -104,6 +120,12 @@ _CODECS = {
     'points': (lambda p: np.zeros((0, 2)) if p is None else np.asarray(p, float).reshape(-1, 2),
                lambda v: v.copy() if len(v) else None),
     'rendezvous': (_rendezvous, _from_rendezvous),
+    'point3': (lambda p: [0.0] * 4 if p is None else [1.0, *map(float, np.ravel(p)[:3])],
+               lambda v: v[1:4].copy() if v[0] > 0.5 else None),
+    'points3': (lambda p: np.zeros((0, 3)) if p is None else np.asarray(p, float).reshape(-1, 3),
+                lambda v: v.copy() if len(v) else None),
+    'height': (lambda h: [0.0, 0.0] if h is None else [1.0, float(h)], lambda v: float(v[1]) if v[0] > 0.5 else None),
+    'rendezvous3': (_rendezvous3, _from_rendezvous3),
 }
 _SCALAR = {'float': float, 'finite': float, 'whole': int, 'int': int}
 
@@ -154,9 +176,11 @@ def _small_body(plan: _Plan, values: dict, size: int) -> bytes:
             flat.append(v)
         elif len(shape) == 1:
             flat.extend(v)
-        else:
+        elif len(shape) == 2:
             for row in v:
                 flat.extend(row)
+        else:                                        # (4, K, 3): a 3D run's states
+            flat.extend(np.ravel(v).tolist())
         if len(flat) != b - _RUN_DOUBLES:
             raise ValueError(f'{f.name}: {len(flat) - a + _RUN_DOUBLES} values, not {shape}')
     return struct.pack(f'<{size}d', *flat)
@@ -410,4 +434,51 @@ class RunClock(Packed):
     t: float
 
 
-MESSAGES = (AgentStates, RobotStates, ProcessStates, RealtimeDecision, Step, RunClock)
+# ---------------------------------------------------------------- three dimensions (dim: 3)
+# A 3D run's lockstep messages carry each state exactly as the batch engine holds it: the
+# position r and the frame [x y z] (``state`` (4, K, 3): r, x, y, z), not a quaternion, so that
+# a receiver's table is the batch engine's bit for bit; (u, v) as ``uv`` (K, 2).  A planar run
+# sends the planar layouts above, unchanged.
+
+@declare(LOCK_AGENT_STATES, Field('K', kind='count'), Field('tag', kind='finite'),
+         Field('index', 'K', 'whole'), Field('step', 'K', 'whole'), Field('state', (4, 'K', 3), 'finite'),
+         Field('uv', ('K', 2), 'finite'))
+@dataclasses.dataclass(eq=False)
+class NaturalAgentStates(Packed):
+    """`AgentStates` of a 3D run: each agent's r, x, y, z and the (u, v) its state carries."""
+    tag: float
+    index: np.ndarray        # (K,)
+    step: np.ndarray         # (K,)
+    state: np.ndarray        # (4, K, 3) r, x, y, z
+    uv: np.ndarray           # (K, 2) (u, v)_{step−1}
+
+
+@declare(LOCK_STEP, Field('n', kind='whole'), Field('t'), Field('N', kind='count'), Field('M', kind='count'),
+         Field('lam'), Field('flags', 'N', 'flag'), Field('steering', ('N', 2)), Field('state', (4, 'N', 3)),
+         Field('uv', ('N', 2)), Field('alive', 'N', 'flag'), Field('target', 4, 'point3'),
+         Field('barrier', ('M', 3), 'points3'), Field('ground', 2, 'height'), Field('rendezvous', 8, 'rendezvous3'))
+@dataclasses.dataclass(eq=False)
+class NaturalStep(Packed):
+    """`Step` of a 3D run: s_k = (s_u, s_v), the states r, x, y, z (4, N, 3), (u, v), a 3D
+    target and barrier, the ground's height (or None) and a rendezvous point [x, y, z]."""
+    n: int
+    t: float
+    lam: float
+    flags: np.ndarray
+    steering: np.ndarray     # (N, 2)
+    state: np.ndarray        # (4, N, 3)
+    uv: np.ndarray           # (N, 2)
+    alive: np.ndarray
+    target: Any              # (3,) or None
+    barrier: Any             # (M, 3) or None
+    ground: Any              # float or None
+    rendezvous: Any
+
+    @property
+    def x(self):
+        """The positions' first column (N,): what the rules read for the table's size."""
+        return self.state[0, :, 0]
+
+
+MESSAGES = (AgentStates, RobotStates, ProcessStates, RealtimeDecision, Step, RunClock, NaturalAgentStates,
+            NaturalStep)

@@ -190,9 +190,9 @@ def cdr_to_float64_array(raw: bytes) -> np.ndarray:
 # pose.covariance (36), twist.twist (linear 3, angular 3), twist.covariance (36).
 
 _ODOM_DOUBLES = 7 + 36 + 6 + 36
-_I_X, _I_Y, _I_QX, _I_QY, _I_QZ, _I_QW = 0, 1, 3, 4, 5, 6
+_I_X, _I_Y, _I_Z, _I_QX, _I_QY, _I_QZ, _I_QW = 0, 1, 2, 3, 4, 5, 6
 _I_VX = 43
-_I_WZ = 48
+_I_WY, _I_WZ = 47, 48
 #: pose.covariance[35] (the yaw variance, unused by a planar agent that reports none): the
 #: agent's SENDER TAG, a random integer 1..2^31 each agent process draws once (0 = untagged).
 #: The world and realtime agents bind each agent name to the first tag heard for it and reject
@@ -229,6 +229,16 @@ class OdometryWriter:
                  vx: float = 1.0) -> bytes:
         b = self._body
         b[_I_X], b[_I_Y], b[_I_QZ], b[_I_QW], b[_I_WZ], b[_I_VX] = x, y, qz, qw, wz, vx
+        return CDR_LE + struct.pack('<iI', sec, nanosec) + self._names + b.tobytes()
+
+    def full(self, sec: int, nanosec: int, r, q, u: float, v: float) -> bytes:
+        """A 3D state: position ``r`` (x, y, z), orientation ``q`` (qx, qy, qz, qw: the
+        quaternion of the frame [x y z]), twist.linear.x = 1 and twist.angular = (0, −v, u)
+        (REP 103: u turns x towards y about z, v turns it towards z about −y)."""
+        b = self._body
+        b[_I_X:_I_Z + 1] = r
+        b[_I_QX:_I_QW + 1] = q
+        b[_I_VX], b[_I_WY], b[_I_WZ] = 1.0, -v, u
         return CDR_LE + struct.pack('<iI', sec, nanosec) + self._names + b.tobytes()
 
 

@@ -29,7 +29,7 @@ from swarm_core.analysis import metrics as M
 from swarm_core.command.plan import check_command
 from swarm_core.files import write_atomic
 from swarm_ros import protocol as P
-from swarm_ros.layouts import AgentStates, ProcessStates, RealtimeDecision, RobotStates, RunClock
+from swarm_ros.layouts import AgentStates, NaturalAgentStates, ProcessStates, RealtimeDecision, RobotStates, RunClock
 from swarm_ros.msg_checks import (
     NewestStates,
     ProcessSenders,
@@ -45,6 +45,7 @@ from swarm_ros.run_control import EventRefused, FirstSender, forwarded
 from swarm_world.lateness import TIMING_FILE, Lateness, behind_line, timing_line
 from swarm_world.lockstep import LockstepBarrier, RobotPoseJoin, comms_schedule
 from swarm_world.markers import stamp
+from swarm_world.natural import NaturalBarrier, check_natural_states, natural_check
 from swarm_world.realtime import RealtimeSchedule, SilenceWatch, clock_tick, decision_valid, newest_view
 from swarm_world.wallclock import StallWatch, StartWatch
 
@@ -64,9 +65,10 @@ class LockstepDriver:
         self.start_timeout = start_timeout
         self.missing_timeout = missing_timeout
         self.robot_poses = robot_poses
-        self.lock = LockstepBarrier(node.names, node.steps, node.dt, node.faults, node.rec,
-                                    comms_events=comms_schedule(node.scn.spec.comms, node.dt), clock_every=clock_every,
-                                    geometry=lambda: (node.target, node.barrier), decide=self.decide)
+        barrier, more = (NaturalBarrier, dict(ground=node.ground)) if node.dim == 3 else (LockstepBarrier, {})
+        self.lock = barrier(node.names, node.steps, node.dt, node.faults, node.rec,
+                            comms_events=comms_schedule(node.scn.spec.comms, node.dt), clock_every=clock_every,
+                            geometry=lambda: (node.target, node.barrier), decide=self.decide, **more)
         self.plan = node.scn.command_plan()
         self.pending = []        # the commander's live commands, for the next decision
         self.commander = FirstSender(P.LOCK_COMMAND)
@@ -111,11 +113,18 @@ class LockstepDriver:
     def on_agent_states(self, raw):
         """The states of one agent process's agents (serialized /lockstep/agent_states)."""
         node = self.node
-        m = decoded(AgentStates, raw, node.run_id, node.reject, 'state-decode')
-        if m is None:
-            return
-        tag, idx, ks, vals, u = m.tag, m.index, m.step, m.pose, m.u
-        why = check_agent_states(idx, vals, node.n)
+        if node.dim == 3:           # r, x, y, z and (u, v) (`layouts.NaturalAgentStates`)
+            m = decoded(NaturalAgentStates, raw, node.run_id, node.reject, 'state-decode')
+            if m is None:
+                return
+            tag, idx, ks, vals, u = m.tag, m.index, m.step, m.state, m.uv
+            why = check_natural_states(idx, vals, node.n, P.LOCK_AGENT_STATES)
+        else:
+            m = decoded(AgentStates, raw, node.run_id, node.reject, 'state-decode')
+            if m is None:
+                return
+            tag, idx, ks, vals, u = m.tag, m.index, m.step, m.pose, m.u
+            why = check_agent_states(idx, vals, node.n)
         if why is None:
             ok, why = self.process_senders.check(idx, tag)
             if not ok.all():
@@ -129,7 +138,7 @@ class LockstepDriver:
             idx, ks, vals, u = self.join.from_agents(idx, ks, vals, u)
         elif idx.size == 1:             # a lone agent's answer: no index arrays (`on_state`)
             self.watch.progressed(time.monotonic())
-            self.after(self.lock.on_state(int(idx[0]), int(ks[0]), vals[:, 0], float(u[0])))
+            self.after(self.lock.on_state(int(idx[0]), int(ks[0]), vals[:, 0], u[0] if u.ndim > 1 else float(u[0])))
             return
         self.take_states(idx, ks, vals, u)
 
@@ -234,7 +243,9 @@ class LockstepDriver:
         node = self.node
         pos = node.rec.r[k, idx]
         t = k * node.dt
-        md, complaints = node.obs.check(t, pos, lambda: [node.names[i] for i in idx], node.barrier_geom)
+        names = lambda: [node.names[i] for i in idx]      # noqa: E731
+        md, complaints = natural_check(node.obs, t, pos, names, node.barrier_geom, node.ground) if node.dim == 3 \
+            else node.obs.check(t, pos, names, node.barrier_geom)
         for kind, text in complaints:
             node.reject(kind, text)
         el = time.monotonic() - (node.run_wall or node.wall_start)
@@ -242,7 +253,7 @@ class LockstepDriver:
         if line:
             node.log(line, flush=True)
         if node.view_every and k % node.view_every == 0:
-            node.publish_view(t, pos, node.rec.theta[k, idx], md, idx)
+            node.publish_view(t, pos, node.rec.x[k, idx] if node.dim == 3 else node.rec.theta[k, idx], md, idx)
 
     # ------------------------------------------------------------ wall clock
     def tick(self):

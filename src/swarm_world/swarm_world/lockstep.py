@@ -191,7 +191,7 @@ class LockstepBarrier:
         values (4,), u), without index arrays when it is the state the world waits for
         (alive, of the wanted step); any other goes through `on_states`."""
         if not (self.faults.alive[i] and k == self.want[i]):
-            return self.on_states(np.array([i]), np.array([k]), vals.reshape(4, 1), np.array([u]))
+            return self.on_states(np.array([i]), np.array([k]), vals[:, None], np.array([u]))
         self._take(i, k, vals, u)                          # alive, wanted: taken, no actions
         return [], self.advance()
 
@@ -240,8 +240,7 @@ class LockstepBarrier:
             self.rec.record_u(self.steps, alive, self.buf_u)
             self.done = True
             return [('finish',)]
-        x, y, qz, qw = self.buf
-        self.rec.record_states(k, alive, x, y, qz, qw)
+        self.rec.record_states(k, alive, *self.buf)
         if k > 0:
             self.rec.record_u(k - 1, self.fresh & alive, self.buf_u)
         t = k * self.dt
@@ -254,9 +253,7 @@ class LockstepBarrier:
         self.slots = dict(zip(np.asarray(d.slots)[has].tolist(), has.tolist()))
         self.lam, self.leaders = d.lam, d.flags & alive
         self.rec.record_decision(k, d.lam, self.leaders)
-        target, barrier = self.geometry()
-        data = Step(k, t, d.lam, d.flags, d.steering, *self.buf.copy(), self.buf_u.copy(), alive.copy(),
-                    target, barrier, d.rendezvous)
+        data = self.message(k, t, d, alive)
         while self.comms_events and self.comms_events[0][0] <= k:
             acts.append(('comms', k, self.comms_events.pop(0)[1]))
         acts.append(('step', data))
@@ -268,6 +265,12 @@ class LockstepBarrier:
         if self.deserted():
             return acts + self._fail('every agent is killed or lost')
         return acts + self.advance()             # nobody to wait for (all frozen): the step goes on
+
+    def message(self, k, t, d, alive):
+        """The step message of step k at time t with decision ``d`` (a `Step`)."""
+        target, barrier = self.geometry()
+        return Step(k, t, d.lam, d.flags, d.steering, *self.buf.copy(), self.buf_u.copy(), alive.copy(),
+                    target, barrier, d.rendezvous)
 
     def _decide(self, t, alive):
         """The plan's decision at t on the table held: the positions, the frames the agents

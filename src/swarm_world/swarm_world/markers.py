@@ -45,10 +45,13 @@ def geometry_messages(t, target, barrier):
     ts.header.stamp = stamp(t)
     if target is not None:
         ts.point.x, ts.point.y = float(target[0]), float(target[1])
+        if len(target) == 3:                       # a 3D target
+            ts.point.z = float(target[2])
     bs = PolygonStamped()
     bs.header = ts.header
     if barrier is not None:
-        bs.polygon.points = [Point32(x=float(x), y=float(y)) for x, y in barrier]
+        bs.polygon.points = [Point32(x=float(p[0]), y=float(p[1]), z=float(p[2]) if len(p) == 3 else 0.0)
+                             for p in barrier]
     return (ts if target is not None else None), bs
 
 

@@ -41,6 +41,6 @@ class Observer:
         if self.progress_every <= 0 or t < self.next_progress:
             return None
         self.next_progress = t + self.progress_every
-        c, _ = M.cluster_labels(pos, self.cutoff_radius)
+        c, _ = (M.cluster_labels_3d if pos.shape[1] == 3 else M.cluster_labels)(pos, self.cutoff_radius)
         line = f'[world] t={t:8.2f}  clusters={c}  λ={lam:.3f}  min_dist={md:.3f}'
         return line if rate is None else line + f'  ({rate:.0f} steps/s)'

@@ -10,38 +10,38 @@ from swarm_core.checks import PAUSE_BOUND, json_value
 from swarm_core.faults.agents import FAULT_KINDS, Fault
 
 
-def parse_point(text):
-    """``"x,y"`` → array [x, y]; ``""`` → None."""
+def parse_point(text, dim=2):
+    """``"x,y"`` (``"x,y,z"`` with dim 3) → array [x, y(, z)]; ``""`` → None."""
     text = text.strip()
     if not text:
         return None
     vals = [float(v) for v in text.split(',')]
-    if len(vals) != 2 or not all(math.isfinite(v) for v in vals):
-        raise ValueError(f'{text!r} is not "x,y" with finite numbers')
+    if len(vals) != dim or not all(math.isfinite(v) for v in vals):
+        raise ValueError(f'{text!r} is not "{",".join("xyz"[:dim])}" with finite numbers')
     return np.array(vals)
 
 
-def parse_points(text):
-    """``"x,y;x,y;…"`` → array (m, 2); ``""`` → None."""
+def parse_points(text, dim=2):
+    """``"x,y;x,y;…"`` → array (m, 2) (``"x,y,z;…"`` → (m, 3) with dim 3); ``""`` → None."""
     text = text.strip()
     if not text:
         return None
-    pts = [parse_point(p) for p in text.split(';') if p.strip()]
+    pts = [parse_point(p, dim) for p in text.split(';') if p.strip()]
     return np.array(pts) if pts else None
 
 
 def format_points(pts):
     """The inverse of `parse_points` (exact: floats as repr)."""
-    return '' if pts is None else ';'.join(f'{float(x)!r},{float(y)!r}' for x, y in np.atleast_2d(pts))
+    return '' if pts is None else ';'.join(','.join(f'{float(v)!r}' for v in p) for p in np.atleast_2d(pts))
 
 
-def parse_geometry(values, target, barrier):
+def parse_geometry(values, target, barrier, dim=2):
     """(target, barrier) after the parameter texts in ``values`` (``target`` and/or
     ``barrier`` → text); what ``values`` lacks is kept."""
     if 'target' in values:
-        target = parse_point(values['target'])
+        target = parse_point(values['target'], dim)
     if 'barrier' in values:
-        barrier = parse_points(values['barrier'])
+        barrier = parse_points(values['barrier'], dim)
     return target, barrier
 
 

@@ -45,6 +45,7 @@ from swarm_ros.scenario_params import declare_scenario
 from swarm_world.drivers import DRIVERS
 from swarm_world.lateness import TIMING_FILE
 from swarm_world.markers import Trails, geometry_messages, markers_every, markers_message, metrics_message, view_values
+from swarm_world.natural import NaturalRecorder, natural_view
 from swarm_world.observe import Observer
 from swarm_world.parameters import MODE_PARAMETERS, WORLD
 from swarm_world.parsing import fault_request, format_points, parse_geometry, parse_point, parse_points
@@ -71,8 +72,8 @@ class WorldNode(Node):
         self._open_events_file()
         self.add_on_set_parameters_callback(self._on_params)
         self.reject = RejectLog(self.get_logger())
-        self.rec = TrajectoryRecorder(self.names, self.steps, self.dt, self.scn.theta0,
-                                      realtime=self.mode == 'realtime')
+        self.rec = NaturalRecorder(self.names, self.steps, self.dt) if self.dim == 3 else \
+            TrajectoryRecorder(self.names, self.steps, self.dt, self.scn.theta0, realtime=self.mode == 'realtime')
         self.obs = Observer(self.collision_distance, self.w, self.progress_every)
         self.driver = DRIVERS[self.mode](self, **mode_parameters)
         self._create_endpoints()
@@ -118,10 +119,14 @@ class WorldNode(Node):
         self.w = self.scn.law.cutoff_radius
         self.target = self.scn.target
         self.barrier = self.scn.barrier
+        self.dim = self.scn.dim
+        self.ground = self.scn.ground if self.dim == 3 else None
+        xy = 'x,y' if self.dim == 2 else 'x,y,z'
         try:
-            self.target = parse_point(d('target', format_points(self.target), 'target "x,y" ("" = none); movable'))
+            self.target = parse_point(d('target', format_points(self.target), f'target "{xy}" ("" = none); movable'),
+                                      self.dim)
             self.barrier = parse_points(d('barrier', format_points(self.barrier),
-                                          'barrier hull "x,y;x,y;..." ("" = none); movable'))
+                                          f'barrier hull "{xy};{xy};..." ("" = none); movable'), self.dim)
         except ValueError as err:
             raise ParameterError(f'parameter target/barrier: {err}') from None
         self.barrier_geom = M.Barrier(self.barrier) if self.barrier is not None else None
@@ -168,7 +173,7 @@ class WorldNode(Node):
     def _on_params(self, params):
         values = {p.name: p.value for p in params if p.name in ('target', 'barrier')}
         try:
-            new_t, new_b = parse_geometry(values, self.target, self.barrier)
+            new_t, new_b = parse_geometry(values, self.target, self.barrier, self.dim)
         except (ValueError, TypeError) as err:
             self.get_logger().warning(f'rejected parameter: {err}')
             return SetParametersResult(successful=False, reason=str(err))
@@ -293,8 +298,16 @@ class WorldNode(Node):
     # ------------------------------------------------------------ view
     def publish_view(self, t, pos, theta, md, idx=None, timing=None):
         """Metrics and markers of agents ``idx`` (default all) at rows pos, theta; realtime:
-        with the ``timing`` so far (`Lateness.summary`)."""
+        with the ``timing`` so far (`Lateness.summary`).  A 3D run (``theta``: the headings x
+        (m, 3)) publishes its metrics only."""
         idx = np.arange(len(pos)) if idx is None else idx
+        if self.dim == 3:
+            leaders = [self.names[i] for i in np.flatnonzero(self.leaders_now)]
+            self.pub_metrics.publish(metrics_message(t, natural_view(
+                t, pos, theta, self.w, md, self.lam_now, leaders, self.target, intrusions=self.obs.intrusions,
+                collisions=self.obs.collisions, cutoff_radius=self.w)))
+            self.views += 1
+            return
         c, labels = M.cluster_labels(pos, self.w)
         leaders = [self.names[i] for i in np.flatnonzero(self.leaders_now)]
         vals = view_values(t, pos, theta, c, md, self.lam_now, leaders, self.target,

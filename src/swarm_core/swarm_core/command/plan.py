@@ -51,7 +51,13 @@ def check_command(cmd: dict, n_agents: int) -> dict:
                              f'numbers, booleans or strings, got {str(changes)[:80]}')
         out['agent'] = _agent_index(out.get('agent'), 'law', n_agents)
         return out
-    out['value'] = (LAMBDA_BOUND if kind == 'lambda' else STEERING_BOUND).check(out.get('value'))
+    value = out.get('value')
+    if kind == 'steer' and isinstance(value, (list, tuple)):     # 3D: (s_u, s_v)
+        if len(value) != 2:
+            raise ValueError(f'steer command: a value of {len(value)} numbers (want s, or [s_u, s_v] in 3D)')
+        out['value'] = tuple(STEERING_BOUND.check(v) for v in value)
+    else:
+        out['value'] = (LAMBDA_BOUND if kind == 'lambda' else STEERING_BOUND).check(value)
     if kind == 'lambda':
         out['ramp'] = RAMP_BOUND.check(out.get('ramp', 0.0))
         out.setdefault('shape', 'smoothstep')

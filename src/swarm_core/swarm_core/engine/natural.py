@@ -43,8 +43,8 @@ class NaturalStepper:
         self.plan = scn.command_plan()
         self.receivers = np.arange(self.n)
         self.commands = commands or {}
-        if any(c['command'] == 'steer' for cmds in self.commands.values() for c in cmds):
-            raise ValueError('a steer command carries one curvature: planar only for now (dim: 3 needs (s_u, s_v))')
+        if any(c['command'] == 'steer' and np.ndim(c['value']) == 0 for cmds in self.commands.values() for c in cmds):
+            raise ValueError('a steer command of one curvature is planar (dim: 3 needs (s_u, s_v))')
         self.law_changes = law_timeline(self.commands, self.law, self.n)
         self.law_groups = None              # after a live law change: [(law, agent indices)]
         noise = scn.spec.noise

@@ -110,3 +110,40 @@ def natural_rk4_step(r, x, y, z, t, dt, control):
     k4 = f(t + dt, tuple(a + dt * b for a, b in zip(state, k3)))
     r, x, y, z = (a + dt / 6 * (p + 2 * q + 2 * s + w) for a, p, q, s, w in zip(state, k1, k2, k3, k4))
     return (r, *orthonormalise(x, y))
+
+
+def quaternion_from_frame(x, y, z):
+    """(qx, qy, qz, qw) (N,) each of the rotations R = [x y z] (columns: the frames (N, 3)),
+    qw ≥ 0 (Shepperd's method: the largest of 1 + trace, 1 + 2R_ii − trace first).  A planar
+    frame (x = (cos θ, sin θ, 0), z = e_z) gives (0, 0, sin θ/2, cos θ/2) up to sign."""
+    x, y, z = (np.asarray(f, float).reshape(-1, 3) for f in (x, y, z))
+    m00, m10, m20 = x.T
+    m01, m11, m21 = y.T
+    m02, m12, m22 = z.T
+    cand = np.stack([1.0 + m00 + m11 + m22, 1.0 + m00 - m11 - m22, 1.0 - m00 + m11 - m22, 1.0 - m00 - m11 + m22])
+    best = cand.argmax(axis=0)
+    s = 2.0 * np.sqrt(np.maximum(cand[best, np.arange(len(best))], 1e-300))
+    q = np.empty((4, len(best)))                                           # qw, qx, qy, qz
+    rows = (
+        (0.25 * s, (m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s),
+        ((m21 - m12) / s, 0.25 * s, (m01 + m10) / s, (m02 + m20) / s),
+        ((m02 - m20) / s, (m01 + m10) / s, 0.25 * s, (m12 + m21) / s),
+        ((m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s),
+    )
+    for b, row in enumerate(rows):
+        pick = best == b
+        for i in range(4):
+            q[i, pick] = row[i][pick]
+    q *= np.where(q[0] < 0.0, -1.0, 1.0)
+    q /= np.linalg.norm(q, axis=0)
+    return q[1], q[2], q[3], q[0]
+
+
+def frame_from_quaternion_3d(qx, qy, qz, qw):
+    """The frames x, y, z (N, 3) each (the columns of R) of unit quaternions (N,): the inverse
+    of `quaternion_from_frame` to rounding."""
+    qx, qy, qz, qw = (np.asarray(q, float).reshape(-1) for q in (qx, qy, qz, qw))
+    x = np.stack([1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy + qz * qw), 2 * (qx * qz - qy * qw)], axis=1)
+    y = np.stack([2 * (qx * qy - qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz + qx * qw)], axis=1)
+    z = np.stack([2 * (qx * qz + qy * qw), 2 * (qy * qz - qx * qw), 1 - 2 * (qx * qx + qy * qy)], axis=1)
+    return x, y, z

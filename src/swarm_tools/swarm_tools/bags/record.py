@@ -125,11 +125,15 @@ SWARM_TYPES = {
 }
 
 
-def swarm_type(topic: str) -> str | None:
-    """The type of one of the project's topics (an agent's ``/NAME/steering`` included), or None
-    for a topic that is not the project's."""
+#: an agent's ``/NAME/steering``: a curvature, or (s_u, s_v) in a 3D run
+STEERING_TYPES = {2: 'std_msgs/msg/Float64', 3: 'std_msgs/msg/Float64MultiArray'}
+
+
+def swarm_type(topic: str, dim: int = 2) -> str | None:
+    """The type of one of the project's topics (an agent's ``/NAME/steering`` included: in a
+    run of ``dim`` dimensions), or None for a topic that is not the project's."""
     if re.fullmatch(r'/[^/]+/steering', topic):
-        return 'std_msgs/msg/Float64'
+        return STEERING_TYPES[dim]
     return SWARM_TYPES.get(topic)
 
 
@@ -144,12 +148,12 @@ SWARM_TOPICS = {topic: (SWARM_TYPES[topic], durability) for topic, durability in
     ('/world/markers', 2), ('/world/metrics', 2))}
 
 
-def presubscribed(agents=()) -> dict:
+def presubscribed(agents=(), dim: int = 2) -> dict:
     """`SWARM_TOPICS` and the steering topic of each of ``agents`` (latched, as the commander
     offers it): subscribed at start-up, before the run's nodes exist.  Found in the graph later,
     a hundred steering topics cost the recorder one poll of 80-180 ms of CPU, at a time when a
     realtime run's clock may already be running."""
-    steering = {P.steering_topic(nm): (swarm_type(P.steering_topic(nm)), 1) for nm in agents}
+    steering = {P.steering_topic(nm): (swarm_type(P.steering_topic(nm), dim), 1) for nm in agents}
     return {**SWARM_TOPICS, **steering}
 
 
@@ -196,6 +200,7 @@ class Recorder:
         self.subs = {}
         self.sub_type: dict[str, str] = {}
         self.skipped: set[str] = set()
+        self.dim = 2                 # the run's dimensions (its steering topics' type: `swarm_type`)
         self.states: dict[str, set] = {}
         self.write_error: OSError | None = None      # the disk is full or gone: the recording ends
         self.said_commands = False   # the line about commands' writers (`_events`) was said
@@ -264,7 +269,7 @@ class Recorder:
     def topic_type(self, topic, infos, types) -> str:
         """The one type ``topic`` is recorded with: the project's own for its topics
         (`swarm_type`), else the type it was subscribed with, else its first writer's."""
-        return swarm_type(topic) or self.sub_type.get(topic) or infos[0].topic_type or types[0]
+        return swarm_type(topic, self.dim) or self.sub_type.get(topic) or infos[0].topic_type or types[0]
 
     def _note_foreign(self, topic, type_name, infos):
         """Count and log (once per writer) the writers of ``topic`` of another type than
@@ -395,8 +400,9 @@ class Recorder:
     def refused_lines(self) -> list[str]:
         """What was not recorded, in lines: each topic's writers of another type, and the
         count of everything refused (`reject`)."""
+        own = lambda topic: self.sub_type.get(topic) or swarm_type(topic, self.dim)     # noqa: E731
         lines = [f'{topic}: {sum(len(g) for g in by_type.values())} writer(s) of another type '
-                 f'({", ".join(sorted(by_type))}) not recorded; {self.sub_type.get(topic) or swarm_type(topic)} '
+                 f'({", ".join(sorted(by_type))}) not recorded; {own(topic)} '
                  'recorded' for topic, by_type in sorted(self.foreign.items())]
         return lines + ([self.reject.summary()] if self.reject.count else [])
 
@@ -430,6 +436,8 @@ def parse_args(argv):
     p.add_argument('--agents', nargs='+', metavar='NAME', default=[],
                    help="the run's agents: their /NAME/steering topics are subscribed at start-up too "
                         '(swarm run passes its roster)')
+    p.add_argument('--dim', type=int, choices=(2, 3), default=2,
+                   help="the run's dimensions: its steering topics carry (s_u, s_v) in 3D (swarm run passes it)")
     p.add_argument('--quiet', '-q', action='store_true', help='no per-topic summary')
     a = p.parse_args(argv)
     if a.duration is not None and not a.duration > 0:
@@ -458,7 +466,8 @@ def main(argv=None) -> int:
                              start_parameter_services=False)
     rec = Recorder(node, writer, TopicFilter(args.topics, args.exclude),
                    log=lambda s: print(s, file=sys.stderr, flush=True),
-                   presubscribe=None if args.no_presubscribe else presubscribed(args.agents))
+                   presubscribe=None if args.no_presubscribe else presubscribed(args.agents, args.dim))
+    rec.dim = args.dim
     executor = make_executor(node.context)      # the EventsExecutor: ~10x cheaper per message (measured)
     executor.add_node(node)
     print(f'swarm record: ready, recording to {args.out}', file=sys.stderr, flush=True)

@@ -38,9 +38,9 @@ def load_scenario(prog: str, a):
     except ScenarioError as err:
         print(f'{prog}: {err}', file=sys.stderr)
         return None, None
-    if scn.dim == 3:
-        print(f'{prog}: {scn.source}: a 3D scenario (dim: 3) runs in `swarm simulate` and `swarm sweep`; '
-              'the ROS nodes are planar for now', file=sys.stderr)
+    why = not_yet_3d(scn, a)
+    if why:
+        print(f'{prog}: {scn.source}: a 3D scenario (dim: 3) {why}', file=sys.stderr)
         return None, None
     ref = a.scenario
     if Path(a.scenario).suffix in ('.yaml', '.yml') or Path(a.scenario).exists():
@@ -48,11 +48,29 @@ def load_scenario(prog: str, a):
     return scn, ref
 
 
+def not_yet_3d(scn, a) -> str | None:
+    """What a 3D scenario cannot do on ROS yet with options ``a`` (the rest of a line), or None:
+    lockstep runs; realtime, robots and the radio model are refused."""
+    if scn.dim != 3:
+        return None
+    if getattr(a, 'mode', 'lockstep') != 'lockstep':
+        return 'runs on ROS in lockstep only for now (--mode lockstep; realtime is planar for now)'
+    if getattr(a, 'robots', None):
+        return 'cannot drive robots: robots are planar for now'
+    if scn.comms_config() is not None:
+        return 'with a radio model (comms) runs in `swarm simulate` only for now'
+    return None
+
+
 def agent_parameters(scn, i: int, mode: str, pair_sums: str = 'numpy') -> dict:
     noise = scn.spec.noise
+    if scn.dim == 3:             # r and the initial frame [x y z] (9 numbers: x, y, z)
+        pose = dict(x=float(scn.pos0[i, 0]), y=float(scn.pos0[i, 1]), z=float(scn.pos0[i, 2]), theta=0.0, dim=3,
+                    frame=[float(v) for f in scn.frames0 for v in f[i]])
+    else:
+        pose = dict(x=float(scn.pos0[i, 0]), y=float(scn.pos0[i, 1]), theta=float(scn.theta0[i]))
     return dict(agent_name=scn.names[i], agent_index=i, agent_names=list(scn.names), leader=False, pair_sums=pair_sums,
-                x=float(scn.pos0[i, 0]), y=float(scn.pos0[i, 1]), theta=float(scn.theta0[i]),
-                **flat_parameters(scn.law), dt=scn.dt, mode=mode,
+                **pose, **flat_parameters(scn.law), dt=scn.dt, mode=mode,
                 noise_position=float(noise.position), noise_heading=float(noise.heading),
                 seed=int(scn.seed), use_sim_time=True,
                 comms=json.dumps(scn.comms_config()) if scn.comms_config() is not None else '')

@@ -403,7 +403,8 @@ def start_recorder(sup, record, env, params: dict, params_file) -> bool:
     roster = [p['agent_name'] for fqn, p in params.items() if fqn.endswith('/agent')]
     excluded = [P.LOCK_AGENT_STATES, P.LOCK_ROBOT_STATES, P.AGENT_STATES, P.RUN_CLOCK]
     rec = sup.start('record', [_exe('swarm'), 'record', '--out', str(record), '--exclude', *excluded]
-                    + (['--agents', *roster] if roster else []),
+                    + (['--agents', *roster] if roster else [])
+                    + (['--dim', '3'] if any(p.get('dim') == 3 for p in params.values()) else []),
                     dds.super_client(env), stderr=subprocess.PIPE, text=True, bufsize=1)
     if wait_until_ready(rec, 'swarm record: ready', RECORDER_READY_TIMEOUT):
         return True

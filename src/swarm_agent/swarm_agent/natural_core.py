@@ -1,0 +1,223 @@
+"""The agents of a 3D run (``dim: 3``), without ROS: their states in one bank and their lockstep
+step, exactly as `swarm_core.engine.natural` steps the whole swarm.
+
+Each agent holds its position r (3,) and its frame [x y z] (3 × (3,)) as float64, never a
+quaternion: the lockstep messages carry r, x, y and z as they are (`swarm_ros.layouts.NaturalStep`),
+so every receiver's table is the batch engine's bit for bit.  Per step message a container
+(`NaturalContainerCore`, a lone agent being a container of one) follows the rules of
+`container_core.ContainerCore` (repeat, silent, back, reject, move) and then:
+
+1. (u, v) of its moving agents from `swarm_core.step.natural_alive_control` over the step's
+   table, asked for EVERY receiver of the table (the batch engine's call, receivers 0..N−1) and
+   read at the agents' rows, so each agent's (u, v) is the batch engine's whatever K is;
+2. one `model.natural.natural_step` over their rows (elementwise: the same bits for any K);
+3. each noisy agent's own draw (U(−p, p) on r; the heading turned by two angles, as the engine);
+4. Gram-Schmidt (`orthonormalise`) after every `ORTHONORMALISE_EVERY`-th step, as the engine.
+
+What an agent publishes on /swarm/states carries the quaternion of its frame
+(`model.natural.quaternion_from_frame`) and twist.angular = (0, −v, u).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from swarm_agent.container_core import ContainerCore
+from swarm_core.laws import Law, LawError, failed_at
+from swarm_core.model.natural import ORTHONORMALISE_EVERY, natural_step, orthonormalise, quaternion_from_frame
+from swarm_core.step import natural_alive_control
+from swarm_ros.layouts import NaturalAgentStates, NaturalStep
+
+
+class NaturalStates:
+    """The own states of the agents of one 3D process, a row each: r, x, y, z (K, 3), the (u, v)
+    held, the step held, ``silent`` (out of the table) and the flags a container looks at."""
+
+    ROWS = ('pos', 'x', 'y', 'z', 'u', 'v', 'step', 'silent', 'radio', 'robot', 'noisy')
+    __slots__ = ROWS + ('changes',)
+
+    def __init__(self, k: int):
+        self.pos, self.x, self.y, self.z = (np.zeros((k, 3)) for _ in range(4))
+        self.u, self.v = np.zeros(k), np.zeros(k)
+        self.step = np.zeros(k, dtype=np.int64)
+        self.silent, self.radio, self.robot, self.noisy = (np.zeros(k, dtype=bool) for _ in range(4))
+        self.changes = 0        # laws given to the rows' agents so far (`ContainerCore.one_law`)
+
+    @classmethod
+    def of(cls, cores) -> NaturalStates:
+        """One bank for ``cores``: their rows copied in; each core reads and writes its row here."""
+        bank = cls(len(cores))
+        for j, c in enumerate(cores):
+            old, i = c.states, c.slot
+            for name in cls.ROWS:
+                getattr(bank, name)[j] = getattr(old, name)[i]
+            c.states, c.slot = bank, j
+        return bank
+
+    def message(self, tag, index, rows) -> NaturalAgentStates:
+        """The states of the bank's ``rows`` (agents ``index``) for the world."""
+        state = np.stack([self.pos[rows], self.x[rows], self.y[rows], self.z[rows]])
+        return NaturalAgentStates(tag, index, self.step[rows], state, np.stack([self.u[rows], self.v[rows]], axis=1))
+
+
+def _row(name, kind=float):
+    def get(self):
+        return kind(getattr(self.states, name)[self.slot])
+
+    def put(self, value):
+        getattr(self.states, name)[self.slot] = value
+    return property(get, put)
+
+
+class NaturalAgentCore:
+    """One agent of a 3D run: its row of a `NaturalStates` bank, its law, dt and noise."""
+
+    step = _row('step', int)
+    silent = _row('silent', bool)
+    u_last = _row('u')
+    dim = 3
+
+    def __init__(self, index: int, n_agents: int, pos, frame, law: Law, dt: float, noise=(0.0, 0.0), noise_rng=None):
+        self.index, self.n = int(index), int(n_agents)
+        self.states, self.slot = NaturalStates(1), 0
+        b = self.states
+        b.pos[0] = pos
+        b.x[0], b.y[0], b.z[0] = np.asarray(frame, float).reshape(3, 3)
+        self.law = law
+        self.dt = float(dt)
+        self.noise_scale = np.array([noise[0]] * 3 + [noise[1]] * 2, dtype=float)
+        self.noisy = bool(np.any(self.noise_scale > 0))
+        b.noisy[0] = self.noisy
+        self.rng = noise_rng
+        self.comms = None
+        self.reported = False
+        self.pairs = None
+        self.seen = None
+
+    @property
+    def law(self):
+        return self._law
+
+    @law.setter
+    def law(self, law):
+        self._law = law
+        self.states.changes += 1
+
+    def sums_compiled(self):
+        """The 3D sums choose their kernels by the table's size (`natural_compiled.use_compiled`),
+        as the batch engine does: nothing to set."""
+
+    def attach_comms(self, model):
+        raise LawError('a radio model in a 3D ROS run: the radio in 3D runs in swarm simulate for now')
+
+    @property
+    def row(self):
+        """(r, x, y, z) of this agent, (3,) each (copies)."""
+        b, j = self.states, self.slot
+        return b.pos[j].copy(), b.x[j].copy(), b.y[j].copy(), b.z[j].copy()
+
+    @property
+    def quaternion(self):
+        """(qx, qy, qz, qw) of its frame [x y z]."""
+        b, j = self.states, self.slot
+        return tuple(float(q[0]) for q in quaternion_from_frame(b.x[j], b.y[j], b.z[j]))
+
+    def trial(self, law: Law) -> str | None:
+        """Try ``law`` on the table of this agent's last (u, v) (before its first: its own state
+        alone at λ = 0): None if it gives a finite (u, v), else the one line why."""
+        pos, frames, row, lam, flags, steering, target, barrier, ground, alive, rdv, t = self.seen or (
+            self.states.pos[self.slot:self.slot + 1], tuple(f[self.slot:self.slot + 1] for f in (
+                self.states.x, self.states.y, self.states.z)), 0, 0.0, None, np.zeros((1, 2)), None, None, None,
+            None, None, self.step * self.dt)
+        try:
+            uv = natural_alive_control(pos, frames, np.arange(len(pos)), law, lam, flags, steering, target, barrier,
+                                       ground, alive=alive, rendezvous=rdv, t=t)[row]
+        except LawError as err:
+            return str(err)
+        if not np.all(np.isfinite(uv)):
+            return f'law {law.kind} gives a non-finite (u, v) ({uv.tolist()!r}) on this agent\'s last table'
+        return None
+
+
+class NaturalContainerCore(ContainerCore):
+    """Lockstep of K agents of a 3D run in one process (`ContainerCore`'s rules over a
+    `NaturalStates` bank); see the module docstring."""
+
+    dim = 3
+    step_layout = NaturalStep
+
+    def __init__(self, cores):
+        self.cores = list(cores)
+        if not self.cores:
+            raise ValueError('a container needs at least one agent')
+        self.n = self.cores[0].n
+        self.rows = np.array([c.index for c in self.cores], dtype=np.intp)
+        self.bank = NaturalStates.of(self.cores)
+        self.dead = np.zeros(len(self.cores), dtype=bool)
+
+    @property
+    def any_reported(self) -> bool:
+        return False
+
+    def controls(self, s, go):
+        """(u, v) (len(go), 2) of the agents ``go`` at step message ``s`` (a `NaturalStep`): the
+        batch engine's call over the whole table (every receiver), read at their rows."""
+        go = np.asarray(go, dtype=np.intp)
+        b, idx = self.bank, self.rows[go]
+        pos, x, y, z = (np.array(a) for a in s.state)            # contiguous (N, 3): the engine's arrays
+        pos[idx], x[idx], y[idx], z[idx] = b.pos[go], b.x[go], b.y[go], b.z[go]
+        alive = s.alive if len(s.alive) == self.n and not s.alive.all() else None
+        steering = np.asarray(s.steering, float)
+        uv = np.zeros((len(go), 2))
+        groups = {}
+        for j in go.tolist():                                   # one call per law (one in a plain run)
+            groups.setdefault(id(self.cores[j].law), []).append(j)
+        for js in groups.values():
+            law = self.cores[js[0]].law
+            seen = (pos, (x, y, z), None, s.lam, s.flags, steering, s.target, s.barrier, s.ground, alive,
+                    s.rendezvous, s.t)
+            try:
+                every = natural_alive_control(pos, (x, y, z), np.arange(self.n), law, s.lam, s.flags, steering,
+                                              s.target, s.barrier, s.ground, alive=alive, rendezvous=s.rendezvous,
+                                              t=s.t)
+            except LawError as err:   # the process stops on it (`swarm_ros.rosutil.run_node`)
+                raise failed_at(err, s.t) from None
+            for j in js:
+                self.cores[j].seen = seen[:2] + (int(self.rows[j]),) + seen[3:]
+            at = np.searchsorted(go, js)
+            uv[at] = every[self.rows[js]]
+        self.step_n = s.n
+        return uv
+
+    def advance(self, go, us):
+        """One `natural_step` of the agents ``go`` with (u, v) ``us`` (non-finite → 0), each
+        noisy agent's own draw, and Gram-Schmidt where the engine does it (after step n with
+        (n + 1) a multiple of `ORTHONORMALISE_EVERY`)."""
+        b = self.bank
+        go = np.asarray(go, dtype=np.intp)
+        uv = np.asarray(us, dtype=float).reshape(-1, 2).copy()
+        uv[~np.isfinite(uv)] = 0.0
+        b.u[go], b.v[go] = uv[:, 0], uv[:, 1]
+        if not go.size:
+            return
+        pos, x, y, z = natural_step(b.pos[go], b.x[go], b.y[go], b.z[go], uv[:, 0], uv[:, 1], self.cores[go[0]].dt)
+        b.pos[go], b.x[go], b.y[go], b.z[go] = pos, x, y, z
+        for j in go.tolist() if b.noisy.any() else ():
+            c = self.cores[j]
+            if c.noisy:
+                kick = c.rng.uniform(-1.0, 1.0, size=5) * c.noise_scale
+                b.pos[j] = (b.pos[j:j + 1] + kick[None, :3])[0]
+                if c.noise_scale[3] > 0:
+                    _, x, y, z = natural_step(b.pos[j:j + 1], b.x[j:j + 1], b.y[j:j + 1], b.z[j:j + 1],
+                                              kick[3:4], kick[4:5], 1.0)
+                    b.x[j], b.y[j], b.z[j] = x[0], y[0], z[0]
+        if (self.step_n + 1) % ORTHONORMALISE_EVERY == 0:
+            b.x[go], b.y[go], b.z[go] = orthonormalise(b.x[go], b.y[go])
+
+    def finite(self, us):
+        """Which rows of ``us`` (K, 2) are finite."""
+        return np.isfinite(us).all(axis=1)
+
+
+def container_of(cores):
+    """The lockstep container of ``cores``: a `NaturalContainerCore` for a 3D run's agents."""
+    return (NaturalContainerCore if getattr(cores[0], 'dim', 2) == 3 else ContainerCore)(cores)

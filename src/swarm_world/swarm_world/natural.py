@@ -1,0 +1,141 @@
+"""The world of a 3D run (``dim: 3``), without ROS: its lockstep barrier, record and checks.
+
+The agents send r and the frame [x y z] exactly (`swarm_ros.layouts.NaturalAgentStates`); the
+barrier holds them as (4, N, 3) (r, x, y, z) and (u, v) as (N, 2), decides each step with the
+scenario's plan on the positions in space and the headings x seen from above (as
+`swarm_core.engine.natural` calls it), and relays them in one `NaturalStep`.  The record is
+what `engine.natural` writes: r, x, y, z (T, N, 3), u and v (T, N).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from swarm_core.analysis import metrics as M
+from swarm_core.engine.trajectory import Trajectory
+from swarm_ros.layouts import NaturalStep
+from swarm_ros.msg_checks import reason
+from swarm_world.lockstep import LockstepBarrier
+
+
+class NaturalBarrier(LockstepBarrier):
+    """`LockstepBarrier` of a 3D run: states (4, N, 3), (u, v) (N, 2); ``ground`` the floor's
+    height (or None) relayed with the target and barrier."""
+
+    def __init__(self, *args, ground=None, **kw):
+        super().__init__(*args, **kw)
+        self.buf = np.zeros((4, self.n, 3))          # r, x, y, z of step cur
+        self.buf_u = np.zeros((self.n, 2))           # (u, v)_{cur−1}
+        self.ground = ground
+
+    def _decide(self, t, alive):
+        """The plan on the positions in space and the headings' (x, y) (`engine.natural`)."""
+        r, x = self.buf[0], self.buf[1]
+        return self.decide(t, r.copy(), x[:, 0].copy(), x[:, 1].copy(), alive.copy())
+
+    def message(self, k, t, d, alive):
+        target, barrier = self.geometry()
+        return NaturalStep(k, t, d.lam, d.flags, np.asarray(d.steering, float).reshape(-1, 2), self.buf.copy(),
+                           self.buf_u.copy(), alive.copy(), target, barrier, self.ground, d.rendezvous)
+
+
+class NaturalRecorder:
+    """The rows of a 3D lockstep run as the world receives them (NaN until known): r, x, y, z
+    (T, n, 3), (u, v) (T, n, 2), λ and the leaders; frozen agents hold their freeze-step state."""
+
+    def __init__(self, names, steps: int, dt: float):
+        self.names = list(names)
+        self.n, self.steps, self.dt = len(self.names), steps, dt
+        T = steps + 1
+        self.r, self.x, self.y, self.z = (np.full((T, self.n, 3), np.nan) for _ in range(4))
+        self.u = np.zeros((T, self.n, 2))
+        self.lam = np.zeros(T)
+        self.leader = np.zeros((T, self.n), bool)
+        self.freezes, self.held, self.lost = [], {}, {}
+
+    @property
+    def theta(self):
+        """Headings seen from above (T, n): atan2 of x's (y, x) components (the view's)."""
+        return np.arctan2(self.x[..., 1], self.x[..., 0])
+
+    def record_states(self, k, mask, r, x, y, z):
+        for rows, v in ((self.r, r), (self.x, x), (self.y, y), (self.z, z)):
+            rows[k, mask] = v[mask]
+
+    def record_u(self, k, mask, u):
+        if 0 <= k <= self.steps:
+            self.u[k, mask] = u[mask]
+
+    def record_decision(self, k, lam, leaders):
+        self.lam[k], self.leader[k] = lam, leaders
+
+    def mark_lost(self, i, k):
+        self.lost[i] = min(int(k), self.lost.get(i, int(k)))
+        if k > 0:
+            self.u[k - 1:, i] = np.nan
+
+    def freeze(self, i, k0, k1):
+        self.freezes.append((i, int(k0), int(k1)))
+
+    def hold(self, i, k, vals, u):
+        self.held[i] = (k, np.array(vals, float), u)
+        if 0 < k <= self.steps:
+            self.u[k - 1, i] = u
+
+    def trajectory(self, meta=None) -> Trajectory:
+        rows = [a.copy() for a in (self.r, self.x, self.y, self.z)]
+        T = self.steps + 1
+        for i, k0, k1 in self.freezes:           # a frozen agent holds its freeze-step state
+            if i in self.held and self.held[i][0] == k0:
+                for a, v in zip(rows, self.held[i][1]):
+                    a[k0:min(k1, T), i] = v
+        r, x, y, z = rows
+        return Trajectory(list(self.names), np.arange(T) * self.dt, r, None, self.u[..., 0].copy(), self.lam.copy(),
+                          self.leader.copy(), meta=dict(meta or {}, dim=3), x=x, y=y, z=z, v=self.u[..., 1].copy())
+
+
+def check_natural_states(index, state, n, topic):
+    """Why a decoded 3D ``/lockstep/agent_states`` (`NaturalAgentStates`, every value finite)
+    must be rejected as a whole (a `Reason`), or None: an agent index outside the roster or
+    twice, a frame that is not orthonormal (1e-6)."""
+    if index.size == 0:
+        return None
+    if int(index.max()) >= n:
+        return reason('unknown-agent', f'{topic} with agent index {int(index.max())} (the roster has {n})')
+    if index.size > 1 and np.unique(index).size != index.size:
+        return reason('duplicate', f'{topic} names an agent twice')
+    f = np.stack([state[1], state[2], state[3]], axis=1)            # (K, 3, 3): rows x, y, z
+    if np.abs(np.einsum('kac,kbc->kab', f, f) - np.eye(3)).max() > 1e-6:
+        return reason('not-a-frame', f'{topic}: a frame [x y z] is not orthonormal')
+    return None
+
+
+def natural_check(obs, t, pos, names, barrier=None, ground=None):
+    """`observe.Observer.check` in space: (minimum distance, complaints); intrusions are inside
+    the barrier's hull or below the ground."""
+    from scipy.spatial import cKDTree
+    md = float(cKDTree(pos).query(pos, k=2)[0][:, 1].min()) if len(pos) > 1 else float('inf')
+    out = []
+    if md < obs.collision_distance:
+        obs.collisions += 1
+        out.append(('collision', f'nothing: collision at t={t:.2f} (min distance {md:.4f})'))
+    inside = np.zeros(len(pos), bool)
+    if barrier is not None:
+        inside |= barrier.inside(pos)
+    if ground is not None:
+        inside |= pos[:, 2] < ground
+    if inside.any():
+        names = names() if callable(names) else names
+        obs.intrusions += int(inside.sum())
+        out.append(('intrusion', f'nothing: barrier or ground intrusion at t={t:.2f} by '
+                    + ', '.join(names[i] for i in np.flatnonzero(inside))))
+    return md, out
+
+
+def natural_view(t, pos, headings, w, md, lam, leader_names, target=None, **extra) -> dict:
+    """The metric values of one 3D sample: clusters in space, polarisation |mean_k x_k|."""
+    clusters, _ = M.cluster_labels_3d(pos, w)
+    vals = dict(t=t, clusters=clusters, polarisation=float(np.linalg.norm(headings.mean(axis=0))),
+                min_distance=md, **{'lambda': lam}, leaders=','.join(leader_names), agents=len(pos), **extra)
+    if target is not None:
+        vals['centroid_target_distance'] = float(np.linalg.norm(pos.mean(0) - target))
+    return vals

@@ -1,0 +1,92 @@
+"""A 3D run's lockstep without DDS (`swarm_agent.natural_core`, `swarm_world.natural`): the
+world's barrier and record, and the agents in containers of K, talking through the packed
+messages' bytes (`NaturalStep`, `NaturalAgentStates`), write what `swarm simulate` writes, bit
+for bit (r, x, y, z, u, v, λ, leaders), for every K; the quaternion round trip of a frame."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from swarm_agent.natural_core import NaturalAgentCore, NaturalContainerCore
+from swarm_core.engine.reference import simulate
+from swarm_core.model.natural import frame_from_quaternion_3d, initial_frames, quaternion_from_frame
+from swarm_core.scenario.loader import load
+from swarm_ros.layouts import NaturalAgentStates, NaturalStep
+from swarm_world.natural import NaturalBarrier, NaturalRecorder
+
+SHIPPED = Path(__file__).resolve().parents[2] / 'src/swarm_core/swarm_core/scenarios/homotopy_3d.yaml'
+
+
+def short_3d(path, duration=20.0, **more):
+    """homotopy_3d shortened: the leaders chosen at t = 2, λ up from t = 4 (τ = 1)."""
+    doc = yaml.safe_load(SHIPPED.read_text())
+    doc.update(duration=duration, **{'lambda': {'kind': 'tanh_window', 'rise_at': 4, 'fall_at': 1000, 'tau': 1}})
+    doc['leaders']['at'] = 2
+    doc.pop('expect', None)
+    doc.update(more)
+    Path(path).write_text(yaml.safe_dump(doc, sort_keys=False))
+    return Path(path)
+
+
+def lockstep(scn, per):
+    """The world's barrier and the agents' containers of ``per`` agents, the messages as bytes."""
+    n = len(scn.names)
+    noise = (scn.spec.noise.position, scn.spec.noise.heading)
+    cores = [NaturalAgentCore(i, n, scn.pos0[i], np.concatenate([f[i] for f in scn.frames0]), scn.law, scn.dt,
+                              noise, scn.noise_rng(i)) for i in range(n)]
+    boxes = [NaturalContainerCore(cores[i:i + per]) for i in range(0, n, per)]
+    rec = NaturalRecorder(scn.names, scn.steps, scn.dt)
+    plan = scn.command_plan()
+    barrier = NaturalBarrier(scn.names, scn.steps, scn.dt, scn.fault_timeline(), rec, ground=scn.ground,
+                             geometry=lambda: (scn.target, scn.barrier),
+                             decide=lambda t, p, c, s, heard: plan.decide(t, p, c, s, heard=heard))
+    answers = [NaturalAgentStates.from_cdr(b.bank.message(1.0, b.rows, np.arange(len(b.cores))).to_cdr('r'), 'r')
+               for b in boxes]
+    acts = barrier.start()
+    for m in answers:
+        acts += barrier.on_states(m.index, m.step, m.state, m.uv)[1]
+    while True:
+        steps = [a[1] for a in acts if a[0] == 'step']
+        if any(a[0] == 'finish' for a in acts):
+            return rec.trajectory()
+        assert len(steps) == 1, acts
+        s = NaturalStep.from_cdr(steps[0].to_cdr('r'), 'r')
+        acts = []
+        for b in boxes:
+            moved, repeat, rules, nan = b.step_rows(s)
+            assert not rules and not nan and moved.size == len(b.cores)
+            m = NaturalAgentStates.from_cdr(b.bank.message(1.0, b.rows[moved], moved).to_cdr('r'), 'r')
+            acts += barrier.on_states(m.index, m.step, m.state, m.uv)[1]
+
+
+@pytest.mark.parametrize('per', [1, 2, 3, 6])
+def test_3d_lockstep_containers_equal_simulate(per, tmp_path):
+    scn = load(str(short_3d(tmp_path / 'h3.yaml')))
+    got, ref = lockstep(scn, per), simulate(scn)
+    for key in ('r', 'x', 'y', 'z', 'u', 'v', 'lam', 'leader'):
+        np.testing.assert_array_equal(getattr(got, key), getattr(ref, key), err_msg=key)
+    assert ref.leader.any() and ref.lam.max() > 0.5 and np.abs(ref.v).max() > 0
+
+
+def test_3d_lockstep_with_noise_equals_simulate(tmp_path):
+    """Noise (each agent's own stream: r and two turn angles) and Gram-Schmidt at step 100."""
+    scn = load(str(short_3d(tmp_path / 'h3n.yaml', duration=12.0, noise={'position': 0.001, 'heading': 0.002})))
+    got, ref = lockstep(scn, 3), simulate(scn)
+    for key in ('r', 'x', 'y', 'z', 'u', 'v'):
+        np.testing.assert_array_equal(getattr(got, key), getattr(ref, key), err_msg=key)
+
+
+def test_the_quaternion_of_a_frame_round_trips():
+    rng = np.random.default_rng(3)
+    x, y, z = initial_frames(rng.normal(size=(500, 3)))
+    X, Y, Z = frame_from_quaternion_3d(*quaternion_from_frame(x, y, z))
+    for a, b in ((X, x), (Y, y), (Z, z)):
+        np.testing.assert_allclose(a, b, atol=1e-14)
+    th = rng.uniform(-np.pi, np.pi, 50)                       # planar: (0, 0, sin θ/2, cos θ/2) up to sign
+    c, s = np.cos(th), np.sin(th)
+    qx, qy, qz, qw = quaternion_from_frame(np.stack([c, s, 0 * th], 1), np.stack([-s, c, 0 * th], 1),
+                                           np.tile([0.0, 0.0, 1.0], (50, 1)))
+    sign = np.sign(np.cos(th / 2))
+    np.testing.assert_allclose(np.stack([qx, qy, qz, qw]), np.stack([0 * th, 0 * th, sign * np.sin(th / 2),
+                                                                      sign * np.cos(th / 2)]), atol=1e-15)
