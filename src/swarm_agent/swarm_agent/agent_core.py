@@ -181,7 +181,7 @@ class States:
     def share(self, table, rows, cores):
         """``table`` (a `SharedTable`) gave the u of ``rows``: their `Seen` is their row of it
         from now on; a row that still read the table before gets its own `Seen` first."""
-        if self.table is not None:
+        if self.table is not None and len(rows) < len(self.shared):
             left = self.shared.copy()
             left[rows] = False
             for j in np.flatnonzero(left):
@@ -190,8 +190,13 @@ class States:
         self.shared[rows] = True
 
     def refresh(self, rows):
-        """The quaternions and frames of ``rows`` (stale ones) from their headings: elementwise,
-        so the same bits as one agent's alone."""
+        """The quaternions and frames of ``rows`` (stale ones; None: every row, new arrays)
+        from their headings: elementwise, so the same bits as one agent's alone."""
+        if rows is None:
+            self.qz, self.qw = quaternion_from_heading(self.theta)
+            self.cos, self.sin = frame_from_quaternion(self.qz, self.qw)
+            self.fresh[:] = True
+            return
         qz, qw = quaternion_from_heading(self.theta[rows])
         self.qz[rows], self.qw[rows] = qz, qw
         self.cos[rows], self.sin[rows] = frame_from_quaternion(qz, qw)

@@ -23,6 +23,7 @@ Rules per agent and step message ``s`` (as an agent process has always followed 
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
@@ -147,8 +148,7 @@ class ContainerCore:
         and the moved agents' 'u-nan' rejects), the rules of the module docstring as masks, no
         Python per agent but for the rare outcomes."""
         b, n = self.bank, s.n
-        if not self.n_dead and len(s.x) == self.n and (b.step == n).all() and (
-                len(s.alive) != self.n or s.alive[self.rows].all()):
+        if self.usual(s):
             go, repeat, out = self.every, self.every[:0], []       # the usual step: every agent moves
         else:
             go, repeat, out = self._rules(s)
@@ -160,11 +160,23 @@ class ContainerCore:
             if c.reported:
                 c.take_reported(s.x[c.index], s.y[c.index], s.qz[c.index], s.qw[c.index])
         us = np.asarray(self.controls(s, go), dtype=float)
-        nan = [(int(go[i]), 'reject', ('u-nan', f'non-finite control u={us[i]} at step {n}; holding u=0'))
-               for i in np.flatnonzero(~self.finite(us))]
+        nan = [] if math.isfinite(us.sum()) else [
+            (int(go[i]), 'reject', ('u-nan', f'non-finite control u={us[i]} at step {n}; holding u=0'))
+            for i in np.flatnonzero(~self.finite(us))]
         self.advance(go, us)
         b.step[go] = n + 1
         return go, repeat, out, nan
+
+    def usual(self, s) -> bool:
+        """Is step message ``s`` the usual one: every agent holds its step, none is dead, all
+        are in its table (then no rule but the move applies)?"""
+        b, n = self.bank, s.n
+        if self.n_dead or len(s.x) != self.n:
+            return False
+        full = len(s.alive) == self.n
+        if len(self.cores) == 1:                  # a lone agent: numbers, not arrays
+            return b.step[0] == n and (not full or bool(s.alive[self.rows[0]]))
+        return bool((b.step == n).all()) and (not full or bool(s.alive[self.rows].all()))
 
     def _rules(self, s):
         """The rules of `step_rows` for a step where some agent does not simply move: (the
@@ -204,31 +216,35 @@ class ContainerCore:
     def controls(self, s, go) -> list[float]:
         """u of the agents ``go`` (positions in the container) at step message ``s``."""
         go = np.asarray(go, dtype=np.intp)
-        cores = [self.cores[j] for j in go]
         alive = s.alive if len(s.alive) == self.n else None
         if not self.one_law or self._radio and self.bank.radio[go].any():
             # a radio model (each agent its own beliefs) or different laws: one call per agent
+            cores = [self.cores[j] for j in go]
             return [c.comms_control(s.n, s.x, s.y, s.qz, s.qw, s.u, s.lam, s.flags, s.steering[c.index],
                                     s.target, s.barrier, alive=alive, rendezvous=s.rendezvous, t=s.t)
                     if c.comms is not None else
                     c.control(s.x, s.y, s.qz, s.qw, s.lam, s.flags, s.steering[c.index], s.target,
                               s.barrier, alive=s.alive, rendezvous=s.rendezvous, t=s.t)
                     for c in cores]
-        b, idx = self.bank, self.rows[go]
-        if not b.fresh[go].all():
-            b.refresh(go[~b.fresh[go]])
+        b, every = self.bank, go is self.every
+        idx = self.rows if every else self.rows[go]
+        if not b.fresh.all():
+            b.refresh(np.flatnonzero(~b.fresh))
         pos = np.empty((len(s.x), 2))              # the table as received, own rows the agents' own
         pos[:, 0] = s.x
         pos[:, 1] = s.y
         cos_t, sin_t = frame_from_quaternion(s.qz, s.qw)
-        pos[idx] = b.pos[go]
-        cos_t[idx], sin_t[idx] = b.cos[go], b.sin[go]
+        if every:
+            pos[idx], cos_t[idx], sin_t[idx] = b.pos, b.cos, b.sin
+        else:
+            pos[idx], cos_t[idx], sin_t[idx] = b.pos[go], b.cos[go], b.sin[go]
         steering = np.asarray(s.steering, float)
         b.share(SharedTable(pos, cos_t, sin_t, s.lam, s.flags, steering, s.target, s.barrier, s.alive,
                             s.rendezvous, s.t), go, self.cores)          # what each u came from (`trial`)
+        first = self.cores[go[0]]
         try:
-            return alive_control(pos, cos_t, sin_t, idx, cores[0].law, s.lam, s.flags, steering[idx], s.target,
-                                 s.barrier, alive=s.alive, rendezvous=s.rendezvous, pairs=cores[0].pairs, t=s.t)
+            return alive_control(pos, cos_t, sin_t, idx, first.law, s.lam, s.flags, steering[idx], s.target,
+                                 s.barrier, alive=s.alive, rendezvous=s.rendezvous, pairs=first.pairs, t=s.t)
         except LawError as err:       # the process stops on it (`swarm_ros.rosutil.run_node`)
             raise failed_at(err, s.t) from None
 
@@ -238,10 +254,15 @@ class ContainerCore:
         each noisy agent's own draw, then their quaternions and frames (`States.refresh`).  An
         agent on a MuJoCo robot in lockstep does not move here: its robot moves."""
         b = self.bank
-        go = np.asarray(go, dtype=np.intp)
         u = np.array(us, dtype=float)
-        if not np.isfinite(u).all():
+        if not math.isfinite(u.sum()):
             u[~np.isfinite(u)] = 0.0
+        if go is self.every and not self.any_reported and not self.any_noisy:    # the usual step: whole rows
+            b.u = u
+            b.pos, b.theta = zoh_step(b.pos, b.theta, u, self.cores[0].dt)
+            b.refresh(None)
+            return
+        go = np.asarray(go, dtype=np.intp)
         b.u[go] = u
         if self.any_reported:
             keep = np.array([not self.cores[j].reported for j in go], dtype=bool)
