@@ -464,13 +464,14 @@ def dim_ratios(res):
         if row['what'] == 'sps' and row.get('dim') == 3 and twin is not None:
             out.append(f'{key}: {row["wall"] / twin["wall"]:.2f}× the planar steps/s (wall), '
                        f'{row["cpu"] / twin["cpu"]:.2f}× per CPU s')
-    runs = {r['name']: r for r in cur.values() if r['what'] == 'run' and r.get('engine') == 'reference'
-            and r['dt'] == 0.1 and not r.get('comms')}
-    if {'homotopy_3d', 'homotopy_global'} <= set(runs):
-        per = [b['cpu'] / a['cpu'] for a, b in zip(runs['homotopy_global']['runs'], runs['homotopy_3d']['runs'])]
-        out.append(f'Fig. 3 run, 3D / 2D CPU (homotopy_3d / homotopy_global, dt = 0.1): median '
-                   f'{runs["homotopy_3d"]["cpu"] / runs["homotopy_global"]["cpu"]:.2f}×, per round '
-                   + ', '.join(f'{r:.2f}' for r in per))
+    for side, who in (('current', ''), ('baseline', f' (before, {res["compare"]})')):
+        runs = {r['name']: r for r in res[side].values() if r['what'] == 'run' and r.get('engine') == 'reference'
+                and r['dt'] == 0.1 and not r.get('comms')}
+        if {'homotopy_3d', 'homotopy_global'} <= set(runs):
+            per = [b['cpu'] / a['cpu'] for a, b in zip(runs['homotopy_global']['runs'], runs['homotopy_3d']['runs'])]
+            out.append(f'Fig. 3 run{who}, 3D / 2D CPU (homotopy_3d / homotopy_global, dt = 0.1): median '
+                       f'{runs["homotopy_3d"]["cpu"] / runs["homotopy_global"]["cpu"]:.2f}×, per round '
+                       + ', '.join(f'{r:.2f}' for r in per))
     return ['', *out] if out else []
 
 
@@ -507,11 +508,12 @@ def plot(res, path):
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
     labels = {'global': 'global law (all pairs)', 'local': 'local law, λ = 1 (KD-tree within w)'}
     for side, style in (('current', 'o-'), ('baseline', 'o--')):
-        for i, kind in enumerate(('global', 'local')):
-            rows = [r for r in res[side].values() if r['what'] == 'sps' and r['kind'] == kind]
+        for i, (kind, where) in enumerate((k, w) for k in ('global', 'local') for w in ('2D', '3D', '3D cube')):
+            rows = [r for r in res[side].values() if r['what'] == 'sps' and r['kind'] == kind and space(r) == where]
             if not rows:
                 continue
-            label = labels[kind] + ('' if side == 'current' else f' — before ({res["compare"]})')
+            label = labels[kind] + ('' if where == '2D' else f', {where}') + \
+                ('' if side == 'current' else f' — before ({res["compare"]})')
             ax.loglog([r['n'] for r in rows], [r['wall'] for r in rows], style, color=f'C{i}',
                       alpha=1.0 if side == 'current' else 0.5, label=label)
     ax.axhline(10, color='k', ls=':', lw=1, label='10 steps/s')
