@@ -98,6 +98,15 @@ def test_sparse_cells_and_any_receivers(monkeypatch, kind):
     np.testing.assert_array_equal(part, fast[some])
 
 
+def test_more_cells_than_int64_holds_sums_all_pairs(monkeypatch):
+    """w = 1e-4 over 2e6 of space: no cell list (its keys would overflow), the same sums."""
+    pos, frames, leaders, steer = table(n=60, spread=2e6, seed=6)
+    pos[3] = pos[4] + 5e-5                                 # one pair within w
+    law = paper_law(kind='local', cutoff_radius=1e-4)
+    ref, fast = both(monkeypatch, law, pos, frames, np.arange(60))
+    assert np.count_nonzero(ref[[3, 4]]) and np.abs(fast - ref).max() <= 1e-9 * np.abs(ref).max()
+
+
 def test_the_3d_engine_takes_the_compiled_sums_from_the_planar_limit(monkeypatch):
     from swarm_core.engine.natural import NaturalStepper
     from swarm_core.scenario.loader import parse

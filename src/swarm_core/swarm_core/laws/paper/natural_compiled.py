@@ -48,7 +48,8 @@ def compiled_controls_3d(law, pos, frames, receivers, lam, q0, leaders):
     gain = np.full(k, 1.0 if leaders is None else (law.leader_gain - 1.0) * lam + 1.0)
     c = (float(law.alpha), float(law.alpha * law.r0 * law.r0), float(law.eta), float(law.mu), target,
          bool(law.target_normalised))
-    if np.any(far != 0.0):
+    w = float(law.cutoff_radius)
+    if np.any(far != 0.0) or float(np.prod(np.ptp(pos, axis=0) / w + 3.0)) > 2.0 ** 62:   # cells overflow int64
         return kernels.all_pairs_3d(*coords, recv, float(law.cutoff_radius * law.cutoff_radius), far, partner,
                                     gain, c)
-    return kernels.cell_pairs_3d(*coords, recv, float(law.cutoff_radius), far, partner, gain, c)
+    return kernels.cell_pairs_3d(*coords, recv, w, far, partner, gain, c)
