@@ -150,8 +150,9 @@ def test_rk4_reference_run_does_not_overwrite_the_zoh_run(tmp_path):
     assert zoh.shape == rk4.shape and not np.array_equal(zoh, rk4)
 
 
-def test_a_3d_scenario_is_simulated_but_refused_by_the_ros_commands(tmp_path):
-    for args in (('run',), ('join', '--agents', 'agent_0', '--server', '127.0.0.1:11811')):
+def test_a_3d_scenario_is_simulated_but_refused_by_the_ros_commands_in_realtime_and_on_robots(tmp_path):
+    for args in (('run', '--mode', 'realtime'), ('run', '--robots', 'external'),
+                 ('join', '--mode', 'realtime', '--agents', 'agent_0', '--server', '127.0.0.1:11811')):
         r = _swarm(*args, 'homotopy_3d')
         _one_clean_line(r, 'a 3D scenario (dim: 3)', 'planar for now')
         assert len(r.stderr.strip().splitlines()) == 1

@@ -8,8 +8,8 @@ so every receiver's table is the batch engine's bit for bit.  Per step message a
 `container_core.ContainerCore` (repeat, silent, back, reject, move) and then:
 
 1. (u, v) of its moving agents from `swarm_core.step.natural_alive_control` over the step's
-   table, asked for EVERY receiver of the table (the batch engine's call, receivers 0..N−1) and
-   read at the agents' rows, so each agent's (u, v) is the batch engine's whatever K is;
+   table, asked for their rows: each receiver's sums reduce its own rows
+   (`laws.paper.natural_sums`), so each agent's (u, v) is the batch engine's whatever K is;
 2. one `model.natural.natural_step` over their rows (elementwise: the same bits for any K);
 3. each noisy agent's own draw (U(−p, p) on r; the heading turned by two angles, as the engine);
 4. Gram-Schmidt (`orthonormalise`) after every `ORTHONORMALISE_EVERY`-th step, as the engine.
@@ -160,7 +160,8 @@ class NaturalContainerCore(ContainerCore):
 
     def controls(self, s, go):
         """(u, v) (len(go), 2) of the agents ``go`` at step message ``s`` (a `NaturalStep`): the
-        batch engine's call over the whole table (every receiver), read at their rows."""
+        batch engine's call on the step's table, asked for their rows (a receiver's (u, v) does
+        not depend on which receivers are asked with it: `laws.paper.natural_sums`)."""
         go = np.asarray(go, dtype=np.intp)
         b, idx = self.bank, self.rows[go]
         pos, x, y, z = (np.array(a) for a in s.state)            # contiguous (N, 3): the engine's arrays
@@ -176,15 +177,15 @@ class NaturalContainerCore(ContainerCore):
             seen = (pos, (x, y, z), None, s.lam, s.flags, steering, s.target, s.barrier, s.ground, alive,
                     s.rendezvous, s.t)
             try:
-                every = natural_alive_control(pos, (x, y, z), np.arange(self.n), law, s.lam, s.flags, steering,
-                                              s.target, s.barrier, s.ground, alive=alive, rendezvous=s.rendezvous,
-                                              t=s.t)
+                mine = natural_alive_control(pos, (x, y, z), self.rows[js], law, s.lam, s.flags,
+                                             steering[self.rows[js]], s.target, s.barrier, s.ground, alive=alive,
+                                             rendezvous=s.rendezvous, t=s.t)
             except LawError as err:   # the process stops on it (`swarm_ros.rosutil.run_node`)
                 raise failed_at(err, s.t) from None
             for j in js:
                 self.cores[j].seen = seen[:2] + (int(self.rows[j]),) + seen[3:]
             at = np.searchsorted(go, js)
-            uv[at] = every[self.rows[js]]
+            uv[at] = mine
         self.step_n = s.n
         return uv
 

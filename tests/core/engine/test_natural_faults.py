@@ -145,6 +145,11 @@ def test_replayed_lambda_and_law_commands_apply_at_their_steps():
     assert [e['command'] for e in traj.meta['events']] == ['lambda', 'law']
 
 
-def test_a_steering_command_is_planar_only_for_now():
-    with pytest.raises(ValueError, match='planar only'):
+def test_a_steering_command_of_one_curvature_is_planar_and_one_of_s_u_s_v_replays():
+    with pytest.raises(ValueError, match='one curvature is planar'):
         engine.simulate(_scenario(), commands={3: [check_command({'command': 'steer', 'agent': 0, 'value': 0.1}, 6)]})
+    cmd = check_command({'command': 'steer', 'agent': 0, 'value': [0.0, 0.3]}, 6)
+    assert cmd['value'] == (0.0, 0.3)
+    traj = engine.simulate(_scenario(**{'lambda': {'kind': 'constant', 'value': 1.0}}), commands={3: [cmd]})
+    assert not traj.leader[:3, 0].any() and traj.leader[3:, 0].all()     # it leads from step 3 on
+    np.testing.assert_allclose(traj.v[3:, 0], 0.3) and np.testing.assert_allclose(traj.u[3:, 0], 0.0)

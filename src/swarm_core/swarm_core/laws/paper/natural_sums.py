@@ -45,28 +45,79 @@ def _weights(law, rr, recv_leader, lam, q0, partner):
     return W
 
 
+def _dot3(a, b):
+    """a·b of 3-vectors along the last axis, one receiver at a time: ((a₀b₀ + a₁b₁) + a₂b₂),
+    elementwise, so a row's value does not depend on the other rows."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+#: from this many pair entries on, a block is summed by component (`_by_component`): contiguous
+#: (b, N) arrays; below it in (b, 3, N) arrays (fewer numpy calls).  Both give the same bits.
+BY_COMPONENT = 2048
+
+
 def _block_sum(law, pos, x, recv, lam, q0, recv_leader, leader_rows):
     """Σ_j W_jk g_jk (b, 3) of the receivers ``recv`` (table rows); recv_leader: which of them
     lead, leader_rows: the leaders' rows (or None); l(k) from the same ρ² as
-    `nearest_leader_3d` (ties to the lower row)."""
-    d = pos[recv][:, None, :] - pos[None, :, :]                  # r_jk = r_k − r_j
-    rr = np.einsum('bnc,bnc->bn', d, d)
+    `nearest_leader_3d` (ties to the lower row).  Each receiver's sum over j is `np.add.reduce`
+    over its own contiguous row of products and everything else is elementwise, so a
+    receiver's (u, v) is the same bit for bit whichever receivers are asked with it (an agent
+    alone, a container, the batch engine)."""
+    if len(recv) * len(pos) >= BY_COMPONENT:
+        return _by_component(law, pos, x, recv, lam, q0, recv_leader, leader_rows)
+    d = pos[recv][:, :, None] - np.ascontiguousarray(pos.T)[None]  # (b, 3, N), C order: r_jk = r_k − r_j
+    rr, f, inv, partner = _distances(law, d[:, 0], d[:, 1], d[:, 2], recv_leader, leader_rows)
+    if law.avoidance_only:                                         # eq. 15: −f r_jk within w
+        return np.add.reduce(_avoidance(law, rr, f, inv)[:, None, :] * d, axis=2)
+    W, coef = _coefficients(law, d[:, 0], d[:, 1], d[:, 2], x[recv], rr, f, inv, recv_leader, lam, q0, partner)
+    align = np.add.reduce(W[:, None, :] * np.ascontiguousarray(x.T)[None], axis=2)     # Σ_j W_jk x_j
+    return np.add.reduce(coef[:, None, :] * d, axis=2) + law.mu * align
+
+
+def _by_component(law, pos, x, recv, lam, q0, recv_leader, leader_rows):
+    """`_block_sum` with one contiguous (b, N) array per component: the same products summed
+    in the same order, so the same bits."""
+    pk = pos[recv]
+    d = [pk[:, c, None] - pos[None, :, c] for c in range(3)]
+    rr, f, inv, partner = _distances(law, *d, recv_leader, leader_rows)
+    out = np.empty((len(recv), 3))
+    if law.avoidance_only:
+        h = _avoidance(law, rr, f, inv)
+        for c in range(3):
+            np.add.reduce(h * d[c], axis=1, out=out[:, c])
+        return out
+    W, coef = _coefficients(law, *d, x[recv], rr, f, inv, recv_leader, lam, q0, partner)
+    for c in range(3):                                             # + μ Σ_j W_jk x_j
+        out[:, c] = np.add.reduce(coef * d[c], axis=1) + law.mu * np.add.reduce(W * x[None, :, c], axis=1)
+    return out
+
+
+def _distances(law, d0, d1, d2, recv_leader, leader_rows):
+    """ρ² (b, N) (∞ on the self and coincident pairs), f(ρ), 1/ρ² and l(k) (from ρ² before the
+    self pair is masked; None without leaders)."""
+    rr = d0 * d0 + d1 * d1 + d2 * d2
     partner = None
-    if leader_rows is not None:                                    # before the self pair is masked
+    if leader_rows is not None:
         partner = np.where(recv_leader, -1, leader_rows[rr[:, leader_rows].argmin(axis=1)])
     rr[rr == 0.0] = np.inf                                         # the self pair, coincident agents: 0
     inv = 1.0 / rr
-    f = law.alpha * (1.0 - law.r0 * law.r0 * inv)
-    if law.avoidance_only:                                         # eq. 15: −f r_jk within w
-        h = -f * (rr < law.cutoff_radius * law.cutoff_radius)
-        if law.target_normalised:
-            h *= np.sqrt(inv)
-        return np.einsum('bn,bnc->bc', h, d)
+    return rr, law.alpha * (1.0 - law.r0 * law.r0 * inv), inv, partner
+
+
+def _avoidance(law, rr, f, inv):
+    """The coefficient of r_jk in eq. 15's pair term: −f within w (over ρ if normalised)."""
+    h = -f * (rr < law.cutoff_radius * law.cutoff_radius)
+    if law.target_normalised:
+        h *= np.sqrt(inv)
+    return h
+
+
+def _coefficients(law, d0, d1, d2, xk, rr, f, inv, recv_leader, lam, q0, partner):
+    """W_jk (b, N) and the coefficient of r_jk in W_jk g_jk: W (−η (r̂·x_k) − f) / ρ."""
     W = _weights(law, rr, recv_leader, lam, q0, partner)
-    unit = d * np.sqrt(inv)[:, :, None]                           # r̂
-    along = np.einsum('bnc,bc->bn', unit, x[recv])                 # r̂·x_k
-    radial = np.einsum('bn,bnc->bc', W * (-law.eta * along - f), unit)
-    return radial + law.mu * (W @ x)                              # + μ Σ_j W_jk x_j
+    s = np.sqrt(inv)                                               # 1/ρ: r̂ = s r_jk
+    along = (d0 * xk[:, 0, None] + d1 * xk[:, 1, None] + d2 * xk[:, 2, None]) * s     # r̂·x_k
+    return W, W * (-law.eta * along - f) * s
 
 
 def pair_sums_3d(law, pos, x, receivers, lam, q0, leaders):
@@ -89,8 +140,7 @@ def pair_sums_3d(law, pos, x, receivers, lam, q0, leaders):
 def read_normal(vec, yk, zk):
     """(a·y_k, a·z_k) (K, 2) of vectors a (K, 3): their components in each receiver's normal plane."""
     out = np.empty((len(vec), 2))
-    np.einsum('kc,kc->k', vec, yk, out=out[:, 0])
-    np.einsum('kc,kc->k', vec, zk, out=out[:, 1])
+    out[:, 0], out[:, 1] = _dot3(vec, yk), _dot3(vec, zk)
     return out
 
 
@@ -105,7 +155,7 @@ def world_vector_3d(law, pos, x, receivers, target, barrier, ground):
     out = np.zeros_like(pos_k)
     if aims:
         rbar = np.asarray(target, float)[None, :] - pos_k
-        d2 = np.einsum('kc,kc->k', rbar, rbar)
+        d2 = _dot3(rbar, rbar)
         inv = np.divide(1.0, d2, out=np.zeros_like(d2), where=d2 > 0.0)
         scale = law.target_gain * law.alpha * (1.0 - law.r0 * law.r0 * inv) * (d2 > 0.0)
         if law.target_normalised:
@@ -113,7 +163,7 @@ def world_vector_3d(law, pos, x, receivers, target, barrier, ground):
         out += scale[:, None] * rbar
     if senses:
         v = barrier_direction_3d(pos_k, barrier, ground, law.cutoff_radius)
-        ahead = np.einsum('kc,kc->k', v, x_k)
+        ahead = _dot3(v, x_k)
         gate = (ahead > 0.0).astype(float) if law.barrier_mode == 'ahead' else np.sign(ahead)
         out -= (law.barrier_gain * gate)[:, None] * v
     return out
@@ -124,9 +174,9 @@ def barrier_direction_3d(pos_k, barrier, ground, w):
     closest point of the floor z = ground, normalised; 0 where nothing is sensed."""
     v = np.zeros_like(pos_k)
     if barrier is not None and len(barrier):
-        d = np.asarray(barrier, float)[None, :, :] - pos_k[:, None, :]
-        sensed = np.einsum('kmc,kmc->km', d, d) < w * w
-        v += np.einsum('km,kmc->kc', sensed.astype(float), d)
+        d = np.asarray(barrier, float).T[None, :, :] - pos_k[:, :, None]       # (K, 3, m): b_i − r_k
+        sensed = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2] < w * w
+        v += np.add.reduce(sensed[:, None, :] * d, axis=2)
     if ground is not None:
         below = float(ground) - pos_k[:, 2]                         # the floor's closest point: (x, y, h)
         v[:, 2] += np.where(np.abs(below) < w, below, 0.0)
