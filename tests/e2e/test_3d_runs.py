@@ -73,3 +73,54 @@ def test_3d_realtime_and_robots_are_refused_in_one_line(extra, says, tmp_path, s
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2, r.stderr
     assert says in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_3d_live_steering_from_topic_pub_replays_in_simulate(tmp_path, rclpy_context):
+    """Lockstep in one executor: ``ros2 topic pub --once /agent_1/steering
+    std_msgs/msg/Float64MultiArray "{data: [0.0, 0.02]}"`` (emulated, its own participant) at
+    some step makes agent_1 a leader with s_k = (0, 0.02); events.jsonl names the step, and the
+    batch engine given that command (``swarm simulate --replay``) equals the run bit for bit."""
+    import json
+    import threading
+
+    from rclpy.context import Context
+
+    from swarm_core.command.plan import read_commands
+    from swarm_ros.rosutil import make_executor
+    from swarm_tools.run.launch import build_nodes
+    from swarm_tools.run.params import node_parameters
+    from tests.fakes.emulate_topic_pub import main as topic_pub_once
+    from tests.helpers import spin_for
+
+    path = short_3d(tmp_path / 'h3.yaml', duration=25.0)
+    scn = load(str(path))
+    out = tmp_path / 'out'
+    world, commander, agents = build_nodes(node_parameters(scn, str(path), 'lockstep', output_dir=str(out)),
+                                           rclpy_context, log=lambda *a, **k: None)
+    ex = make_executor(rclpy_context, events=False)
+    for nd in [world, commander, *agents]:
+        ex.add_node(nd)
+    assert spin_for(ex, lambda: world.driver.lock.cur >= 100, 120)
+    t = threading.Thread(target=topic_pub_once, args=(['/agent_1/steering', 'std_msgs/msg/Float64MultiArray',
+                                                       '{data: [0.0, 0.02]}'],), kwargs=dict(context=Context()))
+    t.start()
+    for nd in [world, *agents]:              # the swarm waits while the tool runs; the commander takes it
+        ex.remove_node(nd)
+    assert spin_for(ex, lambda: not t.is_alive(), 120)
+    for nd in [world, *agents]:
+        ex.add_node(nd)
+    assert spin_for(ex, lambda: world.done, 300)
+    got = world.trajectory()
+    lines = (out / 'events.jsonl').read_text().splitlines()
+    steer = [json.loads(ln) for ln in lines if '"steer"' in ln]
+    assert len(steer) == 1 and steer[0]['value'] == [0.0, 0.02] and steer[0]['agent'] == 'agent_1', lines
+    commands = read_commands(lines, scn.names)
+    ref = simulate(scn, commands=commands)
+    for key in KEYS:
+        np.testing.assert_array_equal(getattr(got, key), getattr(ref, key), err_msg=key)
+    k = steer[0]['step']
+    assert got.leader[k:, 1].all()
+    plain = simulate(scn)                                   # the command changed the run from step k on
+    assert np.array_equal(plain.v[:k], got.v[:k]) and not np.array_equal(plain.v[k:], got.v[k:])
+    for nd in [world, commander, *agents]:
+        nd.destroy_node()

@@ -33,6 +33,7 @@ SIGINT, as the tool does): a fresh process has a fresh DDS participant, which is
 from __future__ import annotations
 
 import argparse
+import array
 import importlib
 import os
 import sys
@@ -81,7 +82,11 @@ def publish(topic, type_name, values, *, times=1, rate=1.0, wait_matching=None, 
             time.sleep(DEFAULT_WAIT_TIME)
         msg = msg_type()
         for key, value in yaml.safe_load(values).items():     # flat messages (set_message_fields)
-            setattr(msg, key, type(getattr(msg, key))(value))
+            field = getattr(msg, key)
+            if isinstance(field, array.array):                 # a sequence (Float64MultiArray's data)
+                setattr(msg, key, array.array(field.typecode, value))
+            else:
+                setattr(msg, key, type(field)(value))
         print('publisher: beginning loop', flush=True)
         count = [0]
 
