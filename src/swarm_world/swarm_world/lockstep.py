@@ -181,7 +181,7 @@ class LockstepBarrier:
         acts, why = [], []
         if not every:
             for j in np.flatnonzero(~alive):               # dead or frozen: their own rules
-                acts += self._take(int(rows[j]), int(ks[j]), vals[:, j], float(us[j]))[1]
+                acts += self._take(int(rows[j]), int(ks[j]), vals[:, j], us[j] if us.ndim > 1 else float(us[j]))[1]
             for j in np.flatnonzero(alive & ~take & (ks > want)):
                 why.append(f'state of {self.names[rows[j]]!r} for step {ks[j]} while the world is at step {self.cur}')
         return why, acts + (self.advance() if r.size else [])

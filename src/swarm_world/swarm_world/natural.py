@@ -86,8 +86,13 @@ class NaturalRecorder:
         T = self.steps + 1
         for i, k0, k1 in self.freezes:           # a frozen agent holds its freeze-step state
             if i in self.held and self.held[i][0] == k0:
-                for a, v in zip(rows, self.held[i][1]):
-                    a[k0:min(k1, T), i] = v
+                held = self.held[i][1]
+            elif k1 <= self.steps and np.isfinite(self.r[k1, i]).all():     # the state it resumed with
+                held = [a[k1, i] for a in (self.r, self.x, self.y, self.z)]
+            else:
+                continue
+            for a, v in zip(rows, held):
+                a[k0:min(k1, T), i] = v
         r, x, y, z = rows
         return Trajectory(list(self.names), np.arange(T) * self.dt, r, None, self.u[..., 0].copy(), self.lam.copy(),
                           self.leader.copy(), meta=dict(meta or {}, dim=3), x=x, y=y, z=z, v=self.u[..., 1].copy())
