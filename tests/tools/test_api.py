@@ -72,3 +72,18 @@ def test_wait_until_counts_sim_time_on_the_samples_not_the_clock():
     stalled = _LaggingRun(clock=0.0, metric_times=[1.0])
     with pytest.raises(WaitTimeout, match='samples stalled at t = 1.0'):
         Swarm.wait_until(stalled, lambda m: m['clusters'] >= 2, timeout=10, wall_timeout=0.2)
+
+
+def test_a_run_that_ended_before_its_clock_was_heard_is_a_finished_run():
+    """`Swarm.start` of a short run: ``swarm run`` may finish before the client hears its clock.
+    Exit 0 after its start and its 'done' line is a finished run; an exit before it started,
+    or a failure, is not."""
+    from swarm_tools.api import finished_run
+    log = ['swarm run: run 1a2b3c4d: six seed 0: 6 agents, lockstep, 8 processes\n',
+           '[world] finished t=60 (600 steps) in 1.2 s\n', 'swarm run: done in 4.1 s; final clusters 1\n']
+    assert finished_run(log, 0, None) == {'run_id': '1a2b3c4d'}
+    heard = {'run_id': '1a2b3c4d', 'agents': ['agent_0']}
+    assert finished_run(log, 0, heard) is heard
+    assert finished_run(log, 1, None) is None                       # it failed
+    assert finished_run(log[:2], 0, None) is None                   # no 'done' line
+    assert finished_run(['swarm run: bad.yaml: not found\n'], 0, None) is None

@@ -151,6 +151,16 @@ class _Observer:
             self.events.append(ev)
 
 
+def finished_run(log, code, run):
+    """The run of a ``swarm run`` that exited with ``code`` after printing ``log`` (its lines),
+    if it ran to its end: ``run`` (its announcement, if heard) or the run id its first line
+    names; None if it did not start or failed."""
+    rid = next((ln.split()[3].rstrip(':') for ln in log if ln.startswith('swarm run: run ')), None)
+    if code != 0 or rid is None or not any(ln.startswith('swarm run: done') for ln in log):
+        return None
+    return run if run is not None else {'run_id': rid}
+
+
 class Swarm:
     """A live run: commands, observation, and (after it) its outputs.  Make one with
     `Swarm.start` or `Swarm.attach`."""
@@ -234,6 +244,10 @@ class Swarm:
                 return
             if self.proc.poll() is not None:
                 self._reader.join(timeout=5.0)          # its last lines
+                done = finished_run(self.log, self.proc.returncode, run)
+                if done is not None:    # a short run may end before this client hears its clock
+                    self.run = done
+                    return
                 raise SwarmError(f'swarm run ended (exit code {self.proc.returncode}) before the run started:\n'
                                  + ''.join(self.log[-30:]))
             time.sleep(0.05)
