@@ -18,11 +18,11 @@ from swarm_world.natural import NaturalBarrier, NaturalRecorder
 SHIPPED = Path(__file__).resolve().parents[2] / 'src/swarm_core/swarm_core/scenarios/homotopy_3d.yaml'
 
 
-def short_3d(path, duration=20.0, **more):
+def short_3d(path, duration=20.0, leaders_at=2, **more):
     """homotopy_3d shortened: the leaders chosen at t = 2, λ up from t = 4 (τ = 1)."""
     doc = yaml.safe_load(SHIPPED.read_text())
     doc.update(duration=duration, **{'lambda': {'kind': 'tanh_window', 'rise_at': 4, 'fall_at': 1000, 'tau': 1}})
-    doc['leaders']['at'] = 2
+    doc['leaders']['at'] = leaders_at
     doc.pop('expect', None)
     doc.update(more)
     Path(path).write_text(yaml.safe_dump(doc, sort_keys=False))

@@ -1,7 +1,10 @@
 """End-to-end in 3D (``dim: 3``): `swarm run` in lockstep, with agent processes and with agent
-containers, equals `swarm simulate` bit for bit (r, x, y, z, u, v, λ, leaders); the bag's
-/swarm/states carry the full pose (the quaternion of the frame [x y z]) and twist.angular =
-(0, −v, u); realtime and robots with a 3D scenario are refused in one line before anything starts."""
+containers, equals `swarm simulate` bit for bit (r, x, y, z, u, v, λ, leaders), with faults
+too; the bag's /swarm/states carry the full pose (the quaternion of the frame [x y z]) and
+twist.angular = (0, −v, u); a realtime 3D run splits on a live `swarm lambda 1`; realtime with a
+ground and robots are refused in one line before anything starts."""
+import re
+import signal
 import subprocess
 
 import numpy as np
@@ -65,10 +68,10 @@ def test_3d_lockstep_equals_simulate(per, tmp_path, ros_domain, processes, swarm
         np.testing.assert_array_equal(w, [0.0, -held[1], held[0]])                # REP 103: (0, −v, u)
 
 
-@pytest.mark.parametrize('extra, says', [(['--mode', 'realtime'], 'lockstep only'),
+@pytest.mark.parametrize('extra, says', [(['--mode', 'realtime'], 'with a ground runs on ROS in lockstep only'),
                                          (['--robots', 'external'], 'robots are planar')])
-def test_3d_realtime_and_robots_are_refused_in_one_line(extra, says, tmp_path, swarm_cmd):
-    path = short_3d(tmp_path / 'h3.yaml', duration=5.0)
+def test_3d_realtime_with_a_ground_and_robots_are_refused_in_one_line(extra, says, tmp_path, swarm_cmd):
+    path = short_3d(tmp_path / 'h3.yaml', duration=5.0, barrier={'ground': -5.0})
     r = subprocess.run([swarm_cmd, 'run', str(path), '--out', str(tmp_path / 'run'), *extra],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2, r.stderr
@@ -148,3 +151,38 @@ def test_3d_lockstep_with_faults_equals_simulate(per, tmp_path, ros_domain, proc
         both = np.isfinite(a) & np.isfinite(b)
         assert np.isnan(a[np.isnan(b)]).all() and both.mean() > 0.85
         np.testing.assert_array_equal(a[both], b[both], err_msg=key)
+
+
+def test_3d_realtime_splits_on_a_live_swarm_lambda(tmp_path, ros_domain, processes, swarm_cmd):
+    """Realtime at rtf 4, λ = 0 in the scenario, leaders chosen at t = 5: `swarm lambda 1.0`
+    at t ≥ 20 splits the 3D swarm in two (the world's progress line, clusters in space); the
+    trajectory holds r, x, y, z and v, orthonormal frames, and unit speed."""
+    from swarm_core.analysis.metrics import cluster_labels_3d
+    path = short_3d(tmp_path / 'h3rt.yaml', duration=260.0, leaders_at=5, **{'lambda': {'kind': 'constant',
+                                                                                      'value': 0.0}})
+    out = tmp_path / 'run'
+    p = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--rtf', '4', '--out', out, '--no-figure',
+                         '--progress-every', '5'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = Lines(p)
+    progress = re.compile(r'\[world\] t= *([\d.]+)  clusters=(\d+)  λ=([\d.]+)')
+
+    def reported(ln, t=0.0, clusters=1, lam=0.0):
+        m = progress.search(ln)
+        return bool(m) and float(m[1]) >= t and int(m[2]) >= clusters and float(m[3]) >= lam
+
+    assert lines.wait_for(lambda ln: reported(ln, t=20), 120), ''.join(lines.lines)
+    cli = subprocess.run([swarm_cmd, 'lambda', '1.0', '--ramp', '5'], capture_output=True, text=True, timeout=60)
+    assert cli.returncode == 0, cli.stderr
+    assert lines.wait_for(lambda ln: reported(ln, clusters=2, lam=1.0), 180), ''.join(lines.lines[-30:])
+    p.send_signal(signal.SIGINT)
+    assert lines.wait(p, 60) == 130, ''.join(lines.lines[-30:])
+    got = Trajectory.load(out / 'trajectory.npz')
+    assert got.dim == 3 and np.isfinite(got.r).all() and np.isfinite(got.z).all()
+    t_cli = got.t[np.argmax(got.lam > 0.0)]
+    assert t_cli >= 19 and got.lam[-1] == 1.0 and got.leader[-1].sum() == 2
+    f = np.stack([got.x[-1], got.y[-1], got.z[-1]], axis=1)
+    assert np.abs(np.einsum('kac,kbc->kab', f, f) - np.eye(3)).max() < 1e-9
+    speed = np.median(np.linalg.norm(np.diff(got.r, axis=0), axis=2), axis=0) / (got.t[1] - got.t[0])
+    assert np.all((speed > 0.95) & (speed < 1.01)), speed           # unit speed (the median step)
+    assert cluster_labels_3d(got.r[np.searchsorted(got.t, t_cli) - 1], 4.0)[0] == 1
+    assert cluster_labels_3d(got.r[-1], 4.0)[0] >= 2

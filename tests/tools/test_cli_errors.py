@@ -150,11 +150,13 @@ def test_rk4_reference_run_does_not_overwrite_the_zoh_run(tmp_path):
     assert zoh.shape == rk4.shape and not np.array_equal(zoh, rk4)
 
 
-def test_a_3d_scenario_is_simulated_but_refused_by_the_ros_commands_in_realtime_and_on_robots(tmp_path):
-    for args in (('run', '--mode', 'realtime'), ('run', '--robots', 'external'),
-                 ('join', '--mode', 'realtime', '--agents', 'agent_0', '--server', '127.0.0.1:11811')):
-        r = _swarm(*args, 'homotopy_3d')
-        _one_clean_line(r, 'a 3D scenario (dim: 3)', 'planar for now')
+def test_a_3d_scenario_is_simulated_but_refused_by_the_ros_commands_on_robots_or_with_a_ground_in_realtime(tmp_path):
+    for args, name, says in ((('run', '--robots', 'external'), 'homotopy_3d', 'robots are planar for now'),
+                             (('run', '--mode', 'realtime'), 'ground_3d', 'lockstep only for now'),
+                             (('join', '--mode', 'realtime', '--agents', 'agent_0', '--server', '127.0.0.1:11811'),
+                              'ground_3d', 'lockstep only for now')):
+        r = _swarm(*args, name)
+        _one_clean_line(r, 'a 3D scenario (dim: 3)', says)
         assert len(r.stderr.strip().splitlines()) == 1
     bad = tmp_path / 'bad.yaml'
     bad.write_text('name: bad\ndim: 3\nagents: {positions: [[0, 0], [1, 0]]}\n')

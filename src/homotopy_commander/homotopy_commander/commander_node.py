@@ -56,12 +56,13 @@ from swarm_core.command.plan import check_command
 from swarm_core.faults.agents import event_names
 from swarm_core.model.frenet import frame_from_quaternion, quaternion_from_heading
 from swarm_ros import protocol as P
-from swarm_ros.layouts import NaturalStep, ProcessStates, RealtimeDecision, Step
+from swarm_ros.layouts import NaturalDecision, NaturalProcessStates, NaturalStep, ProcessStates, RealtimeDecision, Step
 from swarm_ros.msg_checks import (
     FUTURE_TOLERANCE,
     ProcessSenders,
     RejectLog,
     check_agent_states,
+    check_natural_pose,
     check_step_time,
     decoded,
     guard_subscriptions,
@@ -228,7 +229,10 @@ class CommanderNode(Node):
         if self.run_id:
             follow_run_clock(self, self.run_id, self.reject)
         self.pos = self.scn.pos0.copy()
-        self.quat = np.stack(quaternion_from_heading(self.scn.theta0), axis=1)   # (n, 2) qz, qw heard
+        if self.dim == 3:                        # the headings x heard (n, 3)
+            self.heading = self.scn.frames0[0].copy()
+        else:
+            self.quat = np.stack(quaternion_from_heading(self.scn.theta0), axis=1)   # (n, 2) qz, qw heard
         self.last_seen = np.full(self.n, -np.inf)
         self.create_subscription(Float64MultiArray, P.AGENT_STATES, self._on_state, P.qos_latched(max(100, 4 * self.n)),
                                  raw=True)
@@ -464,16 +468,21 @@ class CommanderNode(Node):
         message).  Bad ones are dropped without a line (the agents and the world log them): a
         message of another run, not finite, naming an agent outside the roster or twice, or
         not planar; a state from a second process for that agent, or stamped in the future."""
-        m = decoded(ProcessStates, raw, self.run_id, lambda *_: None, 'state-decode')
-        if m is None or check_agent_states(m.index, m.pose, self.n, P.AGENT_STATES) is not None:
+        three = self.dim == 3
+        m = decoded(NaturalProcessStates if three else ProcessStates, raw, self.run_id, lambda *_: None, 'state-decode')
+        if m is None or (check_natural_pose if three else check_agent_states)(m.index, m.pose, self.n,
+                                                                             P.AGENT_STATES) is not None:
             return
         now = self.get_clock().now().nanoseconds * 1e-9
         ok, _ = self.senders.check(m.index, m.tag)
         ok = ok & (m.t <= now + FUTURE_TOLERANCE)           # not in place: `check` may hand back a shared mask
         idx = m.index[ok]
         self.senders.accept(idx, m.tag)
-        self.pos[idx] = m.pose[:2, ok].T
-        self.quat[idx] = m.pose[2:, ok].T
+        if three:
+            self.pos[idx], self.heading[idx] = m.pose[0:3, ok].T, m.pose[3:6, ok].T
+        else:
+            self.pos[idx] = m.pose[:2, ok].T
+            self.quat[idx] = m.pose[2:, ok].T
         self.last_seen[idx] = m.t[ok]
 
     def _on_tick(self):
@@ -482,10 +491,14 @@ class CommanderNode(Node):
         if self.plan.failover is not None:       # only failover reads it (a lagging agent is not lost)
             heard = t - self.last_seen <= self.heard_timeout
             heard = heard if heard.any() else None
-        cos_t, sin_t = frame_from_quaternion(self.quat[:, 0], self.quat[:, 1])    # all at once, per tick
+        if self.dim == 3:                       # the headings seen from above, as `engine.natural` gives them
+            cos_t, sin_t = self.heading[:, 0].copy(), self.heading[:, 1].copy()
+        else:
+            cos_t, sin_t = frame_from_quaternion(self.quat[:, 0], self.quat[:, 1])    # all at once, per tick
         d = self.decide(t, self.pos, cos_t, sin_t, heard=heard)
-        self.pub_rt_decision.publish(RealtimeDecision(P.step_of(t, self.dt), t, d.lam, d.flags, d.steering, d.slots,
-                                                      d.rendezvous).to_cdr(self.run_id))
+        decision = NaturalDecision if self.dim == 3 else RealtimeDecision
+        self.pub_rt_decision.publish(decision(P.step_of(t, self.dt), t, d.lam, d.flags, d.steering, d.slots,
+                                              d.rendezvous).to_cdr(self.run_id))
         self.publish_outputs(d.lam, d.flags, d.steering, force=True)
 
 

@@ -72,7 +72,7 @@ from swarm_core.radio import CommModel, change_from_event
 from swarm_core.reserved import check_law_names
 from swarm_core.robot_units import ROBOT_KINDS
 from swarm_ros import protocol as P
-from swarm_ros.layouts import RealtimeDecision
+from swarm_ros.layouts import NaturalDecision, RealtimeDecision
 from swarm_ros.msg_checks import (
     RejectLog,
     check_barrier,
@@ -395,7 +395,7 @@ class AgentNode(Node):
     def _on_decision(self, raw):
         """Realtime: the commander's decision of a tick (serialized ``/swarm/decision``); one
         stamped more than ``future_tolerance`` ahead of this clock is refused (a peer's)."""
-        d = decoded(RealtimeDecision, raw, self.run_id, self.reject, 'decision')
+        d = decoded(NaturalDecision if self.dim == 3 else RealtimeDecision, raw, self.run_id, self.reject, 'decision')
         if d is not None and not refused(self.reject, check_decision_time(d, self._now(),
                                                                           self.driver.future_tolerance)):
             self.take_decision(d)
@@ -411,22 +411,23 @@ class AgentNode(Node):
             self.lam = float(d.lam)
         else:
             self.reject('lambda', f'{P.DECISION}: {LAMBDA_BOUND.error(d.lam)}')
-        s = float(d.steering[self.index])
-        if STEERING_BOUND.ok(s):
+        s = float(d.steering[self.index]) if self.dim == 2 else tuple(map(float, d.steering[self.index]))
+        bad = [v for v in (s if self.dim == 3 else (s,)) if not STEERING_BOUND.ok(v)]    # 3D: (s_u, s_v)
+        if not bad:
             self.steering = s
         else:
-            self.reject('steer', f'{P.DECISION} for {self.agent_name}: {STEERING_BOUND.error(s)}')
+            self.reject('steer', f'{P.DECISION} for {self.agent_name}: {STEERING_BOUND.error(bad[0])}')
         self.leaders = decision_leaders(d, self.roster, self.leaders) if leaders is None else leaders
 
     def _on_target(self, msg):
-        p = (msg.point.x, msg.point.y)
+        p = (msg.point.x, msg.point.y) if self.dim == 2 else (msg.point.x, msg.point.y, msg.point.z)
         if not all(math.isfinite(v) for v in p):
             self.reject('target', f'{P.TARGET} {p}: not finite')
             return
         self.target = np.array(p)
 
     def _on_barrier(self, msg):
-        pts = [(q.x, q.y) for q in msg.polygon.points]
+        pts = [(q.x, q.y) if self.dim == 2 else (q.x, q.y, q.z) for q in msg.polygon.points]
         why = check_barrier(pts)
         if why is not None:
             self.reject(why.kind, why)

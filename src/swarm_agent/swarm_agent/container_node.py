@@ -41,8 +41,8 @@ from rclpy.time_source import TimeSource
 from rclpy.utilities import remove_ros_args
 
 from swarm_agent.agent_node import AgentNode
-from swarm_agent.container_core import ContainerCore
 from swarm_agent.natural_core import container_of
+from swarm_agent.natural_realtime import hear_own, natural_heard
 from swarm_agent.process_io import (
     CLOCKS,
     AgentStatesWriter,
@@ -57,7 +57,7 @@ from swarm_agent.realtime_core import Continued, HeardStates
 from swarm_agent.robot_driver import OdometryHold
 from swarm_core.laws import LawError
 from swarm_ros import protocol as P
-from swarm_ros.layouts import RealtimeDecision
+from swarm_ros.layouts import NaturalDecision, NaturalProcessStates, ProcessStates, RealtimeDecision
 from swarm_ros.msg_checks import RejectLog, batch_states, check_decision_time, decoded, guard_subscriptions, refused
 from swarm_ros.rosutil import ParameterError, declare, run_node, step_time
 from swarm_ros.run_clock import follow_run_clock
@@ -148,7 +148,8 @@ class AgentContainer(Node):
         """Realtime: the commander's decision comes every control period: decoded once, its
         leaders made a set once, taken by every agent (each checks its values as it would alone)."""
         first = self.agents[0]
-        d = decoded(RealtimeDecision, raw, first.run_id, self.reject, 'decision')
+        d = decoded(NaturalDecision if first.dim == 3 else RealtimeDecision, raw, first.run_id, self.reject,
+                    'decision')
         if d is not None and refused(self.reject, check_decision_time(d, first._now(), first.driver.future_tolerance)):
             return
         if d is None or len(d.flags) != first.n:
@@ -169,13 +170,16 @@ class AgentContainer(Node):
         the kinematic ones and one for each robot agent (`robot_driver.RealtimeRobotDriver`: its
         robot's pose, not a move), all on the first agent's clock."""
         first = self.agents[0]
-        self.heard = HeardStates(first.roster)
+        self.heard = natural_heard(first.roster) if first.dim == 3 else HeardStates(first.roster)
         self.batch = AgentStatesWriter(self, realtime=True)
         for a in self.agents:          # each published its first state when it was built
             a.driver.heard = self.heard
             self.heard.own[a.index] = True
             a.driver.process_tag = self.batch.tag
-            self.heard.hear(a.agent_name, (a.t, *a.own[2:]))
+            if a.dim == 3:
+                hear_own(self.heard, a)
+            else:
+                self.heard.hear(a.agent_name, (a.t, *a.own[2:]))
         self.batch.publish(self.agents)
         kinematic = [a for a in self.agents if a.robot == 'none']
         self.rt_timers = []
@@ -184,7 +188,7 @@ class AgentContainer(Node):
                 a.driver.batch = self.batch
                 self.rt_timers.append(first.create_timer(first.dt, a.driver.on_tick))
         if kinematic:
-            lock, leaders, continued = ContainerCore([a.core for a in kinematic]), LeaderMask(first.roster), Continued()
+            lock, leaders, continued = container_of([a.core for a in kinematic]), LeaderMask(first.roster), Continued()
             self.rt_timers.append(first.create_timer(
                 first.dt, lambda: realtime_tick(kinematic, lock, self.heard, leaders, self.batch, continued)))
 
@@ -193,7 +197,8 @@ class AgentContainer(Node):
         and taken at once into the shared table, and heard by each agent with a radio model
         through its own radio."""
         first = self.agents[0]
-        m = decode_batch(raw, first.run_id, first.roster, self.batch.tag, self.reject)
+        m = decode_batch(raw, first.run_id, first.roster, self.batch.tag, self.reject,
+                         NaturalProcessStates if first.dim == 3 else ProcessStates)
         if m is None:
             return
         radio = [a for a in self.agents if a.radio_on]

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from swarm_agent.agent_core import known_table
-from swarm_agent.container_core import ContainerCore
 from swarm_agent.natural_core import container_of
+from swarm_agent.natural_realtime import hear_own, natural_heard
 from swarm_agent.process_io import (
     CLOCKS,
     AgentStatesWriter,
@@ -28,6 +28,7 @@ from swarm_agent.realtime_core import (
 )
 from swarm_core.radio import StreamRadio
 from swarm_ros import protocol as P
+from swarm_ros.layouts import NaturalProcessStates, ProcessStates
 from swarm_ros.msg_checks import FUTURE_TOLERANCE, Senders, batch_states, check_values, refused
 from swarm_ros.rosutil import declare, step_time, when_matched
 from swarm_ros.run_clock import follow_the_run_clock
@@ -164,7 +165,8 @@ class RealtimeDriver:
         self.catch_up_limit = catch_up_limit
         self.future_tolerance = future_tolerance
         self.senders = Senders()     # radio model: each neighbour name bound to its first publisher
-        self.heard = HeardStates(node.roster)   # alone, perfect radio: newest states (contained: the container's)
+        # alone, perfect radio: newest states (contained: the container's)
+        self.heard = natural_heard(node.roster) if node.dim == 3 else HeardStates(node.roster)
         self.heard.own[node.index] = True
         self.radio_heard = {}        # radio model: name -> newest state heard (before the radio)
         self.stream = StreamRadio(node.radio, node.index)
@@ -184,14 +186,17 @@ class RealtimeDriver:
                     f'realtime: the clock reads {now:.3f} s at the start (use_sim_time is '
                     f'{node.get_parameter("use_sim_time").value}; in a swarm run the agents follow the world\'s '
                     '/clock from 0): this agent\'s time starts there')
-            self.lock = ContainerCore([node.core])
+            self.lock = container_of([node.core])
             self.batch = AgentStatesWriter(node, realtime=True)
             self.process_tag = self.batch.tag
             leaders, continued = LeaderMask(node.roster), Continued()
             self.timer = node.create_timer(
                 node.dt, lambda: realtime_tick([node], self.lock, self.heard, leaders, self.batch, continued))
         node.publish_state()
-        self.heard.hear(node.agent_name, (node.t, *node.own[2:]))
+        if node.dim == 3:
+            hear_own(self.heard, node)
+        else:
+            self.heard.hear(node.agent_name, (node.t, *node.own[2:]))
         if self.batch is not None:
             self.batch.publish([node])
 
@@ -205,7 +210,8 @@ class RealtimeDriver:
     def on_input(self, raw):
         """One agent process's states on ``/swarm/agent_states`` (serialized)."""
         node = self.node
-        m = decode_batch(raw, node.run_id, node.roster, self.process_tag, node.reject)
+        m = decode_batch(raw, node.run_id, node.roster, self.process_tag, node.reject,
+                         NaturalProcessStates if node.dim == 3 else ProcessStates)
         if m is None:
             return
         if node.radio_on:

@@ -211,7 +211,7 @@ class NaturalContainerCore(ContainerCore):
                     _, x, y, z = natural_step(b.pos[j:j + 1], b.x[j:j + 1], b.y[j:j + 1], b.z[j:j + 1],
                                               kick[3:4], kick[4:5], 1.0)
                     b.x[j], b.y[j], b.z[j] = x[0], y[0], z[0]
-        if (self.step_n + 1) % ORTHONORMALISE_EVERY == 0:
+        if self.step_n is not None and (self.step_n + 1) % ORTHONORMALISE_EVERY == 0:
             b.x[go], b.y[go], b.z[go] = orthonormalise(b.x[go], b.y[go])
 
     def finite(self, us):

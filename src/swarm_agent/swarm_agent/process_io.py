@@ -11,10 +11,11 @@ import numpy as np
 from geometry_msgs.msg import PointStamped, PolygonStamped
 from std_msgs.msg import Float64MultiArray, String
 
+from swarm_agent.natural_realtime import natural_realtime_tick
 from swarm_agent.realtime_core import CATCH_UP_MAX, advance_periods, due_periods, shared_controls
 from swarm_core.laws import LawError
 from swarm_ros import protocol as P
-from swarm_ros.layouts import AgentStates, ProcessStates
+from swarm_ros.layouts import AgentStates, NaturalProcessStates, ProcessStates
 from swarm_ros.msg_checks import batch_ok, check_step_time, decoded, new_sender_tag, refused
 from swarm_ros.rosutil import fail
 
@@ -71,7 +72,11 @@ class AgentStatesWriter:
             return
         if getattr(agents[0], 'dim', 2) == 3:                # a 3D run: from the bank (`NaturalStates`)
             b = agents[0].core.states
-            msg = b.message(self.tag, [a.index for a in agents], [a.core.slot for a in agents])
+            index, rows = [a.index for a in agents], [a.core.slot for a in agents]
+            msg = b.message(self.tag, index, rows)
+            if self.realtime:
+                msg = NaturalProcessStates(self.tag, msg.index, np.array([a.t for a in agents]),
+                                           msg.state.transpose(0, 2, 1).reshape(12, -1), msg.uv)
             self.pub.publish(msg.to_cdr(agents[0].run_id))
             return
         if len(agents) == 1 and not self.realtime:          # a lone agent, each step: no message object
@@ -169,12 +174,12 @@ def _rows_step(s, lock, agents, batch):
     return s
 
 
-def decode_batch(raw, run_id, roster, own_tag, reject):
+def decode_batch(raw, run_id, roster, own_tag, reject, layout=ProcessStates):
     """The serialized ``/swarm/agent_states`` message ``raw`` decoded (`layouts.ProcessStates`),
     or None for this process's own batch (``own_tag``) or a refused one (`msg_checks.batch_ok`).
     Its states are then checked and heard at once (`HeardStates.take`), or one by one through a
     radio model (`msg_checks.batch_states`)."""
-    m = decoded(ProcessStates, raw, run_id, reject, 'state-decode')
+    m = decoded(layout, raw, run_id, reject, 'state-decode')
     return m if m is not None and batch_ok(m, roster, own_tag, reject) else None
 
 
@@ -214,6 +219,8 @@ def realtime_tick(agents, lock, heard, leader_mask, batch, continued):
     agent that moved, and their states in one message (``batch``, an
     `AgentStatesWriter`).  ``lock``: the agents' `ContainerCore`; ``leader_mask``: a `LeaderMask`
     of the roster."""
+    if lock.dim == 3:
+        return natural_realtime_tick(agents, lock, heard, leader_mask, batch, continued)
     a0 = agents[0]
     now = a0._now()
     limits = [a.driver.catch_up_limit for a in agents] if continued() else None

@@ -31,10 +31,10 @@ class HeardStates(NewestStates):
     qz, qw, u as arrays in roster order, so that a tick's table is one mask, not a loop over
     the roster; a batch of states is checked and taken at once, `take`)."""
 
-    def __init__(self, roster):
+    def __init__(self, roster, width=4, controls=()):
         self.roster = list(roster)
         self.row = {nm: i for i, nm in enumerate(self.roster)}
-        super().__init__(len(self.roster))
+        super().__init__(len(self.roster), width, controls)
 
     def hear(self, name, state):
         """State (t, x, y, qz, qw, u) of agent ``name`` (one of the reader's own, just published)."""

@@ -480,5 +480,34 @@ class NaturalStep(Packed):
         return self.state[0, :, 0]
 
 
+@declare(AGENT_STATES, Field('K', kind='count'), Field('tag', kind='finite'),
+         Field('index', 'K', 'whole'), Field('t', 'K', 'finite'), Field('pose', (12, 'K'), 'finite'),
+         Field('u', ('K', 2), 'finite'))
+@dataclasses.dataclass(eq=False)
+class NaturalProcessStates(Packed):
+    """Realtime `ProcessStates` of a 3D run: each state's r, x, y, z (12 rows: r's three, then
+    x's, y's, z's) and its (u, v)."""
+    tag: float
+    index: np.ndarray        # (K,)
+    t: np.ndarray            # (K,)
+    pose: np.ndarray         # (12, K) r, x, y, z
+    u: np.ndarray            # (K, 2) (u, v)
+
+
+@declare(DECISION, Field('n', kind='whole'), Field('t'), Field('N', kind='count'), Field('lam'),
+         Field('flags', 'N', 'flag'), Field('steering', ('N', 2)), Field('slots', 'N', 'int'),
+         Field('rendezvous', 8, 'rendezvous3'))
+@dataclasses.dataclass(eq=False)
+class NaturalDecision(Packed):
+    """Realtime `RealtimeDecision` of a 3D run: s_k = (s_u, s_v), a rendezvous point [x, y, z]."""
+    n: int
+    t: float
+    lam: float
+    flags: np.ndarray
+    steering: np.ndarray     # (N, 2)
+    slots: np.ndarray
+    rendezvous: Any
+
+
 MESSAGES = (AgentStates, RobotStates, ProcessStates, RealtimeDecision, Step, RunClock, NaturalAgentStates,
-            NaturalStep)
+            NaturalStep, NaturalProcessStates, NaturalDecision)

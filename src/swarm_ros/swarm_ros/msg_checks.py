@@ -219,8 +219,23 @@ def batch_ok(msg, roster, own_tag, reject) -> bool:
     ``roster`` or twice, or with an orientation that is not planar.  Its states are then
     checked each as one /swarm/states message is (`NewestStates.take`, or one by one:
     `batch_states`, `check_values`, one sender per name)."""
-    return msg.tag != own_tag and not refused(reject, check_agent_states(msg.index, msg.pose, len(roster),
-                                                                         P.AGENT_STATES))
+    check = check_agent_states if len(msg.pose) == 4 else check_natural_pose
+    return msg.tag != own_tag and not refused(reject, check(msg.index, msg.pose, len(roster), P.AGENT_STATES))
+
+
+def check_natural_pose(index, pose, n, topic=P.AGENT_STATES):
+    """`check_agent_states` of a 3D run's states (``pose`` (12, K): r, x, y, z): an agent index
+    outside the roster or twice, a frame [x y z] that is not orthonormal (1e-6)."""
+    if index.size == 0:
+        return None
+    if int(index.max()) >= n:
+        return reason('unknown-agent', f'{topic} with agent index {int(index.max())} (the roster has {n})')
+    if index.size > 1 and np.unique(index).size != index.size:
+        return reason('duplicate', f'{topic} names an agent twice')
+    f = pose[3:].T.reshape(-1, 3, 3)                                 # (K, 3, 3): rows x, y, z
+    if np.abs(np.einsum('kac,kbc->kab', f, f) - np.eye(3)).max() > 1e-6:
+        return reason('not-a-frame', f'{topic}: a frame [x y z] is not orthonormal')
+    return None
 
 
 def batch_states(msg, roster):
@@ -414,10 +429,10 @@ class NewestStates:
     decoder and `check_agent_states` did the rest); ``own`` (n,) marks the reader's own agents,
     whose states only it may send."""
 
-    def __init__(self, n):
+    def __init__(self, n, width=4, controls=()):
         self.t = np.full(int(n), -np.inf)
-        self.state = np.zeros((int(n), 4))
-        self.u = np.zeros(int(n))
+        self.state = np.zeros((int(n), width))     # a 3D run's: r, x, y, z (12)
+        self.u = np.zeros((int(n), *controls))     # a 3D run's: (u, v)
         self.tag = np.full(int(n), np.nan)
         self.own = np.zeros(int(n), bool)
 

@@ -29,7 +29,16 @@ from swarm_core.analysis import metrics as M
 from swarm_core.command.plan import check_command
 from swarm_core.files import write_atomic
 from swarm_ros import protocol as P
-from swarm_ros.layouts import AgentStates, NaturalAgentStates, ProcessStates, RealtimeDecision, RobotStates, RunClock
+from swarm_ros.layouts import (
+    AgentStates,
+    NaturalAgentStates,
+    NaturalDecision,
+    NaturalProcessStates,
+    ProcessStates,
+    RealtimeDecision,
+    RobotStates,
+    RunClock,
+)
 from swarm_ros.msg_checks import (
     NewestStates,
     ProcessSenders,
@@ -45,7 +54,7 @@ from swarm_ros.run_control import EventRefused, FirstSender, forwarded
 from swarm_world.lateness import TIMING_FILE, Lateness, behind_line, timing_line
 from swarm_world.lockstep import LockstepBarrier, RobotPoseJoin, comms_schedule
 from swarm_world.markers import stamp
-from swarm_world.natural import NaturalBarrier, check_natural_states, natural_check
+from swarm_world.natural import NaturalBarrier, check_natural_states, min_distance_3d, natural_check, natural_newest
 from swarm_world.realtime import RealtimeSchedule, SilenceWatch, clock_tick, decision_valid, newest_view
 from swarm_world.wallclock import StallWatch, StartWatch
 
@@ -340,7 +349,7 @@ class RealtimeDriver:
                                                  comms_events=comms_schedule(node.scn.spec.comms, node.dt),
                                                  view_every=node.view_every)
         self.lateness = Lateness(node.n, node.dt, rtf)     # states on time (`lateness`)
-        self.heard = NewestStates(node.n)                  # each agent's newest accepted state
+        self.heard = NewestStates(node.n, *((12, (2,)) if node.dim == 3 else ()))   # each agent's newest state
         self.next_writer_look, self.clock_writers = 0.0, set()    # `watch_clock_writers`
 
     def tick_period(self):
@@ -367,7 +376,8 @@ class RealtimeDriver:
         kept as the agents' newest and recorded, with their lateness (against the sim time the
         wall clock says, from the start on)."""
         node = self.node
-        m = decoded(ProcessStates, raw, node.run_id, node.reject, 'state-decode')
+        m = decoded(NaturalProcessStates if node.dim == 3 else ProcessStates, raw, node.run_id, node.reject,
+                    'state-decode')
         if m is None or not batch_ok(m, node.names, None, node.reject):
             return
         ok = self.heard.take(m, node.names, node.sim_t, self.future_tolerance, node.reject)
@@ -390,7 +400,7 @@ class RealtimeDriver:
         """The commander's decision of a tick (serialized /swarm/decision) → the λ and the leader
         flags recorded with the states from now on, if it is a decision of this roster."""
         node = self.node
-        d = decoded(RealtimeDecision, raw, node.run_id, node.reject, 'decision')
+        d = decoded(NaturalDecision if node.dim == 3 else RealtimeDecision, raw, node.run_id, node.reject, 'decision')
         if d is None or refused(node.reject, check_decision_time(d, node.sim_t, self.future_tolerance)):
             return
         if not decision_valid(d.lam, d.flags, d.steering, node.n):
@@ -437,9 +447,9 @@ class RealtimeDriver:
         if node.done:
             return
         if self.schedule.view_due(k):
-            pos, theta = newest_view(self.heard, ~node.faults.dead)
+            pos, theta = (natural_newest if node.dim == 3 else newest_view)(self.heard, ~node.faults.dead)
             t = k * node.dt
-            md = M.min_distance(pos)
+            md = min_distance_3d(pos) if node.dim == 3 else M.min_distance(pos)
             line = node.obs.progress(t, pos, md, node.lam_now)
             if line:
                 node.log(line, flush=True)

@@ -42,13 +42,13 @@ class NaturalRecorder:
     """The rows of a 3D lockstep run as the world receives them (NaN until known): r, x, y, z
     (T, n, 3), (u, v) (T, n, 2), λ and the leaders; frozen agents hold their freeze-step state."""
 
-    def __init__(self, names, steps: int, dt: float):
+    def __init__(self, names, steps: int, dt: float, realtime: bool = False):
         self.names = list(names)
-        self.n, self.steps, self.dt = len(self.names), steps, dt
+        self.n, self.steps, self.dt, self.realtime = len(self.names), steps, dt, realtime
         T = steps + 1
         self.r, self.x, self.y, self.z = (np.full((T, self.n, 3), np.nan) for _ in range(4))
         self.u = np.zeros((T, self.n, 2))
-        self.lam = np.zeros(T)
+        self.lam = np.full(T, np.nan) if realtime else np.zeros(T)
         self.leader = np.zeros((T, self.n), bool)
         self.freezes, self.held, self.lost = [], {}, {}
 
@@ -73,6 +73,36 @@ class NaturalRecorder:
         if k > 0:
             self.u[k - 1:, i] = np.nan
 
+    def record_realtime(self, i, k, vals, u, lam, leaders):
+        """Realtime: the states (r, x, y, z as 12 numbers) of agents ``i`` stamped at steps ``k``,
+        with the (u, v) they carry and the λ and leaders seen then."""
+        i, k = np.atleast_1d(i), np.atleast_1d(k)
+        vals, u = np.atleast_2d(np.asarray(vals, float)), np.asarray(u, float).reshape(-1, 2)
+        keep = (k >= 0) & (k <= self.steps)
+        i, k, vals, u = i[keep], k[keep], vals[keep], u[keep]
+        self.lam[k], self.leader[k] = lam, leaders
+        for c, rows in enumerate((self.r, self.x, self.y, self.z)):
+            rows[k, i] = vals[:, 3 * c:3 * c + 3]
+        after = k > 0
+        self.u[k[after] - 1, i[after]] = u[after]
+
+    def _hold_between_stamps(self, rows):
+        """Realtime: each agent's last published state held between its stamps (not where it
+        died), λ and the leaders likewise."""
+        lam, leader = self.lam.copy(), self.leader.copy()
+        if not np.isfinite(lam[0]):
+            lam[0] = 0.0
+        for k in range(1, self.steps + 1):
+            miss = ~np.isfinite(rows[0][k]).all(axis=1)
+            for a in rows:
+                a[k, miss] = a[k - 1, miss]
+            if not np.isfinite(lam[k]):
+                lam[k], leader[k] = lam[k - 1], leader[k - 1]
+        for i, k in self.lost.items():
+            for a in rows:
+                a[max(k, 0):, i] = np.nan
+        return lam, leader
+
     def freeze(self, i, k0, k1):
         self.freezes.append((i, int(k0), int(k1)))
 
@@ -84,6 +114,7 @@ class NaturalRecorder:
     def trajectory(self, meta=None) -> Trajectory:
         rows = [a.copy() for a in (self.r, self.x, self.y, self.z)]
         T = self.steps + 1
+        lam, leader = self._hold_between_stamps(rows) if self.realtime else (self.lam.copy(), self.leader.copy())
         for i, k0, k1 in self.freezes:           # a frozen agent holds its freeze-step state
             if i in self.held and self.held[i][0] == k0:
                 held = self.held[i][1]
@@ -94,8 +125,8 @@ class NaturalRecorder:
             for a, v in zip(rows, held):
                 a[k0:min(k1, T), i] = v
         r, x, y, z = rows
-        return Trajectory(list(self.names), np.arange(T) * self.dt, r, None, self.u[..., 0].copy(), self.lam.copy(),
-                          self.leader.copy(), meta=dict(meta or {}, dim=3), x=x, y=y, z=z, v=self.u[..., 1].copy())
+        return Trajectory(list(self.names), np.arange(T) * self.dt, r, None, self.u[..., 0].copy(), lam, leader,
+                          meta=dict(meta or {}, dim=3), x=x, y=y, z=z, v=self.u[..., 1].copy())
 
 
 def check_natural_states(index, state, n, topic):
@@ -117,8 +148,7 @@ def check_natural_states(index, state, n, topic):
 def natural_check(obs, t, pos, names, barrier=None, ground=None):
     """`observe.Observer.check` in space: (minimum distance, complaints); intrusions are inside
     the barrier's hull or below the ground."""
-    from scipy.spatial import cKDTree
-    md = float(cKDTree(pos).query(pos, k=2)[0][:, 1].min()) if len(pos) > 1 else float('inf')
+    md = min_distance_3d(pos)
     out = []
     if md < obs.collision_distance:
         obs.collisions += 1
@@ -134,6 +164,19 @@ def natural_check(obs, t, pos, names, barrier=None, ground=None):
         out.append(('intrusion', f'nothing: barrier or ground intrusion at t={t:.2f} by '
                     + ', '.join(names[i] for i in np.flatnonzero(inside))))
     return md, out
+
+
+def natural_newest(heard, keep=None):
+    """Realtime: positions and headings x (m, 3) of the agents heard (``heard``: a
+    `NewestStates` of width 12) and in ``keep``, in roster order."""
+    have = np.isfinite(heard.t) if keep is None else np.isfinite(heard.t) & keep
+    return heard.state[have, 0:3], heard.state[have, 3:6]
+
+
+def min_distance_3d(pos):
+    """The smallest distance between two agents in space (inf for fewer than two)."""
+    from scipy.spatial import cKDTree
+    return float(cKDTree(pos).query(pos, k=2)[0][:, 1].min()) if len(pos) > 1 else float('inf')
 
 
 def natural_view(t, pos, headings, w, md, lam, leader_names, target=None, **extra) -> dict:

@@ -72,7 +72,7 @@ class WorldNode(Node):
         self._open_events_file()
         self.add_on_set_parameters_callback(self._on_params)
         self.reject = RejectLog(self.get_logger())
-        self.rec = NaturalRecorder(self.names, self.steps, self.dt) if self.dim == 3 else \
+        self.rec = NaturalRecorder(self.names, self.steps, self.dt, self.mode == 'realtime') if self.dim == 3 else \
             TrajectoryRecorder(self.names, self.steps, self.dt, self.scn.theta0, realtime=self.mode == 'realtime')
         self.obs = Observer(self.collision_distance, self.w, self.progress_every)
         self.driver = DRIVERS[self.mode](self, **mode_parameters)

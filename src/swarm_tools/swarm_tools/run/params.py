@@ -53,8 +53,8 @@ def not_yet_3d(scn, a) -> str | None:
     lockstep runs; realtime, robots and the radio model are refused."""
     if scn.dim != 3:
         return None
-    if getattr(a, 'mode', 'lockstep') != 'lockstep':
-        return 'runs on ROS in lockstep only for now (--mode lockstep; realtime is planar for now)'
+    if getattr(a, 'mode', 'lockstep') != 'lockstep' and scn.ground is not None:
+        return 'with a ground runs on ROS in lockstep only for now (--mode lockstep)'
     if getattr(a, 'robots', None):
         return 'cannot drive robots: robots are planar for now'
     if scn.comms_config() is not None:
