@@ -70,17 +70,17 @@ def loadavg() -> str:
     return ' '.join(Path('/proc/loadavg').read_text().split()[:3])
 
 
-def scenario_file(n: int, steps: int, tmp: Path) -> Path:
-    """homotopy_global with n agents on a grid, run for `steps` steps."""
+def scenario_file(n: int, steps: int, tmp: Path, dim: int = 2) -> Path:
+    """homotopy_global (dim 3: homotopy_3d) with n agents on a grid, run for `steps` steps."""
     from swarm_core.scenario.loader import resolve
-    text, _ = resolve('homotopy_global')
+    text, _ = resolve('homotopy_global' if dim == 2 else 'homotopy_3d')
     doc = yaml.safe_load(text)
-    doc['name'] = f'bench_n{n}'
+    doc['name'] = f'bench_n{n}' + ('' if dim == 2 else '_3d')
     doc['agents'] = {'count': n, 'positions': {'rule': 'grid', 'spacing': 1.0},
                      'headings': doc['agents']['headings']}
     doc['duration'] = steps * doc['dt']
     doc.pop('expect', None)
-    path = tmp / f'bench_n{n}.yaml'
+    path = tmp / f'{doc["name"]}.yaml'
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return path
 
@@ -284,12 +284,16 @@ def main(argv=None) -> int:
     ap.add_argument('--timeout', type=float, default=900, help='give up on one run after this many s')
     ap.add_argument('--run-args', default='', metavar='ARGS',
                     help="more options of every swarm run but the full one, e.g. '--start-timeout 900'")
+    ap.add_argument('--dim', default='2', help="dimensions of the process runs' swarms, comma-separated "
+                    '(2: homotopy_global, 3: homotopy_3d on a grid; e.g. 2,3 side by side; default 2)')
     ap.add_argument('--out', default='bench/ros.json', help='results JSON (default bench/ros.json)')
     a = ap.parse_args(argv)
     try:
         counts, inproc = parse_ints(a.agents), parse_ints(a.in_process)
     except ValueError:
         ap.error('--agents / --in-process: comma-separated integers')
+    if not all(d.strip() in ('2', '3') for d in a.dim.split(',')):
+        ap.error(f'--dim {a.dim}: 2, 3 or 2,3')
     exes = []
     for item in a.swarm or [f'this={DEFAULT_SWARM}']:
         label, sep, exe = item.partition('=')
@@ -307,7 +311,9 @@ def main(argv=None) -> int:
               'FASTDDS_DEFAULT_PROFILES_FILE'):
         env.pop(k, None)                    # the launcher chooses (LOCALHOST, or a profile past 32)
     per = [v.strip() for v in a.per_process.split(',') if v.strip()]
-    cases = [('processes', n, k) for n in counts for k in per] + [('in-process', n, '1') for n in inproc]
+    dims = [{'2': '', '3': '-3d'}[d.strip()] for d in a.dim.split(',') if d.strip() in ('2', '3')]
+    cases = [('processes' + d, n, k) for n in counts for k in per for d in dims] + \
+        [('in-process', n, '1') for n in inproc]
     if a.no_agent_clock:
         cases.append(('no-agent-clock', 6, '1'))
     if a.full:
@@ -325,7 +331,7 @@ def main(argv=None) -> int:
             for rep in range(a.repeat):
                 for kind, n, k in cases:
                     for label, exe in exes:
-                        if k == '1' and kind == 'processes' and n > a.max_processes:
+                        if k == '1' and kind.startswith('processes') and n > a.max_processes:
                             print(f'  [{label}] processes n={n} K=1: skipped (more than --max-processes)', flush=True)
                             continue
                         run_dir = tmp / f'{label}-{kind}-{n}-{k}-{rep}'
@@ -335,7 +341,7 @@ def main(argv=None) -> int:
                                     '--progress-every', '250', '--out', str(run_dir)]
                         else:
                             steps = int(DEFAULT_STEPS.get(n, max(200, 24000 // n)) * a.steps)
-                            scn = scenario_file(n, steps, tmp)
+                            scn = scenario_file(n, steps, tmp, dim=3 if kind.endswith('-3d') else 2)
                             args = [exe, 'run', str(scn), '--no-figure', '--out', str(run_dir),
                                     '--progress-every', str(steps * 0.05 / 2)]
                             if kind == 'in-process':
