@@ -113,6 +113,7 @@ class AgentNode(Node):
             self._time_source.detach_node()
             self.set_parameters([Parameter('use_sim_time', value=True)])
         self.contained = contained
+        self.lean = not services     # no parameter services: no history of /swarm/states either (`unread`)
         self.sim_clock = self.get_clock()   # a realtime container's agents share its first agent's
         self.halted = None       # contained: 'kill' or 'freeze' (fault events for this agent)
         leader, pose, noise, seed, mode_parameters, comms = self._declare_parameters()
@@ -368,10 +369,12 @@ class AgentNode(Node):
 
     def unread(self) -> bool:
         """Lockstep: nobody would get this state (no reader of /swarm/states matched, the step
-        past the writer's history of the start); the world reads /lockstep/agent_states.
-        Serialising and writing it would be work for nothing, for each agent of a container
-        each step (docs/ros-graph.md, "/swarm/states")."""
-        return self.mode == 'lockstep' and self.step >= P.STATES_DEPTH and self.pub.get_subscription_count() == 0
+        past the writer's history of the start; a lean node of a big container keeps no
+        history for late readers); the world reads /lockstep/agent_states.  Serialising and
+        writing it would be work for nothing, for each agent of a container each step
+        (docs/ros-graph.md, "/swarm/states")."""
+        return self.mode == 'lockstep' and (self.step >= P.STATES_DEPTH or self.lean) and \
+            self.pub.get_subscription_count() == 0
 
     def send_held_states(self):
         """Publish the states `publish_state` held, and hold no more."""
