@@ -91,7 +91,7 @@ class NaturalAgentCore:
         self.comms = None
         self.reported = False
         self.pairs = None
-        self.seen = None
+        self.container = None       # its `NaturalContainerCore` (the inputs of its last (u, v))
 
     @property
     def law(self):
@@ -124,13 +124,18 @@ class NaturalAgentCore:
     def trial(self, law: Law) -> str | None:
         """Try ``law`` on the table of this agent's last (u, v) (before its first: its own state
         alone at λ = 0): None if it gives a finite (u, v), else the one line why."""
-        pos, frames, row, lam, flags, steering, target, barrier, ground, alive, rdv, t = self.seen or (
-            self.states.pos[self.slot:self.slot + 1], tuple(f[self.slot:self.slot + 1] for f in (
-                self.states.x, self.states.y, self.states.z)), 0, 0.0, None, np.zeros((1, 2)), None, None, None,
-            None, None, self.step * self.dt)
+        seen = None if self.container is None else self.container.seen
+        b, j = self.states, self.slot
+        if seen is None:
+            seen = (b.pos[j:j + 1], (b.x[j:j + 1], b.y[j:j + 1], b.z[j:j + 1]), 0.0, None, np.zeros((1, 2)), None,
+                    None, None, None, None, self.step * self.dt)
+            row = 0
+        else:
+            row = self.index
+        pos, frames, lam, flags, steering, target, barrier, ground, alive, rdv, t = seen
         try:
-            uv = natural_alive_control(pos, frames, np.arange(len(pos)), law, lam, flags, steering, target, barrier,
-                                       ground, alive=alive, rendezvous=rdv, t=t)[row]
+            uv = natural_alive_control(pos, frames, [row], law, lam, flags, steering[[row]], target, barrier,
+                                       ground, alive=alive, rendezvous=rdv, t=t)[0]
         except LawError as err:
             return str(err)
         if not np.all(np.isfinite(uv)):
@@ -153,6 +158,9 @@ class NaturalContainerCore(ContainerCore):
         self.rows = np.array([c.index for c in self.cores], dtype=np.intp)
         self.bank = NaturalStates.of(self.cores)
         self.dead = np.zeros(len(self.cores), dtype=bool)
+        self.seen = None            # the inputs of the last (u, v) (`NaturalAgentCore.trial`)
+        for c in self.cores:
+            c.container = self
 
     @property
     def any_reported(self) -> bool:
@@ -168,24 +176,23 @@ class NaturalContainerCore(ContainerCore):
         pos[idx], x[idx], y[idx], z[idx] = b.pos[go], b.x[go], b.y[go], b.z[go]
         alive = s.alive if len(s.alive) == self.n and not s.alive.all() else None
         steering = np.asarray(s.steering, float)
+        self.seen = (pos, (x, y, z), s.lam, s.flags, steering, s.target, s.barrier, s.ground, alive, s.rendezvous, s.t)
+        if self.one_law:                                        # a plain run: one call
+            groups = [go.tolist()]
+        else:                                                   # one call per law
+            by_law = {}
+            for j in go.tolist():
+                by_law.setdefault(id(self.cores[j].law), []).append(j)
+            groups = list(by_law.values())
         uv = np.zeros((len(go), 2))
-        groups = {}
-        for j in go.tolist():                                   # one call per law (one in a plain run)
-            groups.setdefault(id(self.cores[j].law), []).append(j)
-        for js in groups.values():
-            law = self.cores[js[0]].law
-            seen = (pos, (x, y, z), None, s.lam, s.flags, steering, s.target, s.barrier, s.ground, alive,
-                    s.rendezvous, s.t)
+        for js in groups:
+            rows = self.rows[js]
             try:
-                mine = natural_alive_control(pos, (x, y, z), self.rows[js], law, s.lam, s.flags,
-                                             steering[self.rows[js]], s.target, s.barrier, s.ground, alive=alive,
-                                             rendezvous=s.rendezvous, t=s.t)
+                uv[np.searchsorted(go, js)] = natural_alive_control(
+                    pos, (x, y, z), rows, self.cores[js[0]].law, s.lam, s.flags, steering[rows], s.target, s.barrier,
+                    s.ground, alive=alive, rendezvous=s.rendezvous, t=s.t)
             except LawError as err:   # the process stops on it (`swarm_ros.rosutil.run_node`)
                 raise failed_at(err, s.t) from None
-            for j in js:
-                self.cores[j].seen = seen[:2] + (int(self.rows[j]),) + seen[3:]
-            at = np.searchsorted(go, js)
-            uv[at] = mine
         self.step_n = s.n
         return uv
 
