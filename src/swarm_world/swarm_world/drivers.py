@@ -262,7 +262,8 @@ class LockstepDriver:
         if line:
             node.log(line, flush=True)
         if node.view_every and k % node.view_every == 0:
-            node.publish_view(t, pos, node.rec.x[k, idx] if node.dim == 3 else node.rec.theta[k, idx], md, idx)
+            frames = tuple(f[k, idx] for f in (node.rec.x, node.rec.y, node.rec.z)) if node.dim == 3 else None
+            node.publish_view(t, pos, frames if node.dim == 3 else node.rec.theta[k, idx], md, idx)
 
     # ------------------------------------------------------------ wall clock
     def tick(self):

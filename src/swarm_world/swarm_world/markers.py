@@ -91,7 +91,7 @@ class Trails:
         full = idx[self.count[idx] == self.length]
         self.points[full, :-1] = self.points[full, 1:]
         self.count[full] -= 1
-        self.points[idx, self.count[idx], :2] = pos
+        self.points[idx, self.count[idx], :pos.shape[1]] = pos          # (m, 2), or (m, 3) in 3D
         self.count[idx] += 1
 
     def trail(self, i) -> np.ndarray:
@@ -179,17 +179,23 @@ def markers_message(t, pos, theta, labels, idx, leaders, trails: Trails, target=
     head = stamp_b + frame.bytes()[len(P.CDR_LE):]
     c = _Cdr()
     c.put(4, struct.pack('<I', 2 * len(idx) + (target is not None) + (barrier is not None)))
-    half = np.asarray(theta, float) / 2
+    theta = np.asarray(theta, float)
+    if theta.ndim == 1:                         # headings θ: the planar quaternion (0, 0, sin θ/2, cos θ/2)
+        half = theta / 2
+        quats = [(0.0, 0.0, math.sin(h), math.cos(h)) for h in half.tolist()]
+    else:                                       # 3D: the quaternions of the frames (m, 4)
+        quats = theta.tolist()
     for row, i in enumerate(idx.tolist()):
         rgb = PALETTE[labels[row] % len(PALETTE)]
-        _marker(c, head, 'agents', i, ARROW, (pos[row, 0], pos[row, 1], 0.0, 0.0, 0.0, math.sin(half[row]),
-                                              math.cos(half[row])), (0.8, 0.25, 0.25),
+        z = float(pos[row, 2]) if pos.shape[1] == 3 else 0.0
+        _marker(c, head, 'agents', i, ARROW, (pos[row, 0], pos[row, 1], z, *quats[row]), (0.8, 0.25, 0.25),
                 (*(LEADER_COLOUR if leaders[i] else rgb), 1.0))
         _marker(c, head, 'trails', i, LINE_STRIP, (0.0,) * 6 + (1.0,), (0.05, 0.0, 0.0), (*rgb, 0.6), trails.trail(i))
     if target is not None:
-        _marker(c, head, 'target', 0, SPHERE, (float(target[0]), float(target[1]), 0.0, 0.0, 0.0, 0.0, 1.0),
+        tz = float(target[2]) if len(target) == 3 else 0.0
+        _marker(c, head, 'target', 0, SPHERE, (float(target[0]), float(target[1]), tz, 0.0, 0.0, 0.0, 1.0),
                 (1.0, 1.0, 1.0), (0.0, 1.0, 0.0, 1.0))
     if barrier is not None:
-        ring = np.array([(x, y, 0.0) for x, y in list(barrier) + [barrier[0]]], float)
+        ring = np.array([(p[0], p[1], p[2] if len(p) == 3 else 0.0) for p in list(barrier) + [barrier[0]]], float)
         _marker(c, head, 'barrier', 0, LINE_STRIP, (0.0,) * 6 + (1.0,), (0.1, 0.0, 0.0), (1.0, 0.0, 0.0, 1.0), ring)
     return c.bytes()

@@ -167,10 +167,11 @@ def natural_check(obs, t, pos, names, barrier=None, ground=None):
 
 
 def natural_newest(heard, keep=None):
-    """Realtime: positions and headings x (m, 3) of the agents heard (``heard``: a
+    """Realtime: positions and frames (x, y, z), (m, 3) each, of the agents heard (``heard``: a
     `NewestStates` of width 12) and in ``keep``, in roster order."""
     have = np.isfinite(heard.t) if keep is None else np.isfinite(heard.t) & keep
-    return heard.state[have, 0:3], heard.state[have, 3:6]
+    s = heard.state[have]
+    return s[:, 0:3], (s[:, 3:6], s[:, 6:9], s[:, 9:12])
 
 
 def min_distance_3d(pos):

@@ -34,6 +34,7 @@ from visualization_msgs.msg import MarkerArray
 from swarm_core.analysis import metrics as M
 from swarm_core.engine.trajectory import Trajectory, TrajectoryRecorder
 from swarm_core.files import open_regular
+from swarm_core.model.natural import quaternion_from_frame
 from swarm_core.robot_units import ROBOT_KINDS
 from swarm_ros import protocol as P
 from swarm_ros import runinfo
@@ -298,21 +299,21 @@ class WorldNode(Node):
     # ------------------------------------------------------------ view
     def publish_view(self, t, pos, theta, md, idx=None, timing=None):
         """Metrics and markers of agents ``idx`` (default all) at rows pos, theta; realtime:
-        with the ``timing`` so far (`Lateness.summary`).  A 3D run (``theta``: the headings x
-        (m, 3)) publishes its metrics only."""
+        with the ``timing`` so far (`Lateness.summary`).  A 3D run's ``theta`` is the frames
+        (x, y, z), (m, 3) each: its markers carry z and the frames' quaternions."""
         idx = np.arange(len(pos)) if idx is None else idx
-        if self.dim == 3:
-            leaders = [self.names[i] for i in np.flatnonzero(self.leaders_now)]
-            self.pub_metrics.publish(metrics_message(t, natural_view(
-                t, pos, theta, self.w, md, self.lam_now, leaders, self.target, intrusions=self.obs.intrusions,
-                collisions=self.obs.collisions, cutoff_radius=self.w)))
-            self.views += 1
-            return
-        c, labels = M.cluster_labels(pos, self.w)
         leaders = [self.names[i] for i in np.flatnonzero(self.leaders_now)]
-        vals = view_values(t, pos, theta, c, md, self.lam_now, leaders, self.target,
-                           intrusions=self.obs.intrusions, collisions=self.obs.collisions,
-                           cutoff_radius=self.w, **(timing or {}))   # cutoff: what `swarm report` counts clusters by
+        if self.dim == 3:
+            c, labels = M.cluster_labels_3d(pos, self.w)
+            vals = natural_view(t, pos, theta[0], self.w, md, self.lam_now, leaders, self.target,
+                                intrusions=self.obs.intrusions, collisions=self.obs.collisions, cutoff_radius=self.w,
+                                **(timing or {}))
+            theta = np.stack(quaternion_from_frame(*theta), axis=1)
+        else:
+            c, labels = M.cluster_labels(pos, self.w)
+            vals = view_values(t, pos, theta, c, md, self.lam_now, leaders, self.target,     # cutoff: what
+                               intrusions=self.obs.intrusions, collisions=self.obs.collisions,    # `swarm report`
+                               cutoff_radius=self.w, **(timing or {}))                            # counts by
         self.pub_metrics.publish(metrics_message(t, vals))
         self.views += 1
         if self.views % markers_every(self.n) or self.pub_markers.get_subscription_count() == 0:
