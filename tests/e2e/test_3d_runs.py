@@ -1,8 +1,8 @@
 """End-to-end in 3D (``dim: 3``): `swarm run` in lockstep, with agent processes and with agent
 containers, equals `swarm simulate` bit for bit (r, x, y, z, u, v, λ, leaders), with faults
 too; the bag's /swarm/states carry the full pose (the quaternion of the frame [x y z]) and
-twist.angular = (0, −v, u); a realtime 3D run splits on a live `swarm lambda 1`; realtime with a
-ground and robots are refused in one line before anything starts."""
+twist.angular = (0, −v, u); a realtime 3D run splits on a live `swarm lambda 1`; a radio model and
+robots are refused in one line before anything starts."""
 import re
 import signal
 import subprocess
@@ -68,10 +68,10 @@ def test_3d_lockstep_equals_simulate(per, tmp_path, ros_domain, processes, swarm
         np.testing.assert_array_equal(w, [0.0, -held[1], held[0]])                # REP 103: (0, −v, u)
 
 
-@pytest.mark.parametrize('extra, says', [(['--mode', 'realtime'], 'with a ground runs on ROS in lockstep only'),
-                                         (['--robots', 'external'], 'robots are planar')])
-def test_3d_realtime_with_a_ground_and_robots_are_refused_in_one_line(extra, says, tmp_path, swarm_cmd):
-    path = short_3d(tmp_path / 'h3.yaml', duration=5.0, barrier={'ground': -5.0})
+@pytest.mark.parametrize('extra, more, says', [([], {'comms': {'loss': 0.3}}, 'with a radio model'),
+                                               (['--robots', 'external'], {}, 'robots are planar')])
+def test_3d_with_a_radio_and_on_robots_are_refused_in_one_line(extra, more, says, tmp_path, swarm_cmd):
+    path = short_3d(tmp_path / 'h3.yaml', duration=5.0, **more)
     r = subprocess.run([swarm_cmd, 'run', str(path), '--out', str(tmp_path / 'run'), *extra],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2, r.stderr

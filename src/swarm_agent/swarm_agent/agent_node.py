@@ -211,6 +211,11 @@ class AgentNode(Node):
         self.z0 = d('z', 0.0, '3D: initial z position', read_only=True)
         self.frame0 = list(d('frame', [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], '3D: initial frame x, y, z '
                              '(9 numbers, orthonormal, right-handed)', read_only=True))
+        ground = d('ground', '', "3D, realtime: the floor's height h (the barrier's ground; '' = none)", read_only=True)
+        try:
+            self.ground = float(ground) if ground.strip() else None
+        except ValueError:
+            raise ParameterError(f'parameter ground: {ground!r} is not a number') from None
         if self.dim == 3:
             f = np.asarray(self.frame0, float)
             if f.size != 9 or not np.all(np.isfinite(f)) or not np.allclose(f.reshape(3, 3) @ f.reshape(3, 3).T,

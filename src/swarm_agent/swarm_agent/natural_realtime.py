@@ -37,7 +37,7 @@ def hear_own(heard, agent):
     heard.put(agent.index, agent.t, state, uv)
 
 
-def natural_controls(lock, go, heard, now, stale, lam, flags, steering, target, barrier):
+def natural_controls(lock, go, heard, now, stale, lam, flags, steering, target, barrier, ground=None):
     """(u, v) (len(go), 2) of the agents ``go`` from the table they heard within ``stale``."""
     b = lock.bank
     own = lock.rows[go]
@@ -47,7 +47,7 @@ def natural_controls(lock, go, heard, now, stale, lam, flags, steering, target, 
     pos[at], x[at], y[at], z[at] = b.pos[go], b.x[go], b.y[go], b.z[go]
     law = lock.cores[go[0]].law
     try:
-        return natural_alive_control(pos, (x, y, z), at, law, lam, flags[rows], steering, target, barrier, None,
+        return natural_alive_control(pos, (x, y, z), at, law, lam, flags[rows], steering, target, barrier, ground,
                                      t=now)
     except LawError as err:           # the process stops on it (`swarm_ros.rosutil.run_node`)
         raise failed_at(err, now) from None
@@ -68,7 +68,7 @@ def natural_realtime_tick(agents, lock, heard, leader_mask, batch, continued):
     steering = np.array([np.broadcast_to(np.asarray(agents[j].steering, float), 2) for j in go])
     try:
         uv = natural_controls(lock, go, heard, now, a0.driver.stale_after, a0.lam, leader_mask(a0.leaders),
-                              steering, a0.target, a0.barrier)
+                              steering, a0.target, a0.barrier, a0.ground)
     except LawError as err:           # the agents' law failed: the process stops with one line
         fail(err)
         return

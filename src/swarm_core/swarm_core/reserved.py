@@ -17,7 +17,7 @@ AGENT_PARAMETERS = (
     'agent_index', 'agent_name', 'agent_names', 'catch_up_limit', 'comms', 'dt', 'future_tolerance', 'law',
     'leader', 'lockstep_clock', 'mode', 'noise_heading', 'noise_position', 'pair_sums', 'robot', 'run_id', 'seed',
     'stale_after', 'start_type_description_service', 'state_subscribers', 'theta', 'use_sim_time', 'x', 'y',
-    'dim', 'z', 'frame',     # a 3D run's
+    'dim', 'z', 'frame', 'ground',     # a 3D run's
     # a robot agent's
     'cmd_type', 'cruise_speed', 'length_scale', 'max_angular', 'max_jump', 'neighbour_timeout',
     'odom_reliability', 'odom_timeout', 'robot_clock', 'robot_frame',

@@ -13,7 +13,7 @@ import numpy as np
 from swarm_core.analysis import metrics as M
 from swarm_core.engine.trajectory import Trajectory
 from swarm_ros.layouts import NaturalStep
-from swarm_ros.msg_checks import reason
+from swarm_ros.msg_checks import check_natural_pose
 from swarm_world.lockstep import LockstepBarrier
 
 
@@ -131,18 +131,9 @@ class NaturalRecorder:
 
 def check_natural_states(index, state, n, topic):
     """Why a decoded 3D ``/lockstep/agent_states`` (`NaturalAgentStates`, every value finite)
-    must be rejected as a whole (a `Reason`), or None: an agent index outside the roster or
-    twice, a frame that is not orthonormal (1e-6)."""
-    if index.size == 0:
-        return None
-    if int(index.max()) >= n:
-        return reason('unknown-agent', f'{topic} with agent index {int(index.max())} (the roster has {n})')
-    if index.size > 1 and np.unique(index).size != index.size:
-        return reason('duplicate', f'{topic} names an agent twice')
-    f = np.stack([state[1], state[2], state[3]], axis=1)            # (K, 3, 3): rows x, y, z
-    if np.abs(np.einsum('kac,kbc->kab', f, f) - np.eye(3)).max() > 1e-6:
-        return reason('not-a-frame', f'{topic}: a frame [x y z] is not orthonormal')
-    return None
+    must be rejected as a whole (a `Reason`), or None: `msg_checks.check_natural_pose` of its
+    states (4, K, 3) as 12 rows."""
+    return check_natural_pose(index, state.transpose(0, 2, 1).reshape(12, -1), n, topic)
 
 
 def natural_check(obs, t, pos, names, barrier=None, ground=None):

@@ -39,7 +39,7 @@ FIXED_TEXT = dict(agent_name='agent_9', agent_names='[a, b]', agent_index='3', l
                   robot='external', comms='{"loss": 0.5}', run_id='other', law='global', state_subscribers='2',
                   lockstep_clock='topic', stale_after='0.5', catch_up_limit='9', future_tolerance='0.1',
                   use_sim_time='false', start_type_description_service='false', pair_sums='compiled', dim='3',
-                  z='1.0', frame='[0.0, 1.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0]')
+                  z='1.0', frame='[0.0, 1.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0]', ground='2.0')
 NAMES = [f'agent_{i}' for i in range(6)]
 POS = np.array([[0.0, 0.0], [1.2, 0.4], [-0.8, 1.1], [3.0, -1.0], [6.5, 2.0], [-5.0, -4.5]])
 THETA = np.array([0.3, -0.2, 1.1, 2.5, -2.0, 0.7])

@@ -53,8 +53,6 @@ def not_yet_3d(scn, a) -> str | None:
     lockstep runs; realtime, robots and the radio model are refused."""
     if scn.dim != 3:
         return None
-    if getattr(a, 'mode', 'lockstep') != 'lockstep' and scn.ground is not None:
-        return 'with a ground runs on ROS in lockstep only for now (--mode lockstep)'
     if getattr(a, 'robots', None):
         return 'cannot drive robots: robots are planar for now'
     if scn.comms_config() is not None:
@@ -66,7 +64,8 @@ def agent_parameters(scn, i: int, mode: str, pair_sums: str = 'numpy') -> dict:
     noise = scn.spec.noise
     if scn.dim == 3:             # r and the initial frame [x y z] (9 numbers: x, y, z)
         pose = dict(x=float(scn.pos0[i, 0]), y=float(scn.pos0[i, 1]), z=float(scn.pos0[i, 2]), theta=0.0, dim=3,
-                    frame=[float(v) for f in scn.frames0 for v in f[i]])
+                    frame=[float(v) for f in scn.frames0 for v in f[i]],
+                    ground='' if scn.ground is None else repr(float(scn.ground)))
     else:
         pose = dict(x=float(scn.pos0[i, 0]), y=float(scn.pos0[i, 1]), theta=float(scn.theta0[i]))
     return dict(agent_name=scn.names[i], agent_index=i, agent_names=list(scn.names), leader=False, pair_sums=pair_sums,
