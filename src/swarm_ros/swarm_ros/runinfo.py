@@ -94,14 +94,16 @@ def declare_run_id(node, what: str) -> str:
 
 
 def run_json(run_id: str, scenario: str, mode: str, agents, since: float, scenario_hash: str = '',
-             remote=(), robots=None) -> str:
+             remote=(), robots=None, dim: int = 2) -> str:
     """The text of a ``/swarm/run`` message; ``since``: when its world started (wall s, epoch),
     so that of two runs on one domain the younger one gives way; ``scenario_hash``: the
     content hash of its scenario (`swarm_core.scenario.loader.Scenario.content_hash`), ``remote``:
     the agents other hosts start, which ``swarm join`` checks (`join_error`), and ``robots``:
-    {agent: robot kind} of those that drive a robot (``swarm join`` starts them so)."""
+    {agent: robot kind} of those that drive a robot (``swarm join`` starts them so); ``dim``: the
+    scenario's dimension (2 or 3: ``swarm steer`` sends one curvature or two)."""
     return json.dumps(dict(run_id=run_id, scenario=scenario, mode=mode, agents=list(agents), since=since,
-                           scenario_hash=scenario_hash, remote=list(remote), robots=dict(robots or {})))
+                           scenario_hash=scenario_hash, remote=list(remote), robots=dict(robots or {}),
+                           dim=int(dim)))
 
 
 def robots_text(robots: dict) -> str:
