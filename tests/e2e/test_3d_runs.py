@@ -78,34 +78,28 @@ def test_3d_with_a_radio_and_on_robots_are_refused_in_one_line(extra, more, says
     assert says in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
-def test_3d_live_steering_from_topic_pub_replays_in_simulate(tmp_path, rclpy_context):
-    """Lockstep in one executor: ``ros2 topic pub --once /agent_1/steering
-    std_msgs/msg/Float64MultiArray "{data: [0.0, 0.02]}"`` (emulated, its own participant) at
-    some step makes agent_1 a leader with s_k = (0, 0.02); events.jsonl names the step, and the
-    batch engine given that command (``swarm simulate --replay``) equals the run bit for bit."""
-    import json
+def steered_lockstep(tmp_path, ctx, tool, duration=25.0, at=100):
+    """A lockstep 3D run in one executor; at step ``at`` ``tool()`` runs in a thread (its own
+    participant) while only the commander spins (the swarm waits).  Gives the scenario, the
+    trajectory, the lines of events.jsonl and what ``tool`` returned."""
     import threading
 
-    from rclpy.context import Context
-
-    from swarm_core.command.plan import read_commands
     from swarm_ros.rosutil import make_executor
     from swarm_tools.run.launch import build_nodes
     from swarm_tools.run.params import node_parameters
-    from tests.fakes.emulate_topic_pub import main as topic_pub_once
     from tests.helpers import spin_for
 
-    path = short_3d(tmp_path / 'h3.yaml', duration=25.0)
+    path = short_3d(tmp_path / 'h3.yaml', duration=duration)
     scn = load(str(path))
     out = tmp_path / 'out'
     world, commander, agents = build_nodes(node_parameters(scn, str(path), 'lockstep', output_dir=str(out)),
-                                           rclpy_context, log=lambda *a, **k: None)
-    ex = make_executor(rclpy_context, events=False)
+                                           ctx, log=lambda *a, **k: None)
+    ex = make_executor(ctx, events=False)
     for nd in [world, commander, *agents]:
         ex.add_node(nd)
-    assert spin_for(ex, lambda: world.driver.lock.cur >= 100, 120)
-    t = threading.Thread(target=topic_pub_once, args=(['/agent_1/steering', 'std_msgs/msg/Float64MultiArray',
-                                                       '{data: [0.0, 0.02]}'],), kwargs=dict(context=Context()))
+    assert spin_for(ex, lambda: world.driver.lock.cur >= at, 120)
+    said = []
+    t = threading.Thread(target=lambda: said.append(tool()))
     t.start()
     for nd in [world, *agents]:              # the swarm waits while the tool runs; the commander takes it
         ex.remove_node(nd)
@@ -114,19 +108,55 @@ def test_3d_live_steering_from_topic_pub_replays_in_simulate(tmp_path, rclpy_con
         ex.add_node(nd)
     assert spin_for(ex, lambda: world.done, 300)
     got = world.trajectory()
-    lines = (out / 'events.jsonl').read_text().splitlines()
+    for nd in [world, commander, *agents]:
+        nd.destroy_node()
+    return scn, got, (out / 'events.jsonl').read_text().splitlines(), said[0] if said else None
+
+
+def replayed(scn, got, lines, value):
+    """The one steer command in ``lines`` is (agent_1, ``value``), and the batch engine given it
+    (``swarm simulate --replay``) equals the run bit for bit; it changed the run from its step on."""
+    import json
+
+    from swarm_core.command.plan import read_commands
     steer = [json.loads(ln) for ln in lines if '"steer"' in ln]
-    assert len(steer) == 1 and steer[0]['value'] == [0.0, 0.02] and steer[0]['agent'] == 'agent_1', lines
-    commands = read_commands(lines, scn.names)
-    ref = simulate(scn, commands=commands)
+    assert len(steer) == 1 and steer[0]['value'] == value and steer[0]['agent'] == 'agent_1', lines
+    ref = simulate(scn, commands=read_commands(lines, scn.names))
     for key in KEYS:
         np.testing.assert_array_equal(getattr(got, key), getattr(ref, key), err_msg=key)
     k = steer[0]['step']
     assert got.leader[k:, 1].all()
-    plain = simulate(scn)                                   # the command changed the run from step k on
+    plain = simulate(scn)
     assert np.array_equal(plain.v[:k], got.v[:k]) and not np.array_equal(plain.v[k:], got.v[k:])
-    for nd in [world, commander, *agents]:
-        nd.destroy_node()
+
+
+def test_3d_live_steering_from_topic_pub_replays_in_simulate(tmp_path, rclpy_context):
+    """``ros2 topic pub --once /agent_1/steering std_msgs/msg/Float64MultiArray "{data: [0.0,
+    0.02]}"`` (emulated) at some step makes agent_1 a leader with s_k = (0, 0.02); events.jsonl
+    names the step, and the batch engine given that command equals the run bit for bit."""
+    from rclpy.context import Context
+
+    from tests.fakes.emulate_topic_pub import main as topic_pub_once
+    args = ['/agent_1/steering', 'std_msgs/msg/Float64MultiArray', '{data: [0.0, 0.02]}']
+    replayed(*steered_lockstep(tmp_path, rclpy_context, lambda: topic_pub_once(args, context=Context()))[:3],
+             [0.0, 0.02])
+
+
+def test_3d_swarm_steer_takes_two_numbers_and_refuses_one(tmp_path, rclpy_context, capsys):
+    """`swarm steer agent_1 0.02` in a 3D run is one line, exit 2, and sends nothing (the run
+    announces ``dim: 3``); `swarm steer agent_1 0 0.02` steers it as ``ros2 topic pub`` does."""
+    from swarm_tools.live.verbs import steer_main
+
+    def tool():
+        return steer_main(['agent_1', '0.02', '--wait', '60']), steer_main(['agent_1', '0', '0.02', '--wait', '60'])
+
+    scn, got, lines, codes = steered_lockstep(tmp_path, rclpy_context, tool, duration=10.0, at=40)
+    err = capsys.readouterr()
+    assert codes == (2, 0), err
+    refused = err.err.strip().splitlines()
+    assert len(refused) == 1 and 'is 3D: give two numbers, s_u s_v (got 1)' in refused[0], err.err
+    assert 'homotopy_3d' in refused[0] and 'swarm steer: agent_1 steering (0, 0.02)' in err.out, err
+    replayed(scn, got, lines, [0.0, 0.02])
 
 
 @pytest.mark.parametrize('per', [1, 3], ids=['processes', 'containers'])

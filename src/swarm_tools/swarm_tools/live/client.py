@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 import threading
 import time
 
@@ -56,6 +57,18 @@ def check_lambda(value: float, ramp: float) -> None:
         raise ValueError(LAMBDA_BOUND.error(value))
     if not RAMP_BOUND.ok(ramp):
         raise ValueError(f'--{RAMP_BOUND.error(ramp)}')
+
+
+def check_steering(value) -> tuple:
+    """A steering value (a number, or a sequence of one or two) as a tuple of floats;
+    ValueError for a value outside `STEERING_BOUND` or more than two."""
+    values = (value,) if isinstance(value, numbers.Real) else tuple(value)
+    if not 1 <= len(values) <= 2:
+        raise ValueError(f'give one curvature s_k, or in a 3D run two (s_u s_v), not {len(values)}')
+    for v in values:
+        if not STEERING_BOUND.ok(v):
+            raise ValueError(STEERING_BOUND.error(v))
+    return tuple(float(v) for v in values)
 
 
 def check_partition(groups) -> list:
@@ -219,18 +232,41 @@ class Client:
         raise NoSwarm(f'{prog}: no running swarm found (nothing subscribes {P.LAMBDA}); '
                       "is ROS_DOMAIN_ID the same as the run's?")
 
-    def steer(self, agent: str, curvature: float, wait: float = 10.0, prog='swarm steer', say=_quiet) -> str:
-        """Leader steering ``curvature`` for ``agent`` (to the commander); gives the name."""
-        from std_msgs.msg import Float64
-        if not STEERING_BOUND.ok(curvature):
-            raise ValueError(STEERING_BOUND.error(curvature))
+    def steer(self, agent: str, curvature, wait: float = 10.0, prog='swarm steer', say=_quiet) -> str:
+        """Leader steering for ``agent`` (to the commander): a curvature s_k, or in a 3D run
+        (s_u, s_v); gives the name.  ValueError for a count that does not match the run's
+        dimension (`steering_dim`)."""
+        from std_msgs.msg import Float64, Float64MultiArray
+        values = check_steering(curvature)
         name = agent_name(agent)
         if name is None:
             raise ValueError(f'{agent!r} is not an agent name')
-        if not self.send(Float64, P.steering_topic(name), Float64(data=float(curvature)), wait,
-                         for_node='commander', prog=prog, agent=name, say=say):
-            raise NoSwarm(f'{prog}: unknown agent {name!r}: nothing subscribes {P.steering_topic(name)}')
+        topic = P.steering_topic(name)
+        dim, run = self.steering_dim(topic, wait, prog)
+        if dim is None:
+            raise NoSwarm(f'{prog}: unknown agent {name!r}: nothing subscribes {topic}')
+        if len(values) != dim - 1:
+            raise ValueError(f'{runinfo.describe(run) if run else "the run"} is {dim}D: give '
+                             f'{"one number, s_k" if dim == 2 else "two numbers, s_u s_v"} (got {len(values)})')
+        msg = Float64(data=values[0]) if dim == 2 else Float64MultiArray(data=list(values))
+        if not self.send(type(msg), topic, msg, wait, for_node='commander', prog=prog, agent=name, say=say):
+            raise NoSwarm(f'{prog}: unknown agent {name!r}: nothing subscribes {topic}')
         return name
+
+    def steering_dim(self, topic: str, wait: float, prog: str):
+        """(the run's dimension, the run) once the commander publishes ``topic`` (up to ``wait``
+        s; (None, None) if it does not): the run's announcement says it, else the topic's type
+        does (Float64 in 2D, Float64MultiArray in 3D).  `TwoRuns` as `one_run`."""
+        def commander_type():
+            return next((i.topic_type for i in self.node.get_publishers_info_by_topic(topic)
+                         if i.node_name == 'commander'), None)
+
+        if not self.until(commander_type, wait):
+            return None, None
+        run = self.one_run(prog)
+        if run and run.get('dim') in (2, 3):
+            return run['dim'], run
+        return (3 if commander_type().endswith('Float64MultiArray') else 2), run
 
     def fault(self, kind: str, agent: str, seconds=None, wait: float = 10.0, prog='swarm', say=_quiet) -> str:
         """A live fault request (``kind`` 'kill', or 'freeze' for ``seconds``) to the world; gives

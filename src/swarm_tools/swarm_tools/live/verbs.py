@@ -8,7 +8,9 @@
     std_msgs/msg/Float64 "{data: 1.0}"`` does (a running commander takes that as a set-point
     with its ``ramp`` parameter; docs/commands.md).  ``swarm steer agent_0 0.01`` publishes 0.01
     on ``/agent_0/steering`` (as ``ros2 topic pub`` would): the commander makes it that
-    leader's constant steering program (the agent becomes a leader if it was not).
+    leader's constant steering program (the agent becomes a leader if it was not).  In a 3D
+    run (``dim`` in ``/swarm/run``) ``swarm steer agent_1 0 0.02`` sends ``[s_u, s_v]``; a
+    count that does not match the run's dimension is refused (exit 2).
 
 ``swarm kill AGENT`` and ``swarm pause AGENT SECONDS`` (faults; docs/faults.md)
     A JSON request on ``/swarm/fault_request``; the world applies it at its next step: the
@@ -84,15 +86,17 @@ def lambda_main(argv) -> int:
 
 def steer_main(argv) -> int:
     p = argparse.ArgumentParser(prog='swarm steer', description=(
-        "Set a leader's steering program (a constant curvature s_k) in a running swarm."))
+        "Set a leader's steering program (a constant curvature s_k; in a 3D run (s_u, s_v)) in a running swarm."))
     p.add_argument('agent', help='agent name, e.g. agent_0')
-    p.add_argument('value', type=float, help='curvature s_k (finite; + turns anticlockwise)')
+    p.add_argument('value', type=float, nargs='+', metavar='S',
+                   help='curvature s_k (finite; + turns anticlockwise); in a 3D run two: s_u s_v')
     add_wait(p, 'the agent')
     a = p.parse_args(argv)
+    shown = f'{a.value[0]:g}' if len(a.value) == 1 else '(' + ', '.join(f'{v:g}' for v in a.value) + ')'
 
     def call(client):
-        name = client.steer(a.agent, a.value, a.wait, say=_say)
-        print(f'swarm steer: {name} steering {a.value:g}')
+        name = client.steer(a.agent, a.value[0] if len(a.value) == 1 else a.value, a.wait, say=_say)
+        print(f'swarm steer: {name} steering {shown}')
     return _client_call('swarm steer', call)
 
 
