@@ -254,19 +254,20 @@ class Client:
         return name
 
     def steering_dim(self, topic: str, wait: float, prog: str):
-        """(the run's dimension, the run) once the commander publishes ``topic`` (up to ``wait``
-        s; (None, None) if it does not): the run's announcement says it, else the topic's type
-        does (Float64 in 2D, Float64MultiArray in 3D).  `TwoRuns` as `one_run`."""
+        """(the run's dimension, the run) once the run announces it or the commander publishes
+        ``topic`` (up to ``wait`` s; (None, None) if neither): the announcement says it, else the
+        topic's type does (Float64 in 2D, Float64MultiArray in 3D; a discovery server's plain
+        client sees no topic it does not use).  `TwoRuns` as `one_run`."""
         def commander_type():
             return next((i.topic_type for i in self.node.get_publishers_info_by_topic(topic)
                          if i.node_name == 'commander'), None)
 
-        if not self.until(commander_type, wait):
+        if not self.until(lambda: any('dim' in r for r in self.runs.values()) or commander_type(), wait):
             return None, None
         run = self.one_run(prog)
         if run and run.get('dim') in (2, 3):
             return run['dim'], run
-        return (3 if commander_type().endswith('Float64MultiArray') else 2), run
+        return (3 if (commander_type() or '').endswith('Float64MultiArray') else 2), run
 
     def fault(self, kind: str, agent: str, seconds=None, wait: float = 10.0, prog='swarm', say=_quiet) -> str:
         """A live fault request (``kind`` 'kill', or 'freeze' for ``seconds``) to the world; gives
