@@ -173,3 +173,32 @@ def run_over(hosts, tmp_path, swarm_cmd, processes):
     # nothing left running in either namespace (the fixture then removes them)
     assert _netns_pids(ns_a) == [] and _netns_pids(ns_b) == []
 
+
+
+def test_a_3d_run_over_two_hosts(tmp_path, ros_domain, processes, swarm_cmd):
+    """homotopy_3d, shortened, with agents 3-5 joined from B: lockstep equals `swarm simulate`
+    bit for bit (r, x, y, z, u, v, λ, leaders)."""
+    _on_two_hosts(run_3d_over, tmp_path, swarm_cmd, processes)
+
+
+def run_3d_over(hosts, tmp_path, swarm_cmd, processes):
+    from tests.agent.test_natural_core import short_3d
+    (ns_a, addr_a), (ns_b, addr_b) = hosts['A'], hosts['B']
+    path = short_3d(tmp_path / 'h3.yaml', duration=8.0)
+    out = tmp_path / 'run'
+    run = processes.start([IP, 'netns', 'exec', ns_a, swarm_cmd, 'run', path, '--interface', addr_a,
+                           '--server-port', '11811', '--remote-agents', '3-5', '--out', out, '--no-figure'],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    run_lines = Lines(run)
+    assert run_lines.wait_for(f'discovery server on {addr_a}:11811', 120), ''.join(run_lines.lines)
+    join = processes.start([IP, 'netns', 'exec', ns_b, swarm_cmd, 'join', path, '--agents', '3-5',
+                            '--server', f'{addr_a}:11811', '--interface', addr_b],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    join_lines = Lines(join)
+    assert run_lines.wait(run, 300) == 0, ''.join(run_lines.lines[-40:])
+    assert join_lines.wait(join, 60) == 0, ''.join(join_lines.lines)
+    got, ref = Trajectory.load(out / 'trajectory.npz'), simulate(load(str(path)))
+    assert got.r.shape == (81, 6, 3) and ref.leader.any() and np.abs(ref.v).max() > 0
+    for key in ('r', 'x', 'y', 'z', 'u', 'v', 'lam', 'leader'):
+        np.testing.assert_array_equal(getattr(got, key), getattr(ref, key), err_msg=key)
+    assert _netns_pids(ns_a) == [] and _netns_pids(ns_b) == []
