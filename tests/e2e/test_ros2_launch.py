@@ -144,6 +144,26 @@ def test_ros2_launch_by_path_starts_the_swarm_run_graph_and_equals_simulate(tmp_
     assert len(files) == 1 and not Path(files.pop()).parent.exists()
 
 
+def test_ros2_launch_a_3d_scenario_equals_simulate(tmp_path, ros_domain, processes):
+    """homotopy_3d, shortened (6 s: leaders at 2, λ up from 4), by ``ros2 launch``: r, x, y, z,
+    u, v, λ and the leaders equal `swarm simulate`'s bit for bit, with swarm run's outputs."""
+    from tests.agent.test_natural_core import short_3d
+    path, out = short_3d(tmp_path / 'h3.yaml', duration=6.0), tmp_path / 'run'
+    p = processes.start([*ROS2, 'launch', LAUNCH_FILE, f'scenario:={path}', f'out:={out}', 'no_figure:=true'],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp_path,
+                        env=ros2_env(tmp_path))
+    lines = Lines(p)
+    assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])
+    text = ''.join(lines.lines)
+    got, ref = Trajectory.load(out / 'trajectory.npz'), simulate(load(str(path)))
+    assert got.r.shape == ref.r.shape == (61, 6, 3) and ref.leader.any() and np.abs(ref.v).max() > 0
+    for key in ('r', 'x', 'y', 'z', 'u', 'v', 'lam', 'leader'):
+        np.testing.assert_array_equal(getattr(got, key), getattr(ref, key), err_msg=key)
+    assert json.loads((out / 'metrics.json').read_text())
+    assert json.loads((out / 'run.json').read_text())['exit_code'] == 0
+    assert 'swarm run: done in' in text and 'Traceback' not in text, text[-3000:]
+
+
 def test_ros2_launch_ctrl_c_keeps_the_steps_done(tmp_path, ros_domain, processes):
     out = tmp_path / 'run'
     p = processes.start([*ROS2, 'launch', LAUNCH_FILE, 'scenario:=homotopy_global', f'out:={out}', 'no_figure:=true',

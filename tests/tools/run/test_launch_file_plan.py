@@ -105,12 +105,13 @@ CASES = {
     'realtime': dict(mode='realtime', rtf='4', duration='3', progress_every='1'),
     'containers_and_view': dict(mode='lockstep', agents_per_process='4', agent_services='off', foxglove='0',
                                 clock_every='10', seed='3'),
+    '3d': dict(scenario='homotopy_3d', mode='lockstep', duration='3'),
 }
 
 
 @pytest.mark.parametrize('case', list(CASES))
 def test_launch_actions_are_the_processes_swarm_run_starts(case, tmp_path, monkeypatch, fixed_run_id):
-    values = dict(scenario='homotopy_global', out=str(tmp_path / 'out'), no_figure='true', **CASES[case])
+    values = {'scenario': 'homotopy_global', 'out': str(tmp_path / 'out'), 'no_figure': 'true', **CASES[case]}
     work = tmp_path / 'launch'
     work.mkdir()
     plan = ld.prepare(values, workdir=work)
@@ -149,6 +150,9 @@ def test_launch_actions_are_the_processes_swarm_run_starts(case, tmp_path, monke
     assert plan.run.params['/world']['mode'] == CASES[case]['mode'] and '"run_id": "feedc0de"' in params
     if case == 'realtime':
         assert plan.run.params['/world']['rtf'] == 4.0
+    if case == '3d':                             # the agents get the 3D pose: r and the frame
+        assert plan.run.scn.dim == 3 and plan.run.params['/agent_2/agent']['dim'] == 3
+        assert len(plan.run.params['/agent_2/agent']['frame']) == 9
     if case == 'lockstep':
         agent = next(a for a in plan.actions if a.label == 'agent_2')
         assert (agent.kwargs['name'], agent.kwargs['namespace']) == ('agent', '/agent_2')
