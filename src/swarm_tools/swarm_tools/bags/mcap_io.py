@@ -446,6 +446,18 @@ def announced_roster(path, warn=None) -> list[str] | None:
     return [a for a in first['agents'] if isinstance(a, str) and AGENT_NAME.fullmatch(a)]
 
 
+def announced_dim(path) -> int:
+    """2 or 3: the ``dim`` of the first run a bag's ``/swarm/run`` announces (2 without one)."""
+    for m in iter_messages(path, topics=[RUN]):
+        try:
+            run = parse_run(parse_string(m.data))
+        except (struct.error, IndexError, ValueError):
+            continue
+        if run is not None:
+            return 3 if run.get('dim') == 3 else 2
+    return 2
+
+
 def bag_topics(path, expected=None) -> dict[str, dict]:
     """{topic: {type, definition, qos (list of dicts), count, channels, other}} of a bag
     (tolerant reader).  A topic's type is ``expected(topic)`` where that gives one (the

@@ -10,7 +10,8 @@ advance of the stamps of the bag's busiest stamped topic (``/swarm/states`` in a
 Nodes watching with ``use_sim_time`` see the run as it happened.  SIGINT / SIGTERM stop the
 play between two messages; the summary is printed as usual.
 
-A topic is played with one type: the project's for its own topics (`record.swarm_type`),
+A topic is played with one type: the project's for its own topics (`record.swarm_type`; a 3D
+run's, by its ``/swarm/run`` announcement, has (s_u, s_v) steering),
 else its first channel's; messages on its channels of another type are not played
 (`foreign_lines`).
 """
@@ -22,7 +23,7 @@ import sys
 import time
 
 from swarm_ros.rosutil import stop_on_signals
-from swarm_tools.bags.mcap_io import bag_topics, iter_messages, replay_qos, resolve_bag
+from swarm_tools.bags.mcap_io import announced_dim, bag_topics, iter_messages, replay_qos, resolve_bag
 from swarm_tools.bags.msgdefs import has_leading_stamp, leading_stamp_ns
 from swarm_tools.bags.record import message_class, swarm_type
 
@@ -52,14 +53,14 @@ def parse_args(argv):
     return a
 
 
-def foreign_lines(topics: dict) -> list[str]:
+def foreign_lines(topics: dict, dim: int = 2) -> list[str]:
     """One line per topic with channels of a type not its own (`swarm_tools.bags.mcap_io.bag_topics`: for the
     project's topics, not the project's type): their messages are not played."""
     out = []
     for topic, info in sorted(topics.items()):
         if info['other']:
             what = ', '.join(f'{n} messages of type {k or "?"}' for k, n in sorted(info['other'].items()))
-            own = swarm_type(topic)
+            own = swarm_type(topic, dim)
             want = f'the project\'s {topic} is {own}' if own else f'{topic} is {info["type"]}'
             out.append(f'{topic}: not playing {what} ({want})')
     return out
@@ -70,13 +71,14 @@ def _topics_to_play(a) -> dict | None:
     in one line) if there are none."""
     try:
         a.bag = str(resolve_bag(a.bag))
-        topics = bag_topics(a.bag, swarm_type)
+        dim = announced_dim(a.bag)          # a 3D run's steering topics carry (s_u, s_v)
+        topics = bag_topics(a.bag, lambda topic: swarm_type(topic, dim))
     except OSError as err:
         print(f'swarm play: {err}', file=sys.stderr)
         return None
     if a.topics:
         topics = {t: v for t, v in topics.items() if t in set(a.topics)}
-    for line in foreign_lines(topics):
+    for line in foreign_lines(topics, dim):
         print(f'swarm play: {line}', file=sys.stderr)
     topics = {t: v for t, v in topics.items() if v['type'] is not None}
     if not topics:

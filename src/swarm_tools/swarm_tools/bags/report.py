@@ -11,6 +11,10 @@ next), the target and barrier from ``/world/target`` / ``/world/barrier``.  Writ
 ``trajectory.npz`` (as `Trajectory.save`), ``metrics.json`` (time series + summary), a figure
 like the paper's and, with ``--animate``, a GIF.  Bags cut short (a killed recorder) are read up
 to their last complete chunk.
+
+A 3D run (the ``/swarm/run`` announcement's ``dim``: `swarm_tools.bags.report3d`) is rebuilt in
+3D: r (T, N, 3), the frames x, y, z from the quaternions, u = angular.z and v = −angular.y,
+with a 3D figure (a 3D view, top and side views) and no GIF.
 """
 from __future__ import annotations
 
@@ -24,24 +28,25 @@ from pathlib import Path
 import numpy as np
 
 from swarm_core.analysis import outputs as analysis
-from swarm_core.analysis.metrics import cluster_labels
 from swarm_core.analysis.plots import plot_run
 from swarm_core.checks import LAMBDA_BOUND
 from swarm_core.engine.trajectory import Trajectory
-from swarm_core.files import atomic_path
 from swarm_core.laws import Law
 from swarm_core.model.frenet import yaw_from_quaternion
 from swarm_core.scenario.loader import BarrierSpec
 from swarm_core.scenario.placement import AGENT_NAME
+from swarm_ros.runinfo import parse_run
+from swarm_tools.bags.animate import animate
 from swarm_tools.bags.mcap_io import (
     announced_roster,
     iter_messages,
     parse_float64,
-    parse_odometry,
     parse_string,
     resolve_bag,
 )
+from swarm_tools.bags.report3d import bad_row_3d, geometry_3d, ground_of, run_dim, states_on_3d
 from swarm_tools.bags.run_report import report_run, run_trajectory
+from swarm_tools.odometry3d import cdr_to_odometry_3d
 
 STATES = '/swarm/states'
 LAMBDA = '/swarm/lambda'
@@ -50,6 +55,8 @@ TARGET = '/world/target'
 BARRIER = '/world/barrier'
 METRICS = '/world/metrics'
 EVENTS = '/swarm/events'
+RUN = '/swarm/run'
+PARAMETERS = '/parameter_events'
 
 
 def natural_key(name: str):
@@ -106,8 +113,9 @@ MAX_COORD = 1e9
 MIN_SHARE = 0.1
 
 
-def check_states(per_agent: dict, events=(), agents=None, warn=None) -> dict:
-    """``per_agent`` without what cannot be a state of the run: non-finite or absurd values,
+def check_states(per_agent: dict, events=(), agents=None, warn=None, dim=2) -> dict:
+    """``per_agent`` without what cannot be a state of the run: non-finite or absurd values
+    (in 3D: z, the frame and v too),
     negative or absurd stamps, names that are not agent names, and (``agents`` given) names
     not in the roster, or (no roster) names with few states that no event mentions.  ``warn``
     gets one line per kind of problem, with counts."""
@@ -117,9 +125,9 @@ def check_states(per_agent: dict, events=(), agents=None, warn=None) -> dict:
     for name, rows in per_agent.items():
         keep = []
         for row in rows:
-            stamp, _, x, y, qz, qw, wz = row
+            stamp, _, x, y, qz, qw, wz = row[:7]
             if not (np.isfinite([x, y, qz, qw]).all() and abs(x) <= MAX_COORD and abs(y) <= MAX_COORD
-                    and not np.isinf(wz)):
+                    and not np.isinf(wz)) or (dim == 3 and bad_row_3d(row, MAX_COORD)):
                 bad_values += 1
             elif not 0 <= stamp <= MAX_STAMP_S * 1e9:
                 bad_stamps += 1
@@ -169,15 +177,17 @@ class _Reading:
         self.per_agent: dict[str, list] = {}
         self.lam_events, self.leader_msgs, self.events = [], [], []
         self.target = self.barrier = None
+        self.target3, self.points3 = None, []   # the world's geometry read as 3D
         self.w = cutoff_radius              # given, else the first found on /world/metrics
         self.undecodable = 0
-        self.bad_geometry = []
+        self.bad_geometry, self.bad_target3 = [], []
+        self.announced = self.ground = None     # the first /swarm/run announcement, a 3D floor
 
 
 def _read_state(r: _Reading, m):
-    s = _parsed(parse_odometry, m.data)
-    r.per_agent.setdefault(s['child_frame_id'], []).append(
-        (s['stamp_ns'], m.log_time, s['x'], s['y'], s['qz'], s['qw'], s['wz']))
+    name, sec, nsec, (x, y, z), (qx, qy, qz, qw), wy, wz, _ = _parsed(cdr_to_odometry_3d, m.data)
+    r.per_agent.setdefault(name, []).append(
+        (sec * 1_000_000_000 + nsec, m.log_time, x, y, qz, qw, wz, z, qx, qy, wy))
 
 
 def _read_lambda(r: _Reading, m):
@@ -205,16 +215,34 @@ def _read_target(r: _Reading, m):
         r.target = (float(p.x), float(p.y))
     else:
         r.bad_geometry.append(f'target ({p.x}, {p.y})')
+    if np.isfinite([p.x, p.y, p.z]).all() and max(abs(p.x), abs(p.y), abs(p.z)) <= MAX_COORD:
+        r.target3 = (float(p.x), float(p.y), float(p.z))
+    else:
+        r.bad_target3.append(f'target ({p.x}, {p.y}, {p.z})')
 
 
 def _read_barrier(r: _Reading, m):
-    pts = [(float(p.x), float(p.y)) for p in r.decode(m).polygon.points]
+    r.points3 = [(float(p.x), float(p.y), float(p.z)) for p in r.decode(m).polygon.points]
+    pts = [q[:2] for q in r.points3]
     r.barrier = None
     if pts:
         try:
             r.barrier = [tuple(q) for q in BarrierSpec(points=pts).points]
         except ValueError as err:
             r.bad_geometry.append(f'barrier of {len(pts)} points ({" ".join(str(err).split())[:120]})')
+
+
+def _read_announcement(r: _Reading, m):
+    if r.announced is None:
+        r.announced = parse_run(_parsed(parse_string, m.data))
+
+
+def _read_parameters(r: _Reading, m):
+    if r.ground is None and b'ground' in m.data:
+        try:
+            r.ground = ground_of(r.decode(m))
+        except Exception:       # a message the dynamic decoder cannot read: no floor from it
+            pass
 
 
 def _read_metrics(r: _Reading, m):
@@ -231,7 +259,8 @@ def _read_metrics(r: _Reading, m):
 
 #: the reader of each topic `read_run` uses
 READERS = {STATES: _read_state, LAMBDA: _read_lambda, EVENTS: _read_event, LEADERS: _read_leaders,
-           TARGET: _read_target, BARRIER: _read_barrier, METRICS: _read_metrics}
+           TARGET: _read_target, BARRIER: _read_barrier, METRICS: _read_metrics, RUN: _read_announcement,
+           PARAMETERS: _read_parameters}
 
 
 def read_run(path, *, cutoff_radius=None, agents=None, warn=None) -> dict:
@@ -249,25 +278,31 @@ def read_run(path, *, cutoff_radius=None, agents=None, warn=None) -> dict:
         except _Undecodable:
             r.undecodable += 1
     say = warn or (lambda line: print(f'swarm report: {line}', file=sys.stderr))
+    dim = run_dim(r.announced, r.per_agent)
+    target, barrier, bad, ground = r.target, r.barrier, r.bad_geometry, None
+    if dim == 3:                # the world's geometry and floor in space
+        bad = list(r.bad_target3)
+        (target, barrier), ground = geometry_3d(r.target3, r.points3, bad), r.ground
     if r.undecodable:
         say(f'left out {r.undecodable} messages that could not be decoded')
     if stats.get('damaged'):
         say(f'skipped {stats["damaged"]} damaged chunks of the bag (first: {stats["damage"]})')
-    if r.bad_geometry:
-        say(f'ignored {len(r.bad_geometry)} unusable world messages: {r.bad_geometry[0]}')
-    per_agent = check_states(r.per_agent, r.events, agents, warn)
+    if bad:
+        say(f'ignored {len(bad)} unusable world messages: {bad[0]}')
+    per_agent = check_states(r.per_agent, r.events, agents, warn, dim)
     return dict(per_agent=per_agent, lam_events=r.lam_events, leader_msgs=r.leader_msgs, events=r.events,
-                target=r.target, barrier=r.barrier, truncated=stats.get('truncated', False), w=r.w)
+                target=target, barrier=barrier, truncated=stats.get('truncated', False), w=r.w, dim=dim,
+                ground=ground)
 
 
 def _state_arrays(per_agent: dict) -> dict:
-    """{agent: (stamps, log times, rows of x, y, qz, qw, u)} sorted by stamp; of a repeated
-    stamp the later state counts."""
+    """{agent: (stamps, log times, rows of x, y, qz, qw, u, z, qx, qy, angular.y)} sorted by
+    stamp; of a repeated stamp the later state counts."""
     arrays = {}
     for name, rows in per_agent.items():
         stamps = np.array([row[0] for row in rows], dtype=np.int64)
         logs = np.array([row[1] for row in rows], dtype=np.int64)
-        vals = np.array([row[2:] for row in rows], dtype=np.float64)   # x, y, qz, qw, u
+        vals = np.array([row[2:] for row in rows], dtype=np.float64)   # x, y, qz, qw, u, z, qx, qy, wy
         order = np.argsort(stamps, kind='stable')
         stamps, logs, vals = stamps[order], logs[order], vals[order]
         keep = np.ones(len(stamps), dtype=bool)
@@ -365,7 +400,8 @@ def rebuild_trajectory(run: dict):
 
     Faults (``/swarm/events``): an agent killed or lost has NaN rows from that time on and its
     missing stamps do not count against lockstep alignment; a frozen agent holds its state
-    over the freeze (its stamps there are not missing either)."""
+    over the freeze (its stamps there are not missing either).  A 3D run (``run['dim']``)
+    gives r (T, N, 3), the frames x, y, z and the controls u and v."""
 
     names = sorted(run['per_agent'], key=natural_key)
     if not names:
@@ -373,7 +409,12 @@ def rebuild_trajectory(run: dict):
     arrays = _state_arrays(run['per_agent'])
     gone, frozen = _faults(run.get('events', ()), arrays)
     grid, mode = _grid(arrays, gone, frozen)
-    r, theta, u, log_first = _states_on(grid, names, arrays, gone)
+    frames = {}
+    if run.get('dim', 2) == 3:
+        r, (fx, fy, fz), u, v, log_first = states_on_3d(grid, names, arrays, gone)
+        theta, frames = None, dict(x=fx, y=fy, z=fz, v=v)
+    else:
+        r, theta, u, log_first = _states_on(grid, names, arrays, gone)
     lam, leader = _inputs_on(run, names, log_first)
     t = grid.astype(np.float64) * 1e-9
     T = len(grid)
@@ -382,7 +423,7 @@ def rebuild_trajectory(run: dict):
                 states=sum(len(v) for v in run['per_agent'].values()),
                 truncated_bag=bool(run['truncated']),
                 has_lambda=bool(run['lam_events']), has_leaders=bool(run['leader_msgs']))
-    return Trajectory(names, t, r, theta, u, lam, leader, meta)
+    return Trajectory(names, t, r, theta, u, lam, leader, meta, **frames)
 
 
 def report_summary(traj, series, w) -> dict:
@@ -397,63 +438,9 @@ def report_summary(traj, series, w) -> dict:
                                              'has_leaders')})
 
 
-def plot(traj, series, path, *, title, w, target, barrier):
-    """The run's figure (the lead's `swarm_core.analysis.plots.plot_run`)."""
-    return plot_run(traj, series, path, title=title, w=w, target=target, barrier=barrier)
-
-
-def animate(traj, path, *, w, target=None, barrier=None, frames=100, fps=12):
-    """A GIF of the swarm (agents coloured by cluster, leaders as stars, short trails), the
-    view following the swarm's centroid; None without pillow."""
-    import matplotlib
-    import matplotlib.pyplot as plt
-    from matplotlib.animation import FuncAnimation, PillowWriter
-    try:
-        import PIL  # noqa: F401
-    except ImportError:
-        return None
-    matplotlib.use('Agg')
-
-
-    T = len(traj.t)
-    idx = np.unique(np.linspace(0, T - 1, min(frames, T)).astype(int))
-    fig, ax = plt.subplots(figsize=(5, 5), dpi=70)
-    centre = traj.r.mean(axis=1)                                   # (T, 2)
-    spread = np.abs(traj.r - centre[:, None, :]).max()
-    half = 1.2 * spread + 2.0 * w
-    ax.set_aspect('equal')
-    if target is not None:
-        ax.plot(*target, 'rx', ms=10, mew=2)
-    if barrier is not None:
-        ax.fill(*np.asarray(barrier).T, color='0.3', alpha=0.7)
-    cmap = plt.get_cmap('tab10')
-    trails = [ax.plot([], [], lw=0.6, color='0.6')[0] for _ in traj.names]
-    dots = ax.scatter(traj.r[0, :, 0], traj.r[0, :, 1], s=25, zorder=3)
-    stars = ax.scatter([], [], marker='*', s=120, c='k', zorder=4)
-    label = ax.set_title('')
-    trail_len = max(1, T // 20)
-
-    def draw(i):
-        ax.set_xlim(centre[i, 0] - half, centre[i, 0] + half)
-        ax.set_ylim(centre[i, 1] - half, centre[i, 1] + half)
-        _, lab = cluster_labels(traj.r[i], w)
-        dots.set_offsets(traj.r[i])
-        dots.set_color([cmap(v % 10) for v in lab])
-        lead = traj.leader[i]
-        stars.set_offsets(traj.r[i][lead] if lead.any() else np.empty((0, 2)))
-        for k, line in enumerate(trails):
-            seg = traj.r[max(0, i - trail_len):i + 1, k]
-            line.set_data(seg[:, 0], seg[:, 1])
-        lam = traj.lam[i]
-        label.set_text(f't = {traj.t[i]:.1f}' + (f', λ = {lam:.2f}' if np.isfinite(lam) else '')
-                       + f', clusters = {lab.max() + 1}')
-        return [dots, stars, label, *trails]
-
-    anim = FuncAnimation(fig, draw, frames=idx, blit=False)
-    with atomic_path(path, suffix='.tmp.gif') as tmp:       # (PIL picks the format by it)
-        anim.save(str(tmp), writer=PillowWriter(fps=fps))
-    plt.close(fig)
-    return path
+def plot(traj, series, path, *, title, w, target, barrier, ground=None):
+    """The run's figure (`swarm_core.analysis.plots.plot_run`; a 3D run: 3D, top and side views)."""
+    return plot_run(traj, series, path, title=title, w=w, target=target, barrier=barrier, ground=ground)
 
 
 def _warn(line):
@@ -468,10 +455,13 @@ def write_report(out, traj, series, summary, run, a, w) -> list:
     wrote = ['trajectory.npz', 'metrics.json']
     if not a.no_figure and len(traj.t) > 1:
         plot(traj, series, out / 'report.png', w=w, target=run['target'], barrier=run['barrier'],
+             ground=run.get('ground'),
              title=f'{Path(summary["bag"]).name}: {len(traj.names)} agents, t = {traj.t[0]:g}..{traj.t[-1]:g}')
         wrote.append('report.png')
     if a.animate:
-        if animate(traj, out / 'swarm.gif', w=w, target=run['target'], barrier=run['barrier']):
+        if traj.dim == 3:
+            _warn('--animate draws planar runs only: no animation of a 3D run')
+        elif animate(traj, out / 'swarm.gif', w=w, target=run['target'], barrier=run['barrier']):
             wrote.append('swarm.gif')
         else:
             _warn('pillow is not installed: no animation')
@@ -532,16 +522,18 @@ def main(argv=None) -> int:
         print(f'swarm report: {bag}: no cutoff_radius on /world/metrics; using the default '
               f'{w:g} (pass --cutoff-radius to choose)', file=sys.stderr)
     series, _ = analysis.analyse(traj, w, target=run['target'], barrier=run['barrier'],
-                                 every_time=a.every)
+                                 every_time=a.every, ground=run['ground'])
     summary = report_summary(traj, series, w)
     summary['bag'] = str(bag)
+    if traj.dim == 3:
+        summary.update(dim=3, ground=run['ground'])
     try:
         wrote = write_report(out, traj, series, summary, run, a, w)
     except OSError as err:
         print(analysis.write_failed('swarm report', out, err), file=sys.stderr)
         return 1
     changes = ', '.join(f't={t:g}: {c}' for t, c in summary['cluster_changes'][:12])
-    print(f'{bag.name}: {summary["agents"]} agents, {summary["steps"]} steps '
+    print(f'{bag.name}: {summary["agents"]} agents{" in 3D" if traj.dim == 3 else ""}, {summary["steps"]} steps '
           f'({summary["alignment"]}), t = {summary["t_start"]:g}..{summary["t_end"]:g}, '
           f'final clusters {summary["final_clusters"]}, min distance {summary["min_distance"]:.3g}'
           + (' [bag cut short: read to its last complete chunk]' if summary['truncated_bag'] else ''))

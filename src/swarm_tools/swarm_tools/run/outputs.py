@@ -114,8 +114,9 @@ def salvage(scn, out: Path, bag, mode: str, wall: float, figure: bool = True) ->
         traj = rebuild_trajectory(run)
         order = [traj.names.index(nm) for nm in scn.names if nm in traj.names]
         traj.names = [traj.names[k] for k in order]
-        traj.r, traj.theta, traj.u = traj.r[:, order], traj.theta[:, order], traj.u[:, order]
-        traj.leader = traj.leader[:, order]
+        for key in ('r', 'theta', 'u', 'leader', 'x', 'y', 'z', 'v'):        # theta: planar; x, y, z, v: 3D
+            if getattr(traj, key) is not None:
+                setattr(traj, key, getattr(traj, key)[:, order])
         traj.meta.update(scenario=scn.name, seed=scn.seed, duration=scn.duration, source='bag',
                          mode=mode, wall_seconds=wall, interrupted=True,
                          events=read_events(out / 'events.jsonl'))
