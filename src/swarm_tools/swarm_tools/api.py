@@ -20,29 +20,24 @@ import atexit
 import json
 import os
 import signal
-import struct
 import subprocess
 import sys
 import tempfile
 import threading
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from swarm_core.checks import MAX_TIME, Bound
 from swarm_core.engine.trajectory import Trajectory
-from swarm_core.model.frenet import yaw_from_quaternion
 from swarm_ros import protocol as P
 from swarm_ros import runinfo
-from swarm_ros.msg_checks import Senders, check_values, refused
-from swarm_ros.run_control import EventRefused, run_event
 from swarm_tools.live.client import Client, NoSwarm, SwarmError, TwoRuns, UnknownAgent
-from swarm_tools.live.view import metrics_numbers
+from swarm_tools.live.observe import Observer, States, States3D
 from swarm_tools.run.processes import die_with_parent
 
-__all__ = ['Swarm', 'States', 'SwarmError', 'NoSwarm', 'TwoRuns', 'UnknownAgent', 'WaitTimeout', 'run_argv']
+__all__ = ['Swarm', 'States', 'States3D', 'SwarmError', 'NoSwarm', 'TwoRuns', 'UnknownAgent', 'WaitTimeout', 'run_argv']
 
 
 #: the launcher's output in a started run's output directory
@@ -77,80 +72,6 @@ def run_argv(scenario, *, mode='lockstep', rtf=1.0, duration=None, out=None, age
     return argv
 
 
-@dataclass
-class States:
-    """The newest state of each agent heard on ``/swarm/states`` (rows in the run's order)."""
-    names: list
-    t: np.ndarray           # sim time of each row's state
-    x: np.ndarray
-    y: np.ndarray
-    theta: np.ndarray       # heading
-    u: np.ndarray           # the curvature held over the step that ended at t
-
-
-class _Observer:
-    """``/world/metrics``, ``/swarm/states`` and ``/swarm/events`` heard on a client's node.
-    Each message is read defensively: one that cannot be read (malformed, a state that
-    `msg_checks.check_values` refuses, a second publisher of a name, an agent not in the run,
-    JSON that is too long or too deep) is counted in the client's ``reject`` log (one line per
-    kind, rate-limited) and dropped; the reader goes on."""
-
-    def __init__(self, client: Client, swarm):
-        from diagnostic_msgs.msg import DiagnosticArray
-        from nav_msgs.msg import Odometry
-        from std_msgs.msg import String
-        node, self.lock = client.node, client.lock
-        self.reject = client.reject
-        self.swarm = swarm                       # its roster (`Swarm.agents`), once known
-        self.metrics, self.states, self.events = None, {}, []
-        self.newest = {}                         # name → (t, x, y, qz, qw): `check_values`' table
-        self.senders = Senders()
-        node.create_subscription(DiagnosticArray, P.METRICS, self._on_metrics, 10)
-        node.create_subscription(Odometry, P.STATES, self._on_state, P.qos_latched(P.STATES_DEPTH), raw=True)
-        node.create_subscription(String, P.EVENTS, self._on_event, P.qos_latched(100))
-
-    def _on_metrics(self, msg):
-        for st in msg.status:
-            m = metrics_numbers({kv.key: kv.value for kv in st.values})
-            if 'clusters' in m:
-                if not np.isfinite(m['clusters']):
-                    self.reject('metrics', f'{P.METRICS}: clusters={m["clusters"]!r}')
-                    continue
-                m['clusters'] = int(m['clusters'])
-            with self.lock:
-                self.metrics = m
-
-    def _on_state(self, raw):
-        try:
-            _, name, sec, nsec, pose, _, wz, tag = P.cdr_to_odometry_full(raw)
-        except (struct.error, IndexError, ValueError) as err:
-            self.reject('state-decode', f'{P.STATES}: a malformed message ({len(raw)} bytes: {err})')
-            return
-        t = sec + nsec * 1e-9
-        roster = self.swarm.agents
-        why = check_values(name, t, pose, wz, roster if roster else (name,), self.newest)
-        if why is None:
-            why = self.senders.check(name, tag)
-        if refused(self.reject, why):
-            return
-        self.senders.accept(name, tag)
-        x, y, _, _, qz, qw = pose
-        self.newest[name] = (t, x, y, qz, qw)
-        with self.lock:
-            self.states[name] = (t, x, y, float(yaw_from_quaternion(qz, qw)), wz)
-
-    def _on_event(self, msg):
-        """An event of this run (`run_control.run_event`: a forged one without the run's id
-        cannot satisfy a command's wait); others are counted."""
-        try:
-            ev = run_event(msg.data, self.swarm.run_id)
-        except EventRefused as err:
-            self.reject(err.kind, str(err))
-            return
-        with self.lock:
-            self.events.append(ev)
-
-
 def finished_run(log, code, run):
     """The run of a ``swarm run`` that exited with ``code`` after printing ``log`` (its lines),
     if it ran to its end: ``run`` (its announcement, if heard) or the run id its first line
@@ -169,7 +90,7 @@ class Swarm:
         self.client, self.run, self.proc = client, run, proc
         self.out = None if out is None else Path(out)
         self.log = [] if log is None else log       # what `swarm run` printed (started runs; `LOG_NAME`)
-        self._obs = _Observer(client, self)
+        self._obs = Observer(client, self)
         client.follow_clock()
 
     # ------------------------------------------------------------ making one
@@ -376,14 +297,9 @@ class Swarm:
             return None if self._obs.metrics is None else dict(self._obs.metrics)
 
     def states(self):
-        """The newest `States` (None before the first state)."""
-        with self._obs.lock:
-            got = dict(self._obs.states)
-        if not got:
-            return None
-        order = [nm for nm in self.agents if nm in got] + sorted(set(got) - set(self.agents))
-        cols = np.array([got[nm] for nm in order], dtype=float).T
-        return States(order, *cols)
+        """The newest `States` (a 3D run: `States3D`, positions (N, 3) and frames); None
+        before the first state."""
+        return self._obs.snapshot(self.agents)
 
     def events(self) -> list:
         """Every ``/swarm/events`` event heard so far (dicts, in arrival order)."""
@@ -575,6 +491,6 @@ def _sample_time(sample):
     a `States` (None before the first sample)."""
     if sample is None:
         return None
-    if isinstance(sample, States):
+    if isinstance(sample, (States, States3D)):
         return float(np.max(sample.t)) if len(sample.t) else None
     return float(sample['t'])
