@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import atexit
 import json
+import numbers
 import os
 import signal
 import subprocess
@@ -252,15 +253,17 @@ class Swarm:
         self._taken(lambda ev: ev.get('kind') == 'command' and ev.get('command') == 'lambda'
                     and ev.get('value') == float(value), before, f'Swarm.set_lambda({value:g})', timeout)
 
-    def steer(self, agent: str, curvature: float, *, wait: float = 10.0, timeout: float = 30.0) -> None:
-        """Make ``agent`` a leader steering the constant ``curvature``; returns once the
-        commander has applied it."""
+    def steer(self, agent: str, curvature, *, wait: float = 10.0, timeout: float = 30.0) -> None:
+        """Make ``agent`` a leader steering the constant ``curvature`` (a 3D run: a pair
+        (s_u, s_v)); returns once the commander has applied it."""
         wait, timeout = check_timeout('wait', wait), check_timeout('timeout', timeout)
         before = self._mark()
         name = self._call(self.client.steer, agent, curvature, wait, prog='Swarm.steer')
+        values = [float(v) for v in ((curvature,) if isinstance(curvature, numbers.Real) else curvature)]
+        want = values[0] if len(values) == 1 else values        # the event's value: s_k, or [s_u, s_v]
         self._taken(lambda ev: ev.get('kind') == 'command' and ev.get('command') == 'steer'
-                    and ev.get('agent') == name and ev.get('value') == float(curvature), before,
-                    f'Swarm.steer({name!r}, {curvature:g})', timeout)
+                    and ev.get('agent') == name and ev.get('value') == want, before,
+                    f'Swarm.steer({name!r}, {", ".join(f"{v:g}" for v in values)})', timeout)
 
     def kill(self, agent: str, *, wait: float = 10.0, timeout: float = 30.0) -> None:
         """Kill ``agent``; returns once the world has taken it out (its ``kill`` event)."""
