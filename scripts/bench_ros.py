@@ -428,7 +428,8 @@ def markdown(results) -> str:
     for r in results['runs']:
         rss = r.get('rss_mib', {})
         f = lambda k, rss=rss: str(rss.get(k, {}).get('median', '—'))
-        how = {'processes': 'processes', 'in-process': 'one process', 'full': 'homotopy_global t=1000 + bag',
+        how = {'processes': 'processes', 'processes-3d': 'processes, 3D', 'in-process': 'one process',
+               'full': 'homotopy_global t=1000 + bag',
                'no-agent-clock': 'processes, /clock every 10^6 steps'}[r['kind']]
         sps = r.get('steps_per_s', '—') if r['exit_code'] == 0 else f"failed ({r['exit_code']})"
         cpu = r.get('cpu_ms_per_step', {})
