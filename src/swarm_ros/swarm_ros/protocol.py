@@ -255,9 +255,10 @@ def cdr_byte_order(raw: bytes) -> str:
     return '<' if raw[1] & 1 else '>'
 
 
-def cdr_to_odometry_full(raw: bytes):
-    """The one decoder of a serialized ``nav_msgs/Odometry`` (either byte order): (frame_id,
-    child_frame_id, sec, nanosec, (x, y, qx, qy, qz, qw), linear.x, angular.z, sender tag)."""
+def odometry_head(raw: bytes):
+    """The walk to the pose of a serialized ``nav_msgs/Odometry`` (either byte order): (struct
+    byte-order mark, frame_id, child_frame_id, sec, nanosec, byte offset of the pose (its first
+    float64; the twist and covariance follow at fixed float64 indexes))."""
     end = '<' if raw[1] & 1 else '>'
     sec, nsec, n = struct.unpack_from(end + 'iII', raw, 4)
     frame = raw[16:15 + n].decode('utf-8', 'replace')
@@ -266,7 +267,14 @@ def cdr_to_odometry_full(raw: bytes):
     n, = struct.unpack_from(end + 'I', raw, o)
     name = raw[o + 4:o + 3 + n].decode('utf-8', 'replace')
     o += 4 + n
-    o = (o - 4 + 7) // 8 * 8 + 4
+    return end, frame, name, sec, nsec, (o - 4 + 7) // 8 * 8 + 4
+
+
+def cdr_to_odometry_full(raw: bytes):
+    """The one decoder of a serialized planar ``nav_msgs/Odometry`` (either byte order):
+    (frame_id, child_frame_id, sec, nanosec, (x, y, qx, qy, qz, qw), linear.x, angular.z,
+    sender tag); a 3D state: `swarm_tools.odometry3d.cdr_to_odometry_3d`."""
+    end, frame, name, sec, nsec, o = odometry_head(raw)
     x, y, _, qx, qy, qz, qw = struct.unpack_from(end + '7d', raw, o)
     tag, vx = struct.unpack_from(end + '2d', raw, o + 8 * _I_TAG)       # adjacent fields
     wz, = struct.unpack_from(end + 'd', raw, o + 8 * _I_WZ)

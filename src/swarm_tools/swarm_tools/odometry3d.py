@@ -13,6 +13,7 @@ import numpy as np
 
 from swarm_core.model.natural import frame_from_quaternion_3d
 from swarm_ros.msg_checks import reason
+from swarm_ros.protocol import odometry_head
 
 #: float64 indexes in the pose/twist block (`swarm_ros.protocol`'s layout): the sender tag, angular.y
 _I_TAG, _I_WY = 7 + 35, 47
@@ -21,14 +22,7 @@ _I_TAG, _I_WY = 7 + 35, 47
 def cdr_to_odometry_3d(raw: bytes):
     """(child_frame_id, sec, nanosec, (x, y, z), (qx, qy, qz, qw), angular.y, angular.z, sender
     tag) of a serialized ``nav_msgs/Odometry`` (either byte order)."""
-    end = '<' if raw[1] & 1 else '>'
-    sec, nsec, n = struct.unpack_from(end + 'iII', raw, 4)
-    o = 16 + n                                       # after header.frame_id
-    o = (o - 4 + 3) // 4 * 4 + 4
-    n, = struct.unpack_from(end + 'I', raw, o)
-    name = raw[o + 4:o + 3 + n].decode('utf-8', 'replace')
-    o += 4 + n
-    o = (o - 4 + 7) // 8 * 8 + 4
+    end, _, name, sec, nsec, o = odometry_head(raw)
     x, y, z, qx, qy, qz, qw = struct.unpack_from(end + '7d', raw, o)
     tag, = struct.unpack_from(end + 'd', raw, o + 8 * _I_TAG)
     wy, wz = struct.unpack_from(end + '2d', raw, o + 8 * _I_WY)
