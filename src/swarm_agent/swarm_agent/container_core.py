@@ -97,13 +97,16 @@ class ContainerCore:
         return np.arange(len(self.cores))
     step_layout = Step
 
+    #: the bank of the agents' states (3D: `natural_core.NaturalStates`)
+    states_class = States
+
     def __init__(self, cores):
         self.cores = list(cores)
         if not self.cores:
             raise ValueError('a container needs at least one agent')
         self.n = self.cores[0].n
         self.rows = np.array([c.index for c in self.cores], dtype=np.intp)
-        self.bank = States.of(self.cores)
+        self.bank = self.states_class.of(self.cores)
         self.dead = np.zeros(len(self.cores), dtype=bool)
 
     def _look(self):

@@ -149,15 +149,10 @@ class NaturalContainerCore(ContainerCore):
 
     dim = 3
     step_layout = NaturalStep
+    states_class = NaturalStates
 
     def __init__(self, cores):
-        self.cores = list(cores)
-        if not self.cores:
-            raise ValueError('a container needs at least one agent')
-        self.n = self.cores[0].n
-        self.rows = np.array([c.index for c in self.cores], dtype=np.intp)
-        self.bank = NaturalStates.of(self.cores)
-        self.dead = np.zeros(len(self.cores), dtype=bool)
+        super().__init__(cores)
         self.seen = None            # the inputs of the last (u, v) (`NaturalAgentCore.trial`)
         for c in self.cores:
             c.container = self
