@@ -100,6 +100,16 @@ def compiled_moments(pos, cos_t, sin_t, receivers, law, lam, q0, leaders, l_of_k
     args = (np.ascontiguousarray(cos_t, dtype=float), np.ascontiguousarray(sin_t, dtype=float))
     consts = (far, partner, gain, g.alpha, g.alpha * g.r0 * g.r0, target, bool(law.target_normalised))
     rows = np.ascontiguousarray(receivers, dtype=np.int64)
-    if np.any(far != 0.0):
+    if all_pairs_wanted(law, lam, q0, leaders is not None):
         return all_pairs(x, y, *args, rows, law.cutoff_radius ** 2, *consts)
     return cell_pairs(x, y, *args, rows, float(law.cutoff_radius), *consts)
+
+
+def all_pairs_wanted(law, lam, q0, leaders: bool) -> bool:
+    """Sum over all pairs (`all_pairs`) rather than the cell list (`cell_pairs`): where a pair
+    beyond w carries weight for some agent of the table (q0 (1 − λ) ≠ 0, or leaders and
+    q0 ≠ 0).  Decided for the whole table, not for the receivers asked, so that every process
+    sums a row the same way whichever of its agents it asks for."""
+    if law.avoidance_only:
+        return False
+    return q0 * (1.0 - lam) != 0.0 or (leaders and q0 != 0.0)
