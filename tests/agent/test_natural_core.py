@@ -1,7 +1,8 @@
 """A 3D run's lockstep without DDS (`swarm_agent.natural_core`, `swarm_world.natural`): the
 world's barrier and record, and the agents in containers of K, talking through the packed
 messages' bytes (`NaturalStep`, `NaturalAgentStates`), write what `swarm simulate` writes, bit
-for bit (r, x, y, z, u, v, λ, leaders), for every K; the quaternion round trip of a frame."""
+for bit (r, x, y, z, u, v, λ, leaders), for every K, also with a radio model and faults (each
+agent hears through its own radio); the quaternion round trip of a frame."""
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,7 @@ import yaml
 from swarm_agent.natural_core import NaturalAgentCore, NaturalContainerCore
 from swarm_core.engine.reference import simulate
 from swarm_core.model.natural import frame_from_quaternion_3d, initial_frames, quaternion_from_frame
+from swarm_core.radio import CommModel
 from swarm_core.scenario.loader import load
 from swarm_ros.layouts import NaturalAgentStates, NaturalStep
 from swarm_world.natural import NaturalBarrier, NaturalRecorder
@@ -29,12 +31,16 @@ def short_3d(path, duration=20.0, leaders_at=2, **more):
     return Path(path)
 
 
-def lockstep(scn, per):
-    """The world's barrier and the agents' containers of ``per`` agents, the messages as bytes."""
+def lockstep(scn, per, faults=False):
+    """The world's barrier and the agents' containers of ``per`` agents, the messages as bytes;
+    each agent with the scenario's radio model if it has one (as an agent node attaches it).
+    ``faults``: agents leave the table and come back (the world's signals are left out)."""
     n = len(scn.names)
     noise = (scn.spec.noise.position, scn.spec.noise.heading)
     cores = [NaturalAgentCore(i, n, scn.pos0[i], np.concatenate([f[i] for f in scn.frames0]), scn.law, scn.dt,
                               noise, scn.noise_rng(i)) for i in range(n)]
+    for c in cores if scn.comm_model() is not None else ():
+        c.attach_comms(CommModel.from_config(scn.comms_config(), scn.names, scn.dt, scn.seed))
     boxes = [NaturalContainerCore(cores[i:i + per]) for i in range(0, n, per)]
     rec = NaturalRecorder(scn.names, scn.steps, scn.dt)
     plan = scn.command_plan()
@@ -55,7 +61,10 @@ def lockstep(scn, per):
         acts = []
         for b in boxes:
             moved, repeat, rules, nan = b.step_rows(s)
-            assert not rules and not nan and moved.size == len(b.cores)
+            assert not nan and not repeat.size and all(kind in ('silent', 'back') for _, kind, _ in rules), rules
+            assert faults or not rules and moved.size == len(b.cores)
+            if not moved.size:
+                continue
             m = NaturalAgentStates.from_cdr(b.bank.message(1.0, b.rows[moved], moved).to_cdr('r'), 'r')
             acts += barrier.on_states(m.index, m.step, m.state, m.uv)[1]
 
@@ -75,6 +84,43 @@ def test_3d_lockstep_with_noise_equals_simulate(tmp_path):
     got, ref = lockstep(scn, 3), simulate(scn)
     for key in ('r', 'x', 'y', 'z', 'u', 'v'):
         np.testing.assert_array_equal(getattr(got, key), getattr(ref, key), err_msg=key)
+
+
+#: a lossy, delayed radio with a range, one worse link and a partition from t = 5 to 8
+RADIO = {'loss': 0.3, 'latency': 0.1, 'jitter': 0.2, 'timeout': 0.6, 'radio_range': 5.0,
+         'links': [{'sender': 'agent_0', 'receiver': 'agent_3', 'loss': 0.9}],
+         'events': [{'at': 5.0, 'partition': [['agent_0', 'agent_1', 'agent_2']]}, {'at': 8.0, 'partition': []}]}
+#: a frozen follower and a killed agent
+FAULTS = [{'at': 3, 'freeze': 'agent_4', 'for': 2}, {'at': 6, 'kill': 'agent_2'}]
+
+
+def radio_3d(path, duration=12.0, **more):
+    """`short_3d` over `RADIO` with `FAULTS`: the radio mattered (a perfect one flies otherwise)."""
+    return load(str(short_3d(path, duration=duration, comms=RADIO, faults=FAULTS, **more)))
+
+
+@pytest.mark.parametrize('per', [1, 3, 6])
+def test_3d_containers_with_a_radio_and_faults_equal_simulate(per, tmp_path):
+    """Each agent hears the step's table (r, x, y, z and the (u, v) each sender held) through its
+    own radio and takes (u, v) from its own beliefs: r, x, y, z, λ and the leaders exactly, u and
+    v where both know them (a killed agent's last (u, v) never reaches the world)."""
+    scn = radio_3d(tmp_path / 'h3r.yaml')
+    got, ref = lockstep(scn, per, faults=True), simulate(scn)
+    for key in ('r', 'x', 'y', 'z', 'lam', 'leader'):
+        np.testing.assert_array_equal(getattr(got, key), getattr(ref, key), err_msg=key)
+    for key in ('u', 'v'):
+        a, b = getattr(got, key), getattr(ref, key)
+        both = np.isfinite(a) & np.isfinite(b)
+        assert np.isnan(a[np.isnan(b)]).all() and both.mean() > 0.85
+        np.testing.assert_array_equal(a[both], b[both], err_msg=key)
+    kinds = [e['kind'] for e in ref.meta['events']]
+    assert 'kill' in kinds and 'freeze' in kinds and ref.leader.any() and ref.lam.max() > 0.5
+    assert 0.4 < ref.meta['comms']['delivered_fraction'] < 0.8
+    doc = yaml.safe_load(Path(scn.source).read_text())
+    doc.pop('comms')
+    (tmp_path / 'perfect.yaml').write_text(yaml.safe_dump(doc))
+    perfect = simulate(load(str(tmp_path / 'perfect.yaml')))
+    assert np.nanmax(np.abs(perfect.r - ref.r)) > 1e-3         # the radio mattered
 
 
 def test_the_quaternion_of_a_frame_round_trips():

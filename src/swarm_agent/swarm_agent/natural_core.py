@@ -9,7 +9,12 @@ so every receiver's table is the batch engine's bit for bit.  Per step message a
 
 1. (u, v) of its moving agents from `swarm_core.step.natural_alive_control` over the step's
    table, asked for their rows: each receiver's sums reduce its own rows
-   (`laws.paper.natural_sums`), so each agent's (u, v) is the batch engine's whatever K is;
+   (`laws.paper.natural_sums`), so each agent's (u, v) is the batch engine's whatever K is.
+   An agent with a radio model (`NaturalAgentCore.attach_comms`) first lets its radio decide
+   which states of the step's table it receives (r, x, y, z of t_n and the (u, v) each sender
+   held), folds them into its `natural_radio.NaturalBeliefs` and takes (u, v) from its own
+   beliefs (`swarm_core.step.natural_belief_controls`, itself the only receiver): the batch
+   engine's (u, v) bit for bit, as in the plane (`agent_core.AgentCore.comms_control`);
 2. one `model.natural.natural_step` over their rows (elementwise: the same bits for any K);
 3. each noisy agent's own draw (U(−p, p) on r; the heading turned by two angles, as the engine);
 4. Gram-Schmidt (`orthonormalise`) after every `ORTHONORMALISE_EVERY`-th step, as the engine.
@@ -22,9 +27,12 @@ from __future__ import annotations
 import numpy as np
 
 from swarm_agent.container_core import ContainerCore
+from swarm_core.faults.agents import reunion_law
 from swarm_core.laws import Law, LawError, failed_at
 from swarm_core.model.natural import ORTHONORMALISE_EVERY, natural_step, orthonormalise, quaternion_from_frame
-from swarm_core.step import natural_alive_control
+from swarm_core.natural_radio import NaturalBeliefs, natural_states
+from swarm_core.radio import CommModel
+from swarm_core.step import natural_alive_control, natural_belief_controls
 from swarm_ros.layouts import NaturalAgentStates, NaturalStep
 
 
@@ -88,7 +96,9 @@ class NaturalAgentCore:
         self.noisy = bool(np.any(self.noise_scale > 0))
         b.noisy[0] = self.noisy
         self.rng = noise_rng
-        self.comms = None
+        self.comms = None           # a radio model (`attach_comms`), or None
+        self.beliefs = None         # what its radio delivered (`NaturalBeliefs`)
+        self.believed = None        # the inputs of its last (u, v) through the radio (`comms_control`)
         self.reported = False
         self.pairs = None
         self.container = None       # its `NaturalContainerCore` (the inputs of its last (u, v))
@@ -106,8 +116,36 @@ class NaturalAgentCore:
         """The 3D sums choose their kernels by the table's size (`natural_compiled.use_compiled`),
         as the batch engine does: nothing to set."""
 
-    def attach_comms(self, model):
-        raise LawError('a radio model in a 3D ROS run: the radio in 3D runs in swarm simulate for now')
+    def attach_comms(self, model: CommModel):
+        """Receive through ``model`` from now on (lockstep: `comms_control`)."""
+        self.comms = model
+        self.beliefs = NaturalBeliefs([self.index], self.n)
+        self.states.radio[self.slot] = True
+        self.states.changes += 1
+
+    def comms_control(self, s, alive=None):
+        """(u, v) (2,) of this agent at step message ``s`` (a `NaturalStep`) from what its radio
+        delivers of the step's table: the states r, x, y, z of t_n as sent and the (u, v) each
+        sender held (``s.uv``).  alive (N,) bool, faults: agents out of the table send nothing
+        (the relay still carries their last rows)."""
+        k, pos = self.index, s.state[0]
+        arrival = self.comms.decide(s.n, [k], pos[k:k + 1], np.arange(self.n), pos)
+        self.beliefs.receive_states(s.n, arrival, natural_states(*s.state, s.uv), alive=alive)
+        b, j = self.states, self.slot
+        own = tuple(a[j:j + 1].copy() for a in (b.pos, b.x, b.y, b.z))
+        self.believed = (s.n, own, s.lam, s.flags, np.asarray(s.steering, float)[k], s.target, s.barrier, s.ground,
+                         s.rendezvous, s.t)
+        try:
+            return self._believed_control(self.law)
+        except LawError as err:       # the process stops on it (`swarm_ros.rosutil.run_node`)
+            raise failed_at(err, s.t) from None
+
+    def _believed_control(self, law):
+        """(u, v) (2,) under ``law`` from the beliefs and the inputs of the last step (`believed`)."""
+        step, own, lam, flags, steering, target, barrier, ground, rendezvous, t = self.believed
+        law, target = reunion_law(law, target, rendezvous)
+        return natural_belief_controls(law, self.beliefs, step, self.comms, own[0], own[1:], lam, flags, steering,
+                                       target, barrier, ground, t=t)[0]
 
     @property
     def row(self):
@@ -124,6 +162,13 @@ class NaturalAgentCore:
     def trial(self, law: Law) -> str | None:
         """Try ``law`` on the table of this agent's last (u, v) (before its first: its own state
         alone at λ = 0): None if it gives a finite (u, v), else the one line why."""
+        if self.believed is not None:
+            try:
+                uv = self._believed_control(law)
+            except LawError as err:
+                return str(err)
+            return None if np.all(np.isfinite(uv)) else \
+                f'law {law.kind} gives a non-finite (u, v) ({uv.tolist()!r}) on this agent\'s last beliefs'
         seen = None if self.container is None else self.container.seen
         b, j = self.states, self.slot
         if seen is None:
@@ -166,7 +211,19 @@ class NaturalContainerCore(ContainerCore):
         batch engine's call on the step's table, asked for their rows (a receiver's (u, v) does
         not depend on which receivers are asked with it: `laws.paper.natural_sums`)."""
         go = np.asarray(go, dtype=np.intp)
-        b, idx = self.bank, self.rows[go]
+        self.step_n = s.n
+        b = self.bank
+        self._look()
+        if self._radio and b.radio[go].any():       # a radio model: each such agent from its own beliefs
+            alive = s.alive if len(s.alive) == self.n else None
+            radio = b.radio[go]
+            uv = np.zeros((len(go), 2))
+            for i in np.flatnonzero(radio).tolist():
+                uv[i] = self.cores[go[i]].comms_control(s, alive)
+            if not radio.all():
+                uv[~radio] = self.controls(s, go[~radio])
+            return uv
+        idx = self.rows[go]
         pos, x, y, z = (np.array(a) for a in s.state)            # contiguous (N, 3): the engine's arrays
         pos[idx], x[idx], y[idx], z[idx] = b.pos[go], b.x[go], b.y[go], b.z[go]
         alive = s.alive if len(s.alive) == self.n and not s.alive.all() else None
@@ -188,7 +245,6 @@ class NaturalContainerCore(ContainerCore):
                     s.ground, alive=alive, rendezvous=s.rendezvous, t=s.t)
             except LawError as err:   # the process stops on it (`swarm_ros.rosutil.run_node`)
                 raise failed_at(err, s.t) from None
-        self.step_n = s.n
         return uv
 
     def advance(self, go, us):

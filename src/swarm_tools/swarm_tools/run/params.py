@@ -50,13 +50,13 @@ def load_scenario(prog: str, a):
 
 def not_yet_3d(scn, a) -> str | None:
     """What a 3D scenario cannot do on ROS yet with options ``a`` (the rest of a line), or None:
-    lockstep runs; realtime, robots and the radio model are refused."""
+    robots and a realtime radio model are refused."""
     if scn.dim != 3:
         return None
     if getattr(a, 'robots', None):
         return 'cannot drive robots: robots are planar for now'
-    if scn.comms_config() is not None:
-        return 'with a radio model (comms) runs in `swarm simulate` only for now'
+    if scn.comms_config() is not None and getattr(a, 'mode', 'lockstep') == 'realtime':
+        return 'with a radio model (comms) runs in lockstep only for now'
     return None
 
 
