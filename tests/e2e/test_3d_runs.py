@@ -209,16 +209,22 @@ def test_3d_lockstep_with_a_radio_and_faults_equals_simulate(per, tmp_path, ros_
         np.testing.assert_array_equal(a[both], b[both], err_msg=key)
 
 
-def test_3d_realtime_splits_on_a_live_swarm_lambda(tmp_path, ros_domain, processes, swarm_cmd):
+@pytest.mark.parametrize('per, comms', [(1, None), (3, {'loss': 0.3, 'latency': 0.1, 'jitter': 0.1, 'timeout': 1.0})],
+                         ids=['processes', 'containers-radio'])
+def test_3d_realtime_splits_on_a_live_swarm_lambda(per, comms, tmp_path, ros_domain, processes, swarm_cmd):
     """Realtime at rtf 4, λ = 0 in the scenario, leaders chosen at t = 5: `swarm lambda 1.0`
     at t ≥ 20 splits the 3D swarm in two (the world's progress line, clusters in space); the
-    trajectory holds r, x, y, z and v, orthonormal frames, and unit speed."""
+    trajectory holds r, x, y, z and v, orthonormal frames, and unit speed.  Also in agent
+    containers whose agents hear through a lossy, delayed radio (each its own table, its
+    container's other agents heard through it too)."""
     from swarm_core.analysis.metrics import cluster_labels_3d
     path = short_3d(tmp_path / 'h3rt.yaml', duration=260.0, leaders_at=5, **{'lambda': {'kind': 'constant',
-                                                                                      'value': 0.0}})
+                                                                                      'value': 0.0}},
+                    **({'comms': comms} if comms else {}))
     out = tmp_path / 'run'
     p = processes.start([swarm_cmd, 'run', path, '--mode', 'realtime', '--rtf', '4', '--out', out, '--no-figure',
-                         '--progress-every', '5'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                         '--progress-every', '5', '--agents-per-process', str(per)],
+                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = Lines(p)
     progress = re.compile(r'\[world\] t= *([\d.]+)  clusters=(\d+)  λ=([\d.]+)')
 
@@ -242,3 +248,93 @@ def test_3d_realtime_splits_on_a_live_swarm_lambda(tmp_path, ros_domain, process
     assert np.all((speed > 0.95) & (speed < 1.01)), speed           # unit speed (the median step)
     assert cluster_labels_3d(got.r[np.searchsorted(got.t, t_cli) - 1], 4.0)[0] == 1
     assert cluster_labels_3d(got.r[-1], 4.0)[0] >= 2
+
+
+def test_3d_realtime_radio_drops_what_its_loss_says_and_obeys_swarm_drop(rclpy_context, swarm_cmd, processes):
+    """A realtime 3D agent (agent_1) hears agent_0's process through its radio: exactly the
+    states whose fate (`radio.link_uniforms`, stream 0) beats the loss are delivered, never one
+    fresher than the latency; it flies on them (agent_0 is in its table, dead-reckoned in space);
+    `swarm drop 1.0` cuts them until agent_0 is forgotten, and `swarm drop 0` restores them."""
+    import json
+
+    import rclpy
+    from rosgraph_msgs.msg import Clock
+    from std_msgs.msg import Float64MultiArray
+
+    from swarm_agent.agent_node import AgentNode
+    from swarm_core.radio import link_uniforms
+    from swarm_ros import protocol as P
+    from swarm_ros.layouts import NaturalProcessStates
+    from swarm_ros.rosutil import make_executor
+    from swarm_tools.run.params import agent_parameters
+    from tests.helpers import overrides, spin_for
+
+    scn = load('homotopy_3d')
+    comms = dict(loss=0.3, latency=0.2, timeout=0.5, seed=11)
+    ex = make_executor(rclpy_context)
+    prm = dict(agent_parameters(scn, 1, 'realtime'), comms=json.dumps(comms))
+    agent = AgentNode('agent', namespace='agent_1', context=rclpy_context, parameter_overrides=overrides(prm))
+    probe = rclpy.create_node('probe', context=rclpy_context)
+    clock = probe.create_publisher(Clock, '/clock', 10)
+    states = probe.create_publisher(Float64MultiArray, P.AGENT_STATES, P.qos_latched(10))   # agent_0's process
+    ex.add_node(agent)
+    ex.add_node(probe)
+    assert agent.radio_on and agent.dim == 3
+    assert spin_for(ex, lambda: clock.get_subscription_count() and states.get_subscription_count())
+    t, lags, fates = [0.0], [], []
+    stream = agent.driver.stream
+    hear = stream.hear
+
+    def heard_by_radio(j, state, own):                       # each state's stamp and fate
+        fates.append((state[0], hear(j, state, own)))
+        return fates[-1][1]
+    stream.hear = heard_by_radio
+
+    def tick(k):
+        for _ in range(k):
+            t[0] = round(t[0] + scn.dt, 10)
+            c = Clock()
+            c.clock.sec, c.clock.nanosec = P.time_to_stamp(t[0])
+            clock.publish(c)
+            pose = np.array([-1.0 + t[0], 1.0, 0.5, 1, 0, 0, 0, 1, 0, 0, 0, 1], float)[:, None]  # along x
+            states.publish(NaturalProcessStates(9.0, [0], [t[0]], pose, [[0.0, 0.0]]).to_cdr(agent.run_id))
+            spin_for(ex, lambda: False, 0.03)
+            if 0 in stream.newest:
+                lags.append(agent._now() - stream.newest[0][0])
+
+    def counts():
+        return int(stream.heard[0]), int(stream.delivered[0])
+
+    def known():
+        rows, table = stream.table(agent._now(), np.zeros(12))
+        return list(rows) == [0, 1] and table.shape == (2, 12)
+
+    tick(60)
+    heard, got = counts()
+    assert heard >= 30 and len(fates) == heard
+    stamps, delivered = np.array(fates).T
+    assert np.array_equal(delivered.astype(bool), link_uniforms(comms['seed'], np.round(stamps / scn.dt).astype(int),
+                                                                 1, 0) >= comms['loss'])
+    assert 0 < got < heard
+    assert lags and min(lags) >= 0.2 - 1e-9 and known()
+    assert np.isfinite(agent.core.row[0]).all() and agent.step > 0       # it flies
+
+    def run_cli(*args):
+        p = processes.start([swarm_cmd, *args, '--wait', '20'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True)
+        while p.poll() is None:
+            tick(1)
+        out = p.stdout.read()
+        assert p.returncode == 0, out
+        return out
+
+    run_cli('drop', '1.0')
+    tick(2)
+    heard0, got0 = counts()
+    tick(20)                                                 # 1 s > timeout + latency
+    heard1, got1 = counts()
+    assert heard1 >= heard0 + 10 and got1 == got0 and not known()
+    run_cli('drop', '0')
+    tick(20)
+    assert counts()[1] >= got1 + 5 and known()
+    probe.destroy_node()

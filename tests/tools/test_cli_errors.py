@@ -150,15 +150,10 @@ def test_rk4_reference_run_does_not_overwrite_the_zoh_run(tmp_path):
     assert zoh.shape == rk4.shape and not np.array_equal(zoh, rk4)
 
 
-def test_a_3d_scenario_is_simulated_but_refused_by_the_ros_commands_on_robots_or_with_a_realtime_radio(tmp_path):
-    radio = tmp_path / 'radio3d.yaml'
-    radio.write_text('name: r3\ndim: 3\nagents: {positions: [[0, 0, 0], [1, 0, 0]]}\ncomms: {loss: 0.3}\n')
-    join = ('join', '--agents', 'agent_0', '--server', '127.0.0.1:11811', '--mode', 'realtime')
-    for args, name, says in ((('run', '--robots', 'external'), 'homotopy_3d', 'robots are planar for now'),
-                             (('run', '--mode', 'realtime'), radio, 'radio model'), (join, radio, 'radio model')):
-        r = _swarm(*args, name)
-        _one_clean_line(r, 'a 3D scenario (dim: 3)', says)
-        assert len(r.stderr.strip().splitlines()) == 1
+def test_a_3d_scenario_is_simulated_but_refused_by_the_ros_commands_on_robots(tmp_path):
+    r = _swarm('run', '--robots', 'external', 'homotopy_3d')
+    _one_clean_line(r, 'a 3D scenario (dim: 3)', 'robots are planar for now')
+    assert len(r.stderr.strip().splitlines()) == 1
     bad = tmp_path / 'bad.yaml'
     bad.write_text('name: bad\ndim: 3\nagents: {positions: [[0, 0], [1, 0]]}\n')
     r = _swarm('simulate', bad, '--quiet', '--out', tmp_path / 'out')

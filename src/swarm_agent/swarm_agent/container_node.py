@@ -202,7 +202,9 @@ class AgentContainer(Node):
         if m is None:
             return
         radio = [a for a in self.agents if a.radio_on]
-        for state in batch_states(m, first.roster) if radio else ():
+        for a in radio if first.dim == 3 else ():
+            a.driver.hear_natural(m)
+        for state in batch_states(m, first.roster) if radio and first.dim == 2 else ():
             for a in radio:
                 a.driver.hear_radio(state)
         if len(radio) < len(self.agents):

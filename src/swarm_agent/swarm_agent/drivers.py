@@ -26,6 +26,7 @@ from swarm_agent.realtime_core import (
     HeardStates,
     time_limits,
 )
+from swarm_core.natural_radio import NaturalStreamRadio
 from swarm_core.radio import StreamRadio
 from swarm_ros import protocol as P
 from swarm_ros.layouts import NaturalProcessStates, ProcessStates
@@ -168,8 +169,8 @@ class RealtimeDriver:
         # alone, perfect radio: newest states (contained: the container's)
         self.heard = natural_heard(node.roster) if node.dim == 3 else HeardStates(node.roster)
         self.heard.own[node.index] = True
-        self.radio_heard = {}        # radio model: name -> newest state heard (before the radio)
-        self.stream = StreamRadio(node.radio, node.index)
+        self.radio_heard = {}        # radio model: name -> newest state heard (before the radio; 3D: `hear_natural`)
+        self.stream = (NaturalStreamRadio if node.dim == 3 else StreamRadio)(node.radio, node.index)
         self.timer = None
         self.lock = None
         self.batch = None            # alone: its process's /swarm/agent_states writer
@@ -205,7 +206,12 @@ class RealtimeDriver:
         return P.step_of(self.node._now(), self.node.dt)
 
     def radio_started(self):
-        """Nothing to switch: `on_input` routes states through the radio from now on."""
+        """`on_input` routes states through the radio from now on (3D: checked first as the
+        process's table checks them, on a table of this agent's own)."""
+        node = self.node
+        if node.dim == 3 and not isinstance(self.radio_heard, HeardStates):
+            self.radio_heard = natural_heard(node.roster)
+            self.radio_heard.own[node.index] = True
 
     def on_input(self, raw):
         """One agent process's states on ``/swarm/agent_states`` (serialized)."""
@@ -214,7 +220,9 @@ class RealtimeDriver:
                          NaturalProcessStates if node.dim == 3 else ProcessStates)
         if m is None:
             return
-        if node.radio_on:
+        if node.radio_on and node.dim == 3:
+            self.hear_natural(m)
+        elif node.radio_on:
             for state in batch_states(m, node.roster):
                 self.hear_radio(state)
         else:
@@ -233,6 +241,16 @@ class RealtimeDriver:
         vals = (t, pose[0], pose[1], pose[4], pose[5], wz)
         self.radio_heard[name] = vals
         self.stream.hear(node.row[name], vals, node.core.pos[0])
+
+    def hear_natural(self, m):
+        """A 3D batch (`NaturalProcessStates`) through this agent's radio model: its states
+        checked and taken as the process's table takes them (`HeardStates.take`), each taken one
+        then heard by the radio (t, r, x, y, z, u, v)."""
+        node = self.node
+        ok = self.radio_heard.take(m, node.roster, node._now(), self.future_tolerance, node.reject)
+        r = node.core.row[0]
+        for j in np.flatnonzero(ok).tolist():
+            self.stream.hear(int(m.index[j]), (float(m.t[j]), *m.pose[:, j].tolist(), *m.u[j].tolist()), r)
 
     def table(self, now, heard=None):
         """(own row, states (m, 4) of x, y, qz, qw, leader flags) of the agents known at ``now``

@@ -7,7 +7,9 @@ they heard (`realtime_core.HeardStates` of width 12: r, x, y, z; their own rows 
 states) and get (u, v) from one `natural_alive_control` call for their rows; then one batched
 `natural_step` per period, Gram-Schmidt after each tick's move, and each agent publishes its
 state; the process sends them in one ``/swarm/agent_states`` message (`NaturalProcessStates`).
-A realtime run is not bit for bit: the table is what was heard when the tick came.
+An agent with a radio model has a table of its own: what its radio (`natural_radio.NaturalStreamRadio`)
+delivered of the states heard, its process's other agents' included, dead-reckoned to now; and a
+law call of its own.  A realtime run is not bit for bit: the table is what was heard when the tick came.
 """
 from __future__ import annotations
 
@@ -39,9 +41,22 @@ def hear_own(heard, agent):
 
 def natural_controls(lock, go, heard, now, stale, lam, flags, steering, target, barrier, ground=None):
     """(u, v) (len(go), 2) of the agents ``go`` from the table they heard within ``stale``."""
+    rows, states = heard.table(now, stale, lock.rows[go])
+    return table_controls(lock, go, rows, states, now, lam, flags, steering, target, barrier, ground)
+
+
+def radio_controls(lock, agent, j, now, lam, flags, steering, target, barrier, ground=None):
+    """(u, v) (1, 2) of ``agent`` (position j in ``lock``) from what its radio delivered."""
+    state, _ = own_state(agent.core)
+    rows, states = agent.driver.stream.table(now, state)
+    return table_controls(lock, np.array([j]), rows, states, now, lam, flags, steering, target, barrier, ground)
+
+
+def table_controls(lock, go, rows, states, now, lam, flags, steering, target, barrier, ground=None):
+    """(u, v) (len(go), 2) of the agents ``go`` from the table of agents ``rows`` (states (m, 12):
+    r, x, y, z), their own rows their own states."""
     b = lock.bank
     own = lock.rows[go]
-    rows, states = heard.table(now, stale, own)
     pos, x, y, z = (np.ascontiguousarray(states[:, 3 * c:3 * c + 3]) for c in range(4))
     at = np.searchsorted(rows, own)
     pos[at], x[at], y[at], z[at] = b.pos[go], b.x[go], b.y[go], b.z[go]
@@ -66,9 +81,16 @@ def natural_realtime_tick(agents, lock, heard, leader_mask, batch, continued):
     go = np.array([j for j, _, _ in moving], dtype=np.intp)
     periods = np.array([p for _, p, _ in moving])
     steering = np.array([np.broadcast_to(np.asarray(agents[j].steering, float), 2) for j in go])
+    flags = leader_mask(a0.leaders)
+    radio = np.array([agents[j].radio_on for j in go])
+    uv = np.zeros((go.size, 2))
     try:
-        uv = natural_controls(lock, go, heard, now, a0.driver.stale_after, a0.lam, leader_mask(a0.leaders),
-                              steering, a0.target, a0.barrier, a0.ground)
+        if not radio.all():
+            uv[~radio] = natural_controls(lock, go[~radio], heard, now, a0.driver.stale_after, a0.lam, flags,
+                                          steering[~radio], a0.target, a0.barrier, a0.ground)
+        for i in np.flatnonzero(radio).tolist():      # a radio model: each its own table
+            uv[i] = radio_controls(lock, agents[go[i]], go[i], now, a0.lam, flags, steering[i:i + 1], a0.target,
+                                   a0.barrier, a0.ground)[0]
     except LawError as err:           # the agents' law failed: the process stops with one line
         fail(err)
         return
@@ -89,4 +111,18 @@ def natural_realtime_tick(agents, lock, heard, leader_mask, batch, continued):
         a.t = t_new
         a.publish_state()
         hear_own(heard, a)
+    if radio.any() and len(agents) > 1:
+        hear_mates(agents, go)
     batch.publish([agents[j] for j in go])
+
+
+def hear_mates(agents, go):
+    """Each agent of the process with a radio model hears the new states of the others ``go``
+    that moved (they never come back over DDS: its process's own batch) through its radio."""
+    states = [(a.index, (a.t, *np.concatenate(own_state(a.core)))) for a in (agents[j] for j in go)]
+    for a in agents:
+        if a.radio_on and a.halted is None:
+            r = a.core.row[0]
+            for i, state in states:
+                if i != a.index:
+                    a.driver.stream.hear(i, state, r)

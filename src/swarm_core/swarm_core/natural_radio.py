@@ -7,14 +7,15 @@ over the step that ended at t_n.  `NaturalBeliefs` keeps, per (receiver, sender)
 state received, as `radio.Beliefs` does; with ``dead_reckoning`` a belief of t_m is predicted to
 t_n on the exact arc of unit speed with its frame and (u, v) held (`model.natural.natural_step`
 with dt = t_n − t_m).  The frame is carried as it is (9 numbers, not a quaternion), so a belief
-of age 0 is the sender's true state bit for bit.
+of age 0 is the sender's true state bit for bit.  A realtime agent hears through a
+`NaturalStreamRadio`: the fates of `radio.StreamRadio`, 3D states dead-reckoned the same way.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from swarm_core.model.natural import natural_step
-from swarm_core.radio import Beliefs
+from swarm_core.radio import Beliefs, StreamRadio
 
 #: rows of a 3D state message: r (0-2), x (3-5), y (6-8), z (9-11), u (12), v (13)
 R, X, Y, Z, U, V = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), 12, 13
@@ -51,3 +52,15 @@ class NaturalBeliefs(Beliefs):
         if model.dead_reckoning and np.any(age > 0):
             r, x, y, z = natural_dead_reckon(r, x, y, z, st[U], st[V], age * model.dt)
         return r, x, y, z
+
+
+class NaturalStreamRadio(StreamRadio):
+    """`StreamRadio` of 3D states (t, r, x, y, z, u, v): the fate by the distance in space, and
+    each belief dead-reckoned on the exact arc of its (u, v) (`natural_dead_reckon`)."""
+
+    POSITION, CONTROLS = slice(1, 4), 2
+
+    def _dead_reckon(self, st, age, moved):
+        r, x, y, z = natural_dead_reckon(st[:, 1:4], st[:, 4:7], st[:, 7:10], st[:, 10:13], st[:, 13], st[:, 14],
+                                         np.where(moved, age, 0.0))
+        st[:, 1:13] = np.concatenate([r, x, y, z], axis=1)

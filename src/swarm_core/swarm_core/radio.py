@@ -450,24 +450,29 @@ class StreamRadio:
     their stamp t; the fate of each is `CommModel.decide` for step round(t/dt), so a state is
     lost or held in flight until t + delay exactly as in the batch engine (DDS delays come on
     top).  `table(now)` gives the newest delivered state of every sender heard within the
-    timeout, dead-reckoned to ``now``."""
+    timeout, dead-reckoned to ``now``.  A state is (t, x, y, qz, qw, u); in 3D
+    (`natural_radio.NaturalStreamRadio`) (t, r, x, y, z, u, v)."""
+
+    #: where a state holds the sender's position, and how many controls end it
+    POSITION, CONTROLS = slice(1, 3), 1
 
     def __init__(self, model: CommModel, index: int):
         self.model = model
         self.index = int(index)
         n = len(model.names)
-        self.newest = {}                      # sender row -> (t, x, y, qz, qw, u) delivered
+        self.newest = {}                      # sender row -> its newest state delivered
         self.in_flight = []                   # (release time, sender row, state)
         self.heard = np.zeros(n, dtype=np.int64)
         self.delivered = np.zeros(n, dtype=np.int64)
 
     def hear(self, j: int, state, own_xy) -> bool:
-        """A state (t, x, y, qz, qw, u) of sender row j arrives; True if the radio delivers it."""
+        """A state of sender row j arrives (``own_xy``: this agent's position); True if the radio
+        delivers it."""
         t = float(state[0])
         m = int(round(t / self.model.dt))
         self.heard[j] += 1
-        arr = int(self.model.decide(m, [self.index], np.reshape(np.asarray(own_xy, float), (1, 2)),
-                                    [j], [[state[1], state[2]]])[0, 0])
+        arr = int(self.model.decide(m, [self.index], np.reshape(np.asarray(own_xy, float), (1, -1)),
+                                    [j], [state[self.POSITION]])[0, 0])
         if arr < 0:
             return False
         self.delivered[j] += 1
@@ -487,15 +492,20 @@ class StreamRadio:
 
     def table(self, now: float, own_state):
         """(rows, states (R, 4) of x, y, qz, qw): the senders known at ``now`` and this agent's
-        own row (own_state = x, y, qz, qw), in agent-index order, dead-reckoned to now."""
+        own row (own_state = x, y, qz, qw), in agent-index order, dead-reckoned to now (3D:
+        states (R, 12) of r, x, y, z)."""
         self.model.advance_to(int(round(now / self.model.dt)))
         self.release(now)
         rows = sorted([j for j, st in self.newest.items()
                        if now - st[0] <= self.model.timeout + 1e-9 and j != self.index] + [self.index])
-        st = np.array([self.newest[j] if j != self.index else (now, *own_state, 0.0) for j in rows], dtype=float)
+        own = (now, *own_state) + (0.0,) * self.CONTROLS
+        st = np.array([self.newest[j] if j != self.index else own for j in rows], dtype=float)
         age = now - st[:, 0]
         if self.model.dead_reckoning:
-            moved = (age > 0) & (np.array(rows) != self.index)
-            pos, qz, qw = dead_reckon(st[:, 1:3], st[:, 3], st[:, 4], st[:, 5], np.maximum(age, 0.0), moved)
-            st[:, 1:3], st[:, 3], st[:, 4] = pos, qz, qw
-        return np.array(rows, dtype=np.intp), st[:, 1:5]
+            self._dead_reckon(st, np.maximum(age, 0.0), (age > 0) & (np.array(rows) != self.index))
+        return np.array(rows, dtype=np.intp), st[:, 1:-self.CONTROLS]
+
+    def _dead_reckon(self, st, age, moved):
+        """The states ``st`` (rows of `newest`) predicted ``age`` ahead where ``moved``, in place."""
+        pos, qz, qw = dead_reckon(st[:, 1:3], st[:, 3], st[:, 4], st[:, 5], age, moved)
+        st[:, 1:3], st[:, 3], st[:, 4] = pos, qz, qw

@@ -50,13 +50,11 @@ def load_scenario(prog: str, a):
 
 def not_yet_3d(scn, a) -> str | None:
     """What a 3D scenario cannot do on ROS yet with options ``a`` (the rest of a line), or None:
-    robots and a realtime radio model are refused."""
+    robots are refused."""
     if scn.dim != 3:
         return None
     if getattr(a, 'robots', None):
         return 'cannot drive robots: robots are planar for now'
-    if scn.comms_config() is not None and getattr(a, 'mode', 'lockstep') == 'realtime':
-        return 'with a radio model (comms) runs in lockstep only for now'
     return None
 
 
@@ -81,7 +79,7 @@ def node_parameters(scn, scenario_ref: str, mode: str, rtf: float = 1.0, output_
     commander load the scenario themselves (by reference: swarm_ros.scenario_params), the
     agents get values (`agent_parameters`), with the run's pair sums (``compiled``: auto, on,
     off; `compiled_sums.run_sums` of the run's agents and steps, as `swarm simulate` chooses)."""
-    pair_sums = run_sums(len(scn.names), scn.steps, compiled)
+    pair_sums = run_sums(len(scn.names), scn.steps, compiled, lockstep=mode == 'lockstep')
     common = dict(scenario_parameters(scn, scenario_ref, duration), mode=mode)
     world = dict(common, rtf=float(rtf), output_dir=str(output_dir), use_sim_time=False, **(extra_world or {}))
     out = {'/world': world, '/commander': dict(common, use_sim_time=True)}
