@@ -11,6 +11,7 @@ import yaml
 
 from swarm_agent.natural_core import NaturalAgentCore, NaturalContainerCore
 from swarm_core.engine.reference import simulate
+from swarm_core.laws import Law, param
 from swarm_core.model.natural import frame_from_quaternion_3d, initial_frames, quaternion_from_frame
 from swarm_core.radio import CommModel
 from swarm_core.scenario.loader import load
@@ -136,3 +137,47 @@ def test_the_quaternion_of_a_frame_round_trips():
     sign = np.sign(np.cos(th / 2))
     np.testing.assert_allclose(np.stack([qx, qy, qz, qw]), np.stack([0 * th, 0 * th, sign * np.sin(th / 2),
                                                                       sign * np.cos(th / 2)]), atol=1e-15)
+
+
+class Picky3D(Law):
+    """Climbs by gain; raises above gain 5 once it has neighbours (on its own it never does)."""
+
+    dims = (2, 3)
+    gain = param(1.0, lo=0.0, hi=10.0)
+
+    def control(self, view):
+        if self.gain > 5 and len(view.pos) > 1:
+            raise ValueError(f'gain {self.gain:g} with neighbours')
+        return np.full((view.receivers.size, 2), 0.01 * self.gain)
+
+
+@pytest.mark.parametrize('loss', [0.0, 1.0])
+def test_a_set_is_tried_on_the_beliefs_of_a_3d_agent_with_a_radio(loss):
+    """A live law set is tried on what the agent's radio delivered at its last step: with the
+    others believed it raises there (refused in one line); when its radio lost them all it
+    does not; nothing of the agent changes."""
+    from types import SimpleNamespace
+
+    from swarm_core.command.plan import law_with
+    n, law = 3, Picky3D()
+    x, y, z = initial_frames(np.eye(3))
+    pos = np.array([[0.0, 0.0, 0.0], [1.0, 0.5, 0.0], [-0.5, 1.0, 0.3]])
+    cores = [NaturalAgentCore(i, n, pos[i], np.concatenate([x[i], y[i], z[i]]), law, 0.1) for i in range(n)]
+    for c in cores:
+        c.attach_comms(CommModel.from_config(dict(loss=loss), [f'a{i}' for i in range(n)], 0.1, 0))
+    state = np.stack([pos, x, y, z])
+    s = SimpleNamespace(n=0, t=0.0, lam=0.3, flags=np.zeros(n, bool), steering=np.zeros((n, 2)), state=state,
+                        uv=np.zeros((n, 2)), alive=np.ones(n, bool), target=None, barrier=None, ground=None,
+                        rendezvous=None, x=state[0, :, 0])
+    box = NaturalContainerCore(cores)
+    assert [kind for _, kind, _ in box.on_step(s)] == ['moved'] * n
+    for c in cores:
+        before = [a.copy() for a in c.row] + [c.states.u.copy(), c.step]
+        why = c.trial(law_with(law, {'gain': 6.0}))
+        assert (why is None) == (loss == 1.0), why
+        if why is not None:
+            assert 'gain 6 with neighbours' in why and '\n' not in why
+        assert c.trial(law_with(law, {'gain': 4.0})) is None
+        after = [a.copy() for a in c.row] + [c.states.u.copy(), c.step]
+        for a, b in zip(before, after):
+            np.testing.assert_array_equal(a, b)
