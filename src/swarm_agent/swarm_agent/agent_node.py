@@ -28,12 +28,13 @@ the commander's decision, target, barrier, events) from one subscription each.
 
 Communication model (parameter ``comms``: the scenario's ``comms`` section as JSON, '' = a
 perfect radio; see swarm_core.radio): the agent applies it on its receive side.  Lockstep: from
-each step's table it keeps only what its radio delivers (`AgentCore.comms_control`; equal to
-the batch engine bit for bit).  Realtime: each incoming state is lost or delayed by the same
-seeded fate function (keyed by the state's step), kept in flight until its delivery time, and
-the control uses the newest delivered state of each neighbour dead-reckoned to now, leaving
-out neighbours silent for longer than the timeout.  Runtime changes (``swarm drop``,
-``swarm partition``) arrive on ``/swarm/events`` and switch the radio path on if it was off.
+each step's table it keeps only what its radio delivers (`AgentCore.comms_control`; in 3D
+`NaturalAgentCore.comms_control`; equal to the batch engine bit for bit).  Realtime: each
+incoming state is lost or delayed by the same seeded fate function (keyed by the state's step),
+kept in flight until its delivery time, and the control uses the newest delivered state of each
+neighbour dead-reckoned to now, leaving out neighbours silent for longer than the timeout.
+Runtime changes (``swarm drop``, ``swarm partition``) arrive on ``/swarm/events`` and switch the
+radio path on if it was off.
 """
 from __future__ import annotations
 
