@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """The Python work of one lockstep step, in one process, without DDS delivering anything: what a
 lone agent does with one ``/lockstep/step`` message (decode, the law, one move, its answer and
-its state), and what the world does with the answers of ``n`` lone agents (decode, checks, the
+its state; ``agent-compiled``: with the compiled step of ``--compiled on``), and what the world
+does with the answers of ``n`` lone agents (decode, checks, the
 barrier, the plan's decision, the next step message, the metrics).
 
 The messages are made up front (`homotopy_global`, the agents a little further each step) and
@@ -30,7 +31,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ('swarm_core', 'swarm_ros', 'swarm_agent', 'swarm_world', 'homotopy_commander', 'swarm_tools',
             'swarm_robots')
-KINDS = ('agent', 'world')
+KINDS = ('agent', 'agent-compiled', 'world')
 
 
 def child(kind: str, steps: int, rounds: int, domain: int) -> dict:
@@ -50,9 +51,10 @@ def child(kind: str, steps: int, rounds: int, domain: int) -> dict:
     n = len(scn.names)
     qz, qw = np.sin(scn.theta0 / 2), np.cos(scn.theta0 / 2)
     total = 200 + rounds * steps
-    if kind == 'agent':
+    if kind.startswith('agent'):
         from swarm_agent.agent_node import AgentNode
-        prm = dict(agent_parameters(scn, 0, 'lockstep'), use_sim_time=False)
+        sums = 'compiled' if kind == 'agent-compiled' else 'numpy'      # `swarm run --compiled on` / off
+        prm = dict(agent_parameters(scn, 0, 'lockstep', sums), use_sim_time=False)
         node = AgentNode('agent', namespace='agent_0', context=ctx,
                          parameter_overrides=[Parameter(k, value=v) for k, v in prm.items()])
         msgs = [Step(k, k * scn.dt, 0.0, np.zeros(n, bool), np.zeros(n), scn.pos0[:, 0] + 0.01 * k, scn.pos0[:, 1],

@@ -198,3 +198,23 @@ def test_an_agent_on_a_mujoco_robot_takes_its_pose_from_the_table_and_does_not_i
         np.testing.assert_array_equal(robot[i].pos, points[i].pos)
         np.testing.assert_array_equal(robot[i].theta, points[i].theta)
     assert points[1].pos.tolist() != [[s.x[1], s.y[1]]]                # a kinematic b moved
+
+
+@pytest.mark.parametrize('case', ['homotopy', 'local', 'lambda_one'])
+def test_the_compiled_step_equals_the_batch_engine(tmp_path, monkeypatch, case):
+    """Without noise a container of agents that sum compiled takes its usual steps in one
+    compiled call (`compiled_step`), and a lone agent too; the steps a fault makes unusual go
+    through numpy.  Both give the batch engine's bits (`drive` checks u and positions each step)."""
+    pytest.importorskip('numba')
+    from swarm_core.laws.paper import compiled_step
+    calls = []
+    real = compiled_step.CompiledStep.__call__
+    monkeypatch.setattr(compiled_step.CompiledStep, '__call__', lambda self, *a: calls.append(1) or real(self, *a))
+    over = dict(lam={'kind': 'tanh_window', 'rise_at': 3, 'fall_at': 1000, 'tau': 1}) | COMPILED_CASES[case]
+    path = short_homotopy(tmp_path / 'c.yaml', name=f'step_{case}', duration=8, at=1, curvature=0.05,
+                          faults=[{'at': 2, 'freeze': 'agent_1', 'for': 2.0}, {'at': 5, 'kill': 'agent_4'}], **over)
+    scn = load(str(path))
+    moved, in_table = drive(scn, [[0], [1, 2], [3, 4, 5]], compiled=True)
+    assert moved == in_table
+    # agent_0 alone steps compiled until the kill (then the table is not whole); the others less
+    assert scn.steps // 2 < len(calls) < 3 * scn.steps

@@ -114,15 +114,17 @@ comms: {loss: 0.3, latency: 0.1}
 """
 
 
-@pytest.mark.parametrize('extra', [FAULTS, RADIO], ids=['faults', 'radio'])
-def test_compiled_containers_equal_simulate(extra, tmp_path, ros_domain, processes, swarm_cmd):
-    """``--compiled on``: two containers of three sum their rows in the compiled kernels, and
-    the run equals ``simulate(compiled='on')`` bit for bit, with faults and with the radio."""
+@pytest.mark.parametrize('per, extra', [('3', FAULTS), ('3', RADIO), ('1', FAULTS)],
+                         ids=['faults', 'radio', 'lone-agents-faults'])
+def test_compiled_containers_equal_simulate(per, extra, tmp_path, ros_domain, processes, swarm_cmd):
+    """``--compiled on``: two containers of three sum their rows in the compiled kernels and
+    take their usual steps in one compiled call (`compiled_step`), lone agents too, and the run
+    equals ``simulate(compiled='on')`` bit for bit, with faults and with the radio."""
     pytest.importorskip('numba')
     path = scenario(tmp_path, 6, duration=8.0)
     path.write_text(path.read_text() + extra)
     out = tmp_path / 'run'
-    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--agents-per-process', '3',
+    p = processes.start([swarm_cmd, 'run', path, '--out', out, '--no-figure', '--agents-per-process', per,
                          '--compiled', 'on'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines = Lines(p)
     assert lines.wait(p, 300) == 0, ''.join(lines.lines[-40:])

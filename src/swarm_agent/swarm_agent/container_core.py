@@ -17,6 +17,10 @@ Rules per agent and step message ``s`` (as an agent process has always followed 
   a MuJoCo robot in lockstep (``reported``) takes its pose from its row of the table first and
   does not integrate: its robot moves, and the robot world reports where to.
 
+With the compiled sums on (a run's ``--compiled``), the usual step of plain agents (one paper
+law, planar, no radio, robot or noise) is one compiled call for the law, the move and the new
+quaternions (`swarm_core.laws.paper.compiled_step`): the same bits as the numpy step.
+
 `agents_per_process` is the rule behind ``swarm run --agents-per-process auto``, and
 `agent_services` the one behind ``--agent-services auto``.
 """
@@ -29,6 +33,7 @@ import numpy as np
 
 from swarm_agent.agent_core import SharedTable, States
 from swarm_core.laws import LawError, failed_at
+from swarm_core.laws.paper import compiled_step
 from swarm_core.model.frenet import frame_from_quaternion
 from swarm_core.model.integrate import zoh_step
 from swarm_core.step import alive_control
@@ -90,6 +95,7 @@ class ContainerCore:
     dim = 2
     n_dead = 0          # agents killed (`kill`)
     _seen = None        # the bank's changes when `_look` last looked
+    _compiled = None    # `compiled`
 
     @functools.cached_property
     def every(self):
@@ -119,6 +125,11 @@ class ContainerCore:
             law, dt = self.cores[0].law, self.cores[0].dt
             self._one_law = all(c.law == law and c.dt == dt for c in self.cores)
             self._radio, self._robot, self._noisy = bool(b.radio.any()), bool(b.robot.any()), bool(b.noisy.any())
+            plain = self._one_law and self.dim == 2 and not (self._radio or self._robot or self._noisy)
+            if not (plain and all(c.pairs is not None for c in self.cores)):
+                self._compiled = None
+            elif self._compiled is None:
+                self._compiled = compiled_step.CompiledStep()
 
     @property
     def one_law(self) -> bool:
@@ -153,6 +164,9 @@ class ContainerCore:
         b, n = self.bank, s.n
         if self.usual(s):
             go, repeat, out = self.every, self.every[:0], []       # the usual step: every agent moves
+            if self.compiled is not None and compiled_step.fits(self.cores[0].law, s.target, s.barrier,
+                                                                 s.rendezvous, s.alive):
+                return go, repeat, out, self._compiled_rows(s)
         else:
             go, repeat, out = self._rules(s)
         if not go.size:
@@ -209,6 +223,38 @@ class ContainerCore:
                     for j in go]
             go = go[:0]
         return go, np.flatnonzero(repeat), out
+
+    @property
+    def compiled(self):
+        """The bank's `compiled_step.CompiledStep` where the agents sum their pairs compiled (a
+        run's ``--compiled``) with one law, planar, none on a radio, robot or noise; else None."""
+        self._look()
+        return self._compiled
+
+    def _compiled_rows(self, s):
+        """The usual step in one compiled call (`compiled_step`): the same bits as `controls`
+        and `advance`; returns the moved agents' 'u-nan' rejects."""
+        b, first = self.bank, self.cores[0]
+        if not b.fresh.all():
+            b.refresh(np.flatnonzero(~b.fresh))
+        b.silent[:] = False
+        steering = np.asarray(s.steering, float)
+        try:
+            u, (pos, cos_t, sin_t) = self._compiled(first.law, b, self.rows, first.dt, s.lam,
+                                                    np.asarray(s.flags, bool), steering, s.x, s.y, s.qz, s.qw, s.target)
+        except LawError as err:       # the process stops on it (`swarm_ros.rosutil.run_node`)
+            raise failed_at(err, s.t) from None
+        b.share(SharedTable(pos, cos_t, sin_t, s.lam, s.flags, steering, s.target, s.barrier, s.alive,
+                            s.rendezvous, s.t), self.every, self.cores)
+        nan = []
+        if not math.isfinite(u.sum()):
+            nan = [(int(j), 'reject', ('u-nan', f'non-finite control u={u[j]} at step {s.n}; holding u=0'))
+                   for j in np.flatnonzero(~np.isfinite(u))]
+            u[~np.isfinite(u)] = 0.0
+        b.u = u
+        b.fresh[:] = True
+        b.step[:] = s.n + 1
+        return nan
 
     @property
     def any_reported(self) -> bool:

@@ -89,12 +89,15 @@ def test_a_row_is_summed_alike_whichever_receivers_are_asked():
 
 
 def test_the_run_chooses_compiled_sums_by_size_and_length():
-    """`run_sums` (``--compiled``): auto keeps numpy for short or small runs (every test run of
-    a few agents), takes the kernels for long large ones and from COMPILED_LIMIT agents on;
-    on and off force it; the batch engine follows the same choice."""
+    """`run_sums` (``--compiled``): auto keeps numpy for short small runs (nearly every test
+    run), takes the kernels for long large ones, from COMPILED_LIMIT agents on, and in
+    lockstep from LONG_RUN steps on at any size (the compiled step), not in realtime; on and
+    off force it; the batch engine follows the same choice."""
     from swarm_core.engine.reference import run_search
-    run_sums = large_swarms.run_sums
-    assert run_sums(6, 10000) == 'numpy' and run_sums(100, 1000) == 'numpy'
+    run_sums, long = large_swarms.run_sums, large_swarms.LONG_RUN
+    assert run_sums(6, long - 1) == 'numpy' and run_sums(100, 1000) == 'numpy'
+    assert run_sums(6, long) == 'compiled' and run_sums(6, 10000, lockstep=False) == 'numpy'
+    assert run_search(6, long) == 'compiled'
     assert run_sums(1000, 200) == 'compiled' and run_sums(large_swarms.COMPILED_LIMIT, 1) == 'compiled'
     assert run_sums(6, 10, 'on') == 'compiled' and run_sums(5000, 10 ** 6, 'off') == 'numpy'
     with pytest.raises(ValueError, match='compiled must be one of auto, on, off'):

@@ -30,26 +30,33 @@ COMPILED_LIMIT = 4096
 #: from this much pair work on (agents² × steps), ``--compiled auto`` takes the compiled sums:
 #: a 1,000-agent run of 50 steps, a 100-agent run of 5,000
 COMPILED_WORK = 5e7
+#: from this many steps on, ``--compiled auto`` takes the compiled path in lockstep at any n: each
+#: agent process then steps in one compiled call (`compiled_step`), which pays for numba's import
+#: and kernels (about 1 s of CPU per process) within a few thousand steps (BENCHMARKS.md)
+LONG_RUN = 5000
 #: what `PaperLaw.evaluate` takes as ``pairs`` for the compiled kernels
 COMPILED = 'compiled'
 #: the values of ``--compiled`` (swarm simulate, swarm run): auto (`run_sums`), on, off
 CHOICES = ('auto', 'on', 'off')
 #: the help of ``--compiled``, the same in every command that has it
-HELP = ('the pair sums in compiled kernels (numba): auto (default) from 4,096 agents on or where '
-        'agents² × steps reaches 5e7, on, off (numpy).  swarm simulate and swarm run choose alike, so '
-        'the batch engine and the ROS agents sum the same way')
+HELP = ('the pair sums and the agents\' lockstep step in compiled kernels (numba): auto (default) from '
+        '4,096 agents on, where agents² × steps reaches 5e7, or from 5,000 steps on; on; off (numpy).  '
+        'swarm simulate and swarm run choose alike, so the batch engine and the ROS agents compute the same bits')
 
 
-def run_sums(n: int, steps: int, choice: str = 'auto') -> str:
+def run_sums(n: int, steps: int, choice: str = 'auto', lockstep: bool = True) -> str:
     """How a run of n agents and ``steps`` steps sums its pairs: 'compiled' or 'numpy'.  The
     batch engine and every agent process of a ROS run decide with this function (from the
-    same n, steps and choice), so they sum alike.  on without numba installed: 'numpy'
-    (`available`)."""
+    same n, steps and choice), so they sum alike.  auto: compiled from COMPILED_LIMIT agents,
+    COMPILED_WORK pair work, or (``lockstep``, as the batch engine is) LONG_RUN steps on; a
+    realtime run has no compiled step to pay for numba's import there.  on without numba
+    installed: 'numpy' (`available`)."""
     if choice not in CHOICES:
         raise ValueError(f'compiled must be one of {", ".join(CHOICES)}, got {choice!r}')
     if choice == 'off' or not available():
         return 'numpy'
-    if choice == 'on' or int(n) >= COMPILED_LIMIT or float(n) * float(n) * float(steps) >= COMPILED_WORK:
+    if choice == 'on' or int(n) >= COMPILED_LIMIT or float(n) * float(n) * float(steps) >= COMPILED_WORK \
+            or lockstep and int(steps) >= LONG_RUN:
         return 'compiled'
     return 'numpy'
 
@@ -63,8 +70,8 @@ _WARM = []
 
 
 def warm_up() -> float:
-    """Import numba and load (or compile) both kernels on a table of two agents; returns the
-    seconds it took (0 after the first call).  A process that will sum compiled does it
+    """Import numba and load (or compile) the kernels (both sums and `compiled_step`'s) on a
+    table of two agents; returns the seconds it took (0 after the first call).  A process that will sum compiled does it
     before its first step, so that the first step is not the one that waits for it."""
     if _WARM:
         return 0.0
@@ -77,6 +84,12 @@ def warm_up() -> float:
         avoidance_only, target_normalised, alpha, r0, cutoff_radius, leader_gain = False, False, 1.0, 1.0, 2.0, 1.0
     for q0 in (1.0, 0.0):
         compiled_moments(pos, c, c * 0.0, rows, Law, 0.0, q0, None, None)
+    from swarm_core.laws.paper.compiled_sums_kernels import row_step  # `compiled_step`'s
+    x, y, qz, qw, steering = (np.array(a, float) for a in (pos[:, 0], pos[:, 1], [0.0, 0.0], [1.0, 1.0], [0.0, 0.0]))
+    for a in (x, y, qz, qw, steering):      # read-only, as a decoded step message's arrays are
+        a.flags.writeable = False
+    row_step(x, y, qz, qw, rows[:1], pos[:1].copy(), np.zeros(1), np.ones(1), np.zeros(1), np.zeros(2, bool),
+             steering, 0.0, 1.0, np.ones(11), np.zeros(4), True, 0.1, np.empty(1), np.empty(1), np.empty(1))
     return time.perf_counter() - t0
 
 
