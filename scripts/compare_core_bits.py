@@ -8,7 +8,9 @@ Runs the same inputs through `swarm_core` of this checkout and of REV (extracted
 results bit for bit: `swarm_control` for every law kind, λ ∈ {0, 0.37, 1}, q0 ∈ {0, 0.05, 1}, on
 random tables of n = 1 … 300 agents (some with coincident agents, with and without leaders,
 target and barrier terms), for the whole table, for single receivers (an agent node) and over
-a KD-tree pair list; then `engine.simulate` of the shipped scenarios (positions, headings, u).
+a KD-tree pair list; then `engine.simulate` of the shipped scenarios (positions, headings, u),
+with the numpy sums (``compiled='off'``: auto takes the compiled path for long runs, which its
+own tests compare with the numpy step).
 Prints the number of results that differ (0 means a refactoring changed no bit).  A speed
 change that keeps this at 0 cannot change any trajectory, test outcome or recorded number.
 """
@@ -79,8 +81,9 @@ def produce(out, quick):
                             pairs = neighbour_pairs(pos, law.cutoff_radius)
                             res[key + '_pairs'] = swarm_control(pos, c, s, np.arange(n), law,
                                                                 steering=steer, pairs=pairs, **kw)
+    numpy_only = {'compiled': 'off'} if 'compiled' in engine.simulate.__code__.co_varnames else {}
     for name in (SCENARIOS[:2] if quick else SCENARIOS):
-        tr = engine.simulate(scenario.load(name))
+        tr = engine.simulate(scenario.load(name), **numpy_only)
         res[f'simulate_{name}_r'], res[f'simulate_{name}_theta'], res[f'simulate_{name}_u'] = tr.r, tr.theta, tr.u
     import swarm_core
     res['_module'] = np.array(swarm_core.__file__)
