@@ -12,7 +12,7 @@ import re
 import secrets
 from types import SimpleNamespace
 
-from swarm_core.checks import json_value
+from swarm_core.checks import MAX_COORD, json_value
 from swarm_ros import protocol as P
 from swarm_ros.msg_checks import RejectLog
 from swarm_ros.rosutil import ParameterError, declare
@@ -94,16 +94,35 @@ def declare_run_id(node, what: str) -> str:
 
 
 def run_json(run_id: str, scenario: str, mode: str, agents, since: float, scenario_hash: str = '',
-             remote=(), robots=None, dim: int = 2) -> str:
+             remote=(), robots=None, dim: int = 2, ground=None) -> str:
     """The text of a ``/swarm/run`` message; ``since``: when its world started (wall s, epoch),
     so that of two runs on one domain the younger one gives way; ``scenario_hash``: the
     content hash of its scenario (`swarm_core.scenario.loader.Scenario.content_hash`), ``remote``:
     the agents other hosts start, which ``swarm join`` checks (`join_error`), and ``robots``:
     {agent: robot kind} of those that drive a robot (``swarm join`` starts them so); ``dim``: the
-    scenario's dimension (2 or 3: ``swarm steer`` sends one curvature or two)."""
-    return json.dumps(dict(run_id=run_id, scenario=scenario, mode=mode, agents=list(agents), since=since,
-                           scenario_hash=scenario_hash, remote=list(remote), robots=dict(robots or {}),
-                           dim=int(dim)))
+    scenario's dimension (2 or 3: ``swarm steer`` sends one curvature or two).  A 3D run's also
+    has ``ground``: its floor's height, null for none (`run_ground`; ``swarm report`` reads it
+    from a bag); a planar run's has no ``ground``."""
+    doc = dict(run_id=run_id, scenario=scenario, mode=mode, agents=list(agents), since=since,
+               scenario_hash=scenario_hash, remote=list(remote), robots=dict(robots or {}), dim=int(dim))
+    if doc['dim'] == 3:
+        doc['ground'] = None if ground is None else float(ground)
+    return json.dumps(doc)
+
+
+def run_ground(run) -> tuple[bool, float | None]:
+    """What the announcement ``run`` (a dict, or None) tells of its 3D run's floor: (True, the
+    floor's height or None for no floor), or (False, None) where it does not tell (an older
+    run's announcement has no ``ground``; one that is not a finite number of at most
+    `MAX_COORD` tells nothing)."""
+    if not isinstance(run, dict) or 'ground' not in run:
+        return False, None
+    g = run['ground']
+    if g is None:
+        return True, None
+    if isinstance(g, bool) or not isinstance(g, numbers.Real) or not abs(g) <= MAX_COORD:
+        return False, None
+    return True, float(g)
 
 
 def robots_text(robots: dict) -> str:

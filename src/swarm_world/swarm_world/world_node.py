@@ -166,7 +166,8 @@ class WorldNode(Node):
         self.pub_run = self.create_publisher(String, P.RUN, P.qos_latched())
         self.since = time.time()
         self.pub_run.publish(String(data=run_json(self.run_id, self.scn.name, self.mode, self.names, self.since,
-                                                  self.scn.content_hash, remote, robots, self.scn.dim)))
+                                                  self.scn.content_hash, remote, robots, self.scn.dim,
+                                                  ground=self.ground)))
         self.runs = RunWatch(self, log=self.get_logger().warning)
         self.second_world_at = None     # when a second /world node was first seen (no announcement yet)
 
