@@ -1,6 +1,7 @@
 """A 3D run's bag: `swarm report BAG.mcap` rebuilds the 3D trajectory (r, the frames, u and v)
-and it equals `swarm simulate`; the rebuild of an interrupted run (`salvage`) is 3D too; a bag
-without the run's announcement is told 3D by its states."""
+and it equals `swarm simulate`; the report's ground is the one the world announces on /swarm/run;
+the rebuild of an interrupted run (`salvage`) is 3D too; a bag without the run's announcement is
+told 3D by its states."""
 import json
 import subprocess
 
@@ -36,7 +37,7 @@ def _same_as_simulate(got, ref):
 
 
 def test_report_of_a_3d_bag_equals_simulate(tmp_path, ros_domain, processes, swarm_cmd):
-    path = short_3d(tmp_path / 'h3.yaml', duration=15.0)
+    path = short_3d(tmp_path / 'h3.yaml', duration=15.0, barrier={'ground': -40.0})     # a floor far below
     bag = tmp_path / 'run.mcap'
     p = processes.start([swarm_cmd, 'run', path, '--out', tmp_path / 'run', '--no-figure', '--agents-per-process',
                          '3', '--record', bag], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -55,6 +56,11 @@ def test_report_of_a_3d_bag_equals_simulate(tmp_path, ros_domain, processes, swa
     _same_as_simulate(Trajectory.load(out / 'trajectory.npz'), ref)
     summary = json.loads((out / 'metrics.json').read_text())['summary']
     assert summary['dim'] == 3 and summary['agents'] == 6 and summary['cutoff_radius'] == scn.law.cutoff_radius
+    assert summary['ground'] == -40.0 and summary['floor_intrusions_total'] == 0 and 'ground' not in r.stderr
+    from swarm_ros.runinfo import parse_run, run_ground
+    from swarm_tools.bags.mcap_io import iter_messages, parse_string
+    (said,) = [parse_run(parse_string(m.data)) for m in iter_messages(bag, ['/swarm/run'])]
+    assert run_ground(said) == (True, -40.0)
 
     # the rebuild `swarm run` makes when the world did not save the trajectory
     from swarm_tools.run.outputs import salvage

@@ -14,7 +14,9 @@ to their last complete chunk.
 
 A 3D run (the ``/swarm/run`` announcement's ``dim``: `swarm_tools.bags.report3d`) is rebuilt in
 3D: r (T, N, 3), the frames x, y, z from the quaternions, u = angular.z and v = −angular.y,
-with a 3D figure (a 3D view, top and side views) and no GIF.
+with a 3D figure (a 3D view, top and side views) and no GIF; its ground is the one the
+announcement tells, else the agents' ``ground`` parameter on ``/parameter_events`` (a bag of an
+older run), else the report says in one line that the bag does not tell it (`report3d.bag_ground`).
 """
 from __future__ import annotations
 
@@ -44,7 +46,7 @@ from swarm_tools.bags.mcap_io import (
     parse_string,
     resolve_bag,
 )
-from swarm_tools.bags.report3d import bad_row_3d, geometry_3d, ground_of, run_dim, states_on_3d
+from swarm_tools.bags.report3d import bad_row_3d, bag_ground, geometry_3d, ground_of, run_dim, states_on_3d
 from swarm_tools.bags.run_report import report_run, run_trajectory
 from swarm_tools.odometry3d import cdr_to_odometry_3d
 
@@ -181,7 +183,8 @@ class _Reading:
         self.w = cutoff_radius              # given, else the first found on /world/metrics
         self.undecodable = 0
         self.bad_geometry, self.bad_target3 = [], []
-        self.announced = self.ground = None     # the first /swarm/run announcement, a 3D floor
+        self.announced = None               # the first /swarm/run announcement
+        self.param_ground = None            # the first (True, floor) on /parameter_events
 
 
 def _read_state(r: _Reading, m):
@@ -238,11 +241,13 @@ def _read_announcement(r: _Reading, m):
 
 
 def _read_parameters(r: _Reading, m):
-    if r.ground is None and b'ground' in m.data:
+    if r.param_ground is None and b'ground' in m.data:
         try:
-            r.ground = ground_of(r.decode(m))
+            said = ground_of(r.decode(m))
         except Exception:       # a message the dynamic decoder cannot read: no floor from it
-            pass
+            return
+        if said[0]:
+            r.param_ground = said
 
 
 def _read_metrics(r: _Reading, m):
@@ -266,7 +271,8 @@ READERS = {STATES: _read_state, LAMBDA: _read_lambda, EVENTS: _read_event, LEADE
 def read_run(path, *, cutoff_radius=None, agents=None, warn=None) -> dict:
     """Everything the report needs from a bag: per-agent state lists, λ / leader events,
     target, barrier, and whether the file was cut short.  States are checked
-    (`check_states`; ``agents``: the run's roster, if known)."""
+    (`check_states`; ``agents``: the run's roster, if known).  A 3D run's ``ground``
+    (`report3d.bag_ground`); ``no_ground``: the line to say where the bag does not tell it."""
     r = _Reading(cutoff_radius)
     stats: dict = {}
     for m in iter_messages(path, stats=stats):
@@ -279,10 +285,11 @@ def read_run(path, *, cutoff_radius=None, agents=None, warn=None) -> dict:
             r.undecodable += 1
     say = warn or (lambda line: print(f'swarm report: {line}', file=sys.stderr))
     dim = run_dim(r.announced, r.per_agent)
-    target, barrier, bad, ground = r.target, r.barrier, r.bad_geometry, None
+    target, barrier, bad, ground, no_ground = r.target, r.barrier, r.bad_geometry, None, None
     if dim == 3:                # the world's geometry and floor in space
         bad = list(r.bad_target3)
-        (target, barrier), ground = geometry_3d(r.target3, r.points3, bad), r.ground
+        (target, barrier), (ground, no_ground) = (geometry_3d(r.target3, r.points3, bad),
+                                                  bag_ground(r.announced, r.param_ground))
     if r.undecodable:
         say(f'left out {r.undecodable} messages that could not be decoded')
     if stats.get('damaged'):
@@ -292,7 +299,7 @@ def read_run(path, *, cutoff_radius=None, agents=None, warn=None) -> dict:
     per_agent = check_states(r.per_agent, r.events, agents, warn, dim)
     return dict(per_agent=per_agent, lam_events=r.lam_events, leader_msgs=r.leader_msgs, events=r.events,
                 target=target, barrier=barrier, truncated=stats.get('truncated', False), w=r.w, dim=dim,
-                ground=ground)
+                ground=ground, no_ground=no_ground)
 
 
 def _state_arrays(per_agent: dict) -> dict:
@@ -516,6 +523,8 @@ def main(argv=None) -> int:
     except ValueError as err:
         print(f'swarm report: {bag}: {err}', file=sys.stderr)
         return 2
+    if run['no_ground']:
+        _warn(f'{bag}: {run["no_ground"]}')
     w = run['w']
     if w is None:
         w = Law.cutoff_radius.default

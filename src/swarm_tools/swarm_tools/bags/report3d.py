@@ -1,5 +1,5 @@
-"""The 3D side of ``swarm report BAG.mcap``: whether a bag holds a 3D run, and its states on
-the trajectory's grid.
+"""The 3D side of ``swarm report BAG.mcap``: whether a bag holds a 3D run, its states on
+the trajectory's grid, and its ground (`bag_ground`).
 
 A bag is 3D when the run's ``/swarm/run`` announcement says ``dim: 3``.  A bag without an
 announcement is 3D when most of its states are not planar (a z, a tilted frame or a v).
@@ -11,6 +11,7 @@ import numpy as np
 
 from swarm_core.model.natural import frame_from_quaternion_3d
 from swarm_core.scenario.sections import BarrierSpec3
+from swarm_ros.runinfo import run_ground
 
 #: the columns of a state row after its stamp and log time (`_state_arrays`' values)
 X, Y, QZ, QW, WZ, Z, QX, QY, WY = range(9)
@@ -74,13 +75,34 @@ def geometry_3d(target, points, bad: list):
 
 
 def ground_of(msg):
-    """The floor's height in a ``/parameter_events`` message of a node's ``ground`` parameter
-    (the agents': a number as text, '' = none), or None."""
+    """What a ``/parameter_events`` message tells of a node's ``ground`` parameter (the agents':
+    a number as text, '' = none): (True, the floor's height or None for no floor), or (False,
+    None) where it does not tell (no such parameter, or not a finite number)."""
     for p in list(getattr(msg, 'new_parameters', ())) + list(getattr(msg, 'changed_parameters', ())):
         if p.name == 'ground':
+            text = p.value.string_value
             try:
-                g = float(p.value.string_value) if p.value.string_value else None
+                g = float(text) if text.strip() else None
             except ValueError:
-                return None
-            return g if g is not None and np.isfinite(g) else None
-    return None
+                return False, None
+            return (True, g) if g is None or np.isfinite(g) else (False, None)
+    return False, None
+
+
+#: what the report says of a 3D bag that does not tell its ground
+NO_GROUND = ('the bag does not tell the ground (no ground in its /swarm/run announcement, no agent\'s '
+             'ground parameter on /parameter_events): no floor intrusion check, no floor drawn')
+
+
+def bag_ground(announced, parameters):
+    """The floor of a 3D run's bag: (its height or None for no floor, None) where the bag tells
+    it, else (None, `NO_GROUND`).  The run's ``/swarm/run`` announcement (``announced``, a dict
+    or None: `swarm_ros.runinfo.run_ground`) tells it; a bag of an older run, whose announcement
+    has no ground, tells it by the agents' ``ground`` parameter on ``/parameter_events``
+    (``parameters``: the first (True, height) of `ground_of`, or None)."""
+    said, ground = run_ground(announced)
+    if said:
+        return ground, None
+    if parameters is not None:
+        return parameters[1], None
+    return None, NO_GROUND
