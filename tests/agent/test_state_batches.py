@@ -9,7 +9,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from swarm_agent.process_io import AgentStatesWriter, decode_batch, own_echo
+from swarm_agent.process_io import AgentStatesWriter, decode_batch
 from swarm_agent.realtime_core import HeardStates
 from swarm_core.model.frenet import quaternion_from_heading
 from swarm_ros import protocol as P
@@ -66,6 +66,16 @@ def _batch(agents, tag=None):
     return node.pub.sent[0], w.tag
 
 
+def _own_echo(name, tag, own, reject) -> bool:
+    """Is this state one of the reader's own agents (``own``: name -> sender tag)?  From another
+    publisher it is rejected as a duplicate agent name."""
+    if name not in own:
+        return False
+    if tag != own[name]:
+        reject('dup-self', f'state claiming to be {name!r} (this agent) from another publisher')
+    return True
+
+
 def _one_by_one(agents, tag, heard, senders, own, now, log):
     """The same states as /swarm/states messages, decoded and each checked as it was
     (`check_values`, one sender per name, the reader's own agents only from itself)."""
@@ -73,7 +83,7 @@ def _one_by_one(agents, tag, heard, senders, own, now, log):
         raw = P.OdometryWriter(a.agent_name, tag=tag)(*a.own)
         name, sec, nsec, pose, wz, sender = P.cdr_to_odometry_tagged(raw)
         t = sec + nsec * 1e-9
-        if own_echo(name, sender, own, log) or refused(log, check_values(
+        if _own_echo(name, sender, own, log) or refused(log, check_values(
                 name, t, pose, wz, heard.row, heard.newest, now, FUTURE_TOLERANCE) or senders.check(name, sender)):
             continue
         senders.accept(name, sender)

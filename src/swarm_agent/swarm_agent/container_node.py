@@ -41,8 +41,9 @@ from rclpy.time_source import TimeSource
 from rclpy.utilities import remove_ros_args
 
 from swarm_agent.agent_node import AgentNode
+from swarm_agent.drivers import heard_table
 from swarm_agent.natural_core import container_of
-from swarm_agent.natural_realtime import hear_own, natural_heard
+from swarm_agent.natural_realtime import hear_own
 from swarm_agent.process_io import (
     CLOCKS,
     AgentStatesWriter,
@@ -53,12 +54,12 @@ from swarm_agent.process_io import (
     shared_inputs,
     step_message,
 )
-from swarm_agent.realtime_core import Continued, HeardStates
+from swarm_agent.realtime_core import Continued
 from swarm_agent.robot_driver import OdometryHold
 from swarm_core.laws import LawError
 from swarm_ros import protocol as P
 from swarm_ros.layouts import NaturalDecision, NaturalProcessStates, ProcessStates, RealtimeDecision
-from swarm_ros.msg_checks import RejectLog, batch_states, check_decision_time, decoded, guard_subscriptions, refused
+from swarm_ros.msg_checks import RejectLog, check_decision_time, decoded, guard_subscriptions, refused
 from swarm_ros.rosutil import ParameterError, declare, run_node, step_time
 from swarm_ros.run_clock import follow_run_clock
 
@@ -170,12 +171,11 @@ class AgentContainer(Node):
         the kinematic ones and one for each robot agent (`robot_driver.RealtimeRobotDriver`: its
         robot's pose, not a move), all on the first agent's clock."""
         first = self.agents[0]
-        self.heard = natural_heard(first.roster) if first.dim == 3 else HeardStates(first.roster)
+        self.heard = heard_table(first)
         self.batch = AgentStatesWriter(self, realtime=True)
         for a in self.agents:          # each published its first state when it was built
-            a.driver.heard = self.heard
+            a.driver.join(self.batch.tag, self.heard)
             self.heard.own[a.index] = True
-            a.driver.process_tag = self.batch.tag
             if a.dim == 3:
                 hear_own(self.heard, a)
             else:
@@ -195,18 +195,16 @@ class AgentContainer(Node):
     def _on_state(self, raw):
         """Another process's states on /swarm/agent_states (serialized): decoded once, checked
         and taken at once into the shared table, and heard by each agent with a radio model
-        through its own radio."""
+        through its own radio (`RealtimeDriver.hear_batch`; it hears the container's own agents
+        through it each tick, `realtime_core.hear_mates`)."""
         first = self.agents[0]
         m = decode_batch(raw, first.run_id, first.roster, self.batch.tag, self.reject,
                          NaturalProcessStates if first.dim == 3 else ProcessStates)
         if m is None:
             return
         radio = [a for a in self.agents if a.radio_on]
-        for a in radio if first.dim == 3 else ():
-            a.driver.hear_natural(m)
-        for state in batch_states(m, first.roster) if radio and first.dim == 2 else ():
-            for a in radio:
-                a.driver.hear_radio(state)
+        for a in radio:
+            a.driver.hear_batch(m)
         if len(radio) < len(self.agents):
             self.heard.take(m, first.roster, first._now(), first.driver.future_tolerance, self.reject)
 

@@ -13,7 +13,6 @@ from swarm_agent.process_io import (
     AgentStatesWriter,
     LeaderMask,
     decode_batch,
-    own_echo,
     realtime_tick,
     step_message,
 )
@@ -30,7 +29,7 @@ from swarm_core.natural_radio import NaturalStreamRadio
 from swarm_core.radio import StreamRadio
 from swarm_ros import protocol as P
 from swarm_ros.layouts import NaturalProcessStates, ProcessStates
-from swarm_ros.msg_checks import FUTURE_TOLERANCE, Senders, batch_states, check_values, refused
+from swarm_ros.msg_checks import FUTURE_TOLERANCE
 from swarm_ros.rosutil import declare, step_time, when_matched
 from swarm_ros.run_clock import follow_the_run_clock
 
@@ -165,16 +164,15 @@ class RealtimeDriver:
         self.stale_after = stale_after
         self.catch_up_limit = catch_up_limit
         self.future_tolerance = future_tolerance
-        self.senders = Senders()     # radio model: each neighbour name bound to its first publisher
-        # alone, perfect radio: newest states (contained: the container's)
-        self.heard = natural_heard(node.roster) if node.dim == 3 else HeardStates(node.roster)
+        # alone, perfect radio: newest states (contained: the container's; `join`)
+        self.heard = heard_table(node)
         self.heard.own[node.index] = True
-        self.radio_heard = {}        # radio model: name -> newest state heard (before the radio; 3D: `hear_natural`)
+        self.radio_heard = None      # radio model: the newest states heard, before the radio (`hear_batch`)
         self.stream = (NaturalStreamRadio if node.dim == 3 else StreamRadio)(node.radio, node.index)
         self.timer = None
         self.lock = None
         self.batch = None            # alone: its process's /swarm/agent_states writer
-        self.process_tag = None      # the sender tag of its process's batches (contained: set by the container)
+        self.process_tag = None      # the sender tag of its process's batches (`join`)
 
     def start(self):
         node = self.node
@@ -189,7 +187,7 @@ class RealtimeDriver:
                     '/clock from 0): this agent\'s time starts there')
             self.lock = container_of([node.core])
             self.batch = AgentStatesWriter(node, realtime=True)
-            self.process_tag = self.batch.tag
+            self.join(self.batch.tag, self.heard)
             leaders, continued = LeaderMask(node.roster), Continued()
             self.timer = node.create_timer(
                 node.dt, lambda: realtime_tick([node], self.lock, self.heard, leaders, self.batch, continued))
@@ -205,13 +203,20 @@ class RealtimeDriver:
         """The step from which a radio change applies: that of the sim time now."""
         return P.step_of(self.node._now(), self.node.dt)
 
+    def join(self, tag, heard):
+        """Its process: the sender tag of its batches and the table of what its agents heard
+        (``heard.own`` marks them: alone this agent, contained the container's agents).  Its
+        radio refuses a state claiming to be any of them from another publisher, as that table does."""
+        self.process_tag, self.heard = tag, heard
+        if self.radio_heard is not None:
+            self.radio_heard.own = heard.own
+
     def radio_started(self):
-        """`on_input` routes states through the radio from now on (3D: checked first as the
-        process's table checks them, on a table of this agent's own)."""
-        node = self.node
-        if node.dim == 3 and not isinstance(self.radio_heard, HeardStates):
-            self.radio_heard = natural_heard(node.roster)
-            self.radio_heard.own[node.index] = True
+        """`on_input` routes states through the radio from now on, checked first as the
+        process's table checks them, on a table of this agent's own (`hear_batch`)."""
+        if self.radio_heard is None:
+            self.radio_heard = heard_table(self.node)
+            self.radio_heard.own = self.heard.own      # the process's agents (`join`)
 
     def on_input(self, raw):
         """One agent process's states on ``/swarm/agent_states`` (serialized)."""
@@ -220,37 +225,22 @@ class RealtimeDriver:
                          NaturalProcessStates if node.dim == 3 else ProcessStates)
         if m is None:
             return
-        if node.radio_on and node.dim == 3:
-            self.hear_natural(m)
-        elif node.radio_on:
-            for state in batch_states(m, node.roster):
-                self.hear_radio(state)
+        if node.radio_on:
+            self.hear_batch(m)
         else:
             self.heard.take(m, node.roster, node._now(), self.future_tolerance, node.reject)
 
-    def hear_radio(self, state):
-        """A decoded state (`decode_batch`) through this agent's radio model."""
-        node = self.node
-        name, t, pose, wz, tag = state
-        if own_echo(name, tag, {node.agent_name: self.process_tag}, node.reject):
-            return
-        if refused(node.reject, check_values(name, t, pose, wz, node.row, self.radio_heard, node._now(),
-                                             self.future_tolerance) or self.senders.check(name, tag)):
-            return
-        self.senders.accept(name, tag)
-        vals = (t, pose[0], pose[1], pose[4], pose[5], wz)
-        self.radio_heard[name] = vals
-        self.stream.hear(node.row[name], vals, node.core.pos[0])
-
-    def hear_natural(self, m):
-        """A 3D batch (`NaturalProcessStates`) through this agent's radio model: its states
-        checked and taken as the process's table takes them (`HeardStates.take`), each taken one
-        then heard by the radio (t, r, x, y, z, u, v)."""
+    def hear_batch(self, m):
+        """Another process's batch (`ProcessStates`; 3D `NaturalProcessStates`) through this
+        agent's radio model: its states checked and taken as the process's table takes them
+        (`HeardStates.take`: one claiming to be an agent of this process is refused), each taken
+        one then heard by the radio (t, x, y, qz, qw, u; 3D t, r, x, y, z, u, v)."""
         node = self.node
         ok = self.radio_heard.take(m, node.roster, node._now(), self.future_tolerance, node.reject)
-        r = node.core.row[0]
+        core = node.core
+        own, u = core.states.pos[core.slot], m.u.reshape(len(m.t), -1)
         for j in np.flatnonzero(ok).tolist():
-            self.stream.hear(int(m.index[j]), (float(m.t[j]), *m.pose[:, j].tolist(), *m.u[j].tolist()), r)
+            self.stream.hear(int(m.index[j]), (float(m.t[j]), *m.pose[:, j].tolist(), *u[j].tolist()), own)
 
     def table(self, now, heard=None):
         """(own row, states (m, 4) of x, y, qz, qw, leader flags) of the agents known at ``now``
@@ -270,6 +260,11 @@ class RealtimeDriver:
         own, rows, flags = self.table(now, heard)
         return node.core.control(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], node.lam, flags, node.steering,
                                  node.target, node.barrier, row=own, t=now)
+
+
+def heard_table(node) -> HeardStates:
+    """An empty table of the newest states heard of the agents of ``node``'s run."""
+    return natural_heard(node.roster) if node.dim == 3 else HeardStates(node.roster)
 
 
 #: the modes of an agent node (parameter ``mode``) and the class that drives each

@@ -177,20 +177,10 @@ def _rows_step(s, lock, agents, batch):
 def decode_batch(raw, run_id, roster, own_tag, reject, layout=ProcessStates):
     """The serialized ``/swarm/agent_states`` message ``raw`` decoded (`layouts.ProcessStates`),
     or None for this process's own batch (``own_tag``) or a refused one (`msg_checks.batch_ok`).
-    Its states are then checked and heard at once (`HeardStates.take`), or one by one through a
-    radio model (`msg_checks.batch_states`)."""
+    Its states are then checked and taken at once (`HeardStates.take`), by the process's table
+    or by a radio agent's own table before its radio (`RealtimeDriver.hear_batch`)."""
     m = decoded(layout, raw, run_id, reject, 'state-decode')
     return m if m is not None and batch_ok(m, roster, own_tag, reject) else None
-
-
-def own_echo(name, tag, own, reject) -> bool:
-    """Is this state one of the process's own agents (``own``: name -> sender tag)?  From
-    another publisher it is rejected as a duplicate agent name."""
-    if name not in own:
-        return False
-    if tag != own[name]:
-        reject('dup-self', f'state claiming to be {name!r} (this agent) from another publisher: duplicate agent name')
-    return True
 
 
 class LeaderMask:

@@ -364,7 +364,7 @@ class RealtimeRobotDriver(RealtimeDriver):
         if not node.contained:
             follow_the_run_clock(node)
             self.batch = AgentStatesWriter(node, realtime=True)
-            self.process_tag = self.batch.tag
+            self.join(self.batch.tag, self.heard)
             self.timer = node.create_timer(node.dt, self.on_tick)
         node.publish_state()
         self._share_own_state()

@@ -217,8 +217,7 @@ def batch_ok(msg, roster, own_tag, reject) -> bool:
     checked the run id and that every value is finite) one to read?  Not the reader's own
     process's (``own_tag``), nor, logged with ``reject``, one naming an agent outside
     ``roster`` or twice, or with an orientation that is not planar.  Its states are then
-    checked each as one /swarm/states message is (`NewestStates.take`, or one by one:
-    `batch_states`, `check_values`, one sender per name)."""
+    checked at once, each as one /swarm/states message is (`NewestStates.take`)."""
     check = check_agent_states if len(msg.pose) == 4 else check_natural_pose
     return msg.tag != own_tag and not refused(reject, check(msg.index, msg.pose, len(roster), P.AGENT_STATES))
 
@@ -236,14 +235,6 @@ def check_natural_pose(index, pose, n, topic=P.AGENT_STATES):
     if np.abs(np.einsum('kac,kbc->kab', f, f) - np.eye(3)).max() > 1e-6:
         return reason('not-a-frame', f'{topic}: a frame [x y z] is not orthonormal')
     return None
-
-
-def batch_states(msg, roster):
-    """The states of a message `batch_ok` passed, each as one /swarm/states message gives it:
-    [(name, t, pose (x, y, 0, 0, qz, qw), u, the process's tag)]."""
-    x, y, qz, qw = msg.pose.tolist()
-    return [(roster[i], t, (x[j], y[j], 0.0, 0.0, qz[j], qw[j]), u, msg.tag)
-            for j, (i, t, u) in enumerate(zip(msg.index.tolist(), msg.t.tolist(), msg.u.tolist()))]
 
 
 def _show(sender):
@@ -456,8 +447,8 @@ class NewestStates:
         same = t == t0
         repeat = same & (pose == self.state[i]).all(axis=1)
         bound = self.tag[i]
-        why = [('dup-self', self.own[i], lambda j: f'state claiming to be {roster[i[j]]!r} (this agent) from '
-                'another publisher: duplicate agent name'),
+        why = [('dup-self', self.own[i], lambda j: f'state claiming to be {roster[i[j]]!r} (an agent of this '
+                'process) from another publisher: duplicate agent name'),
                ('future-stamp', t > now + tolerance, lambda j: _future_text(roster[i[j]], t[j], now, tolerance)),
                ('past-stamp', t < t0, lambda j: _past_text(roster[i[j]], t[j], t0[j])),
                (None, repeat, None),
