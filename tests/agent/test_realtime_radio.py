@@ -1,15 +1,20 @@
-"""Realtime agents with a radio model, without ROS (`drivers.RealtimeDriver`): a radio agent
-refuses a state claiming to be any agent of its process from another publisher, as the
-process's table does, planar and 3D."""
+"""Realtime agents with a radio model, without ROS (`process_io.realtime_tick`,
+`drivers.RealtimeDriver`): in a planar container each radio agent hears its container's other
+agents through its radio (their states never come back over DDS: the process drops its own
+batch), as in 3D (tests/agent/test_natural_realtime.py); a lone agent hears no one in-process;
+and a radio agent refuses a state claiming to be any agent of its process from another
+publisher, as the process's table does, planar and 3D."""
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from swarm_agent.agent_core import AgentCore
+from swarm_agent.container_core import ContainerCore
 from swarm_agent.drivers import RealtimeDriver
 from swarm_agent.natural_core import NaturalAgentCore
 from swarm_agent.natural_realtime import hear_own, natural_heard
+from swarm_agent.process_io import LeaderMask, realtime_tick
 from swarm_agent.realtime_core import HeardStates
 from swarm_core.laws import make_law
 from swarm_core.model.frenet import quaternion_from_heading
@@ -70,6 +75,49 @@ def contained(group, heard):
             heard.hear(a.agent_name, (a.t, *a.own[2:]))
         else:
             hear_own(heard, a)
+
+
+def tick(group, lock, heard, clock):
+    clock[0] = round(clock[0] + DT, 10)
+    realtime_tick(group, lock, heard, LeaderMask(ROSTER), SimpleNamespace(publish=lambda agents: None),
+                  lambda: False)
+
+
+def test_planar_radio_agents_of_a_container_hear_each_other_through_their_radios():
+    """Agents 0-2 with a radio that delivers all, agent 3 without: after one tick each radio agent
+    holds its container's other agents' states of that tick, heard through its radio, and at the
+    next its u is the law's on its radio's table (those states dead-reckoned one period)."""
+    group, clock = planar(radio=(0, 1, 2))
+    lock, heard = ContainerCore([a.core for a in group]), HeardStates(ROSTER)
+    contained(group, heard)
+    tick(group, lock, heard, clock)
+    for a in group[:3]:
+        a.driver.stream.release(clock[0])                      # delivered at once (no latency)
+        assert sorted(a.driver.stream.newest) == [j for j in range(N) if j != a.index]
+        assert {j: s[1:] for j, s in a.driver.stream.newest.items()} == \
+            {b.index: b.own[2:] for b in group if b is not a}  # the states of the tick, as published
+    assert not group[3].driver.stream.newest                  # no radio: the process's table
+    now = round(clock[0] + DT, 10)
+    rows, states = group[0].driver.stream.table(now, (*group[0].core.pos[0], *group[0].core.quaternion))
+    assert list(rows) == list(range(N))
+    want = group[0].core.control(*states.T, 0.0, np.zeros(N, bool), 0.0, row=0, t=now)
+    assert want != 0.0
+    tick(group, lock, heard, clock)
+    assert group[0].us[-1] == want
+    assert not any(a.rejected for a in group)
+
+
+def test_a_lone_radio_agent_hears_no_one_in_process():
+    """A container of one (a lone agent process): its tick moves it on its radio's table, itself
+    alone until another process's batch comes."""
+    group, clock = planar(radio=(1,))
+    a = group[1]
+    lock, heard = ContainerCore([a.core]), HeardStates(ROSTER)
+    contained([a], heard)
+    for _ in range(3):
+        tick([a], lock, heard, clock)
+    assert not a.driver.stream.newest and a.driver.stream.heard.sum() == 0
+    assert a.us == [0.0] * 3 and a.step == 3 and a.t == pytest.approx(clock[0])      # the global law alone: u = 0
 
 
 def natural(radio):

@@ -196,3 +196,51 @@ def test_realtime_latency_and_swarm_drop(rclpy_context, swarm_cmd, processes):
     assert counts()[1] >= got3 + 5 and known()
     assert math.isfinite(agent.core.theta[0])
     probe.destroy_node()
+
+
+def test_realtime_container_radio_agents_hear_their_container_mates(rclpy_context):
+    """A planar realtime container of agents 0-2, each with a lossless radio (latency 0.1): on
+    the container's own ticks each hears its two container-mates through its radio (their states
+    never come back over DDS), delivered no fresher than the latency, and flies on them; a state
+    claiming to be a container-mate from another publisher is refused."""
+    from swarm_agent.container_node import AgentContainer
+    scn = load('homotopy_global')
+    ctx = rclpy_context
+    names = scn.names[:3]
+    comms = json.dumps(dict(latency=0.1, timeout=1.0))
+    box = AgentContainer(names, context=ctx, agent_overrides={
+        nm: overrides(dict(agent_parameters(scn, k, 'realtime'), comms=comms)) for k, nm in enumerate(names)})
+    probe = rclpy.create_node('probe', context=ctx)
+    clock = probe.create_publisher(Clock, '/clock', 10)
+    states = probe.create_publisher(Float64MultiArray, P.AGENT_STATES, P.qos_latched(10))   # another process
+    ex = make_executor(ctx)
+    for nd in [box, *box.agents, probe]:
+        ex.add_node(nd)
+    assert all(a.radio_on for a in box.agents)
+    assert spin_for(ex, lambda: clock.get_subscription_count() and states.get_subscription_count())
+    t = [0.0]
+
+    def tick(k):
+        for _ in range(k):
+            t[0] = round(t[0] + scn.dt, 10)
+            c = Clock()
+            c.clock.sec, c.clock.nanosec = P.time_to_stamp(t[0])
+            clock.publish(c)
+            spin_for(ex, lambda: False, 0.03)
+
+    tick(20)
+    for a in box.agents:
+        stream = a.driver.stream
+        mates = sorted(b.index for b in box.agents if b is not a)
+        assert sorted(stream.newest) == mates, a.agent_name
+        assert all(stream.heard[j] >= 10 and stream.delivered[j] == stream.heard[j] for j in mates)
+        assert all(a._now() - stream.newest[j][0] >= 0.1 - 1e-9 for j in mates)       # the latency
+        _, rows, _ = a.driver.table(a._now())
+        assert len(rows) == 3                                   # it flies on its mates
+    spoof = ProcessStates(9.0, [1], [t[0]], np.array([[5.0], [5.0], [0.0], [1.0]]), [0.0])
+    n, heard = box.agents[0].reject.count, box.agents[0].driver.stream.heard[1]
+    states.publish(spoof.to_cdr(box.agents[0].run_id))
+    assert spin_for(ex, lambda: box.agents[0].reject.count > n, 5.0)
+    assert 'dup-self' in box.agents[0].reject.kinds
+    assert box.agents[0].driver.stream.heard[1] == heard                  # never reached its radio
+    probe.destroy_node()

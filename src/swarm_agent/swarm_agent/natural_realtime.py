@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from swarm_agent.realtime_core import HeardStates, due_periods
+from swarm_agent.realtime_core import HeardStates, due_periods, hear_mates
 from swarm_core.laws import LawError, failed_at
 from swarm_core.model.natural import orthonormalise
 from swarm_core.step import natural_alive_control
@@ -112,17 +112,5 @@ def natural_realtime_tick(agents, lock, heard, leader_mask, batch, continued):
         a.publish_state()
         hear_own(heard, a)
     if radio.any() and len(agents) > 1:
-        hear_mates(agents, go)
+        hear_mates(agents, [(a.index, (a.t, *np.concatenate(own_state(a.core)))) for a in (agents[j] for j in go)])
     batch.publish([agents[j] for j in go])
-
-
-def hear_mates(agents, go):
-    """Each agent of the process with a radio model hears the new states of the others ``go``
-    that moved (they never come back over DDS: its process's own batch) through its radio."""
-    states = [(a.index, (a.t, *np.concatenate(own_state(a.core)))) for a in (agents[j] for j in go)]
-    for a in agents:
-        if a.radio_on and a.halted is None:
-            r = a.core.row[0]
-            for i, state in states:
-                if i != a.index:
-                    a.driver.stream.hear(i, state, r)

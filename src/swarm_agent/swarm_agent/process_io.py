@@ -12,7 +12,7 @@ from geometry_msgs.msg import PointStamped, PolygonStamped
 from std_msgs.msg import Float64MultiArray, String
 
 from swarm_agent.natural_realtime import natural_realtime_tick
-from swarm_agent.realtime_core import CATCH_UP_MAX, advance_periods, due_periods, shared_controls
+from swarm_agent.realtime_core import CATCH_UP_MAX, advance_periods, due_periods, hear_mates, shared_controls
 from swarm_core.laws import LawError
 from swarm_ros import protocol as P
 from swarm_ros.layouts import AgentStates, NaturalProcessStates, ProcessStates
@@ -206,9 +206,9 @@ def realtime_tick(agents, lock, heard, leader_mask, batch, continued):
     that started before the agent or jumped) an agent's time restarts at the clock (one line).
     The agents that hear perfectly and are fresh in ``heard`` get their u from one law call;
     the others (a radio model) one each.  Then one batched move, one state published by each
-    agent that moved, and their states in one message (``batch``, an
-    `AgentStatesWriter`).  ``lock``: the agents' `ContainerCore`; ``leader_mask``: a `LeaderMask`
-    of the roster."""
+    agent that moved, each radio agent hearing the others' through its radio (`hear_mates`),
+    and their states in one message (``batch``, an `AgentStatesWriter`).  ``lock``: the
+    agents' `ContainerCore`; ``leader_mask``: a `LeaderMask` of the roster."""
     if lock.dim == 3:
         return natural_realtime_tick(agents, lock, heard, leader_mask, batch, continued)
     a0 = agents[0]
@@ -255,4 +255,6 @@ def realtime_tick(agents, lock, heard, leader_mask, batch, continued):
         a.t = t_new
         a.publish_state()
         heard.hear(a.agent_name, (a.t, *a.own[2:]))
+    if len(agents) > 1 and any(a.radio_on for a in agents):
+        hear_mates(agents, [(agents[j].index, (agents[j].t, *agents[j].own[2:])) for j in go])
     batch.publish([agents[j] for j in go])

@@ -10,8 +10,8 @@ publish).  Their controls come from ONE call of the core law
 for those receivers (`shared_controls`; `swarm_core.step.alive_control` sums each receiver's row on its
 own, so every u is bit for bit the one that agent computes alone from the same heard states,
 `agent_core.known_table`).  An agent with a radio model has a table of its own (what its radio
-delivered) and a law call of its own.  The agents then move together, one batched ZOH step per
-period (`ContainerCore.advance`)."""
+delivered, its process's other agents' states included: `hear_mates`) and a law call of its
+own.  The agents then move together, one batched ZOH step per period (`ContainerCore.advance`)."""
 from __future__ import annotations
 
 import math
@@ -149,6 +149,21 @@ class Continued:
     def __call__(self) -> bool:
         was, self.seen = self.seen != _CONTINUED[0], _CONTINUED[0]
         return was
+
+
+def hear_mates(agents, sent):
+    """Each agent of the process with a radio model (not halted) hears ``sent``, [(index, state)]:
+    the new states of the process's other agents, as the radio hears a state (t, x, y, qz, qw, u;
+    3D t, r, x, y, z, u, v), through its radio.  They never come back over DDS (a process
+    drops its own batch), so without this a radio agent would fly as if its container-mates did
+    not exist.  A lone agent has no one to hear."""
+    for a in agents:
+        if a.radio_on and a.halted is None:
+            core, stream = a.core, a.driver.stream
+            own = core.states.pos[core.slot]
+            for i, state in sent:
+                if i != a.index:
+                    stream.hear(i, state, own)
 
 
 def advance_periods(lock, go, periods, us):
