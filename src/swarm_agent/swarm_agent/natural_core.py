@@ -63,6 +63,9 @@ class NaturalStates:
 
     def message(self, tag, index, rows) -> NaturalAgentStates:
         """The states of the bank's ``rows`` (agents ``index``) for the world."""
+        if len(rows) == len(self.step) and np.array_equal(rows, np.arange(len(rows))):   # every row in order: no gather
+            return NaturalAgentStates(tag, index, self.step.copy(), np.stack([self.pos, self.x, self.y, self.z]),
+                                      np.stack([self.u, self.v], axis=1))
         state = np.stack([self.pos[rows], self.x[rows], self.y[rows], self.z[rows]])
         return NaturalAgentStates(tag, index, self.step[rows], state, np.stack([self.u[rows], self.v[rows]], axis=1))
 
@@ -224,7 +227,7 @@ class NaturalContainerCore(ContainerCore):
                 uv[~radio] = self.controls(s, go[~radio])
             return uv
         idx = self.rows[go]
-        pos, x, y, z = (np.array(a) for a in s.state)            # contiguous (N, 3): the engine's arrays
+        pos, x, y, z = np.array(s.state)                         # one copy; contiguous (N, 3) each, as the engine's
         pos[idx], x[idx], y[idx], z[idx] = b.pos[go], b.x[go], b.y[go], b.z[go]
         alive = s.alive if len(s.alive) == self.n and not s.alive.all() else None
         steering = np.asarray(s.steering, float)
