@@ -177,3 +177,26 @@ def test_a_mixed_batch_is_taken_as_its_states_one_by_one():
         assert sorted(set(log_a)) == sorted(set(log_b)), tick
         del log_a[:], log_b[:]
     assert a.newest == b.newest and np.array_equal(a.state, b.state)
+
+
+def test_a_3d_process_answers_the_world_with_its_bank_rows_in_the_order_asked():
+    """Lockstep in 3D: a lone agent's answer is packed from plain floats, a container's from
+    the bank, whole or gathered; each decodes to the rows asked, in the order asked (a repeat
+    comes before the moved ones), as `NaturalStates.message` of those rows."""
+    from swarm_agent.natural_core import NaturalStates
+    from swarm_ros.layouts import NaturalAgentStates
+    rng = np.random.default_rng(5)
+    for k, js in ((1, [0]), (3, [0, 1, 2]), (3, [2, 0, 1]), (3, [1])):
+        b = NaturalStates(k)
+        b.pos[:], b.x[:], b.y[:], b.z[:] = rng.normal(size=(4, k, 3))
+        b.u[:], b.v[:], b.step[:] = rng.normal(size=k), rng.normal(size=k), rng.integers(0, 99, k)
+        lock = SimpleNamespace(dim=3, bank=b, rows=np.array([4, 1, 5][:k]))
+        node = _Node()
+        w = AgentStatesWriter(node, realtime=False)
+        w.publish_rows(lock, np.array(js), RUN)
+        got = NaturalAgentStates.from_cdr(node.pub.sent[0], RUN)
+        assert got.tag == w.tag and got.index.tolist() == lock.rows[js].tolist()
+        assert got.step.tolist() == b.step[js].tolist()
+        np.testing.assert_array_equal(got.state, np.stack([b.pos[js], b.x[js], b.y[js], b.z[js]]))
+        np.testing.assert_array_equal(got.uv, np.stack([b.u[js], b.v[js]], axis=1))
+        assert node.pub.sent[0] == b.message(w.tag, lock.rows[js], np.array(js)).to_cdr(RUN)

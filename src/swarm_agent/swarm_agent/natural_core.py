@@ -213,6 +213,7 @@ class NaturalContainerCore(ContainerCore):
         """(u, v) (len(go), 2) of the agents ``go`` at step message ``s`` (a `NaturalStep`): the
         batch engine's call on the step's table, asked for their rows (a receiver's (u, v) does
         not depend on which receivers are asked with it: `laws.paper.natural_sums`)."""
+        every = go is self.every                    # the usual step: whole rows, no gathers
         go = np.asarray(go, dtype=np.intp)
         self.step_n = s.n
         b = self.bank
@@ -226,12 +227,23 @@ class NaturalContainerCore(ContainerCore):
             if not radio.all():
                 uv[~radio] = self.controls(s, go[~radio])
             return uv
-        idx = self.rows[go]
         pos, x, y, z = np.array(s.state)                         # one copy; contiguous (N, 3) each, as the engine's
-        pos[idx], x[idx], y[idx], z[idx] = b.pos[go], b.x[go], b.y[go], b.z[go]
+        if every:
+            idx = self.rows
+            pos[idx], x[idx], y[idx], z[idx] = b.pos, b.x, b.y, b.z
+        else:
+            idx = self.rows[go]
+            pos[idx], x[idx], y[idx], z[idx] = b.pos[go], b.x[go], b.y[go], b.z[go]
         alive = s.alive if len(s.alive) == self.n and not s.alive.all() else None
         steering = np.asarray(s.steering, float)
         self.seen = (pos, (x, y, z), s.lam, s.flags, steering, s.target, s.barrier, s.ground, alive, s.rendezvous, s.t)
+        if every and self.one_law:                              # the usual step of a plain run: one call, in order
+            try:
+                return natural_alive_control(pos, (x, y, z), idx, self.cores[0].law, s.lam, s.flags, steering[idx],
+                                             s.target, s.barrier, s.ground, alive=alive, rendezvous=s.rendezvous,
+                                             t=s.t)
+            except LawError as err:   # the process stops on it (`swarm_ros.rosutil.run_node`)
+                raise failed_at(err, s.t) from None
         if self.one_law:                                        # a plain run: one call
             groups = [go.tolist()]
         else:                                                   # one call per law
@@ -255,14 +267,19 @@ class NaturalContainerCore(ContainerCore):
         noisy agent's own draw, and Gram-Schmidt where the engine does it (after step n with
         (n + 1) a multiple of `ORTHONORMALISE_EVERY`)."""
         b = self.bank
+        every = go is self.every                    # the usual step: whole rows, no gathers
         go = np.asarray(go, dtype=np.intp)
         uv = np.asarray(us, dtype=float).reshape(-1, 2).copy()
         uv[~np.isfinite(uv)] = 0.0
         b.u[go], b.v[go] = uv[:, 0], uv[:, 1]
         if not go.size:
             return
-        pos, x, y, z = natural_step(b.pos[go], b.x[go], b.y[go], b.z[go], uv[:, 0], uv[:, 1], self.cores[go[0]].dt)
-        b.pos[go], b.x[go], b.y[go], b.z[go] = pos, x, y, z
+        if every:
+            b.pos, b.x, b.y, b.z = natural_step(b.pos, b.x, b.y, b.z, b.u, b.v, self.cores[0].dt)
+        else:
+            pos, x, y, z = natural_step(b.pos[go], b.x[go], b.y[go], b.z[go], uv[:, 0], uv[:, 1],
+                                        self.cores[go[0]].dt)
+            b.pos[go], b.x[go], b.y[go], b.z[go] = pos, x, y, z
         for j in go.tolist() if b.noisy.any() else ():
             c = self.cores[j]
             if c.noisy:
@@ -273,7 +290,10 @@ class NaturalContainerCore(ContainerCore):
                                               kick[3:4], kick[4:5], 1.0)
                     b.x[j], b.y[j], b.z[j] = x[0], y[0], z[0]
         if self.step_n is not None and (self.step_n + 1) % ORTHONORMALISE_EVERY == 0:
-            b.x[go], b.y[go], b.z[go] = orthonormalise(b.x[go], b.y[go])
+            if every:
+                b.x, b.y, b.z = orthonormalise(b.x, b.y)
+            else:
+                b.x[go], b.y[go], b.z[go] = orthonormalise(b.x[go], b.y[go])
 
     def finite(self, us):
         """Which rows of ``us`` (K, 2) are finite."""

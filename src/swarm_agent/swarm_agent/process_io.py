@@ -15,7 +15,7 @@ from swarm_agent.natural_realtime import natural_realtime_tick
 from swarm_agent.realtime_core import CATCH_UP_MAX, advance_periods, due_periods, hear_mates, shared_controls
 from swarm_core.laws import LawError
 from swarm_ros import protocol as P
-from swarm_ros.layouts import AgentStates, NaturalProcessStates, ProcessStates
+from swarm_ros.layouts import AgentStates, NaturalAgentStates, NaturalProcessStates, ProcessStates
 from swarm_ros.msg_checks import batch_ok, check_step_time, decoded, new_sender_tag, refused
 from swarm_ros.rosutil import fail
 
@@ -65,6 +65,7 @@ class AgentStatesWriter:
             (P.LOCK_AGENT_STATES, P.qos_latched())
         self.pub = node.create_publisher(Float64MultiArray, topic, qos)
         self.pack_one = None           # lockstep: (run id, `Layout.packer` of one agent's answer)
+        self.pack_3d = None            # the same of a 3D agent (`_lone_3d`)
 
     def publish(self, agents):
         """The state each of ``agents`` last published on /swarm/states (realtime: with its stamp)."""
@@ -98,7 +99,8 @@ class AgentStatesWriter:
         `ContainerCore`) straight from its bank of states: one message, no Python per agent."""
         b = lock.bank
         if lock.dim == 3:
-            self.pub.publish(b.message(self.tag, lock.rows[js], js).to_cdr(run_id))
+            self.pub.publish(self._lone_3d(b, lock.rows, int(js[0]), run_id) if len(js) == 1 else
+                             b.message(self.tag, lock.rows[js], js).to_cdr(run_id))
             return
         stale = js[~b.fresh[js]]
         if stale.size:
@@ -106,6 +108,15 @@ class AgentStatesWriter:
         msg = AgentStates(self.tag, lock.rows[js], b.step[js], (b.pos[js, 0], b.pos[js, 1], b.qz[js], b.qw[js]),
                           b.u[js])
         self.pub.publish(msg.to_cdr(run_id))
+
+
+    def _lone_3d(self, b, rows, j, run_id) -> bytes:
+        """What `NaturalStates.message` of the one row j makes, packed from plain floats (as a
+        lone planar agent's answer, `publish`)."""
+        if self.pack_3d is None or self.pack_3d[0] != run_id:
+            self.pack_3d = (run_id, NaturalAgentStates.LAYOUT.packer((1,), run_id))
+        return self.pack_3d[1](self.tag, float(rows[j]), float(b.step[j]), *b.pos[j].tolist(), *b.x[j].tolist(),
+                               *b.y[j].tolist(), *b.z[j].tolist(), float(b.u[j]), float(b.v[j]))
 
 
 def step_message(raw, lock, agents, reject, batch):
