@@ -278,3 +278,24 @@ def test_a_decision_from_the_future_or_of_no_sim_time_is_refused():
     for t in (float('nan'), -0.1, MAX_SIM_TIME, float('inf')):
         why = check_decision_time(SimpleNamespace(n=7, t=t), 10.0, 2.0)
         assert why is not None and why.kind == 'decision-time' and 'step 7' in why
+
+
+@pytest.mark.parametrize('k', [1, 3])
+def test_a_3d_state_whose_frame_is_not_orthonormal_is_refused(k):
+    """`check_natural_pose`: a frame [x y z] off by more than 1e-6 (a longer x, a tilted y), an
+    index outside the roster or twice, is refused; a rotated frame passes (one state, or several)."""
+    from swarm_core.model.natural import initial_frames
+    from swarm_ros.msg_checks import check_natural_pose
+    rng = np.random.default_rng(k)
+    x, y, z = initial_frames(rng.normal(size=(k, 3)))
+    pose = np.concatenate([rng.normal(size=(k, 3)).T, x.T, y.T, z.T])        # (12, K)
+    index = np.arange(k)
+    assert check_natural_pose(index, pose, 6) is None
+    for row, by in ((3, 1e-5), (7, 2e-6), (11, -1e-4)):
+        bad = pose.copy()
+        bad[row, k - 1] += by
+        assert check_natural_pose(index, bad, 6).kind == 'not-a-frame'
+    assert check_natural_pose(index, pose + np.r_[np.zeros(3), np.full(9, 1e-9)][:, None], 6) is None
+    assert check_natural_pose(index + 6, pose, 6).kind == 'unknown-agent'
+    if k > 1:
+        assert check_natural_pose(np.zeros(k, int), pose, 6).kind == 'duplicate'

@@ -166,9 +166,9 @@ def natural_newest(heard, keep=None):
 
 
 def min_distance_3d(pos):
-    """The smallest distance between two agents in space (inf for fewer than two)."""
-    from scipy.spatial import cKDTree
-    return float(cKDTree(pos).query(pos, k=2)[0][:, 1].min()) if len(pos) > 1 else float('inf')
+    """The smallest distance between two agents in space (inf for fewer than two):
+    `metrics.min_distance`, all pairs for a small swarm rather than a tree."""
+    return M.min_distance(pos)
 
 
 def natural_view(t, pos, headings, w, md, lam, leader_names, target=None, **extra) -> dict:

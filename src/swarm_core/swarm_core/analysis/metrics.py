@@ -33,14 +33,16 @@ DENSE_MIN_DISTANCE = 128
 
 
 def min_distance(pos):
-    """Minimum pairwise distance (collision margin); inf for fewer than two agents."""
+    """Minimum pairwise distance (collision margin), in the plane or in space (pos (N, 2) or
+    (N, 3)); inf for fewer than two agents."""
     pos = np.asarray(pos, dtype=float)
     if len(pos) < 2:
         return float('inf')
     if len(pos) <= DENSE_MIN_DISTANCE:     # all pairs: faster than building a tree (per-step use)
-        dx = pos[:, 0, None] - pos[:, 0]
-        dy = pos[:, 1, None] - pos[:, 1]
-        d2 = dx * dx + dy * dy
+        d2 = None
+        for c in range(pos.shape[1]):      # dx² + dy² (+ dz²), left to right
+            d = pos[:, c, None] - pos[:, c]
+            d2 = d * d if d2 is None else d2 + d * d
         np.fill_diagonal(d2, np.inf)
         return float(np.sqrt(d2.min()))
     d, _ = cKDTree(pos).query(pos, k=2)
