@@ -198,8 +198,9 @@ class AgentNode(Node):
             self.robot_parameters = declare_robot(self)
         comms = d('comms', '', "communication model: the scenario's comms section as JSON ('' = perfect; "
                   'changes during a run: swarm drop, swarm partition)', read_only=True)
-        self.pair_sums = d('pair_sums', 'numpy', "how the law sums pairs: numpy, or compiled (numba; `swarm run "
-                           "--compiled` chooses per run as `swarm simulate` does, so both sum alike)",
+        self.pair_sums = d('pair_sums', 'numpy', "how the law sums pairs: numpy, or compiled (numba, and in lockstep "
+                           "the usual step in one compiled call; `swarm run --compiled` chooses per run as `swarm "
+                           "simulate` does, so both compute the same bits)",
                            choices=PAIR_SUMS, read_only=True)
         self.run_id = declare_run_id(self, 'lockstep steps of another run are rejected')
         return leader, pose, noise, seed, mode_parameters, comms
