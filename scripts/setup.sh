@@ -30,4 +30,9 @@ fi
 # project's CI machines) no import writes them, and every agent process compiled them again
 # (≈0.35 s of CPU each, BENCHMARKS.md); quick when nothing changed
 .venv/bin/python -m compileall -q src tests > /dev/null || echo "[setup] could not byte-compile src and tests (read-only?): going on without"
+# load (the first time: compile) the numba kernels once, in one process: a long lockstep run takes
+# them (--compiled auto, docs/scale.md), and the first run's agent processes would otherwise each
+# compile them at once (the main job's 6 agents took 37 s to start on 2 cores, not 8); quick once cached
+.venv/bin/python -c "from swarm_core.laws.paper.compiled_sums import warm_up; warm_up()" \
+  || echo "[setup] could not load the compiled kernels (numba?): runs that take them compile them"
 echo "[setup] ready: $(.venv/bin/python --version), $(ls src | tr '\n' ' ')"
