@@ -65,6 +65,19 @@ lambda: {{kind: constant, value: 0.0}}
 """
 
 
+def steps_done_reference(name: str, n: int):
+    """The batch engine's first n states of shipped scenario ``name`` as a whole lockstep run of
+    it makes them: simulated only that far, but with the pair sums its full length chose
+    (`compiled_sums.run_sums`: a long run takes the compiled path), so a run stopped after n states
+    can be compared bit for bit."""
+    from swarm_core.engine.reference import simulate
+    from swarm_core.laws.paper.compiled_sums import run_sums
+    from swarm_core.scenario.loader import load
+    full = load(name)
+    compiled = 'on' if run_sums(len(full.names), full.steps) == 'compiled' else 'off'
+    return simulate(load(name, duration=(n - 1) * full.dt), compiled=compiled)
+
+
 def two_agents(path, duration):
     """Write a small scenario of two agents, λ = 0, of ``duration`` s to ``path`` (returned)."""
     path = Path(path)
