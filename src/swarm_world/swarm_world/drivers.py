@@ -54,7 +54,7 @@ from swarm_ros.run_control import EventRefused, FirstSender, forwarded
 from swarm_world.lateness import TIMING_FILE, Lateness, behind_line, timing_line
 from swarm_world.lockstep import LockstepBarrier, RobotPoseJoin, comms_schedule
 from swarm_world.markers import stamp
-from swarm_world.natural import NaturalBarrier, check_natural_states, min_distance_3d, natural_check, natural_newest
+from swarm_world.natural import NaturalBarrier, check_natural_states, natural_check, natural_newest
 from swarm_world.realtime import RealtimeSchedule, SilenceWatch, clock_tick, decision_valid, newest_view
 from swarm_world.wallclock import StallWatch, StartWatch
 
@@ -450,7 +450,7 @@ class RealtimeDriver:
         if self.schedule.view_due(k):
             pos, theta = (natural_newest if node.dim == 3 else newest_view)(self.heard, ~node.faults.dead)
             t = k * node.dt
-            md = min_distance_3d(pos) if node.dim == 3 else M.min_distance(pos)
+            md = M.min_distance(pos)                # in the plane or in space
             line = node.obs.progress(t, pos, md, node.lam_now)
             if line:
                 node.log(line, flush=True)

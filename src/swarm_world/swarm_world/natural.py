@@ -139,7 +139,7 @@ def check_natural_states(index, state, n, topic):
 def natural_check(obs, t, pos, names, barrier=None, ground=None):
     """`observe.Observer.check` in space: (minimum distance, complaints); intrusions are inside
     the barrier's hull or below the ground."""
-    md = min_distance_3d(pos)
+    md = M.min_distance(pos)
     out = []
     if md < obs.collision_distance:
         obs.collisions += 1
@@ -163,12 +163,6 @@ def natural_newest(heard, keep=None):
     have = np.isfinite(heard.t) if keep is None else np.isfinite(heard.t) & keep
     s = heard.state[have]
     return s[:, 0:3], (s[:, 3:6], s[:, 6:9], s[:, 9:12])
-
-
-def min_distance_3d(pos):
-    """The smallest distance between two agents in space (inf for fewer than two):
-    `metrics.min_distance`, all pairs for a small swarm rather than a tree."""
-    return M.min_distance(pos)
 
 
 def natural_view(t, pos, headings, w, md, lam, leader_names, target=None, **extra) -> dict:
