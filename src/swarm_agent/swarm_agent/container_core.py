@@ -162,25 +162,23 @@ class ContainerCore:
         and the moved agents' 'u-nan' rejects), the rules of the module docstring as masks, no
         Python per agent but for the rare outcomes."""
         b, n = self.bank, s.n
-        if self.usual(s):
-            go, repeat, out = self.every, self.every[:0], []       # the usual step: every agent moves
-            if self.compiled is not None and compiled_step.fits(self.cores[0].law, s.target, s.barrier,
-                                                                 s.rendezvous, s.alive):
-                return go, repeat, out, self._compiled_rows(s)
-        else:
-            go, repeat, out = self._rules(s)
+        usual = self.usual(s)                                       # the usual step: every agent moves
+        go, repeat, out = (self.every, self.every[:0], []) if usual else self._rules(s)
         if not go.size:
             return go, repeat, out, []
         b.silent[go] = False
-        for j in go.tolist() if self.any_reported else ():
+        compiled = usual and self.compiled is not None and compiled_step.fits(
+            self.cores[0].law, s.target, s.barrier, s.rendezvous, s.alive)
+        for j in go.tolist() if self.any_reported else ():         # (never compiled: no robot there)
             c = self.cores[j]
             if c.reported:
                 c.take_reported(s.x[c.index], s.y[c.index], s.qz[c.index], s.qw[c.index])
-        us = np.asarray(self.controls(s, go), dtype=float)
+        us = self._compiled_rows(s) if compiled else np.asarray(self.controls(s, go), dtype=float)
         nan = [] if math.isfinite(us.sum()) else [
             (int(go[i]), 'reject', ('u-nan', f'non-finite control u={us[i]} at step {n}; holding u=0'))
             for i in np.flatnonzero(~self.finite(us))]
-        self.advance(go, us)
+        if not compiled:                                           # (the compiled call moved them)
+            self.advance(go, us)
         b.step[go] = n + 1
         return go, repeat, out, nan
 
@@ -232,12 +230,12 @@ class ContainerCore:
         return self._compiled
 
     def _compiled_rows(self, s):
-        """The usual step in one compiled call (`compiled_step`): the same bits as `controls`
-        and `advance`; returns the moved agents' 'u-nan' rejects."""
+        """The law and the move of the usual step in one compiled call (`compiled_step`): the
+        same bits as `controls` and `advance`; returns u (K,) as the law gave it (the bank holds
+        it with non-finite values as 0, as `advance` does)."""
         b, first = self.bank, self.cores[0]
         if not b.fresh.all():
             b.refresh(np.flatnonzero(~b.fresh))
-        b.silent[:] = False
         steering = np.asarray(s.steering, float)
         try:
             u, (pos, cos_t, sin_t) = self._compiled(first.law, b, self.rows, first.dt, s.lam,
@@ -246,15 +244,9 @@ class ContainerCore:
             raise failed_at(err, s.t) from None
         b.share(SharedTable(pos, cos_t, sin_t, s.lam, s.flags, steering, s.target, s.barrier, s.alive,
                             s.rendezvous, s.t), self.every, self.cores)
-        nan = []
-        if not math.isfinite(u.sum()):
-            nan = [(int(j), 'reject', ('u-nan', f'non-finite control u={u[j]} at step {s.n}; holding u=0'))
-                   for j in np.flatnonzero(~np.isfinite(u))]
-            u[~np.isfinite(u)] = 0.0
-        b.u = u
+        b.u = u if math.isfinite(u.sum()) else np.where(np.isfinite(u), u, 0.0)
         b.fresh[:] = True
-        b.step[:] = s.n + 1
-        return nan
+        return u
 
     @property
     def any_reported(self) -> bool:
