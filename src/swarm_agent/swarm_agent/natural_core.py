@@ -237,29 +237,21 @@ class NaturalContainerCore(ContainerCore):
         alive = s.alive if len(s.alive) == self.n and not s.alive.all() else None
         steering = np.asarray(s.steering, float)
         self.seen = (pos, (x, y, z), s.lam, s.flags, steering, s.target, s.barrier, s.ground, alive, s.rendezvous, s.t)
-        if every and self.one_law:                              # the usual step of a plain run: one call, in order
+
+        def call(rows, law):
             try:
-                return natural_alive_control(pos, (x, y, z), idx, self.cores[0].law, s.lam, s.flags, steering[idx],
-                                             s.target, s.barrier, s.ground, alive=alive, rendezvous=s.rendezvous,
-                                             t=s.t)
+                return natural_alive_control(pos, (x, y, z), rows, law, s.lam, s.flags, steering[rows], s.target,
+                                             s.barrier, s.ground, alive=alive, rendezvous=s.rendezvous, t=s.t)
             except LawError as err:   # the process stops on it (`swarm_ros.rosutil.run_node`)
                 raise failed_at(err, s.t) from None
-        if self.one_law:                                        # a plain run: one call
-            groups = [go.tolist()]
-        else:                                                   # one call per law
-            by_law = {}
-            for j in go.tolist():
-                by_law.setdefault(id(self.cores[j].law), []).append(j)
-            groups = list(by_law.values())
+        if self.one_law:                                        # a plain run: one call, in the order of go
+            return call(idx, self.cores[0].law)
+        by_law = {}                                             # else one call per law
+        for j in go.tolist():
+            by_law.setdefault(id(self.cores[j].law), []).append(j)
         uv = np.zeros((len(go), 2))
-        for js in groups:
-            rows = self.rows[js]
-            try:
-                uv[np.searchsorted(go, js)] = natural_alive_control(
-                    pos, (x, y, z), rows, self.cores[js[0]].law, s.lam, s.flags, steering[rows], s.target, s.barrier,
-                    s.ground, alive=alive, rendezvous=s.rendezvous, t=s.t)
-            except LawError as err:   # the process stops on it (`swarm_ros.rosutil.run_node`)
-                raise failed_at(err, s.t) from None
+        for js in by_law.values():
+            uv[np.searchsorted(go, js)] = call(self.rows[js], self.cores[js[0]].law)
         return uv
 
     def advance(self, go, us):
