@@ -109,7 +109,6 @@ class AgentStatesWriter:
                           b.u[js])
         self.pub.publish(msg.to_cdr(run_id))
 
-
     def _lone_3d(self, b, rows, j, run_id) -> bytes:
         """What `NaturalStates.message` of the one row j makes, packed from plain floats (as a
         lone planar agent's answer, `publish`)."""
