@@ -23,7 +23,7 @@ _CLASSES = frozenset(PAPER_LAWS.values())
 
 
 def fits(law, target, barrier, rendezvous, alive) -> bool:
-    """Can `step` compute this step's u (else numpy does)?  ``alive``: the step's alive mask
+    """Can `CompiledStep` take this step (else numpy does, to the same bits)?  ``alive``: the step's alive mask
     (empty or all True: the whole table)."""
     return (type(law) in _CLASSES and rendezvous is None and (len(alive) == 0 or bool(alive.all()))
             and (barrier is None or law.barrier_gain == 0.0 or len(barrier) == 0))
